@@ -1,0 +1,133 @@
+"""Readable and JSON views of a decoded frame (``mlink-sim decode``, logs, the live status)."""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+from typing import Any
+
+from . import ml2, ml3
+from .codes import CmdAlm, CommAlm, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, M3Cmd, SubCmdAlm
+from .drive_codes import SiT3DriveAlarm, SiT3DriveWarning
+from .frame import Frame
+from .layout import Unknown
+
+__all__ = ["describe", "format_frame"]
+
+
+def _flag_names(flag_type: type[enum.IntFlag], value: int) -> list[str]:
+    return [m.name for m in flag_type if m.value & value and m.value.bit_count() == 1 and m.name]
+
+
+def _enum_name(enum_type: type[enum.IntEnum], value: int) -> str:
+    try:
+        return enum_type(value).name
+    except ValueError:
+        return f"{value:#04x}"
+
+
+def _body(body: Any, commands: type[enum.IntEnum], slot_code: int) -> dict[str, Any]:
+    name = _enum_name(commands, slot_code)
+    if isinstance(body, Unknown):
+        return {"command": name, "code": slot_code, "unknown": True, "raw": body.raw.hex()}
+    out: dict[str, Any] = {"command": name, "code": slot_code}
+    for f in dataclasses.fields(body):
+        v = getattr(body, f.name)
+        out[f.name] = v.hex() if isinstance(v, bytes) else v
+    return out
+
+
+def _alarm_name(code: int) -> str:
+    for table in (M2Alarm, SiT3DriveAlarm, SiT3DriveWarning):
+        try:
+            return table(code).name
+        except ValueError:
+            continue
+    return f"{code:#04x}"
+
+
+def describe(frame: Frame) -> dict[str, Any]:
+    """A JSON-serialisable dict of every field of *frame*, with code and flag names."""
+    msg = frame.message
+    out: dict[str, Any] = {
+        "link": frame.link.name,
+        "kind": frame.kind.name.lower(),
+        "station": frame.station,
+        "cycle": frame.cycle,
+        "tcycle_ns": frame.tcycle_ns,
+        "data_size": frame.data_size,
+    }
+    if isinstance(msg, ml2.M2Command):
+        out["main"] = _body(msg.body, M2Cmd, msg.code)
+        out["wdt"] = msg.wdt
+        if msg.sub is not None:
+            out["sub"] = _body(msg.sub, M2Cmd, ml2.COMMAND_SUB.code_of(msg.sub))
+    elif isinstance(msg, ml2.M2Response):
+        out["main"] = _body(msg.body, M2Cmd, msg.code)
+        out["alarm"] = msg.alarm
+        out["alarm_name"] = _alarm_name(msg.alarm) if msg.alarm else None
+        out["status"] = msg.status
+        out["status_bits"] = _flag_names(M2Status, msg.status)
+        out["rwdt"] = msg.rwdt
+        if msg.sub is not None:
+            out["sub"] = _body(msg.sub, M2Cmd, ml2.RESPONSE_SUB.code_of(msg.sub))
+            out["substatus"] = msg.substatus
+            out["substatus_bits"] = _flag_names(M2SubStatus, msg.substatus)
+    elif isinstance(msg, ml3.M3Command):
+        out["main"] = _body(msg.body, M3Cmd, msg.code)
+        out["wdt"] = msg.wdt
+        out["cmd_ctrl"] = dataclasses.asdict(msg.ctrl)
+        if msg.sub is not None:
+            out["sub"] = _body(msg.sub, M3Cmd, ml3.COMMAND_SUB.code_of(msg.sub))
+    else:
+        assert isinstance(msg, ml3.M3Response)
+        out["main"] = _body(msg.body, M3Cmd, msg.code)
+        out["rwdt"] = msg.rwdt
+        stat = dataclasses.asdict(msg.stat)
+        stat["cmd_alm_name"] = _enum_name(CmdAlm, msg.stat.cmd_alm)
+        stat["comm_alm_name"] = _enum_name(CommAlm, msg.stat.comm_alm)
+        out["cmd_stat"] = stat
+        if msg.sub is not None:
+            out["sub"] = _body(msg.sub, M3Cmd, ml3.RESPONSE_SUB.code_of(msg.sub))
+            sub_stat = dataclasses.asdict(msg.substat)
+            sub_stat["subcmd_alm_name"] = _enum_name(SubCmdAlm, msg.substat.subcmd_alm)
+            out["sub_stat"] = sub_stat
+    return out
+
+
+def _fmt_body(d: dict[str, Any]) -> str:
+    fields = " ".join(
+        f"{k}={v:#x}" if isinstance(v, int) and k in ("no", "signals", "invcmd_ctrl", "invcmd_stat") else f"{k}={v}"
+        for k, v in d.items()
+        if k not in ("command", "code")
+    )
+    return f"{d['command']}({d['code']:02X}H){(' ' + fields) if fields else ''}"
+
+
+def format_frame(frame: Frame) -> str:
+    """A compact multi-line human-readable rendering of *frame*."""
+    d = describe(frame)
+    link = Link(frame.link).label
+    lines = [
+        f"{link} {d['kind']} station {frame.station:#04x} ({frame.station:02X}H) cycle {frame.cycle} "
+        f"tcycle {frame.tcycle_ns / 1e6:g} ms, {frame.data_size}-byte data",
+        f"  main: {_fmt_body(d['main'])}",
+    ]
+    if "wdt" in d:
+        lines.append(f"  WDT: {d['wdt']:#04x}")
+    if "rwdt" in d:
+        lines.append(f"  RWDT: {d['rwdt']:#04x}")
+    if "alarm" in d:
+        alarm = f"{d['alarm']:02X}H {d['alarm_name']}" if d["alarm"] else "00H"
+        lines.append(f"  ALARM: {alarm}   STATUS: {d['status']:#06x} {' '.join(d['status_bits'])}")
+    if "cmd_ctrl" in d:
+        lines.append(f"  CMD_CTRL: {d['cmd_ctrl']}")
+    if "cmd_stat" in d:
+        lines.append(f"  CMD_STAT: {d['cmd_stat']}")
+    if "sub" in d:
+        lines.append(f"  sub: {_fmt_body(d['sub'])}")
+    if "substatus" in d:
+        lines.append(f"  SUBSTATUS: {' '.join(d['substatus_bits']) or '0'}")
+    if "sub_stat" in d:
+        lines.append(f"  SUB_STAT: {d['sub_stat']}")
+    return "\n".join(lines)

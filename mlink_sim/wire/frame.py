@@ -1,0 +1,174 @@
+"""The UDP datagram envelope (docs/wire-format.md) and the top-level codec.
+
+::
+
+    offset  size  field
+    0       1     magic 0x4D ('M')
+    1       1     link: 01H MECHATROLINK-I, 02H MECHATROLINK-II, 03H MECHATROLINK-III
+    2       1     kind: 01H command (master -> slave), 02H response (slave -> master)
+    3       1     station address of the slave (both directions)
+    4       4     cycle number, u32 LE (a response echoes the command's)
+    8       4     transmission cycle in ns, u32 LE (echoed in the response)
+    12      n     data: 17/32 bytes (MECHATROLINK-I/II), 32/64 bytes (MECHATROLINK-III)
+    12+n    2     FCS: CRC-16/X-25 over bytes 0 … 11+n, LE
+
+Everything that can be wrong with a datagram raises :class:`WireError` carrying a :class:`DropReason`; receivers
+count it as a reception failure (a MECHATROLINK-III slave reports a bad FCS as COMM_ALM 1/8).
+"""
+
+from __future__ import annotations
+
+import enum
+import struct
+from dataclasses import dataclass
+from typing import Union
+
+from construct import Int8ul, Int16ul, Int32ul, Struct
+
+from . import ml2, ml3
+from .codes import Kind, Link
+from .fcs import crc16_x25
+from .layout import fast_format
+
+__all__ = [
+    "MAGIC",
+    "HEADER_SIZE",
+    "FCS_SIZE",
+    "ENVELOPE",
+    "Frame",
+    "Message",
+    "DropReason",
+    "WireError",
+    "encode",
+    "decode",
+    "datagram_size",
+]
+
+MAGIC = 0x4D
+HEADER_SIZE = 12
+FCS_SIZE = 2
+
+#: The envelope header, declared once (the FCS trails the data).
+ENVELOPE = Struct(
+    "magic" / Int8ul,
+    "link" / Int8ul,
+    "kind" / Int8ul,
+    "station" / Int8ul,
+    "cycle" / Int32ul,
+    "tcycle_ns" / Int32ul,
+)
+_HEADER = struct.Struct(fast_format(ENVELOPE, HEADER_SIZE)[0])
+_FCS = struct.Struct(fast_format(Struct("fcs" / Int16ul), FCS_SIZE)[0])
+
+Message = Union[ml2.M2Command, ml2.M2Response, ml3.M3Command, ml3.M3Response]
+
+
+class DropReason(enum.Enum):
+    """Why a datagram was not accepted (a counted reception failure, never an exception escaping the loop)."""
+
+    TOO_SHORT = "too short"
+    TOO_LONG = "too long"
+    BAD_SIZE = "wrong data size"
+    BAD_MAGIC = "bad magic"
+    BAD_LINK = "unknown link"
+    BAD_KIND = "unknown kind"
+    BAD_FCS = "bad FCS"
+    WRONG_KIND = "unexpected kind"
+
+
+class WireError(ValueError):
+    """A datagram that cannot be accepted; :attr:`reason` says why, ``str(err)`` is a one-line message."""
+
+    def __init__(self, reason: DropReason, detail: str) -> None:
+        super().__init__(f"{reason.value}: {detail}")
+        self.reason = reason
+        self.detail = detail
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    """One decoded datagram: envelope fields and the typed message."""
+
+    link: Link
+    kind: Kind
+    station: int
+    cycle: int
+    tcycle_ns: int
+    message: Message
+
+    @property
+    def data_size(self) -> int:
+        return self.message.size
+
+
+def datagram_size(data_size: int) -> int:
+    """Datagram length for a data area of *data_size* bytes."""
+    return HEADER_SIZE + data_size + FCS_SIZE
+
+
+_ML2_TYPES = (ml2.M2Command, ml2.M2Response)
+_ML3_TYPES = (ml3.M3Command, ml3.M3Response)
+_MAX_DATAGRAM = datagram_size(64)
+_MIN_DATAGRAM = datagram_size(17)
+_LINKS = {int(v): v for v in Link}
+
+
+def encode(frame: Frame) -> bytes:
+    """Datagram bytes of *frame* (FCS appended)."""
+    msg = frame.message
+    if frame.link is Link.ML3:
+        if not isinstance(msg, _ML3_TYPES):
+            raise TypeError("a MECHATROLINK-III frame needs an M3Command or M3Response")
+        data = ml3.encode_data(msg)
+    else:
+        if not isinstance(msg, _ML2_TYPES):
+            raise TypeError("a MECHATROLINK-I/II frame needs an M2Command or M2Response")
+        if frame.link is Link.ML1 and msg.sub is not None:
+            raise ValueError("MECHATROLINK-I carries 17-byte data only")
+        data = ml2.encode_data(msg)
+    kind = Kind.COMMAND if isinstance(msg, (ml2.M2Command, ml3.M3Command)) else Kind.RESPONSE
+    head = _HEADER.pack(MAGIC, frame.link, kind, frame.station, frame.cycle, frame.tcycle_ns)
+    body = head + data
+    return body + _FCS.pack(crc16_x25(body))
+
+
+def decode(datagram: bytes, *, data_size: int | None = None, kind: Kind | None = None) -> Frame:
+    """Decode and check one datagram.
+
+    *data_size* is the station's configured frame size, if known: a datagram of any other size is rejected.
+    *kind* restricts the accepted kind (a slave accepts commands only).
+    Raises :class:`WireError` for every malformed input.
+    """
+    n = len(datagram)
+    if n < _MIN_DATAGRAM:
+        raise WireError(DropReason.TOO_SHORT, f"{n} bytes, the shortest datagram is {_MIN_DATAGRAM}")
+    if n > _MAX_DATAGRAM:
+        raise WireError(DropReason.TOO_LONG, f"{n} bytes, the longest datagram is {_MAX_DATAGRAM}")
+    magic, link_b, kind_b, station, cycle, tcycle = _HEADER.unpack_from(datagram)
+    if magic != MAGIC:
+        raise WireError(DropReason.BAD_MAGIC, f"{magic:#04x}, expected {MAGIC:#04x}")
+    link = _LINKS.get(link_b)
+    if link is None:
+        raise WireError(DropReason.BAD_LINK, f"{link_b:#04x}, expected 01H, 02H or 03H")
+    if kind_b not in (1, 2):
+        raise WireError(DropReason.BAD_KIND, f"{kind_b:#04x}, expected 01H (command) or 02H (response)")
+    size = n - HEADER_SIZE - FCS_SIZE
+    sizes = link.data_sizes
+    if size not in sizes:
+        expected = " or ".join(map(str, sizes))
+        raise WireError(DropReason.BAD_SIZE, f"{size} data bytes on {link.label}, expected {expected}")
+    if data_size is not None and size != data_size:
+        raise WireError(DropReason.BAD_SIZE, f"{size} data bytes, this station uses {data_size}-byte frames")
+    (fcs,) = _FCS.unpack_from(datagram, n - FCS_SIZE)
+    want = crc16_x25(datagram[: n - FCS_SIZE])
+    if fcs != want:
+        raise WireError(DropReason.BAD_FCS, f"{fcs:#06x}, computed {want:#06x}")
+    knd = Kind.COMMAND if kind_b == 1 else Kind.RESPONSE
+    if kind is not None and knd is not kind:
+        raise WireError(DropReason.WRONG_KIND, f"got a {knd.name.lower()}, expected a {kind.name.lower()}")
+    data = datagram[HEADER_SIZE : n - FCS_SIZE]
+    if link is Link.ML3:
+        msg: Message = ml3.decode_command(data) if knd is Kind.COMMAND else ml3.decode_response(data)
+    else:
+        msg = ml2.decode_command(data) if knd is Kind.COMMAND else ml2.decode_response(data)
+    return Frame(link, knd, station, cycle, tcycle, msg)
