@@ -1,0 +1,235 @@
+"""The slave side over UDP: one datagram endpoint per hosted station, feeding the sans-I/O card cores.
+
+The server only moves bytes and keeps time: ``datagram -> station.receive(data, addr, now) -> sendto``; a 1 ms
+housekeeping tick calls ``station.poll(now)`` for stations whose deadline has come (silence detection, drive);
+EEPROM images the cards hand over (``take_eeprom``) are written atomically in a worker thread.
+
+A small JSON-over-UDP *control* endpoint answers ``{"op": "stats"}`` with every station's snapshot, counters and
+the process CPU time, so the supervisor (``mlink-sim up``) can collect slave-side figures without sharing
+anything but the network.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import resource
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import structlog
+
+from ..jsonable import to_jsonable
+from .state import atomic_write, eeprom_path
+from .udp import DatagramEndpoint, open_endpoint
+
+__all__ = ["HostedStation", "SlaveServer", "query_control"]
+
+log = structlog.get_logger("mlink_sim.slave")
+
+_POLL_INTERVAL_S = 0.001
+
+
+def _cpu_seconds() -> float:
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    return ru.ru_utime + ru.ru_stime
+
+
+@dataclass
+class HostedStation:
+    """A card core and where it listens."""
+
+    station: Any  #: a mlink_sim.cards Station
+    host: str
+    port: int
+    endpoint: DatagramEndpoint | None = None
+    eeprom: Path | None = None
+    responses: int = field(default=0)
+
+
+class SlaveServer:
+    """Serves one or more stations; ``await start()`` binds, ``await close()`` stops."""
+
+    def __init__(
+        self,
+        stations: list[HostedStation],
+        *,
+        state_dir: str | Path | None = None,
+        control: tuple[str, int] | None = ("127.0.0.1", 0),
+    ) -> None:
+        self.stations = stations
+        self.state_dir = Path(state_dir) if state_dir else None
+        self._control_addr = control
+        self._control: DatagramEndpoint | None = None
+        self._tick: asyncio.TimerHandle | None = None
+        self._pending_writes: dict[Path, bytes] = {}
+        self._writer: asyncio.Task[None] | None = None
+        self._write_wakeup = asyncio.Event()
+        self._started_wall = time.monotonic()
+        self._started_cpu = _cpu_seconds()
+        self.write_errors = 0
+        self._closing = False
+        for hs in stations:
+            if self.state_dir is not None and hs.eeprom is None:
+                hs.eeprom = eeprom_path(self.state_dir, hs.station.card, hs.station.address)
+
+    # -- lifecycle --------------------------------------------------------------------------------------------
+
+    async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        try:
+            for hs in self.stations:
+                hs.endpoint = await open_endpoint(self._receiver(hs), hs.host, hs.port)
+                hs.port = hs.endpoint.local_address[1]
+            if self._control_addr is not None:
+                self._control = await open_endpoint(self._on_control, *self._control_addr)
+        except OSError:
+            await self.close()
+            raise
+        self._writer = loop.create_task(self._write_loop())
+        self._tick = loop.call_later(_POLL_INTERVAL_S, self._on_tick)
+        self._started_wall = time.monotonic()
+        self._started_cpu = _cpu_seconds()
+
+    async def close(self) -> None:
+        self._closing = True
+        if self._tick is not None:
+            self._tick.cancel()
+            self._tick = None
+        for hs in self.stations:
+            self._collect_eeprom(hs)
+            if hs.endpoint is not None:
+                hs.endpoint.close()
+        if self._control is not None:
+            self._control.close()
+        if self._writer is not None:
+            self._write_wakeup.set()
+            await self._writer
+            self._writer = None
+
+    def ready_info(self) -> dict[str, Any]:
+        """What the ``ready`` line reports: where every station listens and the control port."""
+        return {
+            "event": "ready",
+            "pid": os.getpid(),
+            "stations": [
+                {
+                    "address": hs.station.address,
+                    "card": hs.station.card,
+                    "host": hs.host,
+                    "port": hs.port,
+                    "link": hs.station.link.name,
+                    "frame_size": hs.station.data_size,
+                }
+                for hs in self.stations
+            ],
+            "control": None if self._control is None else self._control.local_address[1],
+        }
+
+    # -- datagrams --------------------------------------------------------------------------------------------
+
+    def _receiver(self, hs: HostedStation):  # noqa: ANN202 - closure for the hot path
+        station = hs.station
+        receive = station.receive
+        monotonic_ns = time.monotonic_ns
+
+        def on_datagram(data: bytes, addr: Any) -> None:
+            response = receive(data, addr, monotonic_ns())
+            if response is not None:
+                hs.endpoint.sendto(response, addr)  # type: ignore[union-attr]
+                hs.responses += 1
+            self._collect_eeprom(hs)
+
+        return on_datagram
+
+    def _on_tick(self) -> None:
+        now = time.monotonic_ns()
+        for hs in self.stations:
+            st = hs.station
+            deadline = st.next_deadline()
+            if deadline is not None and deadline <= now:
+                st.poll(now)
+                self._collect_eeprom(hs)
+        if not self._closing:
+            self._tick = asyncio.get_running_loop().call_later(_POLL_INTERVAL_S, self._on_tick)
+
+    # -- EEPROM -----------------------------------------------------------------------------------------------
+
+    def _collect_eeprom(self, hs: HostedStation) -> None:
+        image = hs.station.take_eeprom()
+        if image is None or hs.eeprom is None:
+            return
+        self._pending_writes[hs.eeprom] = image
+        self._write_wakeup.set()
+
+    async def _write_loop(self) -> None:
+        loop = asyncio.get_running_loop()
+        while True:
+            await self._write_wakeup.wait()
+            self._write_wakeup.clear()
+            while self._pending_writes:
+                path, data = self._pending_writes.popitem()
+                try:
+                    await loop.run_in_executor(None, atomic_write, path, data)
+                    log.info("eeprom_saved", path=str(path), bytes=len(data))
+                except OSError as exc:
+                    self.write_errors += 1
+                    log.error("eeprom_write_failed", path=str(path), error=str(exc))
+            if self._closing:
+                return
+
+    # -- control ----------------------------------------------------------------------------------------------
+
+    def stats(self) -> dict[str, Any]:
+        """Snapshot of every hosted station plus this process's CPU use."""
+        wall = time.monotonic() - self._started_wall
+        cpu = _cpu_seconds() - self._started_cpu
+        return {
+            "ok": True,
+            "pid": os.getpid(),
+            "wall_s": wall,
+            "cpu_s": cpu,
+            "cpu_pct": 100.0 * cpu / wall if wall > 0 else 0.0,
+            "stations": {f"{hs.station.address:#04x}": to_jsonable(hs.station.snapshot()) for hs in self.stations},
+        }
+
+    def _on_control(self, data: bytes, addr: Any) -> None:
+        try:
+            request = json.loads(data)
+            op = request.get("op") if isinstance(request, dict) else None
+        except (ValueError, UnicodeDecodeError):
+            op = None
+        if op == "stats":
+            reply: dict[str, Any] = self.stats()
+        elif op == "ping":
+            reply = {"ok": True, "pid": os.getpid()}
+        else:
+            reply = {"ok": False, "error": "expected a JSON object with op = 'stats' or 'ping'"}
+        payload = json.dumps(reply, separators=(",", ":")).encode()
+        if len(payload) > 60_000:
+            payload = json.dumps({"ok": False, "error": "stats too large for one datagram"}).encode()
+        assert self._control is not None
+        self._control.sendto(payload, addr)
+
+
+async def query_control(host: str, port: int, op: str = "stats", timeout: float = 1.0) -> dict[str, Any] | None:
+    """Ask a slave process's control endpoint; None when it does not answer in time."""
+    loop = asyncio.get_running_loop()
+    fut: asyncio.Future[bytes] = loop.create_future()
+
+    def on_datagram(data: bytes, addr: Any) -> None:
+        if not fut.done():
+            fut.set_result(data)
+
+    ep = await open_endpoint(on_datagram, "::" if ":" in host else "0.0.0.0", 0)
+    try:
+        ep.sendto(json.dumps({"op": op}).encode(), (host, port))
+        data = await asyncio.wait_for(fut, timeout)
+        return json.loads(data)
+    except (asyncio.TimeoutError, ValueError):
+        return None
+    finally:
+        ep.close()

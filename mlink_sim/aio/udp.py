@@ -1,0 +1,85 @@
+"""UDP datagram endpoints and event-loop setup. Moves bytes; decides nothing."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+from collections.abc import Callable
+from typing import Any
+
+import structlog
+
+__all__ = ["new_event_loop", "DatagramEndpoint", "open_endpoint", "loop_name"]
+
+log = structlog.get_logger("mlink_sim.aio.udp")
+
+
+def new_event_loop() -> asyncio.AbstractEventLoop:
+    """A uvloop loop where uvloop is installed, else the default asyncio loop."""
+    try:
+        import uvloop
+    except ImportError:  # pragma: no cover - uvloop is a dependency on Linux/macOS
+        return asyncio.new_event_loop()
+    return uvloop.new_event_loop()
+
+
+def loop_name(loop: asyncio.AbstractEventLoop) -> str:
+    return "uvloop" if type(loop).__module__.startswith("uvloop") else "asyncio"
+
+
+class DatagramEndpoint(asyncio.DatagramProtocol):
+    """Hands every datagram with its source address to ``on_datagram(data, addr)``.
+
+    Socket errors (e.g. ICMP port unreachable when a peer is gone) are counted in :attr:`errors` and never raised.
+    """
+
+    def __init__(self, on_datagram: Callable[[bytes, Any], None]) -> None:
+        self.on_datagram = on_datagram
+        self.transport: asyncio.DatagramTransport | None = None
+        self.errors = 0
+        self.closed = asyncio.get_event_loop().create_future()
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self.transport = transport  # type: ignore[assignment]
+
+    def datagram_received(self, data: bytes, addr: Any) -> None:
+        self.on_datagram(data, addr)
+
+    def error_received(self, exc: Exception) -> None:
+        self.errors += 1
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if not self.closed.done():
+            self.closed.set_result(None)
+
+    def sendto(self, data: bytes, addr: Any) -> None:
+        if self.transport is not None:
+            self.transport.sendto(data, addr)
+
+    @property
+    def local_address(self) -> tuple[str, int]:
+        assert self.transport is not None
+        sockname = self.transport.get_extra_info("sockname")
+        return sockname[0], sockname[1]
+
+    def close(self) -> None:
+        if self.transport is not None:
+            self.transport.close()
+
+
+async def open_endpoint(
+    on_datagram: Callable[[bytes, Any], None], host: str = "127.0.0.1", port: int = 0, *, rcvbuf: int = 1 << 20
+) -> DatagramEndpoint:
+    """Bind a UDP socket on *host*:*port* (0 = any free port) and return its endpoint."""
+    loop = asyncio.get_running_loop()
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_DGRAM)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+        sock.bind((host, port))
+    except OSError:
+        sock.close()
+        raise
+    sock.setblocking(False)
+    _, protocol = await loop.create_datagram_endpoint(lambda: DatagramEndpoint(on_datagram), sock=sock)
+    return protocol

@@ -1,0 +1,53 @@
+"""The ``mlink-sim`` command line (click). Every command exits 0 on success, 1 when a check, an assertion or a
+datagram failed, 2 on a usage or configuration error; bad input never produces a traceback."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import click
+
+from .. import __version__
+from .decode import decode_cmd
+
+__all__ = ["main", "cli"]
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 110})
+@click.version_option(__version__, prog_name="mlink-sim")
+def cli() -> None:
+    """mlink-sim – a real-time MECHATROLINK-I/II/III master/slave simulator (SI-T3, SI-ET3, SI-T/V7) over UDP."""
+
+
+cli.add_command(decode_cmd)
+
+
+def _register_optional() -> None:
+    # Commands are imported here so that a slow import of one does not slow `mlink-sim decode`.
+    from .network import master_cmd, up_cmd, validate_cmd
+    from .probe import probe_cmd
+    from .slave import slave_cmd
+
+    for cmd in (slave_cmd, up_cmd, master_cmd, probe_cmd, validate_cmd):
+        cli.add_command(cmd)
+    try:
+        from .compose import compose_cmd
+    except ImportError:  # pragma: no cover
+        return
+    cli.add_command(compose_cmd)
+
+
+def main() -> None:
+    """Console-script entry point."""
+    _register_optional()
+    try:
+        cli.main(prog_name="mlink-sim", standalone_mode=True)
+    except KeyboardInterrupt:
+        sys.exit(130)
+    except Exception as exc:  # last line of defence: one line, not a traceback
+        if os.environ.get("MLINK_SIM_DEBUG"):
+            raise
+        click.echo(f"mlink-sim: internal error: {type(exc).__name__}: {exc} (set MLINK_SIM_DEBUG=1 for details)",
+                   err=True)
+        sys.exit(70)

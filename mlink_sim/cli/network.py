@@ -1,0 +1,154 @@
+"""``mlink-sim up``, ``mlink-sim master`` and ``mlink-sim validate``."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ..aio.network import RunOptions, run_network, run_up
+from ..aio.udp import new_event_loop
+from ..config import Config, ConfigError, format_ns, load_config, parse_duration_ns
+from .logs import configure_logging
+from .slave import _parse_endpoints
+
+__all__ = ["up_cmd", "master_cmd", "validate_cmd"]
+
+
+def _load(path: str) -> Config:
+    try:
+        return load_config(path)
+    except ConfigError as exc:
+        click.echo(f"mlink-sim: {exc}", err=True)
+        sys.exit(2)
+
+
+def _duration(text: str | None, flag: str) -> int | None:
+    if text is None:
+        return None
+    try:
+        return parse_duration_ns(text, default_unit="s")
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint=flag) from None
+
+
+def _assertions(texts: tuple[str, ...]) -> list[Any]:
+    from ..metrics import AssertionSyntaxError, parse_assertion
+
+    out = []
+    for text in texts:
+        try:
+            out.append(parse_assertion(text))
+        except AssertionSyntaxError as exc:
+            raise click.BadParameter(f"{text!r}: {exc}", param_hint="--assert") from None
+    return out
+
+
+def _run(coro_factory: Any) -> int:
+    loop = new_event_loop()
+    try:
+        outcome = loop.run_until_complete(coro_factory())
+    finally:
+        loop.close()
+    return outcome.exit_code
+
+
+_common = [
+    click.option("--duration", help="Run length after bring-up, e.g. 30s (default: the timeline's end + 1 s)."),
+    click.option("--report", "report", type=click.Path(dir_okay=False), help="Write the JSON report here."),
+    click.option("--assert", "asserts", multiple=True, metavar="EXPR",
+                 help="Check a bound at the end, e.g. 'rtt.p99 < 500us' (repeatable; docs/report.md)."),
+    click.option("--status/--no-status", default=True, show_default=True, help="Live status lines on stdout."),
+    click.option("--bringup-timeout", default="10s", show_default=True, help="How long bring-up may take."),
+    click.option("--log-json", is_flag=True, help="Log JSON lines on stderr."),
+    click.option("--log-level", default="warning", show_default=True,
+                 type=click.Choice(["debug", "info", "warning", "error"])),
+]
+
+
+def _with_common(fn: Any) -> Any:
+    for option in reversed(_common):
+        fn = option(fn)
+    return fn
+
+
+@click.command("up")
+@click.argument("config_path", metavar="CONFIG", type=click.Path(dir_okay=False))
+@click.option("--workers", type=click.IntRange(min=1), help="Host the stations in N worker processes.")
+@click.option("--state-dir", type=click.Path(file_okay=False), help="EEPROM images of the slaves (survive restarts).")
+@click.option("--run-dir", type=click.Path(file_okay=False), help="Where worker logs go (default: a temp dir).")
+@_with_common
+def up_cmd(config_path, workers, state_dir, run_dir, duration, report, asserts, status, bringup_timeout, log_json,
+           log_level) -> None:  # noqa: ANN001
+    """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held."""
+    configure_logging(json=log_json, level=log_level)
+    config = _load(config_path)
+    opts = RunOptions(
+        config_path=Path(config_path),
+        duration_ns=_duration(duration, "--duration"),
+        report_path=Path(report) if report else None,
+        assertions=_assertions(asserts),
+        status=status,
+        bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
+        workers=workers,
+        state_dir=Path(state_dir) if state_dir else None,
+        run_dir=Path(run_dir) if run_dir else None,
+    )
+    from ..aio.supervisor import WorkerError
+
+    try:
+        sys.exit(_run(lambda: run_up(config, opts)))
+    except WorkerError as exc:
+        click.echo(f"mlink-sim up: {exc}", err=True)
+        sys.exit(1)
+
+
+@click.command("master")
+@click.argument("config_path", metavar="CONFIG", type=click.Path(dir_okay=False))
+@click.option("--endpoint", "endpoints", multiple=True, metavar="ADDR=HOST:PORT",
+              help="Where station ADDR listens (overrides the config's endpoint); repeatable.")
+@_with_common
+def master_cmd(config_path, endpoints, duration, report, asserts, status, bringup_timeout, log_json,
+               log_level) -> None:  # noqa: ANN001
+    """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
+    configure_logging(json=log_json, level=log_level)
+    config = _load(config_path)
+    overrides = _parse_endpoints(endpoints)
+    resolved: dict[int, tuple[str, int]] = {}
+    missing = []
+    for st in config.station:
+        host, port = overrides.get(st.address) or st.host_port(config.network.host)
+        if port == 0:
+            missing.append(f"{st.address:#04x}")
+        resolved[st.address] = (host, port)
+    if missing:
+        raise click.UsageError(
+            f"no endpoint for station(s) {', '.join(missing)}: set 'endpoint' in the config or pass "
+            "--endpoint ADDR=HOST:PORT"
+        )
+    opts = RunOptions(
+        config_path=Path(config_path),
+        duration_ns=_duration(duration, "--duration"),
+        report_path=Path(report) if report else None,
+        assertions=_assertions(asserts),
+        status=status,
+        bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
+    )
+    sys.exit(_run(lambda: run_network(config, resolved, opts)))
+
+
+@click.command("validate")
+@click.argument("config_path", metavar="CONFIG", type=click.Path(dir_okay=False))
+def validate_cmd(config_path: str) -> None:
+    """Check CONFIG without starting anything; print a one-screen summary."""
+    config = _load(config_path)
+    net = config.network
+    click.echo(f"{config_path}: network {net.name!r}, {len(config.station)} station(s), "
+               f"transmission cycle {format_ns(net.transmission_cycle)}, {len(config.timeline)} timeline step(s)")
+    for st in config.station:
+        assert st.link is not None
+        click.echo(f"  {st.address:02X}H {st.card:<8} {st.link.label:<17} {st.frame_size}-byte COM_TIM {st.com_tim}"
+                   f"{' sync' if st.sync else ' async'}{' subcmd' if st.subcmd else ''}"
+                   f"{'  ' + st.endpoint if st.endpoint else ''}")

@@ -1,0 +1,186 @@
+"""``mlink-sim slave`` – serve one station (flags) or several stations of a config (``--config --only``)."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import signal
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import click
+import structlog
+
+from ..aio.slave import HostedStation, SlaveServer
+from ..aio.state import eeprom_path, read_state
+from ..aio.udp import loop_name, new_event_loop
+from ..config import ConfigError, StationConfig, load_config, parse_address, parse_endpoint
+from .logs import configure_logging
+
+__all__ = ["slave_cmd", "StationSpec", "build_station", "station_specs_from_config"]
+
+log = structlog.get_logger("mlink_sim.slave")
+
+
+@dataclass
+class StationSpec:
+    """Everything needed to power up one station (what the drive's parameters and switches say)."""
+
+    card: str
+    address: int
+    host: str
+    port: int
+    frame_size: int | None
+    params: list[str]
+    load: Any = None
+    link: str | None = None
+    options: dict[str, Any] | None = None
+
+
+def build_station(spec: StationSpec, state_dir: Path | None, now: int) -> Any:
+    """Create the card core for *spec*, reading its EEPROM image from *state_dir* if there is one."""
+    from ..cards import create_card, settings_for
+
+    settings = settings_for(
+        spec.card,
+        spec.address,
+        spec.frame_size,
+        spec.params,
+        load=spec.load,
+        link=spec.link,
+        options=spec.options or {},
+    )
+    eeprom = read_state(eeprom_path(state_dir, spec.card, spec.address)) if state_dir else None
+    return create_card(spec.card, settings=settings, now=now, eeprom=eeprom)
+
+
+def _load_spec(st: StationConfig) -> Any:
+    from ..drive import LoadSpec
+
+    return LoadSpec.from_config(st.load.model_dump(exclude_none=True))
+
+
+def station_specs_from_config(
+    config_path: str, only: list[int] | None, endpoints: dict[int, tuple[str, int]]
+) -> list[StationSpec]:
+    config = load_config(config_path)
+    wanted = only or [st.address for st in config.station]
+    specs = []
+    for address in wanted:
+        try:
+            st = config.station_by_address(address)
+        except KeyError:
+            raise click.BadParameter(f"{address:#04x} is not a station of {config_path}", param_hint="--only") from None
+        host, port = endpoints.get(address) or st.host_port(config.network.host)
+        specs.append(
+            StationSpec(
+                card=st.card,
+                address=st.address,
+                host=host,
+                port=port,
+                frame_size=st.frame_size,
+                params=[f"{k}={v}" for k, v in st.params.items()],
+                load=_load_spec(st),
+                link=st.link.name if st.link else None,
+                options=st.options,
+            )
+        )
+    return specs
+
+
+async def _serve(server: SlaveServer, ready_json: bool, log_json: bool) -> None:
+    loop = asyncio.get_running_loop()
+    stop = asyncio.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+    await server.start()
+    info = server.ready_info()
+    if ready_json:
+        print(json.dumps(info), flush=True)
+    else:
+        for st in info["stations"]:
+            print(
+                f"mlink-sim slave ready: {st['card']} station {st['address']:#04x} on {st['host']}:{st['port']} "
+                f"({st['link']}, {st['frame_size']}-byte frames, {loop_name(loop)})",
+                flush=True,
+            )
+    log.info("ready", stations=[f"{s['address']:#04x}@{s['host']}:{s['port']}" for s in info["stations"]],
+             control=info["control"])
+    await stop.wait()
+    log.info("stopping")
+    await server.close()
+
+
+def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
+    out = {}
+    for text in values:
+        addr, sep, target = text.partition("=")
+        if not sep:
+            raise click.BadParameter(f"expected ADDRESS=HOST:PORT such as 0x21=0.0.0.0:47001, got {text!r}",
+                                     param_hint="--endpoint")
+        try:
+            out[parse_address(addr)] = parse_endpoint(target)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="--endpoint") from None
+    return out
+
+
+@click.command("slave")
+@click.option("--card", type=click.Choice(["si-t3", "si-et3", "si-t-v7"]), help="Option card to emulate.")
+@click.option("--station", "station_text", help="Station address, e.g. 0x21 (F6-20 / V7 switches).")
+@click.option("--listen", default="127.0.0.1:0", show_default=True, help="HOST:PORT to listen on (0 = any free port).")
+@click.option("--frame-size", type=click.Choice(["17", "32", "64"]), help="Data size (F6-21 / V7 S1-2).")
+@click.option("--link", type=click.Choice(["ml1", "ml2", "ml3"], case_sensitive=False),
+              help="ml1 = 4 Mbps MECHATROLINK-I (F6-22 = 1 / V7 S1-1 off); default ml2 (ml3 for si-et3).")
+@click.option("--param", "params", multiple=True, metavar="NAME=VALUE",
+              help="Parameter in engineering units (C1-01=5.0) or raw register (0x0200=50); repeatable.")
+@click.option("--config", "config_path", type=click.Path(dir_okay=False), help="Serve stations of this network config.")
+@click.option("--only", help="With --config: comma-separated station addresses (default: all).")
+@click.option("--endpoint", "endpoints", multiple=True, metavar="ADDR=HOST:PORT",
+              help="With --config: where a station listens (overrides the config); repeatable.")
+@click.option("--state-dir", type=click.Path(file_okay=False), help="Directory of the EEPROM images (CONFIG_MOD 1).")
+@click.option("--control", default="127.0.0.1:0", show_default=True,
+              help="HOST:PORT of the JSON stats endpoint ('off' to disable).")
+@click.option("--log-json", is_flag=True, help="Log JSON lines on stderr.")
+@click.option("--log-level", default="info", type=click.Choice(["debug", "info", "warning", "error"]))
+@click.option("--ready-json", is_flag=True, help="Print the ready line as JSON (for supervisors).")
+def slave_cmd(card, station_text, listen, frame_size, link, params, config_path, only, endpoints, state_dir,
+              control, log_json, log_level, ready_json) -> None:  # noqa: ANN001
+    """Serve one station over UDP until SIGINT/SIGTERM (or several stations of a --config)."""
+    configure_logging(json=log_json, level=log_level)
+    state = Path(state_dir) if state_dir else None
+    try:
+        if config_path:
+            if card or station_text:
+                raise click.UsageError("--config takes the card and station from the file; drop --card/--station")
+            only_list = [parse_address(a) for a in only.split(",")] if only else None
+            specs = station_specs_from_config(config_path, only_list, _parse_endpoints(endpoints))
+        else:
+            if not card or not station_text:
+                raise click.UsageError("give --card and --station (or --config FILE)")
+            host, port = parse_endpoint(listen)
+            specs = [StationSpec(card, parse_address(station_text), host, port,
+                                 int(frame_size) if frame_size else None, list(params), link=link)]
+        now = time.monotonic_ns()
+        stations = [HostedStation(build_station(s, state, now), s.host, s.port) for s in specs]
+    except ConfigError as exc:
+        click.echo(f"mlink-sim slave: {exc}", err=True)
+        sys.exit(2)
+    except click.ClickException:
+        raise
+    except ValueError as exc:  # ParamError, bad address/endpoint, bad frame size for the card, bad EEPROM image
+        click.echo(f"mlink-sim slave: {exc}", err=True)
+        sys.exit(2)
+    control_addr = None if control == "off" else parse_endpoint(control)
+    server = SlaveServer(stations, state_dir=state, control=control_addr)
+    loop = new_event_loop()
+    try:
+        loop.run_until_complete(_serve(server, ready_json, log_json))
+    except OSError as exc:
+        click.echo(f"mlink-sim slave: cannot listen: {exc.strerror or exc}", err=True)
+        sys.exit(2)
+    finally:
+        loop.close()

@@ -1,0 +1,35 @@
+"""Network configuration: the TOML model (pydantic), loading with clear errors, durations with units."""
+
+from .load import ConfigError, load_config, parse_config, station_param_assignments
+from .model import (
+    CARD_FAMILY,
+    CARD_LINKS,
+    Config,
+    LoadConfig,
+    NetworkConfig,
+    StationConfig,
+    TimelineStep,
+    check_cycle,
+    parse_address,
+    parse_endpoint,
+)
+from .units import format_ns, parse_duration_ns
+
+__all__ = [
+    "Config",
+    "NetworkConfig",
+    "StationConfig",
+    "TimelineStep",
+    "LoadConfig",
+    "ConfigError",
+    "load_config",
+    "parse_config",
+    "station_param_assignments",
+    "parse_address",
+    "parse_endpoint",
+    "parse_duration_ns",
+    "format_ns",
+    "check_cycle",
+    "CARD_FAMILY",
+    "CARD_LINKS",
+]

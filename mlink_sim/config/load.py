@@ -1,0 +1,97 @@
+"""Load and validate a network TOML file; every problem becomes one :class:`ConfigError` naming file and field."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from .model import CARD_FAMILY, Config
+
+__all__ = ["ConfigError", "load_config", "parse_config", "station_param_assignments"]
+
+
+class ConfigError(ValueError):
+    """A configuration problem; ``str()`` is one or more ``FILE: field: what was expected`` lines."""
+
+
+def _loc(loc: tuple[Any, ...]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif part in ("function-after", "function-before") or str(part).startswith(("literal[", "function-")):
+            continue
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def _format_validation(source: str, err: ValidationError) -> str:
+    lines = []
+    for e in err.errors(include_url=False):
+        where = _loc(tuple(e["loc"]))
+        msg = e["msg"]
+        if msg.startswith("Value error, "):
+            msg = msg[len("Value error, ") :]
+        if e["type"] == "extra_forbidden":
+            msg = "unknown field (see docs/configuration.md for the fields)"
+        elif e["type"] == "missing":
+            msg = "required field is missing"
+        elif e["type"] == "literal_error":
+            msg = f"{msg}, got {e.get('input')!r}"
+        # model-level validators report their own "field: message" text
+        lines.append(f"{source}: {where + ': ' if where else ''}{msg}")
+    return "\n".join(lines)
+
+
+def station_param_assignments(config: Config) -> dict[int, list[str]]:
+    """``{address: ["C1-01=5.0", …]}`` – the station parameters as command-line assignments."""
+    return {st.address: [f"{k}={v}" for k, v in st.params.items()] for st in config.station}
+
+
+def _check_params(source: str, config: Config) -> None:
+    try:
+        from ..params import FAMILIES, ParamError
+    except ImportError:  # pragma: no cover - params is part of the package
+        return
+    problems = []
+    for i, st in enumerate(config.station):
+        table = FAMILIES[CARD_FAMILY[st.card]]
+        for text in station_param_assignments(config)[st.address]:
+            try:
+                table.parse_assignment(text)
+            except ParamError as exc:
+                problems.append(f"{source}: station[{i}].params: {exc}")
+    if problems:
+        raise ConfigError("\n".join(problems))
+
+
+def parse_config(text: str, source: str = "<config>") -> Config:
+    """Parse TOML *text*; raises :class:`ConfigError` with every problem found."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+    try:
+        config = Config.model_validate(data)
+    except ValidationError as exc:
+        raise ConfigError(_format_validation(source, exc)) from None
+    if "name" not in data.get("network", {}):
+        config.network.name = Path(source).stem if source != "<config>" else "network"
+    _check_params(source, config)
+    return config
+
+
+def load_config(path: str | Path) -> Config:
+    """Read and validate the TOML file at *path*."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{p}: no such file") from None
+    except OSError as exc:
+        raise ConfigError(f"{p}: cannot read: {exc.strerror}") from None
+    return parse_config(text, str(p))

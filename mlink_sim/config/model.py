@@ -1,0 +1,300 @@
+"""The network description: one TOML file with ``[network]``, ``[[station]]`` and an optional ``[[timeline]]``.
+
+Every field carries its documentation (``Field(description=...)``); ``docs/configuration.md`` is the user guide.
+Validation errors are turned into ``CONFIG: field: what was expected`` lines by :mod:`mlink_sim.config.load`.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator, model_validator
+
+from ..wire.codes import Link
+from .units import parse_duration_ns
+
+__all__ = [
+    "CARD_LINKS",
+    "CARD_FAMILY",
+    "LoadConfig",
+    "StationConfig",
+    "TimelineStep",
+    "NetworkConfig",
+    "Config",
+    "parse_address",
+    "parse_endpoint",
+    "check_cycle",
+]
+
+#: Which links each card speaks (SI-T3 Table 29 / F6-22; V7 switch S1-1; SI-ET3 Table 28).
+CARD_LINKS: dict[str, tuple[Link, ...]] = {
+    "si-t3": (Link.ML1, Link.ML2),
+    "si-t-v7": (Link.ML1, Link.ML2),
+    "si-et3": (Link.ML3,),
+}
+#: Drive family behind each card.
+CARD_FAMILY = {"si-t3": "a1000", "si-et3": "a1000", "si-t-v7": "v7"}
+#: Station address ranges (SI-T3 Table 4 F6-20 21H–3EH; V7 §3.4 switches 21H–3EH; SI-ET3 Table 7 F6-20 03H–EFH).
+ADDRESS_RANGE = {"si-t3": (0x21, 0x3E), "si-t-v7": (0x21, 0x3E), "si-et3": (0x03, 0xEF)}
+#: Default frame size per card and link: F6-21 = 0 (SI-T3 32-byte, SI-ET3 64-byte); V7 S1-2 follows S1-1.
+DEFAULT_FRAME = {("si-t3", Link.ML2): 32, ("si-t3", Link.ML1): 17, ("si-t-v7", Link.ML2): 32,
+                 ("si-t-v7", Link.ML1): 17, ("si-et3", Link.ML3): 64}  # fmt: skip
+#: Default COM_TIM per link: SI-T3 errata (MECHATROLINK-II 1, MECHATROLINK-I 2); SI-ET3 CONNECT 1–255.
+DEFAULT_COM_TIM = {Link.ML1: 2, Link.ML2: 1, Link.ML3: 1}
+
+_LINK_NAMES = {
+    "ml1": Link.ML1, "mechatrolink-i": Link.ML1, "m-i": Link.ML1, "1": Link.ML1,
+    "ml2": Link.ML2, "mechatrolink-ii": Link.ML2, "m-ii": Link.ML2, "2": Link.ML2,
+    "ml3": Link.ML3, "mechatrolink-iii": Link.ML3, "m-iii": Link.ML3, "3": Link.ML3,
+}  # fmt: skip
+
+
+def parse_address(value: Any) -> int:
+    """A station address: an integer, ``"0x21"``, ``"21H"`` or ``"33"``."""
+    if isinstance(value, bool):
+        raise ValueError("expected a station address such as 0x21")
+    if isinstance(value, int):
+        address = value
+    elif isinstance(value, str):
+        text = value.strip()
+        m = re.fullmatch(r"0[xX]([0-9A-Fa-f]+)|([0-9A-Fa-f]+)[hH]|([0-9]+)", text)
+        if not m:
+            raise ValueError(f"expected a station address such as 0x21 or 21H, got {value!r}")
+        address = int(m.group(1) or m.group(2), 16) if (m.group(1) or m.group(2)) else int(m.group(3))
+    else:
+        raise ValueError(f"expected a station address such as 0x21, got {value!r}")
+    if not 0 <= address <= 0xFF:
+        raise ValueError(f"station address {address:#x} does not fit in one byte")
+    return address
+
+
+def parse_endpoint(value: str) -> tuple[str, int]:
+    """``"host:port"`` (``"[::1]:5000"`` for IPv6) -> ``(host, port)``."""
+    text = value.strip()
+    m = re.fullmatch(r"\[([^\]]+)\]:(\d+)|([^:\s]+):(\d+)", text)
+    if not m:
+        raise ValueError(f"expected HOST:PORT such as 127.0.0.1:47001, got {value!r}")
+    host = m.group(1) or m.group(3)
+    port = int(m.group(2) or m.group(4))
+    if not 0 <= port <= 65535:
+        raise ValueError(f"port {port} is out of range 0…65535")
+    return host, port
+
+
+def _link(value: Any) -> Link:
+    if isinstance(value, Link):
+        return value
+    key = str(value).strip().lower()
+    if key not in _LINK_NAMES:
+        raise ValueError(f"expected ML1, ML2 or ML3 (MECHATROLINK-I/II/III), got {value!r}")
+    return _LINK_NAMES[key]
+
+
+def _duration(value: Any) -> int:
+    return parse_duration_ns(value)
+
+
+Address = Annotated[int, BeforeValidator(parse_address)]
+DurationNs = Annotated[int, BeforeValidator(_duration)]
+LinkField = Annotated[Link, BeforeValidator(_link)]
+
+
+def check_cycle(link: Link, frame_size: int, tcycle_ns: int) -> str | None:
+    """Why *tcycle_ns* is not a transmission cycle the cards accept on *link*, or None.
+
+    MECHATROLINK-II (SI-T3 CONNECT + errata): 32-byte 1–8 ms in whole ms, 17-byte 0.5–8 ms in 0.5 ms steps.
+    MECHATROLINK-I: 2 ms (SI-T3 Table 29 note <1>). MECHATROLINK-III: 250 µs–8 ms (SI-ET3 Table 14 ID_CODE
+    16H/17H) on the granularity of ID_CODE 18H = 03H: 31.25/62.5/125/250/500/750 µs, then 1 ms … in 0.5 ms steps.
+    """
+    ms = tcycle_ns / 1e6
+    if link is Link.ML1:
+        return None if tcycle_ns == 2_000_000 else "MECHATROLINK-I runs at a 2 ms transmission cycle"
+    if link is Link.ML2:
+        if frame_size == 32:
+            ok = 1_000_000 <= tcycle_ns <= 8_000_000 and tcycle_ns % 1_000_000 == 0
+            return None if ok else f"32-byte MECHATROLINK-II needs 1–8 ms in whole ms, got {ms:g} ms"
+        ok = 500_000 <= tcycle_ns <= 8_000_000 and tcycle_ns % 500_000 == 0
+        return None if ok else f"17-byte MECHATROLINK-II needs 0.5–8 ms in 0.5 ms steps, got {ms:g} ms"
+    allowed = tcycle_ns in (250_000, 500_000, 750_000) or (
+        1_000_000 <= tcycle_ns <= 8_000_000 and tcycle_ns % 500_000 == 0
+    )
+    return None if allowed else f"MECHATROLINK-III needs 250/500/750 µs or 1–8 ms in 0.5 ms steps, got {ms:g} ms"
+
+
+class LoadConfig(BaseModel):
+    """The mechanical load on the motor of one station (see docs/drive-model.md)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    kind: Literal["inertia", "constant", "fan", "friction"] = Field(
+        "inertia", description="inertia only, constant torque, quadratic fan, or viscous friction"
+    )
+    inertia: float | None = Field(None, gt=0, description="load inertia in kg·m² (default: scaled to the motor)")
+    torque: float | None = Field(None, ge=0, description="constant: load torque N·m; fan: torque at rated speed")
+    friction: float | None = Field(None, ge=0, description="viscous friction coefficient N·m·s/rad")
+
+
+class StationConfig(BaseModel):
+    """One slave station: one option card on one drive."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    address: Address = Field(description="station address, e.g. 0x21 (F6-20 / V7 switches S1-3 + S2)")
+    card: Literal["si-t3", "si-et3", "si-t-v7"] = Field(description="option card: si-t3, si-et3 or si-t-v7")
+    link: LinkField | None = Field(
+        None, description="ML1/ML2/ML3 for this station (default: network.link, else ML3 for si-et3, ML2 otherwise)"
+    )
+    name: str | None = Field(None, description="label shown in status lines and reports")
+    frame_size: int | None = Field(None, description="data bytes: 17/32 (MECHATROLINK-I/II) or 32/64 (III)")
+    com_tim: int | None = Field(None, ge=1, le=255, description="communication cycle = COM_TIM × transmission cycle")
+    sync: bool = Field(True, description="bring the station to phase 3 (synchronous) rather than phase 2")
+    subcmd: bool = Field(False, description="enable sub-commands (32-byte MECHATROLINK-II, 64-byte III)")
+    endpoint: str | None = Field(None, description="HOST:PORT the slave listens on (port 0: chosen at start)")
+    params: dict[str, float | int | str] = Field(
+        default_factory=dict, description="parameters in engineering units, e.g. {'C1-01' = 5.0, 'b1-02' = 3}"
+    )
+    load: LoadConfig = Field(default_factory=LoadConfig, description="mechanical load on the motor")
+    options: dict[str, Any] = Field(default_factory=dict, description="card options (docs/cards.md)")
+
+    @field_validator("endpoint")
+    @classmethod
+    def _endpoint(cls, v: str | None) -> str | None:
+        if v is not None:
+            parse_endpoint(v)
+        return v
+
+    @property
+    def label(self) -> str:
+        return self.name or f"{self.card}@{self.address:02X}H"
+
+    def host_port(self, default_host: str) -> tuple[str, int]:
+        return parse_endpoint(self.endpoint) if self.endpoint else (default_host, 0)
+
+
+_ACTIONS = ("run", "stop", "set-param", "fault-reset", "alm-clr", "ef0", "disconnect", "connect", "kill-slave")
+_EXPECTS = ("running", "stopped", "speed-agree", "phase", "no-alarm", "alarm", "output-hz")
+
+
+class TimelineStep(BaseModel):
+    """One timed action or check of a scenario. ``at`` is measured from the moment every station is up."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    at: DurationNs = Field(description="when, e.g. '0.5s', from the end of bring-up")
+    station: Address | Literal["all"] = Field("all", description="station address, or 'all'")
+    do: Literal[_ACTIONS] | None = Field(None, description="action: " + ", ".join(_ACTIONS))  # type: ignore[valid-type]
+    expect: Literal[_EXPECTS] | None = Field(None, description="check: " + ", ".join(_EXPECTS))  # type: ignore[valid-type]
+    direction: Literal["forward", "reverse"] = Field("forward", description="run: direction")
+    speed_hz: float | None = Field(None, ge=0, description="run: frequency reference in Hz")
+    param: str | None = Field(None, description="set-param: parameter name, e.g. 'C1-01'")
+    value: float | int | None = Field(None, description="set-param: value in engineering units")
+    output_hz: float | None = Field(None, description="output-hz: expected output frequency in Hz")
+    tolerance_hz: float = Field(0.5, ge=0, description="output-hz: tolerance in Hz")
+    phase: int | None = Field(None, ge=1, le=3, description="phase: expected communication phase")
+    alarm: str | None = Field(None, description="alarm: expected alarm name, e.g. 'E5' or 'bUS'")
+
+    @model_validator(mode="after")
+    def _one_of(self) -> TimelineStep:
+        if (self.do is None) == (self.expect is None):
+            raise ValueError("a timeline step needs exactly one of 'do' (an action) or 'expect' (a check)")
+        if self.do == "run" and self.speed_hz is None:
+            raise ValueError("'do = \"run\"' needs speed_hz")
+        if self.do == "set-param" and (self.param is None or self.value is None):
+            raise ValueError("'do = \"set-param\"' needs param and value")
+        if self.expect == "output-hz" and self.output_hz is None:
+            raise ValueError("'expect = \"output-hz\"' needs output_hz")
+        if self.expect == "phase" and self.phase is None:
+            raise ValueError("'expect = \"phase\"' needs phase")
+        return self
+
+    @property
+    def describe(self) -> str:
+        who = "all stations" if self.station == "all" else f"station {self.station:#04x}"
+        what = f"do {self.do}" if self.do else f"expect {self.expect}"
+        extra = ""
+        if self.do == "run":
+            extra = f" {self.direction} {self.speed_hz:g} Hz"
+        elif self.do == "set-param":
+            extra = f" {self.param}={self.value}"
+        elif self.expect == "output-hz":
+            extra = f" {self.output_hz:g}±{self.tolerance_hz:g} Hz"
+        elif self.expect == "phase":
+            extra = f" {self.phase}"
+        elif self.expect == "alarm" and self.alarm:
+            extra = f" {self.alarm}"
+        return f"{self.at / 1e9:g}s {who}: {what}{extra}"
+
+
+class NetworkConfig(BaseModel):
+    """The network as a whole."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str = Field("network", description="name shown in status lines and reports")
+    link: LinkField | None = Field(
+        None, description="default link of the stations: ML1, ML2 or ML3 (MECHATROLINK-I, -II, -III)"
+    )
+    transmission_cycle: DurationNs = Field(description="transmission cycle, e.g. '1ms' or '250us'")
+    master_address: Address = Field(0x01, description="the master's own address (informational)")
+    host: str = Field("127.0.0.1", description="address slaves bind by default (loopback)")
+    duration: DurationNs | None = Field(None, description="run length when there is no timeline, e.g. '10s'")
+
+
+class Config(BaseModel):
+    """A whole configuration file."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    network: NetworkConfig
+    station: list[StationConfig] = Field(min_length=1, description="the slave stations")
+    timeline: list[TimelineStep] = Field(default_factory=list, description="timed actions and checks")
+
+    @model_validator(mode="after")
+    def _consistency(self) -> Config:
+        seen: dict[int, int] = {}
+        for i, st in enumerate(self.station):
+            where = f"station[{i}]"
+            if st.link is None:
+                st.link = self.network.link or CARD_LINKS[st.card][-1]
+            link = st.link
+            if st.address in seen:
+                raise ValueError(f"{where}.address: {st.address:#04x} is already used by station[{seen[st.address]}]")
+            seen[st.address] = i
+            lo, hi = ADDRESS_RANGE[st.card]
+            if not lo <= st.address <= hi:
+                raise ValueError(
+                    f"{where}.address: {st.address:#04x} is outside {st.card}'s range {lo:02X}H–{hi:02X}H"
+                )
+            if link not in CARD_LINKS[st.card]:
+                links = "/".join(lk.label for lk in CARD_LINKS[st.card])
+                raise ValueError(f"{where}.link: {st.card} speaks {links}, not {link.label}")
+            if st.frame_size is None:
+                st.frame_size = DEFAULT_FRAME[(st.card, link)]
+            if st.frame_size not in link.data_sizes:
+                sizes = " or ".join(map(str, link.data_sizes))
+                raise ValueError(f"{where}.frame_size: {link.label} uses {sizes}-byte frames, got {st.frame_size}")
+            if st.com_tim is None:
+                st.com_tim = DEFAULT_COM_TIM[link]
+            if st.subcmd and st.frame_size not in (32, 64) or st.subcmd and link is Link.ML1:
+                raise ValueError(f"{where}.subcmd: sub-commands need 32-byte MECHATROLINK-II or 64-byte III frames")
+            why = check_cycle(link, st.frame_size, self.network.transmission_cycle)
+            if why:
+                raise ValueError(f"network.transmission_cycle: {why} (for {where}, {st.frame_size}-byte)")
+        for i, step in enumerate(self.timeline):
+            if step.station != "all" and step.station not in seen:
+                raise ValueError(f"timeline[{i}].station: {step.station:#04x} is not a station of this network")
+        return self
+
+    def station_by_address(self, address: int) -> StationConfig:
+        for st in self.station:
+            if st.address == address:
+                return st
+        raise KeyError(address)
+
+    @property
+    def run_length_ns(self) -> int | None:
+        """The end of the scenario: the last timeline step plus one second, or ``network.duration``."""
+        if self.timeline:
+            return max(s.at for s in self.timeline) + 1_000_000_000
+        return self.network.duration
