@@ -1,0 +1,39 @@
+"""EEPROM images are written atomically: a failed write leaves the old file intact."""
+
+import os
+from pathlib import Path
+
+import pytest
+
+from mlink_sim.aio.state import atomic_write, eeprom_path, read_state
+from mlink_sim.aio.supervisor import plan_workers
+
+
+def test_atomic_write_replaces_and_reads_back(tmp_path: Path) -> None:
+    path = eeprom_path(tmp_path / "state", "si-t3", 0x21)
+    assert path.name == "si-t3-21H.eeprom.json"
+    assert read_state(path) is None
+    atomic_write(path, b"one")
+    atomic_write(path, b"two")
+    assert read_state(path) == b"two"
+    assert [p.name for p in path.parent.iterdir()] == [path.name]  # no temporary left behind
+
+
+def test_atomic_write_failure_keeps_old_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = tmp_path / "img.json"
+    atomic_write(path, b"old")
+
+    def boom(src: str, dst: str) -> None:
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", boom)
+    with pytest.raises(OSError):
+        atomic_write(path, b"new")
+    assert path.read_bytes() == b"old"
+    assert [p.name for p in tmp_path.iterdir()] == ["img.json"]
+
+
+def test_plan_workers_round_robin() -> None:
+    assert plan_workers([1, 2, 3], None) == [[1], [2], [3]]
+    assert plan_workers([1, 2, 3, 4, 5], 2) == [[1, 3, 5], [2, 4]]
+    assert plan_workers([1, 2], 8) == [[1], [2]]
