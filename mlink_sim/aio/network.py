@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
-import os
-import platform
 import signal
 import sys
 import tempfile
@@ -205,7 +203,7 @@ async def run_network(
 ) -> RunOutcome:
     """Start one master per link against *endpoints*, bring the stations up, run the timeline, report."""
     from ..aio.master import Master
-    from ..metrics import NetworkMetrics, check_all, write_report
+    from ..metrics import NetworkMetrics, check_all, host_info, write_report
 
     loop = asyncio.get_running_loop()
     workers = workers or {}
@@ -283,15 +281,16 @@ async def run_network(
         "started": started_wall.isoformat(),
         "duration_s": round(wall, 3),
         "cycle_ns": config.network.transmission_cycle,
-        "links": sorted(link.label for link in masters),
+        "generation": ", ".join(sorted(link.label for link in masters)),
         "stations": len(config.station),
-        "host": {"python": platform.python_version(), "machine": platform.machine(), "cpus": os.cpu_count()},
+        "host": host_info(),
     }
+    for c in checks:
+        metrics.record_check(c.at_s, c.what, c.ok, c.detail)
+    meta["problems"] = list(problems)
     report = metrics.report(meta=meta)
-    report["checks"] = [dataclasses.asdict(c) for c in checks]
-    report["problems"] = list(problems)
     results = check_all(list(opts.assertions), report) if opts.assertions else []
-    report["assertions"] = [dataclasses.asdict(r) if dataclasses.is_dataclass(r) else r for r in results]
+    report["assertions"] = [r.as_dict() for r in results]
     if opts.report_path is not None:
         write_report(opts.report_path, report)
     failed_checks = [c for c in checks if not c.ok]

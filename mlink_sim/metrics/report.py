@@ -1,0 +1,207 @@
+"""The run report: its JSON Schema, an atomic writer and the host description.
+
+The report document is produced by :meth:`mlink_sim.metrics.network.NetworkMetrics.report`; every field is
+explained in ``docs/report.md``. :data:`REPORT_SCHEMA` is a JSON Schema (draft 2020-12). Each numeric leaf
+carries an ``"x-kind"`` annotation (ignored by validators) that the ``--assert`` language reads to know what a
+field is measured in:
+
+* ``"time"``    – integer nanoseconds; assertions need a unit (``ns``, ``us``, ``µs``, ``ms``, ``s``).
+* ``"count"``   – a plain integer; assertions take no unit.
+* ``"percent"`` – a number in percent (CPU: of one core); ``%`` is optional in assertions.
+* ``"ratio"``   – a fraction 0..1; a bare number is a fraction, ``1%`` means 0.01.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+__all__ = ["REPORT_SCHEMA", "SCHEMA_ID", "write_report", "dumps_report", "host_info"]
+
+#: Value of the report's ``"schema"`` field. Bumped (``/2``) on any incompatible change of the document.
+SCHEMA_ID = "mlink-sim/report/1"
+
+_COUNT = {"type": "integer", "minimum": 0, "x-kind": "count"}
+_TIME = {"type": "integer", "minimum": 0, "x-kind": "time"}
+
+REPORT_SCHEMA: dict[str, Any] = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "$id": "https://github.com/mlink-sim/mlink-sim/schemas/report-1.json",
+    "title": "mlink-sim run report",
+    "description": "Figures of one `mlink-sim up` run (docs/report.md).",
+    "type": "object",
+    "additionalProperties": False,
+    "required": [
+        "schema", "meta", "cycles", "missed", "missed_rate", "rtt", "lateness", "sent", "answered", "late",
+        "missing", "reception_failures", "wdt_errors", "dropped", "cpu", "station", "checks", "assertions",
+    ],
+    "properties": {
+        "schema": {"const": SCHEMA_ID},
+        "meta": {"$ref": "#/$defs/meta"},
+        "cycles": {**_COUNT, "description": "cycles due in the run: started + missed"},
+        "missed": {**_COUNT, "description": "cycles whose start was skipped (loop blocked a whole period)"},
+        "missed_rate": {
+            "type": "number", "minimum": 0, "maximum": 1, "x-kind": "ratio",
+            "description": "missed / cycles (0 when cycles is 0)",
+        },
+        "rtt": {"$ref": "#/$defs/histogram", "description": "command → response round trip, all stations"},
+        "lateness": {"$ref": "#/$defs/histogram", "description": "cycle start minus its ideal start"},
+        "sent": {**_COUNT, "description": "commands sent, all stations"},
+        "answered": {**_COUNT, "description": "responses matched to a command (on time or late)"},
+        "late": {**_COUNT, "description": "responses that arrived after their cycle's deadline"},
+        "missing": {**_COUNT, "description": "commands never answered"},
+        "reception_failures": {**_COUNT, "description": "reception failures counted by the slaves"},
+        "wdt_errors": {**_COUNT, "description": "watchdog (WDT) errors counted by the slaves"},
+        "dropped": {**_COUNT, "description": "datagrams dropped by the slaves (bad frames)"},
+        "cpu": {"$ref": "#/$defs/cpu"},
+        "station": {
+            "type": "object",
+            "description": "per station, keyed by address as '0x%02x'",
+            "patternProperties": {"^0x[0-9a-f]{2}$": {"$ref": "#/$defs/station"}},
+            "additionalProperties": False,
+        },
+        "checks": {"type": "array", "items": {"$ref": "#/$defs/check"}},
+        "assertions": {"type": "array", "items": {"$ref": "#/$defs/assertion"}},
+    },
+    "$defs": {
+        "meta": {
+            "type": "object",
+            "required": ["config", "started", "duration_s", "cycle_ns"],
+            "additionalProperties": True,
+            "properties": {
+                "config": {"type": "string", "description": "network configuration file as given"},
+                "started": {"type": "string", "format": "date-time", "description": "ISO 8601 wall time"},
+                "duration_s": {"type": "number", "minimum": 0, "description": "measured span in seconds"},
+                "cycle_ns": {"type": "integer", "minimum": 1, "description": "transmission cycle in ns"},
+                "generation": {"type": "string", "description": "MECHATROLINK-I, -II or -III"},
+                "stations": {"type": "integer", "minimum": 0, "description": "number of slave stations"},
+                "host": {"type": "object", "description": "host_info(): machine and interpreter"},
+            },
+        },
+        "histogram": {
+            "type": "object",
+            "additionalProperties": False,
+            "required": ["count", "min", "p50", "p90", "p99", "p99_9", "max", "mean"],
+            "properties": {
+                "count": {**_COUNT, "description": "number of values"},
+                "min": {**_TIME}, "p50": {**_TIME}, "p90": {**_TIME}, "p99": {**_TIME},
+                "p99_9": {**_TIME}, "max": {**_TIME}, "mean": {**_TIME},
+                "hdr": {"type": "string", "description": "HDR V2 compressed base64 histogram (optional)"},
+            },
+        },
+        "station": {
+            "type": "object",
+            "additionalProperties": False,
+            "required": ["rtt", "sent", "answered", "late", "missing", "reception_failures", "wdt_errors",
+                         "dropped"],
+            "properties": {
+                "rtt": {"$ref": "#/$defs/histogram"},
+                "sent": {**_COUNT}, "answered": {**_COUNT}, "late": {**_COUNT}, "missing": {**_COUNT},
+                "reception_failures": {**_COUNT}, "wdt_errors": {**_COUNT}, "dropped": {**_COUNT},
+            },
+        },
+        "cpu": {
+            "type": "object",
+            "additionalProperties": False,
+            "required": ["master", "slaves", "by_process"],
+            "properties": {
+                "master": {"type": "number", "minimum": 0, "x-kind": "percent"},
+                "slaves": {"type": "number", "minimum": 0, "x-kind": "percent"},
+                "by_process": {
+                    "type": "object",
+                    "description": "percent of one core per role: 'master', 'slave:0x21', 'worker:1', ...",
+                    "additionalProperties": {"type": "number", "minimum": 0},
+                },
+            },
+        },
+        "check": {
+            "type": "object",
+            "required": ["at", "what", "ok"],
+            "additionalProperties": False,
+            "properties": {
+                "at": {"type": "number", "description": "seconds since the start of the run"},
+                "what": {"type": "string"},
+                "ok": {"type": "boolean"},
+                "detail": {"type": "string"},
+            },
+        },
+        "assertion": {
+            "type": "object",
+            "required": ["text", "ok", "measured", "message"],
+            "additionalProperties": False,
+            "properties": {
+                "text": {"type": "string", "description": "the expression, normalised"},
+                "ok": {"type": "boolean"},
+                "measured": {"type": ["number", "null"], "description": "in ns for times; null if absent"},
+                "bound": {"type": "number", "description": "in ns for times"},
+                "message": {"type": "string"},
+            },
+        },
+    },
+}
+
+
+def dumps_report(report: Mapping[str, Any]) -> str:
+    """The report as JSON text (2-space indent, trailing newline). NaN/Infinity raise ValueError."""
+    return json.dumps(report, indent=2, allow_nan=False, ensure_ascii=False) + "\n"
+
+
+def write_report(path: str | os.PathLike[str], report: Mapping[str, Any]) -> None:
+    """Write ``report`` as JSON to ``path`` atomically.
+
+    The document is serialised first, then written to a temporary file in the same directory, flushed and
+    fsync'ed, and moved over ``path`` with :func:`os.replace`. On any error the temporary file is removed and
+    an existing ``path`` is left untouched. The file gets the mode of the file it replaces, else 0644.
+    """
+    target = Path(path)
+    text = dumps_report(report)              # fails before anything touches the disk
+    directory = target.parent
+    try:
+        mode = target.stat().st_mode & 0o7777
+    except FileNotFoundError:
+        mode = 0o644
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, mode)
+        os.replace(tmp, target)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    _fsync_dir(directory)
+
+
+def _fsync_dir(directory: Path) -> None:
+    """Persist the rename (best effort: not every platform or file system allows fsync on a directory)."""
+    try:
+        dfd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(dfd)
+    except OSError:
+        pass
+    finally:
+        os.close(dfd)
+
+
+def host_info() -> dict[str, Any]:
+    """What the run ran on, for ``meta.host``."""
+    return {
+        "name": platform.node(),
+        "os": platform.platform(),
+        "machine": platform.machine(),
+        "cpus": os.cpu_count() or 0,
+        "python": f"{platform.python_implementation()} {platform.python_version()}",
+    }

@@ -1,0 +1,161 @@
+"""mlink_sim.metrics.histogram: LatencyHistogram against hdrhistogram's own figures."""
+
+from __future__ import annotations
+
+import random
+
+import pytest
+from hdrh.histogram import HdrHistogram
+
+from mlink_sim.metrics import LatencyHistogram, format_ns
+from mlink_sim.metrics.histogram import HIGHEST_NS, SUMMARY_KEYS, _index
+
+US = 1_000
+MS = 1_000_000
+
+
+def within(value: int, expected: float, rel: float = 1e-3) -> bool:
+    """HDR precision: 3 significant digits → a figure is within 0.1 % of the value it stands for."""
+    return abs(value - expected) <= rel * expected + 1
+
+
+def filled(values) -> LatencyHistogram:
+    h = LatencyHistogram()
+    for v in values:
+        h.record(v)
+    return h
+
+
+def test_inlined_index_equals_hdrh_index():
+    ref = HdrHistogram(1, HIGHEST_NS, 3)
+    probes = {0, 1, 2, 3, HIGHEST_NS}
+    for k in range(35):
+        probes.update({(1 << k) - 1, 1 << k, (1 << k) + 1})
+    rnd = random.Random(7)
+    probes.update(rnd.randrange(HIGHEST_NS) for _ in range(2000))
+    for v in sorted(p for p in probes if p <= HIGHEST_NS):
+        assert _index(v) == ref._counts_index_for(v), v
+
+
+def test_uniform_1_to_1000_us():
+    s = filled(range(1 * US, 1001 * US, US)).summary()
+    assert s["count"] == 1000
+    assert within(s["min"], 1 * US)
+    assert within(s["p50"], 500 * US)
+    assert within(s["p90"], 900 * US)
+    assert within(s["p99"], 990 * US)
+    assert within(s["p99_9"], 999 * US)
+    assert within(s["max"], 1000 * US)
+    assert within(s["mean"], 500.5 * US)
+    assert set(s) == set(SUMMARY_KEYS) and all(isinstance(v, int) for v in s.values())
+
+
+def test_summary_equals_hdrh_figures():
+    rnd = random.Random(3)
+    values = [int(rnd.lognormvariate(12, 1)) for _ in range(5000)] + [0, 5, 2 * MS]
+    h = filled(values)
+    ref = HdrHistogram(1, HIGHEST_NS, 3)
+    for v in values:
+        ref.record_value(v)
+    s = h.summary()
+    assert s["count"] == ref.get_total_count()
+    assert s["min"] == ref.get_min_value()
+    assert s["max"] == ref.get_max_value()
+    for key, p in (("p50", 50), ("p90", 90), ("p99", 99), ("p99_9", 99.9)):
+        assert s[key] == ref.get_value_at_percentile(p), key
+    assert s["mean"] == round(ref.get_mean_value())
+    assert h.percentile(75) == ref.get_value_at_percentile(75)
+    assert h.percentile(0) == ref.get_value_at_percentile(0)
+    assert h.to_hdr().equals(ref)
+
+
+def test_single_value_and_empty():
+    assert LatencyHistogram().summary() == dict.fromkeys(SUMMARY_KEYS, 0)
+    assert LatencyHistogram().percentile(99) == 0
+    assert LatencyHistogram().count == 0
+    s = filled([250 * US]).summary()
+    assert s["count"] == 1
+    assert all(within(s[k], 250 * US) for k in SUMMARY_KEYS if k != "count")
+
+
+def test_out_of_range_values_are_clamped_not_lost():
+    h = filled([-5, -10**12, 20 * 10**9, 10**15])
+    s = h.summary()
+    assert s["count"] == 4
+    assert s["min"] == 0
+    assert within(s["max"], HIGHEST_NS)
+
+
+def test_merge_equals_recording_everything_in_one():
+    rnd = random.Random(11)
+    a_vals = [rnd.randrange(50 * US, 400 * US) for _ in range(3000)]
+    b_vals = [rnd.randrange(300 * US, 2 * MS) for _ in range(1000)]
+    a, b = filled(a_vals), filled(b_vals)
+    b_before = b.summary()
+    a.merge(b)
+    assert a == filled(a_vals + b_vals)
+    assert a.summary() == filled(a_vals + b_vals).summary()
+    assert b.summary() == b_before                       # other unchanged
+    assert LatencyHistogram.merged([filled(a_vals), b]) == a
+
+
+def test_merge_into_empty_keeps_min():
+    # HdrHistogram.add() takes min(self.get_min_value(), ...) where an empty histogram's min reads 0.
+    h = LatencyHistogram()
+    h.merge(filled([300 * US, 400 * US]))
+    assert within(h.summary()["min"], 300 * US)
+    h.merge(LatencyHistogram())
+    assert within(h.summary()["min"], 300 * US)
+
+
+def test_merge_with_itself_doubles():
+    h = filled([1 * US, 2 * US])
+    h.merge(h)
+    assert h.count == 4
+
+
+@pytest.mark.parametrize("values", [[], [0], [1, 999, 1000, 123456789], list(range(0, 10 * MS, 997))])
+def test_encode_decode_round_trip(values):
+    h = filled(values)
+    blob = h.encode()
+    assert isinstance(blob, str) and blob.startswith("HISTF")
+    back = LatencyHistogram.decode(blob)
+    assert back == h
+    assert back.summary() == h.summary()
+    assert LatencyHistogram.decode(blob.encode("ascii")) == h
+
+
+def test_blob_is_standard_hdr():
+    h = filled([100 * US, 200 * US, 300 * US])
+    ref = HdrHistogram.decode(h.encode())
+    assert ref.get_total_count() == 3
+    assert ref.get_value_at_percentile(50) == h.summary()["p50"]
+
+
+@pytest.mark.parametrize("blob", ["", "not base64!", "SElTVEZBQUFB", "HISTFAAAACB4nJNpmSzMwMBgzgABMBoEmADw"])
+def test_decode_garbage_is_value_error(blob):
+    with pytest.raises(ValueError):
+        LatencyHistogram.decode(blob)
+
+
+def test_decode_other_layout_is_value_error():
+    other = HdrHistogram(1, 60 * 10**9, 2)
+    other.record_value(1000)
+    with pytest.raises(ValueError, match="another layout"):
+        LatencyHistogram.decode(other.encode())
+
+
+def test_reset_and_copy():
+    h = filled([1, 2, 3])
+    c = h.copy()
+    h.reset()
+    assert h.count == 0 and c.count == 3
+
+
+@pytest.mark.parametrize(
+    "ns, text",
+    [(0, "0ns"), (850, "850ns"), (731_200, "731.2us"), (500_000, "500us"), (1_250_000, "1.25ms"),
+     (2_000_000_000, "2s"), (999_999, "1000us")],
+)
+def test_format_ns(ns, text):
+    assert format_ns(ns) == text
