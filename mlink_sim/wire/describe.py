@@ -37,8 +37,16 @@ def _body(body: Any, commands: type[enum.IntEnum], slot_code: int) -> dict[str, 
     return out
 
 
-def _alarm_name(code: int) -> str:
-    for table in (M2Alarm, SiT3DriveAlarm, SiT3DriveWarning):
+def _alarm_name(code: int, status: int) -> str:
+    """Name of an ALARM byte: the card's own codes first (SI-T3 Tables 23/25), then the drive table that the STATUS
+    bits point at – Table 26 (alarm) with ALM, Table 27 (minor fault) with WARNG only – since the two tables
+    reuse the same values."""
+    tables: tuple[type[enum.IntEnum], ...] = (M2Alarm,)
+    if status & M2Status.ALM:
+        tables += (SiT3DriveAlarm,)
+    elif status & M2Status.WARNG:
+        tables += (SiT3DriveWarning,)
+    for table in tables:
         try:
             return table(code).name
         except ValueError:
@@ -65,7 +73,7 @@ def describe(frame: Frame) -> dict[str, Any]:
     elif isinstance(msg, ml2.M2Response):
         out["main"] = _body(msg.body, M2Cmd, msg.code)
         out["alarm"] = msg.alarm
-        out["alarm_name"] = _alarm_name(msg.alarm) if msg.alarm else None
+        out["alarm_name"] = _alarm_name(msg.alarm, msg.status) if msg.alarm else None
         out["status"] = msg.status
         out["status_bits"] = _flag_names(M2Status, msg.status)
         out["rwdt"] = msg.rwdt

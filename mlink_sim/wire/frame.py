@@ -127,7 +127,12 @@ def encode(frame: Frame) -> bytes:
             raise ValueError("MECHATROLINK-I carries 17-byte data only")
         data = ml2.encode_data(msg)
     kind = Kind.COMMAND if isinstance(msg, (ml2.M2Command, ml3.M3Command)) else Kind.RESPONSE
-    head = _HEADER.pack(MAGIC, frame.link, kind, frame.station, frame.cycle, frame.tcycle_ns)
+    if frame.kind is not kind:
+        raise ValueError(f"a {kind.name.lower()} message in a frame of kind {Kind(frame.kind).name.lower()}")
+    try:
+        head = _HEADER.pack(MAGIC, frame.link, kind, frame.station, frame.cycle, frame.tcycle_ns)
+    except struct.error as exc:
+        raise ValueError(f"envelope field out of range: {exc}") from None
     body = head + data
     return body + _FCS.pack(crc16_x25(body))
 
@@ -147,6 +152,12 @@ def decode(datagram: bytes, *, data_size: int | None = None, kind: Kind | None =
     magic, link_b, kind_b, station, cycle, tcycle = _HEADER.unpack_from(datagram)
     if magic != MAGIC:
         raise WireError(DropReason.BAD_MAGIC, f"{magic:#04x}, expected {MAGIC:#04x}")
+    # The FCS is checked before the header fields it protects, so a corrupted link/kind byte counts as a bad FCS
+    # (an ML-III slave reports COMM_ALM 1/8 for it) rather than as an unknown link.
+    (fcs,) = _FCS.unpack_from(datagram, n - FCS_SIZE)
+    want = crc16_x25(datagram[: n - FCS_SIZE])
+    if fcs != want:
+        raise WireError(DropReason.BAD_FCS, f"{fcs:#06x}, computed {want:#06x}")
     link = _LINKS.get(link_b)
     if link is None:
         raise WireError(DropReason.BAD_LINK, f"{link_b:#04x}, expected 01H, 02H or 03H")
@@ -159,10 +170,6 @@ def decode(datagram: bytes, *, data_size: int | None = None, kind: Kind | None =
         raise WireError(DropReason.BAD_SIZE, f"{size} data bytes on {link.label}, expected {expected}")
     if data_size is not None and size != data_size:
         raise WireError(DropReason.BAD_SIZE, f"{size} data bytes, this station uses {data_size}-byte frames")
-    (fcs,) = _FCS.unpack_from(datagram, n - FCS_SIZE)
-    want = crc16_x25(datagram[: n - FCS_SIZE])
-    if fcs != want:
-        raise WireError(DropReason.BAD_FCS, f"{fcs:#06x}, computed {want:#06x}")
     knd = Kind.COMMAND if kind_b == 1 else Kind.RESPONSE
     if kind is not None and knd is not kind:
         raise WireError(DropReason.WRONG_KIND, f"got a {knd.name.lower()}, expected a {kind.name.lower()}")

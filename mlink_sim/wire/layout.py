@@ -72,7 +72,7 @@ class Unknown:
 class Layout(Generic[T]):
     """One body layout: a dataclass, its code and its declaration, padded to a fixed region size."""
 
-    __slots__ = ("cls", "code", "struct", "size", "_fast", "_names", "_ctor")
+    __slots__ = ("cls", "code", "struct", "size", "_fast", "_names", "_ctor", "_bytes_fields")
 
     def __init__(self, cls: type[T], code: int, declaration: cs.Struct, size: int) -> None:
         self.cls = cls
@@ -86,14 +86,28 @@ class Layout(Generic[T]):
         if fields != names:
             raise TypeError(f"{cls.__name__}: dataclass fields {fields} differ from the layout's {names}")
         self._ctor: Callable[..., T] = cls
+        self._bytes_fields = tuple(
+            (sub.name, sub.subcon.length)
+            for sub in declaration.subcons
+            if isinstance(sub, cs.Renamed) and isinstance(sub.subcon, cs.Bytes)
+        )
 
     def parse(self, buf: bytes | memoryview, offset: int = 0) -> T:
         """Fast path: region bytes at *offset* -> dataclass."""
         return self._ctor(*self._fast.unpack_from(buf, offset))
 
     def build(self, body: T) -> bytes:
-        """Fast path: dataclass -> region bytes (reserved bytes are zero)."""
-        return self._fast.pack(*[getattr(body, n) for n in self._names])
+        """Fast path: dataclass -> region bytes (reserved bytes are zero).
+
+        Raises ValueError for a value that does not fit its field, including a bytes field of the wrong length
+        (``struct`` would silently pad or truncate it)."""
+        for name, length in self._bytes_fields:
+            if len(getattr(body, name)) != length:
+                raise ValueError(f"{self.cls.__name__}.{name} must be exactly {length} bytes")
+        try:
+            return self._fast.pack(*[getattr(body, n) for n in self._names])
+        except struct.error as exc:
+            raise ValueError(f"{self.cls.__name__}: {exc}") from None
 
     def parse_construct(self, buf: bytes) -> T:
         """Reference path through construct (tests)."""
@@ -141,8 +155,9 @@ class Slot:
     def build(self, body: Any) -> tuple[int, bytes]:
         """``(code, region bytes)`` of *body*."""
         if type(body) is Unknown:
-            raw = bytes(body.raw[: self.size]).ljust(self.size, b"\0")
-            return body.code, raw
+            if len(body.raw) != self.size:
+                raise ValueError(f"Unknown.raw must be exactly {self.size} bytes in the {self.name}")
+            return body.code, body.raw
         layout = self.by_class.get(type(body))
         if layout is None:
             raise TypeError(f"{type(body).__name__} cannot travel in the {self.name}")
