@@ -1,0 +1,525 @@
+"""The drive model: reference path, motor and load, DC bus, protections, stopping, faults.
+
+Pure and deterministic: no clock, no sockets.  Time comes in as ``now`` (monotonic int ns).
+:meth:`Drive.advance` integrates from the last time to ``now`` in equal sub-steps of at most
+``substep_ns`` (default 1 ms); once a sub-step leaves the state unchanged (ramp finished, speed
+settled, bus at rest) the drive is *steady* and further time is covered in closed form (only the
+oL1 thermal state moves; its trip instant is solved exactly), so the cost no longer grows with
+the step rate.  Equations and limits: docs/drive-model.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .faults import Fault, minor_code
+from . import integrate as _integrate
+from .monitors import read_monitor, read_sel_mon
+from .motor import LoadSpec, MotorConstants, vf_voltage
+from .settings import DriveSettings, Family, StopMethod, _ref_to_hz
+from .status import DriveStatus
+
+__all__ = ["Drive", "DriveCommand"]
+
+_MAX_EVENTS = 64
+INF = math.inf
+_EF_DELAY_NS = 500_000_000  # A1000 "EF": forward and reverse both on for longer than 0.5 s
+_KIND_CODE = {"inertia": 0, "constant": 1, "fan": 2, "friction": 0}
+_ALARMS = (StopMethod.ALARM_ONLY, StopMethod.ALARM_RUN_D1_04, StopMethod.ALARM_RAMP)
+
+
+@dataclass(frozen=True, slots=True)
+class DriveCommand:
+    """What the network asks for; set by the card from INV_CTL (SI-T3 Table 16, SI-ET3 Table 20,
+    SI-T/V7 Table 3).  ``multi_inputs`` bit k = terminal S(k+3); references in drive raw units:
+    ``freq_ref_raw`` in o1-03 / n035 units (sign ignored), torque reference / limit in 0.1 % of
+    motor rated torque."""
+
+    forward: bool = False
+    reverse: bool = False
+    fault_reset: bool = False
+    external_fault: bool = False  # EF0
+    external_baseblock: bool = False
+    multi_inputs: int = 0
+    freq_ref_raw: int = 0
+    torque_ref_raw: int = 0
+    torque_limit_raw: int = 0
+    fault_history_clear: bool = False
+
+
+_IDLE = DriveCommand()
+
+
+class Drive:
+    """One simulated drive.  See the module docstring and docs/drive-model.md."""
+
+    __slots__ = (
+        "family", "settings", "load", "_events", "_remote_override", "_sub", "_t", "_cmd",
+        "_m", "_q", "_dir", "_out", "_w", "_theta", "_T", "_I", "_P", "_fout", "_E", "_V",
+        "_fault", "_fault_stop", "_history", "_latched", "_cond", "_dyn", "_mains", "_ope",
+        "_stop_alarm", "_d104", "_ef_since", "_event_at", "_hold_acc", "_hold_dec",
+        "_tlimited", "_status", "_steady", "_run", "_mt", "_dt", "_A", "_D", "_Js", "_Je",
+        "_Jds", "_Jde", "_tmode", "_tval", "_ref_hz", "_remote", "_net_run", "_net_ref",
+        # constants
+        "_K", "_wph", "_Tr", "_I0", "_IT", "_Ir", "_R3", "_fb", "_J", "_lkind", "_Tl", "_B",
+        "_kf", "_En", "_Vn", "_C", "_Pc", "_ov", "_uv", "_oc", "_acc_lvl", "_dec_lvl",
+        "_tau", "_ol1", "_dec_raise", "_hot", "_skey", "_slast",
+    )
+
+    def __init__(self, family: Family, settings: DriveSettings, load: LoadSpec, *, now: int = 0,
+                 remote: bool | None = None, substep_ns: int = 1_000_000) -> None:
+        if settings.family is not family:
+            raise ValueError("settings were built for another drive family")
+        if substep_ns <= 0:
+            raise ValueError("substep_ns must be > 0")
+        self.family = family
+        self._events: list[tuple[int, str, str]] = []
+        self._remote_override = remote
+        self._sub = int(substep_ns)
+        self._t = int(now)
+        self._cmd = _IDLE
+        self._m = self._q = self._w = self._theta = 0.0
+        self._T = self._I = self._P = self._fout = 0.0
+        self._dir = 1
+        self._out = False
+        self._fault: Fault | None = None
+        self._fault_stop = StopMethod.COAST
+        self._history: list[Fault] = []
+        self._latched: set[Fault] = set()
+        self._cond: frozenset[Fault] = frozenset()
+        self._dyn: frozenset[Fault] = frozenset()  # Uv / ov minors found by the integrator
+        self._mains = True
+        self._stop_alarm = False
+        self._d104 = False
+        self._ef_since: int | None = None
+        self._event_at: int | None = None
+        self._hold_acc = self._hold_dec = self._tlimited = False
+        self._status: DriveStatus | None = None
+        self._skey: tuple[bool, ...] = ()
+        self._slast: DriveStatus | None = None
+        self._steady = False
+        self.load = load
+        self._apply_settings(settings)
+        self._E, self._V = self._En, self._Vn
+        self._recompute()
+
+    # ------------------------------------------------------------------ configuration
+    def _apply_settings(self, s: DriveSettings) -> None:
+        self.settings = s
+        mc = MotorConstants.from_settings(s)
+        self._K, self._wph, self._Tr = mc.stiffness, mc.w_per_hz, mc.rated_torque
+        self._I0, self._IT, self._Ir = mc.i0, mc.i_t_rated, mc.i_rated
+        self._R3, self._fb = 3.0 * mc.r_phase, mc.base_freq
+        ld = self.load.resolve(s)
+        self._J, self._lkind, self._B = ld.inertia_kgm2, ld.kind, ld.viscous_nms
+        self._Tl = ld.torque_nm if ld.kind in ("constant", "fan") else 0.0
+        w_fan = (ld.rated_speed_rpm * math.pi / 30.0) if ld.rated_speed_rpm else mc.rated_speed
+        self._kf = ld.torque_nm / (w_fan * w_fan) if ld.kind == "fan" else 0.0  # type: ignore[operator]
+        self._C, self._Pc = s.bus_capacitance_f, s.control_power_w
+        self._Vn = s.nominal_bus_v
+        self._En = 0.5 * self._C * self._Vn * self._Vn
+        self._ov, self._uv = s.ov_level_v, s.uv_level_v
+        i_drive = s.drive_rated_current_a
+        self._oc = s.oc_level_pct * 0.01 * i_drive
+        self._acc_lvl = s.stall_accel_level_pct * 0.01 * i_drive if s.stall_accel else INF
+        self._dec_lvl = s.stall_decel_level_v if s.stall_decel else INF
+        self._dec_raise = s.stall_decel_intelligent
+        self._tau, self._ol1 = s.ol1_tau_s, s.ol1_enabled and s.ol1_tau_s > 0
+        # constants of the hot loop, unpacked in one go by _substep
+        self._hot = (self._K, self._wph, self._fb, self._Tr, self._IT, self._I0, self._R3,
+                     self._J, self._B, _KIND_CODE[self._lkind], self._Tl, self._kf, self._En,
+                     self._Pc, self._C, self._Vn, self._ov, self._uv, self._oc, self._acc_lvl,
+                     self._dec_lvl, self._dec_raise, self._ol1, self._tau, self._Ir)
+        self._ope = s.check()
+        ro = self._remote_override
+        self._net_run = s.run_from_network if ro is None else ro
+        self._net_ref = s.ref_from_network if ro is None else ro
+        self._remote = self._net_run
+
+    def reconfigure(self, settings: DriveSettings, now: int) -> None:
+        """CONFIG: take new settings; oPE (and no run) while :meth:`DriveSettings.check` fails."""
+        if settings.family is not self.family:
+            raise ValueError("settings were built for another drive family")
+        self.advance(now)
+        self._apply_settings(settings)
+        if self._ope is not None:
+            self._event("ope", self._ope)
+        self._E = max(self._E, self._En) if self._mains else self._E
+        self._V = math.sqrt(2.0 * self._E / self._C)
+        self._recompute()
+
+    def set_load(self, load: LoadSpec, now: int) -> None:
+        """Change the mechanical load (e.g. a load step); the shaft speed is kept."""
+        self.advance(now)
+        self.load = load
+        self._apply_settings(self.settings)
+        self._recompute()
+
+    def set_main_power(self, on: bool, now: int) -> None:
+        """Mains on/off.  Off: the bus feeds the load and the control power until the Uv level."""
+        self.advance(now)
+        self._mains = bool(on)
+        if on and self._E < self._En:
+            self._E, self._V = self._En, self._Vn
+            self._dyn = frozenset()
+        self._recompute()
+
+    # ------------------------------------------------------------------ network inputs
+    def command(self, cmd: DriveCommand, now: int) -> None:
+        """Advance to ``now``, then apply ``cmd`` (cheap when it equals the previous one)."""
+        self.advance(now)
+        prev = self._cmd
+        if cmd is prev or cmd == prev:
+            return
+        self._cmd = cmd
+        inp = self.settings.inputs
+        reset_now = cmd.fault_reset or bool(cmd.multi_inputs & inp.fault_reset)
+        reset_before = prev.fault_reset or bool(prev.multi_inputs & inp.fault_reset)
+        if cmd.fault_history_clear and not prev.fault_history_clear:
+            self.clear_fault_history()
+        self._recompute()
+        if reset_now and not reset_before:
+            self.reset_fault(now)
+
+    def trip(self, fault: Fault, stop: StopMethod, now: int) -> None:
+        """Card-detected cause (bUS per F6-01, E5 per F6-25, EF0 per F6-03 ...): fault or minor."""
+        self.advance(now)
+        stop = StopMethod(stop)
+        if stop in _ALARMS:
+            self._latched.add(fault)
+            if stop is StopMethod.ALARM_RAMP:
+                self._stop_alarm = True
+            elif stop is StopMethod.ALARM_RUN_D1_04:
+                self._d104 = True
+        else:
+            self._trip_now(fault, stop)
+        self._recompute()
+
+    def clear_minor(self, fault: Fault, now: int) -> None:
+        """Clear a minor fault raised with :meth:`trip` (e.g. the card's CyC once the cycle is ok)."""
+        self.advance(now)
+        self._latched.discard(fault)
+        if not self._latched:
+            self._stop_alarm = self._d104 = False
+        self._recompute()
+
+    def reset_fault(self, now: int) -> bool:
+        """Fault reset / ALM_CLR.  False, and no change, while RUN is on (SI-T3 section ALM_CLR
+        "Drive faults and alarms cannot be reset while the Drive RUN command is ON"), or while the
+        cause of an external fault is still input."""
+        self.advance(now)
+        c = self._cmd
+        if c.forward or c.reverse:
+            return False
+        f = self._fault
+        if f is not None and self._cause_present(f):
+            return False
+        if f is not None:
+            self._event("fault_reset", f.display)
+        self._fault = None
+        self._latched.clear()
+        self._stop_alarm = self._d104 = False
+        self._recompute()
+        return True
+
+    def clear_fault_history(self) -> None:
+        """Fault history trace clear (SI-T3 Table 16 bit E, SI-ET3 Table 20 bit 11)."""
+        self._history = [self._fault] if self._fault is not None else []
+
+    def _cause_present(self, f: Fault) -> bool:
+        c, s = self._cmd, self.settings
+        if f is Fault.EF0:
+            return c.external_fault
+        for ef in s.inputs.ext_faults:
+            if ef.fault is f and (bool(c.multi_inputs & ef.mask) != ef.normally_closed):
+                return True
+        return False
+
+    def _trip_now(self, fault: Fault, stop: StopMethod) -> None:
+        if self._fault is not None:
+            if stop is StopMethod.COAST:  # a second, harder cause still cuts the output
+                self._fault_stop = StopMethod.COAST
+            return
+        self._fault, self._fault_stop = fault, stop
+        self._history.insert(0, fault)
+        del self._history[10:]
+        self._event("fault", f"{fault.display} {stop.name}")
+
+    def _event(self, kind: str, detail: str) -> None:
+        ev = self._events
+        ev.append((self._t, kind, detail))
+        if len(ev) > _MAX_EVENTS:
+            del ev[0]
+
+    def drain_events(self) -> list[tuple[int, str, str]]:
+        """Events since the last call, oldest first: ``(t_ns, kind, detail)`` with kind
+        ``"fault"`` (detail ``"<display> <stop>"``), ``"fault_reset"``, ``"ope"``.  At most the
+        last 64 are kept; the card logs them with its bound context (the drive does no I/O)."""
+        ev, self._events = self._events, []
+        return ev
+
+    # ------------------------------------------------------------------ mode evaluation
+    def _recompute(self) -> None:
+        """Re-derive run request, target, ramp rates and torque mode after any discrete change."""
+        s, c = self.settings, self._cmd
+        inp, mi = s.inputs, self._cmd.multi_inputs
+        self._steady = False
+        self._status = self._slast = None
+        run_src = self._net_run
+        fwd, rev = (c.forward, c.reverse) if run_src else (False, False)
+        cond: set[Fault] = set()
+        self._event_at = None
+        if fwd and rev:
+            if self._ef_since is None:
+                self._ef_since = self._t
+            if self._t - self._ef_since >= _EF_DELAY_NS:
+                cond.add(Fault.EF)
+            else:
+                self._event_at = self._ef_since + _EF_DELAY_NS
+        else:
+            self._ef_since = None
+        active = self._out or (fwd != rev)
+        fast_alarm = False
+        if c.external_fault and (not s.ef0_run_only or active):
+            if s.ef0_stop in _ALARMS:
+                cond.add(Fault.EF0)
+            else:
+                self._trip_now(Fault.EF0, s.ef0_stop)
+        for ef in inp.ext_faults:
+            if (bool(mi & ef.mask) != ef.normally_closed) and (not ef.run_only or active):
+                if ef.stop in _ALARMS:
+                    cond.add(ef.fault)
+                    fast_alarm |= ef.stop is StopMethod.ALARM_RAMP
+                else:
+                    self._trip_now(ef.fault, ef.stop)
+        bb = c.external_baseblock or bool(mi & inp.baseblock_no) or bool(
+            inp.baseblock_nc and not mi & inp.baseblock_nc)
+        if bb:
+            cond.add(Fault.BB)
+        fast = bool(mi & inp.fast_stop_no) or bool(inp.fast_stop_nc and not mi & inp.fast_stop_nc)
+        self._cond = frozenset(cond)
+        pon = self._mains or self._V >= self._uv
+        can_run = ((fwd != rev) and self._fault is None and self._ope is None and pon and not bb
+                   and not fast and not fast_alarm and not self._stop_alarm)
+        self._ref_hz = ref = self._select_ref(mi)
+        self._run = can_run
+        fmax, fast_rate = s.max_freq_hz, INF
+        use2 = bool(mi & inp.accel_decel_2)
+        acc_s, dec_s = (s.accel2_s, s.decel2_s) if use2 else (s.accel_s, s.decel_s)
+        s0, s1, s2, s3 = s.s_curve_s
+        out = self._out
+        if can_run:
+            self._dt = 1 if fwd else -1
+            mt = min(ref, fmax)
+            self._mt = mt if mt >= s.min_freq_hz else 0.0
+            if not out:  # output on: V/f starts at 0 Hz (speed search not modelled)
+                self._out, self._m, self._q, self._dir = True, 0.0, 0.0, self._dt
+        else:
+            self._dt, self._mt = self._dir, 0.0
+            coast = bb or self._ope is not None or not pon
+            if self._fault is not None:
+                coast |= self._fault_stop is StopMethod.COAST
+                if self._fault_stop is StopMethod.FAST:
+                    fast = True
+            elif fast or fast_alarm:
+                fast = True
+            elif not self._stop_alarm:
+                coast |= s.coast_on_run_off
+            if coast or (out and self._m == 0.0 and self._q == 0.0):
+                self._out = False
+            if fast and s.fast_stop_s > 0:
+                fast_rate = fmax / s.fast_stop_s
+            elif fast:
+                fast_rate = INF
+        if not self._out:
+            self._m = self._q = self._fout = 0.0
+            self._T = self._I = 0.0
+            self._hold_acc = self._hold_dec = self._tlimited = False
+        self._A = fmax / acc_s if acc_s > 0 else INF
+        self._Js = self._A / s0 if s0 > 0 else INF
+        self._Je = self._A / s1 if s1 > 0 else INF
+        if fast:
+            self._D, self._Jds, self._Jde = fast_rate, INF, INF
+        else:
+            self._D = fmax / dec_s if dec_s > 0 else INF
+            self._Jds = self._D / s2 if s2 > 0 else INF
+            self._Jde = self._D / s3 if s3 > 0 else INF
+        if s.torque_from_network and s.family is Family.A1000:
+            if s.torque_control:
+                self._tmode, self._tval = 2, c.torque_ref_raw * 0.001 * self._Tr
+            else:
+                self._tmode, self._tval = 1, abs(c.torque_limit_raw) * 0.001 * self._Tr
+        else:
+            self._tmode, self._tval = 0, 0.0
+
+    def _select_ref(self, mi: int) -> float:
+        """Selected frequency reference (Hz): d1-04 override, jog, multi-step (F6-07), network."""
+        s = self.settings
+        if self._d104:
+            return s.step_refs_hz[3]
+        inp = s.inputs
+        if mi & inp.jog:
+            return s.jog_hz
+        if s.multi_step_enabled:
+            ms = inp.multi_step
+            idx = ((1 if mi & ms[0] else 0) | (2 if mi & ms[1] else 0)
+                   | (4 if mi & ms[2] else 0) | (8 if mi & ms[3] else 0))
+            if idx:
+                return s.step_refs_hz[idx]
+        if self._net_ref:
+            return _ref_to_hz(s, self._cmd.freq_ref_raw)
+        return s.local_ref_hz
+
+    # ------------------------------------------------------------------ time
+    def advance(self, now: int) -> None:
+        """Integrate to ``now`` (monotonic ns; earlier times are ignored)."""
+        while self._t < now:
+            t = self._t
+            ev = self._event_at
+            end = now if ev is None or ev > now else ev
+            if self._steady:
+                self._steady_to(end)  # may stop early at an oL1 trip; the loop goes on from there
+            else:
+                dt = end - t
+                sub = self._sub
+                if dt <= sub:
+                    self._substep(dt * 1e-9)
+                    self._t = end
+                else:
+                    n = -(-dt // sub)
+                    for i in range(n):
+                        t_i = t + (dt * (i + 1)) // n
+                        self._substep((t_i - self._t) * 1e-9)
+                        self._t = t_i
+                        if self._steady:
+                            break  # the rest in closed form, next turn of the loop
+            if ev is not None and self._t == ev and self._event_at == ev:
+                self._event_at = None
+                self._recompute()
+
+    _steady_to = _integrate.steady_to
+    _substep = _integrate.substep
+
+    # ------------------------------------------------------------------ outputs
+    @property
+    def now(self) -> int:
+        return self._t
+
+    @property
+    def status(self) -> DriveStatus:
+        st = self._status
+        if st is None:
+            st = self._status = self._make_status()
+        return st
+
+    def _make_status(self) -> DriveStatus:
+        """Build the status; reuse the last object when nothing it shows has changed.
+
+        Discrete inputs (faults, minors, commands, oPE, mains) only change through
+        :meth:`_recompute`, which drops the cached object; the integrator only moves the
+        continuous signals, compared here as a small key (a frozen dataclass is slow to build)."""
+        s = self.settings
+        out = self._out
+        f = self._fout if out else 0.0
+        running = self._run or out
+        af = f if f >= 0.0 else -f
+        key = (running, f < 0.0 or (f == 0.0 and running and self._dir < 0),
+               af < s.min_freq_hz or not out,
+               running and out and abs(af - min(self._ref_hz, s.max_freq_hz)) <= s.agree_width_hz,
+               running and out and abs(af - s.agree_level_hz) <= s.agree_width_hz,
+               self._tlimited, self._hold_acc or self._hold_dec)
+        last = self._slast
+        if last is not None and key == self._skey:
+            return last
+        running, reverse, zero, agree, uagree, tlim, stall = key
+        minors = frozenset(self._latched | self._cond | self._dyn)
+        minor = min(minors, key=lambda x: (minor_code(self.family, x) or 0x1000, x.value)) if minors else None
+        pon = self._mains or self._V >= self._uv
+        st = DriveStatus(
+            running=running, reverse=reverse, zero_speed=zero, speed_agree=agree,
+            user_speed_agree=uagree, ready=pon and self._fault is None and self._ope is None,
+            faulted=self._fault is not None, minor_fault=bool(minors), baseblock=not out,
+            main_power_on=pon, ope=self._ope is not None, fault_reset_input=self._reset_input(),
+            remote=self._remote, motor2=bool(self._cmd.multi_inputs & s.inputs.motor2),
+            torque_limited=tlim, fault=self._fault, minor=minor, minors=minors,
+            ope_code=self._ope, stall_prevention=stall)
+        self._skey, self._slast = key, st
+        return st
+
+    def _reset_input(self) -> bool:
+        c = self._cmd
+        return c.fault_reset or bool(c.multi_inputs & self.settings.inputs.fault_reset)
+
+    @property
+    def fault_history(self) -> tuple[Fault, ...]:
+        """Faults, most recent first (max 10; minor faults are not recorded)."""
+        return tuple(self._history)
+
+    @property
+    def frequency_reference_hz(self) -> float:
+        return self._ref_hz
+
+    @property
+    def output_frequency_hz(self) -> float:
+        """Signed output frequency (negative in reverse); 0 while baseblocked."""
+        return self._fout if self._out else 0.0
+
+    @property
+    def soft_starter_hz(self) -> float:
+        return self._dir * self._m if self._out else 0.0
+
+    @property
+    def motor_speed_rad_s(self) -> float:
+        return self._w
+
+    @property
+    def motor_speed_rpm(self) -> float:
+        return self._w * 30.0 / math.pi
+
+    @property
+    def output_current_a(self) -> float:
+        return self._I
+
+    @property
+    def output_voltage_v(self) -> float:
+        return vf_voltage(self.settings, self._fout) if self._out else 0.0
+
+    @property
+    def output_power_kw(self) -> float:
+        return self._P * 1e-3 if self._out else 0.0
+
+    @property
+    def dc_bus_v(self) -> float:
+        return self._V
+
+    @property
+    def torque_nm(self) -> float:
+        return self._T
+
+    @property
+    def torque_pct(self) -> float:
+        return 100.0 * self._T / self._Tr
+
+    @property
+    def motor_thermal(self) -> float:
+        """oL1 thermal state theta (per unit of rated-current heating; trips at 1.21)."""
+        return self._theta
+
+    @property
+    def is_steady(self) -> bool:
+        return self._steady
+
+    @property
+    def command_in_effect(self) -> DriveCommand:
+        """The last command applied."""
+        return self._cmd
+
+    def monitor(self, name: str) -> int:
+        """U1-xx / U2-xx / U3-xx (A1000) or U-xx (V7) in the drive's raw monitor units (signed;
+        unknown names read 0).  See :mod:`mlink_sim.drive.monitors` for the units."""
+        return read_monitor(self, name)
+
+    def sel_mon(self, card: str, code: int) -> int:
+        """Value of SEL_MON ``code`` for ``card`` ("SI-T3", "SI-ET3", "SI-T/V7"), signed int."""
+        return read_sel_mon(self, card, code)
