@@ -1,0 +1,328 @@
+"""Cycle wake-up source for the master's transmission cycle (250 µs … 8 ms).
+
+:class:`CycleTimer` calls ``on_cycle(cycle, deadline_ns, now_ns, skipped)`` in the event-loop thread once per
+period against absolute deadlines ``deadline_k = start_ns + k * period_ns`` on the ``time.monotonic_ns()``
+clock. Deadlines are computed by integer addition from ``start_ns``, never from "now", so error never
+accumulates: whatever the wake-up jitter, cycle ``k`` is always due at exactly ``start_ns + k * period_ns``.
+
+Wake-up sources (``strategy``), measured in ``docs/timing.md`` with ``scripts/bench_timers.py``:
+
+* ``"call_at"``  – ``loop.call_later``; on uvloop timers are whole milliseconds (libuv), on asyncio the
+  selector timeout is rounded up to 1 ms by ``epoll_wait``.
+* ``"timerfd"``  – a Linux ``timerfd`` (``CLOCK_MONOTONIC``, ``TFD_TIMER_ABSTIME``) watched with
+  ``loop.add_reader``; hrtimer precision, no timer slack.
+* ``"thread"``   – a helper thread sleeping in ``clock_nanosleep(TIMER_ABSTIME)`` (timer slack set to 1 ns)
+  that wakes the loop with ``call_soon_threadsafe``.
+* ``"<source>+spin"`` – the source is armed ``spin_ns`` before the deadline and the last stretch is a busy
+  spin on ``time.monotonic_ns()``. With ``spin_ns=None`` the spin adapts: it tracks the 99th percentile of the
+  source's wake-up error (streaming quantile estimate) plus a margin, clamped to ``spin_max_ns``.
+* ``"auto"``     – ``"timerfd+spin"`` where a timerfd can be created, else ``"call_at+spin"``.
+
+Invariant at every call: ``deadline_ns <= now_ns < deadline_ns + period_ns``. If whole periods went by
+(blocked loop, long callback), the calls for them are not made; the next call is for the most recent
+deadline, ``skipped`` says how many were dropped, and the one after is on the next future deadline.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import queue
+import threading
+import time
+from collections.abc import Callable
+
+import structlog
+
+from ._timerfd import TimerFD, make_abs_sleeper, set_thread_timer_slack, timerfd_supported
+
+__all__ = ["CycleTimer", "available_strategies", "STRATEGIES"]
+
+STRATEGIES: tuple[str, ...] = ("call_at", "call_at+spin", "timerfd", "timerfd+spin", "thread", "thread+spin")
+
+OnCycle = Callable[[int, int, int, int], None]
+
+_mono = time.monotonic_ns
+
+# Adaptive spin (strategy "...+spin", spin_ns=None). Starting points are the sources' measured wake-up error
+# on the 2-core bench machine (docs/timing.md); the estimator then follows the machine it runs on.
+_SPIN_INIT_NS = {"call_at": 1_100_000, "timerfd": 60_000, "thread": 100_000}
+_SPIN_MARGIN_NS = 10_000          # added to the p99 estimate of the wake-up error
+_SPIN_MIN_NS = 10_000
+_Q_UP_NS = 2_000                  # quantile estimator step when a wake-up error exceeds the estimate ...
+_Q_DOWN_NS = _Q_UP_NS // 99       # ... and when it does not: equilibrium at P(err > q) = 1 %
+_ERRORS_LOGGED_IN_FULL = 10       # then only when the error count is a power of two
+
+
+_timerfd_ok: bool | None = None
+
+
+def available_strategies() -> list[str]:
+    """Strategies usable on this machine (``"auto"`` is always accepted as well)."""
+    global _timerfd_ok
+    if _timerfd_ok is None:
+        _timerfd_ok = timerfd_supported()
+    return [s for s in STRATEGIES if _timerfd_ok or not s.startswith("timerfd")]
+
+
+def _resolve(strategy: str) -> str:
+    if strategy == "auto":
+        return "timerfd+spin" if "timerfd" in available_strategies() else "call_at+spin"
+    if strategy not in STRATEGIES:
+        raise ValueError(f"unknown strategy {strategy!r}; expected 'auto' or one of {STRATEGIES}")
+    if strategy not in available_strategies():
+        raise ValueError(f"strategy {strategy!r} is not available on this machine")
+    return strategy
+
+
+def _is_uvloop(loop: asyncio.AbstractEventLoop) -> bool:
+    return type(loop).__module__.partition(".")[0] == "uvloop"
+
+
+class CycleTimer:
+    """Calls ``on_cycle(cycle, deadline_ns, now_ns, skipped)`` once per period against absolute deadlines.
+
+    ``deadline_k = start_ns + k * period_ns`` (``time.monotonic_ns`` clock; ``start_ns`` defaults to one period
+    after :meth:`start`). If the loop was so late that whole periods passed, those cycles are skipped (not run
+    in a burst) and ``skipped`` says how many; the next call is on the next future deadline. ``on_cycle`` runs
+    in the event-loop thread; an exception from it is logged (structlog, ``on_cycle_failed``) and counted in
+    :attr:`errors`, and the timer continues.
+
+    ``strategy``: one of :data:`STRATEGIES` or ``"auto"`` (see the module docstring). ``spin_ns``: fixed busy-spin
+    budget for a ``"+spin"`` strategy (``None`` = adaptive, ``0`` = none). ``spin_max_ns``: cap of the adaptive
+    spin (default: one period for ``call_at+spin``, half a period otherwise). ``loop``: defaults to the running
+    loop at :meth:`start`.
+    """
+
+    def __init__(self, period_ns: int, on_cycle: OnCycle, *, loop: asyncio.AbstractEventLoop | None = None,
+                 strategy: str = "auto", spin_ns: int | None = None, start_ns: int | None = None,
+                 spin_max_ns: int | None = None) -> None:
+        period_ns = int(period_ns)
+        if period_ns <= 0:
+            raise ValueError("period_ns must be positive")
+        self._strategy = _resolve(strategy)
+        self._source, _, spin = self._strategy.partition("+")
+        if spin_ns is not None and spin_ns < 0:
+            raise ValueError("spin_ns must be >= 0")
+        if not spin and spin_ns:
+            raise ValueError(f"spin_ns needs a '+spin' strategy, got {self._strategy!r}")
+        self._period = period_ns
+        self._on_cycle = on_cycle
+        self._loop = loop
+        self._start_ns = start_ns
+        # call_at's error is about a millisecond, so let its spin cover a whole period if need be.
+        default_max = period_ns if self._source == "call_at" else period_ns // 2
+        self._spin_max = min(period_ns, default_max if spin_max_ns is None else int(spin_max_ns))
+        self._adaptive = bool(spin) and spin_ns is None
+        if not spin:
+            self._q = 0
+        elif spin_ns is None:
+            self._q = _SPIN_INIT_NS[self._source]
+        else:
+            self._q = int(spin_ns)
+        if self._adaptive:
+            self._spin = self._clamp_spin(self._q + _SPIN_MARGIN_NS)
+        else:
+            self._spin = min(self._spin_max, self._q)
+
+        self._running = False
+        self._started = False
+        self._gen = 0
+        self._next_k = 0
+        self._cycle = -1
+        self._deadline = 0
+        self._target = 0
+        self._skipped_total = 0
+        self._errors = 0
+        # lazy proxy with bound context: resolved per call, so it follows later structlog.configure()
+        self._log = structlog.get_logger(__name__, strategy=self._strategy, period_ns=period_ns)
+        # per-source resources
+        self._handle: asyncio.TimerHandle | asyncio.Handle | None = None
+        self._tfd: TimerFD | None = None
+        self._thread: threading.Thread | None = None
+        self._queue: queue.SimpleQueue[int | None] | None = None
+        self._coarse = False
+        self._arm: Callable[[int], None] = self._arm_call_at
+
+    # ------------------------------------------------------------------ public
+    @property
+    def period_ns(self) -> int:
+        return self._period
+
+    @property
+    def cycle(self) -> int:
+        """Number of the last cycle passed to ``on_cycle`` (-1 before the first)."""
+        return self._cycle
+
+    @property
+    def strategy(self) -> str:
+        """The resolved strategy (never ``"auto"``)."""
+        return self._strategy
+
+    @property
+    def start_ns(self) -> int | None:
+        return self._start_ns
+
+    @property
+    def next_deadline_ns(self) -> int:
+        return self._deadline
+
+    @property
+    def skipped_total(self) -> int:
+        return self._skipped_total
+
+    @property
+    def errors(self) -> int:
+        return self._errors
+
+    @property
+    def spin_ns(self) -> int:
+        """Current busy-spin budget before each deadline (0 without '+spin')."""
+        return self._spin
+
+    @property
+    def running(self) -> bool:
+        return self._running
+
+    def start(self) -> None:
+        """Arm the first deadline. Must be called from the loop's thread; a timer runs once (no restart)."""
+        if self._started:
+            raise RuntimeError("CycleTimer.start() called twice (a stopped timer is not restartable)")
+        loop = self._loop if self._loop is not None else asyncio.get_running_loop()
+        self._loop = loop
+        src = self._source
+        if src == "timerfd":
+            self._tfd = TimerFD()
+            loop.add_reader(self._tfd.fileno(), self._on_timerfd)
+            self._arm = self._tfd.set_abs
+        elif src == "thread":
+            self._queue = queue.SimpleQueue()
+            self._thread = threading.Thread(target=self._thread_main, args=(self._queue, loop, self._gen),
+                                            name="CycleTimer-wake", daemon=True)
+            self._thread.start()
+            self._arm = self._queue.put
+        else:
+            self._coarse = _is_uvloop(loop)
+            self._arm = self._arm_call_at
+        self._started = self._running = True
+        if self._start_ns is None:
+            self._start_ns = _mono() + self._period
+        self._deadline = self._start_ns
+        self._target = self._deadline - self._spin
+        self._arm(self._target)
+        self._log.debug("cycle_timer_started", start_ns=self._start_ns, spin_ns=self._spin)
+
+    def stop(self) -> None:
+        """Stop calling ``on_cycle`` and release the fd / thread. Idempotent; safe from inside ``on_cycle``."""
+        if not self._running:
+            return
+        self._running = False
+        self._gen += 1
+        if self._handle is not None:
+            self._handle.cancel()
+            self._handle = None
+        tfd, self._tfd = self._tfd, None
+        if tfd is not None:
+            try:
+                self._loop.remove_reader(tfd.fileno())  # type: ignore[union-attr]
+            except (RuntimeError, ValueError, OSError):
+                pass  # loop already closed: its selector no longer holds the fd
+            tfd.close()
+        thread, self._thread = self._thread, None
+        if self._queue is not None:
+            self._queue.put(None)
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout=max(1.0, 2 * self._period / 1e9))
+        self._log.debug("cycle_timer_stopped", cycle=self._cycle, skipped_total=self._skipped_total,
+                        errors=self._errors)
+
+    # ------------------------------------------------------------------ sources
+    def _arm_call_at(self, target_ns: int) -> None:
+        self._handle = self._loop.call_later((target_ns - _mono()) / 1e9, self._on_wake)  # type: ignore[union-attr]
+
+    def _rearm_early(self, target_ns: int, now_ns: int) -> None:
+        # Only call_at wakes early (uvloop: ms rounding against libuv's ms clock). Re-arm, rounding the
+        # delay *up* to uvloop's 1 ms granularity so that it does not degenerate into spinning through the loop.
+        if self._source != "call_at":
+            self._arm(target_ns)
+            return
+        delay = target_ns - now_ns
+        if self._coarse:
+            delay = -(-delay // 1_000_000) * 1_000_000
+        self._handle = self._loop.call_later(delay / 1e9, self._on_wake)  # type: ignore[union-attr]
+
+    def _on_timerfd(self) -> None:
+        tfd = self._tfd
+        if tfd is not None and tfd.drain():
+            self._on_wake()
+
+    def _thread_main(self, q: queue.SimpleQueue[int | None], loop: asyncio.AbstractEventLoop, gen: int) -> None:
+        set_thread_timer_slack(1)
+        sleep_until = make_abs_sleeper()
+        post = loop.call_soon_threadsafe
+        wake = self._on_thread_wake
+        get = q.get
+        while True:
+            target = get()
+            if target is None:
+                return
+            sleep_until(target)
+            try:
+                post(wake, gen)
+            except RuntimeError:  # loop closed
+                return
+
+    def _on_thread_wake(self, gen: int) -> None:
+        if gen == self._gen:
+            self._on_wake()
+
+    # ------------------------------------------------------------------ hot path
+    def _clamp_spin(self, spin: int) -> int:
+        return min(self._spin_max, max(_SPIN_MIN_NS, spin))
+
+    def _on_wake(self) -> None:
+        if not self._running:
+            return
+        self._handle = None
+        mono = _mono
+        now = mono()
+        d = self._deadline
+        if now < d and d - now > self._spin:
+            self._rearm_early(d - self._spin, now)
+            return
+        if self._adaptive:
+            q = self._q
+            if now - self._target > q:
+                if q < self._spin_max:  # bounded, so a long overload does not leave a huge estimate behind
+                    q += _Q_UP_NS
+            elif q > _Q_DOWN_NS:
+                q -= _Q_DOWN_NS
+            self._q = q
+            self._spin = self._clamp_spin(q + _SPIN_MARGIN_NS)
+        while now < d:
+            now = mono()
+        period = self._period
+        k = self._next_k
+        skipped = 0
+        if now - d >= period:
+            skipped = (now - d) // period
+            k += skipped
+            d += skipped * period
+            self._skipped_total += skipped
+        self._cycle = k
+        try:
+            self._on_cycle(k, d, now, skipped)
+        except Exception:  # noqa: BLE001 - the cycle must go on; logged and counted
+            self._on_error(k)
+        if not self._running:
+            return
+        self._next_k = k + 1
+        d += period
+        self._deadline = d
+        self._target = t = d - self._spin
+        self._arm(t)
+
+    def _on_error(self, cycle: int) -> None:
+        self._errors += 1
+        n = self._errors
+        if n <= _ERRORS_LOGGED_IN_FULL or not n & (n - 1):
+            self._log.exception("on_cycle_failed", cycle=cycle, errors_total=n)

@@ -1,0 +1,255 @@
+"""Behaviour of mlink_sim.aio.ticker.CycleTimer (no assertions on lateness: see docs/timing.md for numbers).
+
+Every strategy available here is run on plain asyncio and on uvloop. Timing-dependent facts are asserted as
+invariants that hold whatever the machine's jitter (a skipped cycle is allowed, a wrong number is not).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import threading
+import time
+
+import pytest
+from structlog.testing import capture_logs
+
+from mlink_sim.aio import STRATEGIES, CycleTimer, available_strategies
+
+try:
+    import uvloop
+except ImportError:  # pragma: no cover
+    uvloop = None
+
+MS = 1_000_000
+LOOPS = ["asyncio"] + (["uvloop"] if uvloop is not None else [])
+AVAILABLE = available_strategies()
+
+
+def run_on(loop_kind: str, coro_fn):
+    loop = uvloop.new_event_loop() if loop_kind == "uvloop" else asyncio.new_event_loop()
+    try:
+        return loop.run_until_complete(asyncio.wait_for(coro_fn(), timeout=5))
+    finally:
+        loop.close()
+
+
+class Recorder:
+    """on_cycle that records its arguments and sets an event after `want` calls."""
+
+    def __init__(self, want: int, action=None) -> None:
+        self.calls: list[tuple[int, int, int, int]] = []
+        self.want = want
+        self.action = action
+        self.done = asyncio.Event()
+
+    def __call__(self, cycle: int, deadline_ns: int, now_ns: int, skipped: int) -> None:
+        self.calls.append((cycle, deadline_ns, now_ns, skipped))
+        if len(self.calls) >= self.want:
+            self.done.set()
+        if self.action is not None:
+            self.action(self, cycle)
+
+
+def assert_schedule(calls, start_ns: int, period_ns: int, first_cycle: int = 0) -> None:
+    """Numbering is consecutive up to reported skips; deadlines are exactly start + k*period; no bursts."""
+    expected = first_cycle
+    for cycle, deadline, now, skipped in calls:
+        assert cycle == expected + skipped
+        assert deadline == start_ns + cycle * period_ns
+        assert deadline <= now < deadline + period_ns  # never early, never a stale catch-up call
+        expected = cycle + 1
+
+
+def test_available_strategies_and_auto():
+    assert {"call_at", "call_at+spin", "thread", "thread+spin"} <= set(AVAILABLE)
+    assert set(AVAILABLE) <= set(STRATEGIES)
+    timer = CycleTimer(MS, lambda *a: None, strategy="auto")
+    assert timer.strategy == ("timerfd+spin" if "timerfd" in AVAILABLE else "call_at+spin")
+
+
+@pytest.mark.parametrize("loop_kind", LOOPS)
+@pytest.mark.parametrize("strategy", AVAILABLE)
+def test_each_strategy_runs_20_cycles_at_1ms(strategy, loop_kind):
+    async def main():
+        rec = Recorder(want=20)
+        start = time.monotonic_ns() + 2 * MS
+        timer = CycleTimer(MS, rec, strategy=strategy, start_ns=start)
+        timer.start()
+        await rec.done.wait()
+        timer.stop()
+        assert timer.strategy == strategy
+        assert len(rec.calls) >= 20
+        assert_schedule(rec.calls, start, MS)
+        last = rec.calls[-1][0]
+        assert timer.cycle == last
+        # no drift accumulation: after N cycles the next deadline is start + N*period, exactly
+        assert timer.next_deadline_ns == start + (last + 1) * MS
+        assert timer.skipped_total == sum(c[3] for c in rec.calls)
+
+    run_on(loop_kind, main)
+
+
+@pytest.mark.parametrize("loop_kind", LOOPS)
+def test_deadlines_are_exact_multiples_with_awkward_period(loop_kind):
+    period = 333_333  # not a divisor of anything: float arithmetic would drift
+    async def main():
+        rec = Recorder(want=30)
+        start = time.monotonic_ns() + 1 * MS
+        timer = CycleTimer(period, rec, start_ns=start)
+        timer.start()
+        await rec.done.wait()
+        timer.stop()
+        assert timer.start_ns == start
+        assert_schedule(rec.calls, start, period)
+
+    run_on(loop_kind, main)
+
+
+@pytest.mark.parametrize("loop_kind", LOOPS)
+@pytest.mark.parametrize("strategy", AVAILABLE)
+def test_blocking_callback_skips_cycles_instead_of_bursting(strategy, loop_kind):
+    def block_once(rec, cycle):
+        if len(rec.calls) == 3:
+            time.sleep(3.5 * MS / 1e9)  # > 2 periods
+
+    async def main():
+        rec = Recorder(want=8, action=block_once)
+        start = time.monotonic_ns() + 2 * MS
+        timer = CycleTimer(MS, rec, strategy=strategy, start_ns=start)
+        timer.start()
+        await rec.done.wait()
+        timer.stop()
+        assert_schedule(rec.calls, start, MS)
+        after_block = rec.calls[3]
+        assert after_block[3] >= 2  # at least the two whole periods the callback blocked for
+        assert timer.skipped_total == sum(c[3] for c in rec.calls) >= 2
+
+    run_on(loop_kind, main)
+
+
+@pytest.mark.parametrize("loop_kind", LOOPS)
+def test_start_in_the_past_reports_skipped(loop_kind):
+    async def main():
+        rec = Recorder(want=3)
+        start = time.monotonic_ns() - 10 * MS
+        timer = CycleTimer(MS, rec, strategy="auto", start_ns=start)
+        timer.start()
+        await rec.done.wait()
+        timer.stop()
+        first = rec.calls[0]
+        assert first[0] == first[3] >= 9
+        assert_schedule(rec.calls, start, MS)
+
+    run_on(loop_kind, main)
+
+
+def _open_fds() -> set[str]:
+    return set(os.listdir("/proc/self/fd")) if os.path.isdir("/proc/self/fd") else set()
+
+
+def _wake_threads() -> list[threading.Thread]:
+    return [t for t in threading.enumerate() if t.name == "CycleTimer-wake"]
+
+
+@pytest.mark.parametrize("loop_kind", LOOPS)
+@pytest.mark.parametrize("strategy", AVAILABLE)
+def test_stop_releases_resources_and_is_idempotent(strategy, loop_kind):
+    async def main():
+        fds_before, threads_before = _open_fds(), len(_wake_threads())
+        rec = Recorder(want=3)
+        timer = CycleTimer(MS, rec, strategy=strategy)
+        timer.start()
+        await rec.done.wait()
+        assert timer.running
+        if strategy.startswith("timerfd"):
+            assert len(_open_fds() - fds_before) == 1
+        if strategy.startswith("thread"):
+            assert len(_wake_threads()) == threads_before + 1
+        timer.stop()
+        timer.stop()
+        assert not timer.running
+        assert _open_fds() - fds_before == set()
+        assert len(_wake_threads()) == threads_before
+        n = len(rec.calls)
+        await asyncio.sleep(5 * MS / 1e9)
+        assert len(rec.calls) == n  # nothing after stop()
+        with pytest.raises(RuntimeError):
+            timer.start()
+
+    run_on(loop_kind, main)
+
+
+@pytest.mark.parametrize("loop_kind", LOOPS)
+def test_stop_from_inside_the_callback(loop_kind):
+    async def main():
+        holder = {}
+        rec = Recorder(want=2, action=lambda r, c: holder["t"].stop() if len(r.calls) >= 2 else None)
+        timer = holder["t"] = CycleTimer(MS, rec)
+        timer.start()
+        await rec.done.wait()
+        await asyncio.sleep(4 * MS / 1e9)
+        assert len(rec.calls) == 2 and not timer.running
+
+    run_on(loop_kind, main)
+
+
+@pytest.mark.parametrize("loop_kind", LOOPS)
+def test_callback_exception_is_logged_and_timer_continues(loop_kind):
+    def fail_some(rec, cycle):
+        if len(rec.calls) in (2, 4):
+            raise ZeroDivisionError("boom")
+
+    async def main():
+        with capture_logs() as logs:
+            rec = Recorder(want=8, action=fail_some)
+            timer = CycleTimer(MS, rec)
+            timer.start()
+            await rec.done.wait()
+            timer.stop()
+        failed = [e for e in logs if e["event"] == "on_cycle_failed"]
+        assert [e["cycle"] for e in failed] == [rec.calls[1][0], rec.calls[3][0]]
+        assert all(e["log_level"] == "error" and e["exc_info"] for e in failed)
+        assert failed[0]["strategy"] == timer.strategy and failed[0]["period_ns"] == MS
+        assert timer.errors == 2
+        assert len(rec.calls) >= 8
+
+    run_on(loop_kind, main)
+
+
+def test_error_logging_is_rate_limited():
+    async def main():
+        with capture_logs() as logs:
+            rec = Recorder(want=40, action=lambda r, c: 1 / 0)
+            timer = CycleTimer(250_000, rec)
+            timer.start()
+            await rec.done.wait()
+            timer.stop()
+        n = timer.errors
+        logged = [e["errors_total"] for e in logs if e["event"] == "on_cycle_failed"]
+        assert n >= 40
+        assert logged == [k for k in range(1, n + 1) if k <= 10 or not k & (k - 1)]
+
+    run_on("asyncio", main)
+
+
+def test_spin_settings():
+    assert CycleTimer(MS, lambda *a: None, strategy="call_at").spin_ns == 0
+    assert CycleTimer(MS, lambda *a: None, strategy="thread+spin", spin_ns=30_000).spin_ns == 30_000
+    assert CycleTimer(MS, lambda *a: None, strategy="thread+spin", spin_ns=0).spin_ns == 0
+    # an adaptive spin never exceeds its cap (default half a period for timerfd/thread)
+    assert CycleTimer(100_000, lambda *a: None, strategy="thread+spin").spin_ns <= 50_000
+
+
+@pytest.mark.parametrize("kwargs", [
+    {"strategy": "nope"}, {"strategy": "call_at", "spin_ns": 10_000}, {"spin_ns": -1}, {"period_ns": 0}])
+def test_invalid_arguments(kwargs):
+    kwargs = {"period_ns": MS, **kwargs}
+    with pytest.raises(ValueError):
+        CycleTimer(kwargs.pop("period_ns"), lambda *a: None, **kwargs)
+
+
+def test_start_without_running_loop_needs_loop():
+    with pytest.raises(RuntimeError):
+        CycleTimer(MS, lambda *a: None).start()
+
