@@ -1,0 +1,100 @@
+"""``mlink-sim compose CONFIG [-o compose.yaml]`` – write a docker-compose testbed for the network in CONFIG."""
+
+from __future__ import annotations
+
+import os
+import shlex
+import sys
+import tempfile
+from pathlib import Path
+
+import click
+
+from ..config import ConfigError, load_config, parse_duration_ns
+from ..testbed.compose import DEFAULT_IMAGE, DEFAULT_REPORT_DIR, DEFAULT_STATION_PORT, render_compose
+
+__all__ = ["compose_cmd", "write_atomically"]
+
+
+def write_atomically(path: Path, text: str) -> None:
+    """Write *text* to *path* via a temporary file in the same directory and ``os.replace``."""
+    directory = path.parent if str(path.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def _command_line(config_path: str, output: str | None, image: str, report_dir: str, port: int,
+                  duration: str | None, asserts: tuple[str, ...]) -> str:
+    """The command as a user would retype it (only non-default options), for the file's header."""
+    args = ["mlink-sim", "compose", config_path]
+    if output is not None:
+        args += ["-o", output]
+    if image != DEFAULT_IMAGE:
+        args += ["--image", image]
+    if report_dir != DEFAULT_REPORT_DIR:
+        args += ["--report-dir", report_dir]
+    if port != DEFAULT_STATION_PORT:
+        args += ["--port", str(port)]
+    if duration is not None:
+        args += ["--duration", duration]
+    for expr in asserts:
+        args += ["--assert", expr]
+    return shlex.join(args)
+
+
+@click.command("compose")
+@click.argument("config_path", metavar="CONFIG")
+@click.option("-o", "--output", help="Write the compose file here (atomically) instead of stdout.")
+@click.option("--image", default=DEFAULT_IMAGE, show_default=True, help="Image of every service.")
+@click.option("--report-dir", default=DEFAULT_REPORT_DIR, show_default=True,
+              help="Directory of the report inside the master container (the 'reports' volume).")
+@click.option("--port", "port", default=DEFAULT_STATION_PORT, show_default=True, type=click.IntRange(1, 65535),
+              help="UDP port every station listens on inside its container.")
+@click.option("--duration", help="Passed to `mlink-sim master --duration` (default: the config's timeline).")
+@click.option("--assert", "asserts", multiple=True, metavar="EXPR",
+              help="Passed to `mlink-sim master --assert`; repeatable, e.g. 'rtt.p99 < 2ms'.")
+def compose_cmd(config_path: str, output: str | None, image: str, report_dir: str, port: int,
+                duration: str | None, asserts: tuple[str, ...]) -> None:
+    """Write a docker-compose file for the network in CONFIG: one container per slave station, a master that
+    starts once every station answers its healthcheck, the config mounted read-only, the report on a volume."""
+    try:
+        config = load_config(config_path)
+    except ConfigError as exc:
+        click.echo(f"mlink-sim compose: {exc}", err=True)
+        sys.exit(2)
+    if duration is not None:
+        try:
+            parse_duration_ns(duration)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="--duration") from None
+    if not report_dir.startswith("/"):
+        raise click.BadParameter("must be an absolute path inside the container, e.g. /reports",
+                                 param_hint="--report-dir")
+    text = render_compose(
+        config, config_path, output,
+        command=_command_line(config_path, output, image, report_dir, port, duration, asserts),
+        image=image, station_port=port, report_dir=report_dir, duration=duration, asserts=asserts,
+    )  # fmt: skip
+    if output is None or output == "-":
+        click.echo(text, nl=False)
+        return
+    try:
+        write_atomically(Path(output), text)
+    except OSError as exc:
+        click.echo(f"mlink-sim compose: cannot write {output}: {exc.strerror or exc}", err=True)
+        sys.exit(2)
+    click.echo(f"wrote {output}: {len(config.station)} station service(s) + master "
+               f"(docker compose -f {shlex.quote(output)} up --abort-on-container-exit --exit-code-from master)",
+               err=True)

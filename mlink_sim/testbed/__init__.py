@@ -1,0 +1,6 @@
+"""Testbeds: docker-compose generation (:mod:`.compose`) and multi-host runs in Linux network namespaces
+(:mod:`.netns`, ``scripts/netns-testbed``). See docs/testbeds.md."""
+
+from .compose import compose_document, render_compose
+
+__all__ = ["compose_document", "render_compose"]

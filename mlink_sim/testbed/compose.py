@@ -1,0 +1,213 @@
+"""A docker-compose testbed for a network config: one container per slave station, one for the master.
+
+:func:`compose_document` is pure (a :class:`~mlink_sim.config.Config` in, a plain ``dict`` out, keys in a fixed
+order) so the output is reproducible and can be validated against the Compose Specification schema;
+:func:`render_compose` turns it into YAML with a header naming the command that made it.
+
+The layout (docs/testbeds.md):
+
+* ``station-21`` … – ``mlink-sim slave --config /config/network.toml --only 0x21 --endpoint 0x21=0.0.0.0:PORT``,
+  every station on the same UDP port in its own container; a healthcheck that sends the station a NOP
+  (``mlink-sim probe 127.0.0.1:PORT --station 0x21 --link ml2 --frame-size 32``) until it first answers.
+* ``master`` – ``mlink-sim master /config/network.toml --endpoint 0x21=station-21:PORT … --report
+  /reports/report.json --no-status``, started only once every station is healthy (``depends_on`` with
+  ``condition: service_healthy``), never restarted.
+* the config file bind-mounted read-only into every container, the report on the named volume ``reports``,
+  every service on the user-defined bridge network ``mlink``.
+
+A station's ``endpoint`` in the config is not used: inside its container every station listens on
+``0.0.0.0:station_port`` and is reached by its service name.
+"""
+
+from __future__ import annotations
+
+import os
+import posixpath
+import re
+import shlex
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..config import Config, StationConfig
+
+__all__ = [
+    "compose_document",
+    "render_compose",
+    "to_yaml",
+    "service_name",
+    "probe_argv",
+    "config_source_for",
+    "DEFAULT_IMAGE",
+    "DEFAULT_STATION_PORT",
+    "DEFAULT_REPORT_DIR",
+    "CONFIG_IN_CONTAINER",
+    "NETWORK_NAME",
+    "REPORTS_VOLUME",
+]
+
+DEFAULT_IMAGE = "mlink-sim:latest"
+DEFAULT_STATION_PORT = 47001
+DEFAULT_REPORT_DIR = "/reports"  #: created owned by the image's non-root user (Dockerfile), so the volume is too
+CONFIG_IN_CONTAINER = "/config/network.toml"
+NETWORK_NAME = "mlink"
+REPORTS_VOLUME = "reports"
+
+#: Healthcheck timing: the probe itself waits at most PROBE_TIMEOUT_S; a container is unhealthy after
+#: HEALTH_RETRIES failures in a row once HEALTH_START_PERIOD (Python start-up, binding) is over.
+PROBE_TIMEOUT_S = 2
+HEALTH_INTERVAL = "2s"
+HEALTH_TIMEOUT = "5s"
+HEALTH_RETRIES = 5
+HEALTH_START_PERIOD = "10s"
+STOP_GRACE_PERIOD = "5s"
+READY_MARK = "/tmp/mlink-sim.answered"  #: written by the healthcheck after the station's first answer
+
+
+def service_name(address: int) -> str:
+    """``0x21`` -> ``"station-21"`` (lower-case hex: service names double as DNS names)."""
+    return f"station-{address:02x}"
+
+
+def _project_name(name: str) -> str:
+    """A Compose project name (``^[a-z0-9][a-z0-9_-]*$``) derived from the network name."""
+    text = re.sub(r"[^a-z0-9_-]+", "-", name.lower()).strip("-_")
+    return text if text and text[0].isalnum() else f"mlink-{text}".rstrip("-")
+
+
+def _addr(address: int) -> str:
+    return f"0x{address:02X}"
+
+
+def _literal(text: str) -> str:
+    """*text* as Compose passes it on: ``$`` would start a variable interpolation, ``$$`` is a literal ``$``."""
+    return text.replace("$", "$$")
+
+
+def _config_mount(config_source: str, target: str) -> dict[str, Any]:
+    return {"type": "bind", "source": config_source, "target": target, "read_only": True}
+
+
+def probe_argv(st: StationConfig, port: int) -> list[str]:
+    """``mlink-sim probe 127.0.0.1:PORT --station 0x21 --link ml2 --frame-size 32 --timeout 2`` for *st*."""
+    assert st.link is not None and st.frame_size is not None  # filled in by Config validation
+    return ["mlink-sim", "probe", f"127.0.0.1:{port}", "--station", _addr(st.address), "--link", st.link.name.lower(),
+            "--frame-size", str(st.frame_size), "--timeout", str(PROBE_TIMEOUT_S)]  # fmt: skip
+
+
+def _healthcheck(st: StationConfig, port: int) -> dict[str, Any]:
+    # Once a master has CONNECTed, a card ignores commands from any other source (docs/cards.md), so a NOP from
+    # the healthcheck would go unanswered for the rest of the run and every probe would log a foreign source.
+    # The check therefore probes until the first valid answer and then only remembers it: "healthy" means
+    # "answered at least once and still running" (the container exits with the slave).
+    probe = shlex.join(probe_argv(st, port))
+    return {
+        "test": ["CMD-SHELL", f"test -e {READY_MARK} || {{ {probe} && touch {READY_MARK}; }}"],
+        "interval": HEALTH_INTERVAL,
+        "timeout": HEALTH_TIMEOUT,
+        "retries": HEALTH_RETRIES,
+        "start_period": HEALTH_START_PERIOD,
+    }
+
+
+def compose_document(
+    config: Config,
+    *,
+    config_source: str = "./network.toml",
+    config_path_in_container: str = CONFIG_IN_CONTAINER,
+    image: str = DEFAULT_IMAGE,
+    station_port: int = DEFAULT_STATION_PORT,
+    report_dir: str = DEFAULT_REPORT_DIR,
+    duration: str | None = None,
+    asserts: Iterable[str] = (),
+) -> dict[str, Any]:
+    """The Compose document for *config*.
+
+    *config_source* is the config file's path as the compose file sees it (relative paths are relative to the
+    compose file's directory); *duration* and *asserts* are passed to ``mlink-sim master`` unchanged.
+    """
+    if not 1 <= station_port <= 65535:
+        raise ValueError(f"station port {station_port} is out of range 1…65535")
+    if not report_dir.startswith("/"):
+        raise ValueError(f"report directory must be an absolute path inside the container, got {report_dir!r}")
+    config_volume = _config_mount(config_source, config_path_in_container)
+    services: dict[str, Any] = {}
+    for st in config.station:
+        services[service_name(st.address)] = {
+            "image": image,
+            "init": True,
+            "command": ["slave", "--config", config_path_in_container, "--only", _addr(st.address),
+                        "--endpoint", f"{_addr(st.address)}=0.0.0.0:{station_port}", "--log-json"],
+            "volumes": [dict(config_volume)],
+            "networks": [NETWORK_NAME],
+            "healthcheck": _healthcheck(st, station_port),
+            "stop_grace_period": STOP_GRACE_PERIOD,
+        }
+    master_cmd = ["master", config_path_in_container]
+    for st in config.station:
+        master_cmd += ["--endpoint", f"{_addr(st.address)}={service_name(st.address)}:{station_port}"]
+    master_cmd += ["--report", posixpath.join(report_dir, "report.json"), "--no-status"]
+    if duration is not None:
+        master_cmd += ["--duration", _literal(duration)]
+    for expr in asserts:
+        master_cmd += ["--assert", _literal(expr)]
+    services["master"] = {
+        "image": image,
+        "init": True,
+        "command": master_cmd,
+        "depends_on": {service_name(st.address): {"condition": "service_healthy"} for st in config.station},
+        "volumes": [dict(config_volume), {"type": "volume", "source": REPORTS_VOLUME, "target": report_dir}],
+        "networks": [NETWORK_NAME],
+        "healthcheck": {"disable": True},
+        "restart": "no",
+        "stop_grace_period": STOP_GRACE_PERIOD,
+    }
+    return {
+        "name": _project_name(config.network.name),
+        "services": services,
+        "networks": {NETWORK_NAME: {"driver": "bridge"}},
+        "volumes": {REPORTS_VOLUME: {}},
+    }
+
+
+def to_yaml(document: dict[str, Any], header: str = "") -> str:
+    """YAML in the document's own key order; *header* lines become ``#`` comments."""
+    body = yaml.safe_dump(document, sort_keys=False, default_flow_style=False, width=4096, allow_unicode=True)
+    lines = [f"# {line}".rstrip() for line in header.splitlines()]
+    return ("\n".join(lines) + "\n" if lines else "") + body
+
+
+def config_source_for(config_path: str | Path, output_path: str | Path | None) -> str:
+    """The config's path relative to the compose file's directory (cwd for stdout), ``./``-prefixed."""
+    base = Path(output_path).resolve().parent if output_path is not None else Path.cwd()
+    target = Path(config_path).resolve()
+    try:
+        rel = os.path.relpath(target, base)
+    except ValueError:  # pragma: no cover - different drives (Windows)
+        return target.as_posix()
+    rel = Path(rel).as_posix()
+    return rel if rel.startswith("../") else f"./{rel}"
+
+
+def render_compose(
+    config: Config,
+    config_path: str | Path,
+    output_path: str | Path | None = None,
+    *,
+    command: str | None = None,
+    **options: Any,
+) -> str:
+    """The compose file for *config* (read from *config_path*) as it will be written to *output_path*."""
+    source = config_source_for(config_path, output_path)
+    document = compose_document(config, config_source=source, **options)
+    header = (
+        f"Generated by `{command}` – do not edit; regenerate instead.\n" if command else "Generated by mlink-sim.\n"
+    ) + (
+        f"Testbed for network {config.network.name!r}: {len(config.station)} station container(s) + 1 master.\n"
+        f"Build the image first (docker build -t {options.get('image', DEFAULT_IMAGE)} .), then:\n"
+        "  docker compose -f THIS_FILE up --abort-on-container-exit --exit-code-from master\n"
+        "See docs/testbeds.md."
+    )
+    return to_yaml(document, header)

@@ -1,0 +1,302 @@
+"""``scripts/netns-testbed``: the plan (pure, runs everywhere) and real runs in Linux network namespaces (marked
+``netns``: need root and a usable ``ip netns``; skipped with the reason otherwise – CI runs them as root)."""
+
+from __future__ import annotations
+
+import functools
+import ipaddress
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from mlink_sim.config import load_config, parse_config
+from mlink_sim.testbed import netns
+from mlink_sim.testbed.netns import check_prefix, cleanup, leftovers, make_plan, run_testbed
+
+REPO = Path(__file__).resolve().parents[2]
+SCRIPT = REPO / "scripts" / "netns-testbed"
+
+SMALL = textwrap.dedent("""
+    # two ML-II stations, a short timeline: run at 20 Hz, check, stop
+    [network]
+    name = "netns-small"
+    link = "ML2"
+    transmission_cycle = "2ms"
+
+    [[station]]
+    address = 0x21
+    card = "si-t3"
+    frame_size = 32
+    params = { "b1-01" = 3, "b1-02" = 3, "C1-01" = 0.5, "C1-02" = 0.5 }
+
+    [[station]]
+    address = 0x22
+    card = "si-t-v7"
+    frame_size = 32
+    params = { "n003" = 3, "n004" = 9, "n019" = 0.5, "n020" = 0.5 }
+
+    [[timeline]]
+    at = "0.2s"
+    do = "run"
+    speed_hz = 20.0
+
+    [[timeline]]
+    at = "2s"
+    expect = "speed-agree"
+
+    [[timeline]]
+    at = "2s"
+    expect = "output-hz"
+    output_hz = 20.0
+
+    [[timeline]]
+    at = "2.2s"
+    do = "stop"
+
+    [[timeline]]
+    at = "4.5s"
+    expect = "stopped"
+""")
+
+
+def _prefix(tag: str) -> str:
+    return check_prefix(f"mlt{tag}{os.getpid() % 100000}")
+
+
+# -- the plan ----------------------------------------------------------------------------------------------
+
+
+def test_plan_addresses_and_names_fit_the_kernel_limits():
+    config = load_config(REPO / "configs" / "ml3-62-max.toml")
+    plan = make_plan(config, "mls-4194304")  # the longest default prefix (pid_max = 2^22)
+    ips = [ipaddress.ip_address(n.ip) for n in plan.nodes]
+    assert plan.master.ip == "198.18.0.1" and plan.stations[0].ip == "198.18.0.2"
+    assert len(set(ips)) == len(ips) == 63
+    assert all(ip in ipaddress.ip_network("198.18.0.0/15") for ip in ips)  # RFC 2544, never routed
+    for name in [plan.bridge, *(n.veth for n in plan.nodes)]:
+        assert len(name) <= 15, name  # IFNAMSIZ - 1
+    assert len({n.netns for n in plan.nodes}) == 63
+    assert [n.address for n in plan.stations] == [st.address for st in config.station]
+
+
+def test_plan_commands():
+    config = parse_config(SMALL)
+    plan = make_plan(config, "mls-42", port=40000)
+    cmds = plan.setup_commands("ip")
+    assert cmds[0] == ["ip", "link", "add", "mls-42br", "type", "bridge"]
+    assert ["ip", "-n", "mls-42-s21", "link", "set", "lo", "up"] in cmds
+    assert ["ip", "-n", "mls-42-m", "addr", "add", "198.18.0.1/24", "dev", "eth0"] in cmds
+    slave = plan.slave_argv(plan.stations[0], "/c.toml", python="py")
+    assert slave[:4] == ["ip", "netns", "exec", "mls-42-s21"]
+    assert slave[4:] == ["py", "-m", "mlink_sim", "slave", "--config", "/c.toml", "--only", "0x21",
+                         "--endpoint", "0x21=198.18.0.2:40000", "--ready-json"]  # fmt: skip
+    master = plan.master_argv("/c.toml", report="/r.json", duration="5s", asserts=("missed == 0",), python="py")
+    assert master[:4] == ["ip", "netns", "exec", "mls-42-m"]
+    assert master[4:9] == ["py", "-m", "mlink_sim", "master", "/c.toml"]
+    assert "0x22=198.18.0.3:40000" in master and "--no-status" in master
+    assert master[master.index("--report") + 1] == "/r.json"
+    assert master[-2:] == ["--assert", "missed == 0"]
+    reach = plan.reach_argv(python="py")
+    assert reach[-2:] == ["0x21=198.18.0.2:40000/ml2/32", "0x22=198.18.0.3:40000/ml2/32"]
+
+
+def test_master_and_slave_commands_parse_with_the_cli():
+    from mlink_sim.cli.network import master_cmd
+    from mlink_sim.cli.slave import slave_cmd
+
+    plan = make_plan(parse_config(SMALL), "mls-42")
+    slave = plan.slave_argv(plan.stations[0], "/c.toml")
+    params = slave_cmd.make_context("slave", slave[slave.index("slave") + 1 :]).params
+    assert params["only"] == "0x21" and params["ready_json"] is True
+    master = plan.master_argv("/c.toml", report="/r.json", duration="5s", bringup_timeout="10s")
+    params = master_cmd.make_context("master", master[master.index("master") + 1 :]).params
+    assert params["status"] is False and len(params["endpoints"]) == 2
+
+
+@pytest.mark.parametrize("bad", ["", "Mls", "mls-123456789", "1abc", "a_b", "mls-"])
+def test_bad_prefixes_are_refused(bad):
+    with pytest.raises(ValueError):
+        check_prefix(bad)
+
+
+def test_reach_target_parsing():
+    from mlink_sim.testbed.reach import parse_target
+    from mlink_sim.wire import Link
+
+    assert parse_target("0x23=198.18.0.4:47001/ml3/64") == (0x23, "198.18.0.4", 47001, Link.ML3, 64)
+    with pytest.raises(ValueError):
+        parse_target("0x23=198.18.0.4:47001")
+
+
+def test_needs_root(monkeypatch):
+    monkeypatch.setattr(netns.os, "geteuid", lambda: 1000)
+    result = CliRunner().invoke(netns.main, [str(REPO / "configs" / "quickstart.toml")])
+    assert result.exit_code == 2
+    assert "needs root" in result.output and "sudo" in result.output
+
+
+def test_script_refuses_without_root_exit_2():
+    runuser = shutil.which("runuser") or shutil.which("setpriv")
+    if os.geteuid() != 0:
+        result = subprocess.run([str(SCRIPT), "configs/quickstart.toml"], capture_output=True, text=True,
+                                cwd=REPO, timeout=30)  # fmt: skip
+    elif runuser and runuser.endswith("runuser"):
+        result = subprocess.run([runuser, "-u", "nobody", "--", "bash", str(SCRIPT), "configs/quickstart.toml"],
+                                capture_output=True, text=True, cwd="/", timeout=30)  # fmt: skip
+    else:
+        pytest.skip("running as root and no runuser to drop privileges")
+    assert result.returncode == 2, result.stderr
+    assert "needs root" in result.stderr
+
+
+# -- in real namespaces ----------------------------------------------------------------------------------------
+
+
+@functools.cache
+def _netns_unusable() -> str | None:
+    if not sys.platform.startswith("linux"):
+        return "network namespaces need Linux"
+    if os.geteuid() != 0:
+        return "needs root for ip netns/veth/bridge (run e.g. sudo .venv/bin/pytest -m netns; CI runs it as root)"
+    ip = netns._find_ip()
+    if ip is None:
+        return "iproute2's ip command is not installed (apt-get install -y iproute2)"
+    probe = f"mltprobe{os.getpid() % 100000}"
+    try:
+        made = subprocess.run([ip, "netns", "add", probe], capture_output=True, text=True, timeout=10)
+        if made.returncode != 0:
+            return f"`ip netns add` is not permitted here: {made.stderr.strip()}"
+        br = subprocess.run([ip, "link", "add", f"{probe}b", "type", "bridge"], capture_output=True, text=True,
+                            timeout=10)  # fmt: skip
+        if br.returncode != 0:
+            return f"cannot create a bridge here: {br.stderr.strip()}"
+    finally:
+        subprocess.run([ip, "netns", "del", probe], capture_output=True, timeout=10)
+        subprocess.run([ip, "link", "del", f"{probe}b"], capture_output=True, timeout=10)
+    return None
+
+
+@pytest.fixture
+def ip():
+    reason = _netns_unusable()
+    if reason:
+        pytest.skip(reason)
+    return netns._find_ip()
+
+
+FAKE_PYTHON = """#!{python}
+# Stands in for `python -m mlink_sim …` inside the namespaces: the testbed's plumbing without the simulator.
+import json, os, signal, sys, time
+args = sys.argv[1:]
+if args[:2] == ["-m", "mlink_sim.testbed.reach"]:
+    sys.exit(0)
+if args[2] == "slave":
+    signal.signal(signal.SIGTERM, lambda *a: sys.exit(0))
+    print(json.dumps({{"event": "ready", "stations": []}}), flush=True)
+    time.sleep(60)
+elif args[2] == "master":
+    signal.signal(signal.SIGINT, lambda *a: sys.exit(130))
+    time.sleep(float(os.environ.get("FAKE_MASTER_S", "0.2")))
+    with open(args[args.index("--report") + 1], "w") as fh:
+        json.dump({{"argv": args, "netns": os.popen("ip -brief addr show dev eth0").read()}}, fh)
+    sys.exit(int(os.environ.get("FAKE_MASTER_RC", "0")))
+"""
+
+
+@pytest.fixture
+def fake_python(tmp_path):
+    path = tmp_path / "fake-python"
+    path.write_text(FAKE_PYTHON.format(python=sys.executable))
+    path.chmod(0o755)
+    return path
+
+
+@pytest.mark.netns
+def test_cleanup_is_idempotent(ip, tmp_path):
+    prefix = _prefix("c")
+    plan = make_plan(parse_config(SMALL), prefix)
+    bed = netns.Testbed(plan, "/nonexistent.toml", tmp_path, ip=ip)
+    try:
+        bed.up()
+        assert len(leftovers(prefix, ip)) == 3 + 1 + 3  # namespaces, bridge, host-side veths
+        ping = subprocess.run([ip, "netns", "exec", plan.master.netns, "ping", "-c1", "-W2", plan.stations[1].ip],
+                              capture_output=True, timeout=10)  # fmt: skip
+        if shutil.which("ping"):
+            assert ping.returncode == 0, ping.stdout
+    finally:
+        first = cleanup(prefix, ip)
+    assert first and leftovers(prefix, ip) == []
+    assert cleanup(prefix, ip) == []  # a second time: nothing to do
+
+
+@pytest.mark.netns
+@pytest.mark.parametrize("master_rc", [0, 1])
+def test_runner_plumbing_with_stand_in_processes(ip, tmp_path, fake_python, monkeypatch, master_rc):
+    config_path = tmp_path / "small.toml"
+    config_path.write_text(SMALL)
+    report = tmp_path / "out" / "report.json"
+    prefix = _prefix("p")
+    monkeypatch.setenv("FAKE_MASTER_RC", str(master_rc))
+    code = run_testbed(make_plan(load_config(config_path), prefix), load_config(config_path), str(config_path),
+                       ip=ip, report=str(report), python=str(fake_python), log_dir=str(tmp_path / "logs"))
+    assert code == master_rc
+    written = json.loads(report.read_text())
+    assert "0x21=198.18.0.2:47001" in written["argv"] and "198.18.0.1/24" in written["netns"]
+    assert leftovers(prefix, ip) == []
+
+
+@pytest.mark.netns
+def test_sigterm_mid_run_tears_everything_down(ip, tmp_path, fake_python):
+    config_path = tmp_path / "small.toml"
+    config_path.write_text(SMALL)
+    prefix = _prefix("t")
+    env = {**os.environ, "FAKE_MASTER_S": "30"}
+    proc = subprocess.Popen([str(SCRIPT), str(config_path), "--prefix", prefix, "--python", str(fake_python),
+                             "--report", str(tmp_path / "r.json"), "--log-dir", str(tmp_path / "logs")], env=env,
+                            stderr=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        end = time.monotonic() + 20
+        while time.monotonic() < end and not any(n.endswith("-m") for n in leftovers(prefix, ip)):
+            time.sleep(0.1)
+        time.sleep(1.0)  # into the master's run
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        cleanup(prefix, ip)
+    assert proc.returncode == 143, err
+    assert "tearing the testbed down" in err
+    assert leftovers(prefix, ip) == []
+
+
+@pytest.mark.netns
+def test_netns_testbed_runs_the_timeline(ip, tmp_path):
+    """The real thing: two stations and the master in three namespaces, the timeline, a report."""
+    config_path = tmp_path / "small.toml"
+    config_path.write_text(SMALL)
+    report = tmp_path / "report.json"
+    prefix = _prefix("r")
+    t0 = time.monotonic()
+    try:
+        result = subprocess.run([str(SCRIPT), str(config_path), "--prefix", prefix, "--report", str(report),
+                                 "--log-dir", str(tmp_path / "logs")], capture_output=True, text=True, timeout=40)
+    finally:
+        cleanup(prefix, ip)
+    elapsed = time.monotonic() - t0
+    logs = "\n".join(f"--- {p.name}\n{p.read_text(errors='replace')[-2000:]}" for p in sorted((tmp_path / "logs").glob("*")))
+    assert result.returncode == 0, f"stdout:\n{result.stdout}\nstderr:\n{result.stderr}\n{logs}"
+    assert report.is_file()
+    assert isinstance(json.loads(report.read_text()), dict)
+    assert leftovers(prefix, ip) == []
+    assert elapsed < 40
