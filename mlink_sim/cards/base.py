@@ -1,0 +1,537 @@
+"""The station machinery the three cards share: envelope checks, the connection, phases, reception
+failures, the watchdog, EEPROM bookkeeping, counters and the snapshot.
+
+A station is sans-I/O: :meth:`Station.receive` takes a datagram, its source and the time and returns the
+response datagram (or None); :meth:`Station.poll` lets time pass (silence detection, the drive);
+:meth:`Station.next_deadline` says when ``poll`` is next due. Nothing raises out of ``receive``/``poll``:
+malformed input is a counted drop with a reason (:class:`StationCounters`).
+
+Security: once a master has CONNECTed, commands from any other source are ignored (counted, and logged once
+per source) until DISCONNECT or connection loss – F6-26 consecutive communication alarms, the point where
+the drive declares bUS "After establishing initial communication, the connection was lost" (SI-T3 Table 28).
+After a loss the next valid command binds the connection again (docs/cards.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any, ClassVar
+
+import structlog
+
+from mlink_sim.params import ParamError
+from mlink_sim.wire import DropReason, Kind, Link, WireError, decode
+
+from .drive_link import DriveCommand, DriveLink, Fault
+from .eeprom import EepromError, EepromImage
+from .monitors import sel_mon_value, sel_ref_item
+from .paramstore import ParamStore
+from .reception import FailureKind, ReceptionMonitor
+from .results import Err
+from .settings import CARD_NAMES, CardOptions, CardSettings, param_table
+from .watchdog import Watchdog
+
+__all__ = ["Station", "StationCounters", "StationSnapshot", "DriveSnapshot", "DEFAULT_TCYCLE_NS", "SLOW"]
+
+_LOG = structlog.get_logger("mlink_sim.cards")
+
+#: "Operation proceeds with a default transmission cycle of 2 ms" until CONNECT (phase 1, all three manuals).
+DEFAULT_TCYCLE_NS = 2_000_000
+#: While the drive is still moving, poll at least this often (status displays, coasting after a fault).
+DRIVE_TICK_NS = 10_000_000
+#: TX/RX/LK LEDs count as lit for this long after the last datagram ("LED may appear to be flashing").
+LED_WINDOW_NS = 100_000_000
+_IDLE = DriveCommand()
+#: :meth:`Station._fast_receive` declines: take the general path.
+SLOW = object()
+_MAX_LOGGED_SOURCES = 32
+
+
+@dataclass(slots=True)
+class StationCounters:
+    """What happened to the datagrams a station saw. ``dropped_by_reason`` keys are wire
+    :class:`~mlink_sim.wire.DropReason` names plus the card's own: ``WRONG_LINK`` (a datagram for another
+    MECHATROLINK generation), ``DUPLICATE`` (a cycle number seen again), ``AER`` (station address error:
+    the card does not answer)."""
+
+    rx_ok: int = 0  #: valid commands for this station from the accepted source
+    tx: int = 0  #: responses returned
+    dropped_by_reason: dict[str, int] = field(default_factory=dict)
+    other_station: int = 0  #: valid datagrams addressed to another station
+    foreign_source: int = 0  #: commands from a source other than the connected master
+    wdt_errors: int = 0
+    reception_failures: int = 0  #: missed communication cycles (gap, silence, FCS) in phases 2/3
+    fcs_errors: int = 0  #: bad-FCS datagrams for this station in phases 2/3
+    commands_refused: int = 0  #: main or sub-commands answered with A.94/A.95 or CMD_ALM/SUBCMD_ALM
+    bus_alarms: int = 0  #: communication alarms counted towards F6-26
+    internal_errors: int = 0  #: exceptions caught at the station boundary (a bug if not 0)
+
+    def drop(self, reason: str) -> None:
+        self.dropped_by_reason[reason] = self.dropped_by_reason.get(reason, 0) + 1
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {name: getattr(self, name) for name in self.__slots__}  # type: ignore[attr-defined]
+        out["dropped_by_reason"] = dict(self.dropped_by_reason)
+        return out
+
+
+@dataclass(frozen=True)
+class DriveSnapshot:
+    """The drive as a status display shows it."""
+
+    running: bool
+    reverse: bool
+    output_hz: float
+    reference_hz: float
+    output_current_a: float
+    dc_bus_v: float
+    motor_rpm: float
+    ready: bool
+    remote: bool
+    baseblock: bool
+    fault: str | None  #: operator display name of the active fault
+    minors: tuple[str, ...]  #: minor faults / alarms
+    ope: str | None
+    fault_history: tuple[str, ...]  #: most recent first
+
+
+@dataclass(frozen=True)
+class StationSnapshot:
+    """A station's state for status displays (``mlink-sim slave`` status, logs)."""
+
+    card: str
+    address: int
+    link: str  #: "ML1" / "ML2" / "ML3"
+    data_size: int
+    phase: int
+    connected_source: Hashable | None
+    tcycle_ns: int  #: transmission cycle in use (2 ms before CONNECT)
+    com_tim: int
+    comm_cycle_ns: int
+    subcommands: bool
+    leds: Mapping[str, str]  #: LED name -> "on" / "off" / "blink"
+    led_colors: Mapping[str, str]  #: LED name -> colour while lit (SI-ET3 R/E is green or red)
+    alarm_code: int  #: MECHATROLINK-II ALARM byte / MECHATROLINK-III COMM_ALM
+    alarm_name: str | None
+    warnings: tuple[str, ...]
+    cmd_alm: int  #: MECHATROLINK-III CMD_ALM of the last response (0 on MECHATROLINK-II)
+    station_error: str | None  #: "AEr" when the station address is invalid
+    drive: DriveSnapshot
+    counters: Mapping[str, Any]
+    eeprom_error: str | None
+
+
+class Station:
+    """Base of the card profiles; see the module docstring. Subclasses set the class attributes below and
+    implement the generation-specific hooks (``_power_up``, ``_process``, ``_report_failure``,
+    ``_report_wdt``, ``_clear_comm_alarms``, ``_leds``, ``_alarm_view``)."""
+
+    card: ClassVar[str] = ""
+    family: ClassVar[str] = ""
+    prm_immediate: ClassVar[bool] = False  #: PRM_WR takes effect without CONFIG (SI-T/V7)
+    has_cyc: ClassVar[bool] = True  #: the drive has the CyC/CYC minor fault (not the VS-606V7)
+
+    address: int
+    link: Link
+    data_size: int
+
+    def __init__(self, *, settings: CardSettings, now: int, eeprom: bytes | None = None) -> None:
+        self.label = CARD_NAMES[self.card]
+        self.options: CardOptions = settings.options
+        self.counters = StationCounters()
+        self._log0 = _LOG.bind(card=self.card)
+        table = param_table(self.card)
+        values = table.defaults()
+        self.eeprom_error: str | None = None
+        image = None
+        if eeprom is not None:
+            try:
+                image = EepromImage.from_bytes(eeprom, card=self.card)
+            except EepromError as exc:
+                self.eeprom_error = str(exc)
+                self._log0.warning("eeprom_ignored", reason=str(exc))
+        saved: dict[str, int] = {}
+        if image is not None:
+            for name, raw in image.params.items():
+                p = table.get(name)
+                try:
+                    if p is None:
+                        raise ParamError(f"unknown parameter {name}")
+                    table.check(p, raw)
+                except ParamError as exc:
+                    self._log0.warning("eeprom_param_ignored", param=name, reason=str(exc))
+                    continue
+                values[p.name] = saved[p.name] = raw
+        for name, raw in settings.params.items():
+            p = table.by_name(name)
+            table.check(p, raw)
+            values[p.name] = raw
+        self._saved_params = saved
+        self.station_error: str | None = None
+        self._mon_regs: dict[str, int] = {}  #: {"F6-23": register, "F6-24": register} read at power-up
+        self._power_up(values, settings)
+        self._log0 = self._log0.bind(station=f"{self.address:02X}H")
+        self._log = self._log0.bind(phase=1)
+        self.store = ParamStore(table, values, immediate=self.prm_immediate)
+        self.drive = DriveLink(self.family, self.label, values, settings.load, now,
+                               history=image.fault_history if image is not None else ())
+        self.watchdog = Watchdog()
+        self.reception = ReceptionMonitor()
+        self.phase = 1
+        self.tcycle_ns = DEFAULT_TCYCLE_NS
+        self.com_tim = 1
+        self.comm_cycle_ns = DEFAULT_TCYCLE_NS
+        self._source: Hashable | None = None
+        self._bus_count = 0
+        self._now = now
+        self._rx_at: int | None = None
+        self._tx_at: int | None = None
+        self._any_rx: int | None = None
+        self._cmd_key: tuple[int, int, int] | None = None
+        self.refs: dict[str, int] = {}  #: SEL_REF item -> last value (snapshot only)
+        self._eeprom_dirty = False
+        self._seen_fault: Fault | None = None
+        self._history = self.drive.history_names()
+        self._foreign_logged: set[str] = set()
+        self._last_refused: tuple[Any, ...] = ()
+        if self.station_error is not None:
+            self.drive.minor(Fault.AER, True, now)
+            self._log.warning("station_address_error", address=self.address)
+        self._log.info("power_up", link=self.link.name, data_size=self.data_size)
+
+    # -- hooks -----------------------------------------------------------------------------------
+    def _power_up(self, values: Mapping[str, int], settings: CardSettings) -> None:
+        """Set address, link, data_size (and station_error) from the power-up settings."""
+        raise NotImplementedError
+
+    def _process(self, frame: Any, source: Hashable, now: int) -> bytes:
+        """Execute one accepted command; return the response datagram."""
+        raise NotImplementedError
+
+    def _report_failure(self, kind: FailureKind, first: bool) -> None:
+        """Show a reception failure: warning (*first*) or communications alarm."""
+        raise NotImplementedError
+
+    def _report_wdt(self) -> None:
+        raise NotImplementedError
+
+    def _clear_comm_alarms(self) -> None:
+        raise NotImplementedError
+
+    def _observe_drive(self) -> None:
+        """Take note of the drive's fault now (MECHATROLINK-II "most recent alarm" ordering)."""
+
+    def _leds(self) -> tuple[dict[str, str], dict[str, str]]:
+        raise NotImplementedError
+
+    def _alarm_view(self) -> tuple[int, str | None, tuple[str, ...], int]:
+        """(alarm code, its name, warning names, CMD_ALM) for the snapshot."""
+        raise NotImplementedError
+
+    # -- the Station API --------------------------------------------------------------------------
+    def receive(self, datagram: bytes, source: Hashable, now: int) -> bytes | None:
+        """One datagram from *source* at *now*: the response datagram, or None (not for this station,
+        ignored or malformed). Never raises."""
+        try:
+            return self._receive(datagram, source, now)
+        except Exception:  # noqa: BLE001 - the station must keep answering its master
+            self._internal_error("receive")
+            return None
+
+    def poll(self, now: int) -> None:
+        """Let time pass: silence detection and the drive. Cheap; never raises."""
+        try:
+            if now > self._now:
+                self._now = now
+            self.drive.advance(now)
+            if self.phase > 1:
+                n, before = self.reception.poll(now)
+                if n:
+                    self._failures(FailureKind.SILENCE, n, before, now)
+            if self.drive.status.fault is not self._seen_fault:
+                self._watch_history()
+        except Exception:  # noqa: BLE001
+            self._internal_error("poll")
+
+    def next_deadline(self) -> int | None:
+        """Absolute time (ns) when :meth:`poll` is next due, or None when nothing is pending."""
+        due = self.reception.deadline() if self.phase > 1 else None
+        if not self.drive.is_steady():
+            tick = self._now + DRIVE_TICK_NS
+            due = tick if due is None else min(due, tick)
+        return due
+
+    def take_eeprom(self) -> bytes | None:
+        """The EEPROM image to persist, when CONFIG_MOD = 1 or a fault-history change asks for it."""
+        if not self._eeprom_dirty:
+            return None
+        self._eeprom_dirty = False
+        return EepromImage(self.card, self._saved_params, self._history).to_bytes()
+
+    def snapshot(self) -> StationSnapshot:
+        link = self.drive
+        st = link.status
+        d = link.drive
+        drive = DriveSnapshot(
+            running=st.running, reverse=st.reverse, output_hz=abs(d.output_frequency_hz),
+            reference_hz=d.frequency_reference_hz, output_current_a=d.output_current_a, dc_bus_v=d.dc_bus_v,
+            motor_rpm=d.motor_speed_rpm, ready=st.ready, remote=st.remote, baseblock=st.baseblock,
+            fault=st.fault.display if st.fault is not None else None,
+            minors=tuple(sorted(f.display for f in st.minors)), ope=st.ope_code,
+            fault_history=tuple(f.display for f in link.history()),
+        )
+        leds, colors = self._leds()
+        code, name, warnings, cmd_alm = self._alarm_view()
+        return StationSnapshot(
+            card=self.card, address=self.address, link=self.link.name, data_size=self.data_size,
+            phase=self.phase, connected_source=self._source, tcycle_ns=self.tcycle_ns, com_tim=self.com_tim,
+            comm_cycle_ns=self.comm_cycle_ns, subcommands=self._subcommands_active(),
+            leds=MappingProxyType(leds), led_colors=MappingProxyType(colors), alarm_code=code,
+            alarm_name=name, warnings=warnings, cmd_alm=cmd_alm, station_error=self.station_error,
+            drive=drive, counters=MappingProxyType(self.counters.as_dict()), eeprom_error=self.eeprom_error,
+        )
+
+    # -- receive path ------------------------------------------------------------------------------
+    def _receive(self, datagram: bytes, source: Hashable, now: int) -> bytes | None:
+        c = self.counters
+        if now > self._now:
+            self._now = now
+        self._any_rx = now
+        if self.phase > 1:
+            out = self._fast_receive(datagram, source, now)
+            if out is not SLOW:
+                return out  # type: ignore[return-value]
+        try:
+            frame = decode(datagram, kind=Kind.COMMAND)
+        except WireError as exc:
+            c.drop(exc.reason.name)
+            if (exc.reason is DropReason.BAD_FCS and self.phase > 1 and datagram[3] == self.address
+                    and (self._source is None or source == self._source)):
+                self._fcs_error(now)
+            return None
+        if frame.station != self.address:
+            c.other_station += 1
+            return None
+        if self.station_error is not None:
+            c.drop("AER")
+            return None
+        if frame.link is not self.link:
+            c.drop("WRONG_LINK")
+            return None
+        msg = frame.message
+        if msg.size != self.data_size:
+            c.drop(DropReason.BAD_SIZE.name)
+            return None
+        if not self._accept(frame.cycle, frame.tcycle_ns, msg.wdt, msg.code, source, now):
+            return None
+        out = self._process(frame, source, now)
+        self._sent(now)
+        return out
+
+    def _fast_receive(self, datagram: bytes, source: Hashable, now: int) -> object:
+        """The cyclic INV_CTL without building frame objects (a card may implement it); :data:`SLOW` to take
+        the general path. It must decide before :meth:`_accept` has run."""
+        return SLOW
+
+    def _accept(self, cycle: int, tcycle_ns: int, wdt: int, code: int, source: Hashable, now: int) -> bool:
+        """A well-formed command for this station: the connection, reception failures, the watchdog."""
+        if self._source is not None and source != self._source:
+            self._foreign(source)
+            return False
+        self.drive.advance(now)
+        if self.phase > 1 and self._source is None:  # connection lost earlier: this master takes it again
+            self._source = source
+            self.reception.rebase(cycle, now)  # its cycle numbers say nothing about the old master's
+            self._log.info("connection_rebound", source=repr(source))
+            self.watchdog.check(wdt, 1)
+        elif self.phase > 1:  # failures found by poll() are already counted; the gap tells the rest
+            seen = self.reception.on_command(cycle, now)
+            if seen is None:
+                self.counters.drop("DUPLICATE")
+                return False
+            new, before, elapsed = seen
+            if new:
+                self._failures(FailureKind.GAP, new, before, now)
+            if tcycle_ns != self.tcycle_ns:
+                self._failures(FailureKind.CYCLE, 1, 1, now)
+            if not self.watchdog.check(wdt, elapsed) and code != 0x0F:  # DISCONNECT carries no WDT (SI-ET3)
+                self._wdt_error(now)
+            self._bus_count = 0
+        else:
+            self.watchdog.check(wdt, 1)
+        self.counters.rx_ok += 1
+        self._rx_at = now
+        return True
+
+    def _sent(self, now: int) -> None:
+        self.counters.tx += 1
+        self._tx_at = now
+        if self.drive.status.fault is not self._seen_fault:
+            self._watch_history()
+
+    def _fcs_error(self, now: int) -> None:
+        self.counters.fcs_errors += 1
+        before = self.reception.on_lost()
+        self._failures(FailureKind.FCS, 1, before, now)
+
+    def _failures(self, kind: FailureKind, n: int, before: int, now: int) -> None:
+        """*n* failures of *kind*, after *before* consecutive ones: the first is a warning, the rest alarms."""
+        self.counters.reception_failures += n if kind is not FailureKind.CYCLE else 0
+        alarms = n
+        if kind is not FailureKind.CYCLE and before == 0:
+            self._report_failure(kind, True)
+            alarms -= 1
+        if alarms:
+            self._report_failure(kind, False)
+            self._comm_alarm(alarms, now)
+        total = before + n
+        if before < 2 or (total & (total - 1)) == 0 or total.bit_length() > before.bit_length():
+            self._log.info("reception_failure", kind=kind.value, count=n, consecutive=total)
+
+    def _comm_alarm(self, n: int, now: int) -> None:
+        """*n* communications alarms (E6 / COMM_ALM 8–B): phase 3 -> 2, bUS after F6-26 of them."""
+        if self.phase == 3:
+            self._set_phase(2)
+        self.counters.bus_alarms += n
+        before = self._bus_count
+        self._bus_count += n
+        limit = self._bus_limit()
+        if before < limit <= self._bus_count:
+            detected = self.drive.trip_bus(now)
+            self._log.warning("bus_error", alarms=self._bus_count, limit=limit, drive_fault=detected)
+            if self._source is not None:
+                self._log.warning("connection_lost", source=repr(self._source))
+                self._source = None
+
+    def _bus_limit(self) -> int:
+        return 1
+
+    def _wdt_error(self, now: int) -> None:
+        self.counters.wdt_errors += 1
+        self.drive.trip_e5(now)  # the drive's E5 is this same event: the card's code is the most recent
+        self._observe_drive()
+        self._report_wdt()
+        if self.phase == 3:
+            self._set_phase(2)
+        self._log.warning("wdt_error", master_count=self.watchdog.master)
+
+    def _foreign(self, source: Hashable) -> None:
+        self.counters.foreign_source += 1
+        key = repr(source)
+        if key not in self._foreign_logged and len(self._foreign_logged) < _MAX_LOGGED_SOURCES:
+            self._foreign_logged.add(key)
+            self._log.warning("foreign_source_ignored", source=key, connected=repr(self._source))
+
+    def _log_refused(self, **fields: Any) -> None:
+        """"connect_refused", once per distinct refused CONNECT (a master may retry it every cycle)."""
+        key = tuple(sorted(fields.items()))
+        if key != self._last_refused:
+            self._last_refused = key
+            self._log.info("connect_refused", **fields)
+
+    def _internal_error(self, where: str) -> None:
+        n = self.counters.internal_errors = self.counters.internal_errors + 1
+        if n <= 10 or n & (n - 1) == 0:
+            self._log.exception("station_internal_error", where=where, count=n)
+
+    def _watch_history(self) -> None:
+        self._seen_fault = self.drive.status.fault
+        names = self.drive.history_names()
+        if names != self._history:
+            self._history = names
+            self._eeprom_dirty = True
+            self._log.info("eeprom_dirty", reason="fault history", history=list(names))
+
+    # -- phases and connection -----------------------------------------------------------------------
+    def _set_phase(self, phase: int) -> None:
+        if phase != self.phase:
+            old, self.phase = self.phase, phase
+            self._log = self._log0.bind(phase=phase)
+            self._log.info("phase_changed", old=old, new=phase)
+            if phase == 3:
+                self.watchdog.armed = True
+            else:
+                self.watchdog.disarm()
+
+    def _subcommands_active(self) -> bool:
+        return False
+
+    def _connect(self, source: Hashable, cycle: int, now: int, *, sync: bool, tcycle_ns: int, com_tim: int,
+                 comm_cycle_ns: int, wdt: int) -> None:
+        self._source = source
+        self.tcycle_ns, self.com_tim, self.comm_cycle_ns = tcycle_ns, com_tim, comm_cycle_ns
+        self.reception.start(cycle, now, comm_cycle_ns, max(1, round(comm_cycle_ns / tcycle_ns)),
+                             self.options.silence_tolerance_ns)
+        self._bus_count = 0
+        self.watchdog.arm(wdt)
+        self._set_phase(3 if sync else 2)
+        if not sync:
+            self.watchdog.disarm()
+        self._log.info("connected", source=repr(source), tcycle_ns=tcycle_ns, com_tim=com_tim, sync=sync)
+
+    def _disconnect(self, now: int) -> None:
+        """DISCONNECT: "the data for the control command to the Drive is cleared to 0, and a fault reset
+        command is carried out" (SI-T3 / SI-T/V7); back to phase 1 and the 2 ms default cycle."""
+        self._log.info("disconnected", source=repr(self._source))
+        self._source = None
+        self.reception.stop()
+        self.tcycle_ns = self.comm_cycle_ns = DEFAULT_TCYCLE_NS
+        self.com_tim = 1
+        self.drive.command(_IDLE, now)
+        self.drive.reset_fault(now)
+        self._cmd_key = None
+        self.refs.clear()
+        self._clear_comm_alarms()
+        self._set_phase(1)
+
+    def _alarm_clear(self, now: int) -> bool:
+        """ALM_CLR / CMD_CTRL.ALM_CLR: communication alarms, card minor faults, drive faults (refused by the
+        drive while RUN is on). True if the drive accepted the reset."""
+        self._clear_comm_alarms()
+        self._bus_count = 0
+        return self.drive.reset_fault(now)
+
+    def _led_recent(self, at: int | None) -> bool:
+        return at is not None and self._now - at <= LED_WINDOW_NS
+
+    # -- command bodies shared by the profiles --------------------------------------------------------
+    def _prm_write(self, no: int, size: int, data: bytes, now: int) -> Err:
+        """PRM_WR (SI-T3 Table 9, SI-ET3 PRM_WR, SI-T/V7 PRM_WR)."""
+        if not self.drive.status.main_power_on:
+            return Err.UNDERVOLTAGE  # "During an undervoltage fault" / "Writing Error during Under Voltage"
+        err, changes = self.store.write(no, size, data)
+        if err is Err.OK:
+            if self.prm_immediate:
+                self._reconfigure(now)
+            self._log.debug("prm_wr", values=changes, pending=not self.prm_immediate)
+        return err
+
+    def _reconfigure(self, now: int) -> None:
+        try:
+            self.drive.reconfigure(self.store.active, now)
+        except (KeyError, ValueError) as exc:  # a combination the model cannot take: keep the old settings
+            self._log.warning("drive_reconfigure_failed", reason=str(exc))
+
+    def _config(self, mod: int, now: int) -> Err:
+        """CONFIG (SI-T3 Table 12, SI-ET3 Table 15, SI-T/V7 CONFIG): 0 = RAM, 1 = RAM and EEPROM."""
+        if mod not in (0, 1):
+            return Err.DATA
+        if not self.prm_immediate and self.store.apply():
+            self._reconfigure(now)
+        if mod == 1:
+            self._saved_params = self.store.overrides()
+            self._eeprom_dirty = True
+            self._log.info("eeprom_dirty", reason="CONFIG_MOD=1", params=len(self._saved_params))
+        return Err.OK
+
+    def _sel_refs(self, sel: int, *values: int) -> None:
+        """Record REF values by the item their SEL_REF nibble selects (unused codes are ignored)."""
+        for i, value in enumerate(values):
+            item = sel_ref_item(self.card, (sel >> (4 * i)) & 0xF)
+            if item:
+                self.refs[item] = value
+
+    def _mon(self, code: int) -> int:
+        return sel_mon_value(self.drive, self.store, self._mon_regs, code)

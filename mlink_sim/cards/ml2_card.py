@@ -1,0 +1,465 @@
+"""MECHATROLINK-I/II station machinery shared by the SI-T3 and the SI-T/V7 (SI-T3 §7–§9, SI-T/V7 §5–§8).
+
+Each command is answered by a handler from a table keyed by command code (:data:`MAIN_HANDLERS`,
+:data:`SUB_HANDLERS`); a card profile copies and adjusts the tables. A handler returns the response body and
+an :class:`~mlink_sim.cards.results.Err`; a refused command is ignored and reported with A.94/A.95 in the ALARM
+byte ("Received commands are ignored", SI-T3 Table 25), a refused sub-command additionally with SUBWARNG.
+Main before sub: "If a conflict occurs between a request for a main command and a request for a sub-command,
+the request for the main command is processed"; INV_I/O references are applied after INV_CTL's, so "If an
+INV_CTL main command and an INV_I/O sub-command conflict, the sub-command is given priority".
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Callable, Hashable, Mapping
+from typing import Any, ClassVar
+
+from mlink_sim.wire import (
+    MAGIC, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, Unknown, crc16_x25, encode, ml2,
+)
+from mlink_sim.wire.frame import ENVELOPE
+from mlink_sim.wire.layout import fast_format
+
+from .alarms import Ml2Alarms, ml2_failure_code
+from .base import SLOW, Station
+from .drive_link import DriveCommand, Fault, ml2_status_bits
+from .idinfo import ML2_ID_AREAS, ml2_id_window
+from .phases import ML2_COMBINATIONS, ML2_MAIN_PHASES, ML2_SUB_PHASES, Admit, combination_ok
+from .reception import FailureKind
+from .results import Err
+
+__all__ = ["Ml2Station", "MAIN_HANDLERS", "SUB_HANDLERS"]
+
+_ZERO_MAIN = bytes(ml2.RESPONSE_MAIN.size)
+_ZERO_SUB = bytes(ml2.RESPONSE_SUB.size)
+_MAIN_CODE = {cls: layout.code for cls, layout in ml2.COMMAND_MAIN.by_class.items()}
+_SUB_CODE = {cls: layout.code for cls, layout in ml2.COMMAND_SUB.by_class.items()}
+_ALLOWED, _IGNORED = Admit.ALLOWED, Admit.IGNORED
+
+
+def _fmt(declaration: Any, size: int) -> struct.Struct:
+    return struct.Struct(fast_format(declaration, size)[0])
+
+
+# The fast path's formats, derived from the wire declarations (so they cannot drift from them).
+_HEADER = _fmt(ENVELOPE, 12)
+_FCS = struct.Struct("<H")
+_INV_CTL = _fmt(ml2.COMMAND_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.COMMAND_MAIN.size)
+_INV_CTL_R = _fmt(ml2.RESPONSE_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.RESPONSE_MAIN.size)
+_RF17 = _fmt(ml2.RESPONSE_FRAME_17, 17)
+_RF32 = _fmt(ml2.RESPONSE_FRAME_32, 32)
+_CMDRDY = int(M2Status.CMDRDY)
+_SUBRDY = int(M2SubStatus.SUBCMDRDY)
+_SUBWARN = int(M2SubStatus.SUBCMDRDY | M2SubStatus.SUBWARNG)
+_MS = 1_000_000
+_HALF_MS = 500_000
+
+Handler = Callable[["Ml2Station", Any, Frame, Hashable, int], tuple[Any, Err]]
+SubHandler = Callable[["Ml2Station", Any, int], tuple[Any, Err]]
+
+
+def _echo_main(body: Any) -> Any:
+    """The response body of a command that was not executed: its fields echoed, data zero."""
+    t = type(body)
+    if t is ml2.PrmRd:
+        return ml2.PrmRdResponse(body.no, body.size)
+    if t is ml2.IdRd:
+        return ml2.IdRdResponse(body.device_code, body.offset, body.size)
+    if t is ml2.AlmRd:
+        return ml2.AlmRdResponse(body.alm_rd_mod)
+    if t is ml2.InvCtl:
+        return ml2.InvCtlResponse(sel_ref=body.sel_ref, sel_mon=body.sel_mon)
+    if t is Unknown:
+        return Unknown(body.code, _ZERO_MAIN)
+    return body  # NOP, PRM_WR, CONFIG, ALM_CLR, SYNC_SET, CONNECT, DISCONNECT echo themselves
+
+
+def _echo_sub(sub: Any) -> Any:
+    t = type(sub)
+    if t is ml2.PrmRd:
+        return ml2.PrmRdResponse(sub.no, sub.size)
+    if t is ml2.AlmRd:
+        return ml2.AlmRdResponse(sub.alm_rd_mod)
+    if t is ml2.InvIo:
+        return ml2.InvIoResponse(sub.sel_ref34, sub.sel_ref56, sub.sel_mon34, sub.sel_mon56)
+    if t is Unknown:
+        return Unknown(sub.code, _ZERO_SUB)
+    return sub
+
+
+class Ml2Station(Station):
+    """A MECHATROLINK-I/II slave; the card profiles set the tables and the power-up settings."""
+
+    main_phases: ClassVar[Mapping[int, Any]] = ML2_MAIN_PHASES
+    sub_phases: ClassVar[Mapping[int, Any]] = ML2_SUB_PHASES
+    combinations: ClassVar[Mapping[int, frozenset[int]]] = ML2_COMBINATIONS
+    id_areas: ClassVar[Mapping[int, bytes]] = ML2_ID_AREAS
+    alm_rd_modes: ClassVar[frozenset[int]] = frozenset((0, 1, 2))
+    handlers: ClassVar[Mapping[int, Handler]]
+    sub_handlers: ClassVar[Mapping[int, SubHandler]]
+    v7: ClassVar[bool] = False
+    mfi_mask: ClassVar[int] = 0x3F  #: operation signals bits 2–7 -> S3–S8 (SI-T3 Table 16); V7: S3–S7
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.alarms = Ml2Alarms(_CodeTable(self.drive.fault_code), _CodeTable(self.drive.minor_code))
+        self._subcmd = self.data_size == 32
+        self._st_obj: object = None
+        self._st_word = 0
+        self._deferred_cyc = False
+        self._fast_len = 12 + self.data_size + 2
+
+    # -- the command ---------------------------------------------------------------------------
+    def _process(self, frame: Frame, source: Hashable, now: int) -> bytes:
+        msg = frame.message
+        body = msg.body
+        btype = type(body)
+        code = body.code if btype is Unknown else _MAIN_CODE[btype]
+        phase, subcmd = self.phase, self._subcmd  # the state the command arrived in rules the sub-command
+        row = self.main_phases.get(code)
+        if row is None:
+            rbody, err = _echo_main(body), Err.UNSUPPORTED
+        else:
+            adm = row[phase - 1]
+            if adm is _ALLOWED:
+                rbody, err = self.handlers[code](self, body, frame, source, now)
+            elif adm is _IGNORED:
+                rbody, err = _echo_main(body), Err.OK
+            else:
+                rbody, err = _echo_main(body), Err.PHASE
+        if err is not Err.OK:
+            self.alarms.warning(err.ml2)
+            self.counters.commands_refused += 1
+        sub = msg.sub
+        if sub is None:
+            rsub, substatus = None, 0
+        else:
+            rsub, substatus = self._process_sub(code, sub, phase, subcmd, now)
+        alarm, word = self._alarm_status(code == M2Cmd.PRM_RD)
+        resp = ml2.M2Response(rbody, alarm, word, self.watchdog.rwdt(), rsub, substatus)
+        self.alarms.reported()
+        if self._deferred_cyc:  # the drive learns of the cycle error after the card answered the CONNECT
+            self._deferred_cyc = False
+            self.drive.minor(Fault.CYC, True, now)
+        return encode(Frame(self.link, Kind.RESPONSE, self.address, frame.cycle, frame.tcycle_ns, resp))
+
+    def _alarm_status(self, prm_rd: bool) -> tuple[int, int]:
+        """ALARM byte and STATUS word of the next response (SI-T3 "STATUS Field", Tables 19–21)."""
+        st = self.drive.status
+        alarms = self.alarms
+        alarms.observe(st.fault)
+        alarm, alm, warng = alarms.report(st.fault, st.minor, st.fault_reset_input)
+        if prm_rd:  # PRM_RD: "only the settings for the STATUS (CMDRDY) is valid"
+            return alarm, _CMDRDY | alm | warng << 1
+        if st is not self._st_obj:
+            self._st_obj = st
+            self._st_word = ml2_status_bits(st, cmdrdy=True, v7=self.v7) & ~3
+        return alarm, self._st_word | alm | warng << 1
+
+    def _fast_receive(self, dg: bytes, source: Hashable, now: int) -> object:
+        """INV_CTL with a NOP (or no) sub-command in phase 2/3 – the per-cycle command – straight from and to
+        bytes with ``struct`` formats derived from the wire declarations; identical responses to the general
+        path (tests/cards/test_fast_path.py)."""
+        if len(dg) != self._fast_len:
+            return SLOW
+        magic, link, kind, stn, cycle, tcycle = _HEADER.unpack_from(dg)
+        if (magic != MAGIC or link != self.link or kind != 1 or stn != self.address or dg[12] != M2Cmd.INV_CTL
+                or (self.data_size == 32 and dg[28] != 0)
+                or crc16_x25(dg[:-2]) != dg[-2] | dg[-1] << 8):
+            return SLOW
+        if not self._accept(cycle, tcycle, dg[27], M2Cmd.INV_CTL, source, now):
+            return None
+        sig, speed, torque, sel_ref, sel_mon, ref1, ref2 = _INV_CTL.unpack_from(dg, 14)
+        ofreq, cur, mon1, mon2 = self._inv_ctl(sig, speed, torque, sel_ref, sel_mon, ref1, ref2, now)
+        alarm, word = self._alarm_status(False)
+        main = _INV_CTL_R.pack(ofreq, cur, sel_ref, sel_mon, mon1, mon2)
+        if self.data_size == 32:
+            data = _RF32.pack(M2Cmd.INV_CTL, alarm, word, main, self.watchdog.rwdt(), 0, _SUBRDY, _ZERO_SUB)
+        else:
+            data = _RF17.pack(M2Cmd.INV_CTL, alarm, word, main, self.watchdog.rwdt())
+        self.alarms.reported()
+        out = _HEADER.pack(MAGIC, link, 2, stn, cycle, tcycle) + data
+        self._sent(now)
+        return out + _FCS.pack(crc16_x25(out))
+
+    def _inv_ctl(self, sig: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,
+                 now: int) -> tuple[int, int, int, int]:
+        """INV_CTL (SI-T3 Table 16 / V7 Table 3 operation signals): the drive command; returns output
+        frequency, output current, MON1, MON2."""
+        key = (sig, speed, torque)
+        if key != self._cmd_key:
+            self._cmd_key = key
+            cmd = DriveCommand(
+                forward=bool(sig & 0x0001), reverse=bool(sig & 0x0002), fault_reset=bool(sig & 0x0200),
+                external_fault=bool(sig & 0x0100), external_baseblock=bool(sig & 0x8000),
+                multi_inputs=(sig >> 2) & self.mfi_mask, freq_ref_raw=speed, torque_ref_raw=torque,
+                torque_limit_raw=torque, fault_history_clear=bool(sig & 0x4000),
+            )
+            self.drive.command(cmd, now)
+            if cmd.fault_history_clear:
+                self._watch_history()
+        if sel_ref:
+            self._sel_refs(sel_ref, ref1, ref2)
+        link = self.drive
+        return link.output_freq_raw(), link.output_current_raw(), self._mon(sel_mon & 0xF), self._mon(sel_mon >> 4)
+
+    def _process_sub(self, main_code: int, sub: Any, phase: int, subcmd: bool, now: int) -> tuple[Any, int]:
+        stype = type(sub)
+        scode = sub.code if stype is Unknown else _SUB_CODE[stype]
+        if not subcmd:  # CONNECT with SUBCMD = 0: the sub-command area is not used
+            return _echo_sub(sub), _SUBRDY
+        row = self.sub_phases.get(scode)
+        if row is None:
+            err = Err.UNSUPPORTED
+        elif not combination_ok(self.combinations, main_code, scode):
+            err = Err.COMBINATION  # SI-T3 Table 7 "NG (A.95)"
+        else:
+            adm = row[phase - 1]
+            if adm is _ALLOWED:
+                rsub, err = self.sub_handlers[scode](self, sub, now)
+                if err is Err.OK:
+                    return rsub, _SUBRDY
+            else:
+                err = Err.OK if adm is _IGNORED else Err.PHASE
+                if err is Err.OK:
+                    return _echo_sub(sub), _SUBRDY
+        self.alarms.warning(err.ml2)
+        self.counters.commands_refused += 1
+        return _echo_sub(sub), _SUBWARN
+
+    # -- shared command bodies -------------------------------------------------------------------
+    def _prm_main_refused(self) -> bool:
+        """SI-T/V7: "If the MECHATROLINK-II 32-byte mode is used, PRM_RD can be used only in a sub-command"."""
+        return self.v7 and self.data_size == 32 and not self.options.v7_prm_main_in_32byte
+
+    def _alm_data(self, mod: int, index: int) -> tuple[bytes, Err]:
+        """ALM_DATA (10 bytes) per SI-T3 Tables 13/14 (SI-T/V7: modes 0 and 1, two history entries)."""
+        if mod not in self.alm_rd_modes:
+            return bytes(10), Err.DATA
+        link = self.drive
+        hist = [link.fault_code(f) & 0xFF for f in link.history()]
+        if mod == 0:
+            return bytes((link.monitor("U2-01") & 0xFF, link.monitor("U2-02") & 0xFF)).ljust(10, b"\0"), Err.OK
+        if mod == 1:
+            depth = 2 if self.v7 else 10
+            return bytes(hist[:depth]).ljust(10, b"\0"), Err.OK
+        if not 0 <= index <= 9:  # mode 2: "Alarm Index + 1" selects U3-01 … U3-10
+            return bytes(10), Err.DATA
+        value = hist[index] if index < len(hist) else 0
+        return (bytes((index,)) + value.to_bytes(2, "little")).ljust(10, b"\0"), Err.OK
+
+    # -- CONNECT -------------------------------------------------------------------------------
+    def _check_connect(self, body: ml2.Connect, tcycle: int) -> tuple[Err, bool, bool]:
+        """``(verdict, synchronous, transmission-cycle fault)`` of a CONNECT (SI-T3 CONNECT with its errata,
+        SI-T/V7 CONNECT)."""
+        ver, mod, tim = body.ver, body.com_mod, body.com_tim
+        ml1 = self.link is Link.ML1
+        if ver != (0x10 if ml1 else 0x21):  # "This setting must match the switch setting" (SI-T/V7)
+            return Err.DATA, False, False
+        if ml1:
+            exmod = bool(mod & 0x01)
+            # "If Bit6, Bit5, Bit4, Bit3, or Bit0 is set to 1" / SUBCMD "for Ver. 1.0"; DTMOD = 00 only
+            if mod & 0xFC or (exmod and not self.options.ml1_exmod_accepted):
+                return Err.DATA, False, False
+            sync = bool(mod & 0x02) and not exmod  # EXMOD: "SYNCMOD will be set to 0"
+            if tcycle != 2 * _MS:  # "For MECHATROLINK-I, a cycle is 2 ms" (Table 29 <1>)
+                return Err.DATA, False, True
+            if tim != 2:  # errata (2): "If COM_TIM ≠ 2: Data setting warning (A.94)"
+                return Err.DATA, False, False
+            return Err.OK, sync, False
+        if mod & 0x71 or mod & 0x0C:  # reserved bits 6, 5, 4, 0; DTMOD other than 00
+            return Err.DATA, False, False
+        if mod & 0x80 and self.data_size == 17:  # "If SUBCMD is set to 1 in 17-byte data transmission"
+            return Err.DATA, False, False
+        if self.data_size == 32:
+            ok = _MS <= tcycle <= 8 * _MS and tcycle % _MS == 0
+        else:
+            ok = _HALF_MS <= tcycle <= 8 * _MS and tcycle % _HALF_MS == 0
+        if not ok:
+            return Err.DATA, False, True
+        if tim != 1:  # errata (1): "(COM_TIM ≠ 1): A warning (Data setting warning: A.94) is generated"
+            return Err.DATA, False, False
+        return Err.OK, bool(mod & 0x02), False
+
+    # -- failures and alarms ---------------------------------------------------------------------
+    def _report_failure(self, kind: FailureKind, first: bool) -> None:
+        code = ml2_failure_code(kind, first)
+        if first and kind is not FailureKind.CYCLE:
+            self.alarms.warning(code)
+        else:
+            self.alarms.alarm(code)
+
+    def _report_wdt(self) -> None:
+        self.alarms.alarm(M2Alarm.WDT_ERROR)
+
+    def _clear_comm_alarms(self) -> None:
+        self.alarms.clear()
+
+    def _observe_drive(self) -> None:
+        self.alarms.observe(self.drive.status.fault)
+
+    def _subcommands_active(self) -> bool:
+        return self.data_size == 32 and self._subcmd
+
+    def _alarm_view(self) -> tuple[int, str | None, tuple[str, ...], int]:
+        st = self.drive.status
+        self.alarms.observe(st.fault)
+        code, alm, _ = self.alarms.report(st.fault, st.minor, st.fault_reset_input)
+        name: str | None = None
+        if code:
+            try:
+                name = M2Alarm(code).name
+            except ValueError:
+                if alm and st.fault is not None:
+                    name = st.fault.display
+                elif st.minor is not None:
+                    name = st.minor.display
+        warnings = tuple(f"A.{c:02X}" for c in sorted(self.alarms.comm_warnings))
+        warnings += tuple(sorted(f.display for f in st.minors))
+        return code, name, warnings, 0
+
+
+class _CodeTable:
+    """Mapping-like view of a fault -> code function (what :class:`Ml2Alarms` expects)."""
+
+    __slots__ = ("_fn",)
+
+    def __init__(self, fn: Callable[[Any], int]) -> None:
+        self._fn = fn
+
+    def get(self, key: Any, default: int = 0) -> int:
+        return self._fn(key) or default
+
+
+# -- handlers ---------------------------------------------------------------------------------------
+def _nop(st: Ml2Station, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    return body, Err.OK
+
+
+def _prm_rd(st: Ml2Station, body: ml2.PrmRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    if st._prm_main_refused():
+        return _echo_main(body), Err.CONDITION
+    data, err = st.store.read(body.no, body.size, st.drive.monitor)
+    return ml2.PrmRdResponse(body.no, body.size, data), err
+
+
+def _prm_wr(st: Ml2Station, body: ml2.PrmWr, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    if st._prm_main_refused():
+        return body, Err.CONDITION
+    return body, st._prm_write(body.no, body.size, body.data, now)
+
+
+def _id_rd(st: Ml2Station, body: ml2.IdRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    data = ml2_id_window(st.id_areas, body.device_code, body.offset, body.size)
+    if data is None:
+        return _echo_main(body), Err.DATA
+    return ml2.IdRdResponse(body.device_code, body.offset, body.size, data), Err.OK
+
+
+def _config(st: Ml2Station, body: ml2.Config, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    return body, st._config(body.config_mod, now)
+
+
+def _alm_rd(st: Ml2Station, body: ml2.AlmRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    data, err = st._alm_data(body.alm_rd_mod, body.alm_index)
+    return ml2.AlmRdResponse(body.alm_rd_mod, data), err
+
+
+def _alm_clr(st: Ml2Station, body: ml2.AlmClr, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    if body.alm_clr_mod != 0:
+        return body, Err.DATA
+    st._alarm_clear(now)
+    return body, Err.OK
+
+
+def _sync_set(st: Ml2Station, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    st.watchdog.arm(frame.message.wdt)
+    st._set_phase(3)
+    return body, Err.OK
+
+
+def _connect(st: Ml2Station, body: ml2.Connect, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    err, sync, cyc = st._check_connect(body, frame.tcycle_ns)
+    if st.has_cyc:  # SI-T3 Table 27 33H CyC "Transmission Cycle Error": raised once this A.94 is answered
+        if cyc:
+            st._deferred_cyc = True
+        else:
+            st.drive.minor(Fault.CYC, False, now)
+    if err is not Err.OK:
+        st._log_refused(ver=body.ver, com_mod=body.com_mod, com_tim=body.com_tim,
+                        tcycle_ns=frame.tcycle_ns, cycle_fault=cyc)
+        return body, err
+    st._subcmd = st.data_size == 32 and bool(body.com_mod & 0x80)
+    comm = frame.tcycle_ns if st.link is not Link.ML1 else body.com_tim * _MS
+    st._connect(source, frame.cycle, now, sync=sync, tcycle_ns=frame.tcycle_ns, com_tim=body.com_tim,
+                comm_cycle_ns=comm, wdt=frame.message.wdt)
+    return body, Err.OK
+
+
+def _disconnect(st: Ml2Station, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    st._disconnect(now)
+    st._subcmd = st.data_size == 32
+    return body, Err.OK
+
+
+def _inv_ctl(st: Ml2Station, body: ml2.InvCtl, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    ofreq, cur, mon1, mon2 = st._inv_ctl(body.signals, body.speed_ref, body.torque_ref, body.sel_ref, body.sel_mon,
+                                         body.ref1, body.ref2, now)
+    return ml2.InvCtlResponse(ofreq, cur, body.sel_ref, body.sel_mon, mon1, mon2), Err.OK
+
+
+MAIN_HANDLERS: Mapping[int, Handler] = {
+    M2Cmd.NOP: _nop,
+    M2Cmd.PRM_RD: _prm_rd,
+    M2Cmd.PRM_WR: _prm_wr,
+    M2Cmd.ID_RD: _id_rd,
+    M2Cmd.CONFIG: _config,
+    M2Cmd.ALM_RD: _alm_rd,
+    M2Cmd.ALM_CLR: _alm_clr,
+    M2Cmd.SYNC_SET: _sync_set,
+    M2Cmd.CONNECT: _connect,
+    M2Cmd.DISCONNECT: _disconnect,
+    M2Cmd.INV_CTL: _inv_ctl,
+}
+
+
+# -- sub-command handlers (SI-T3 §8 "Sub-commands", SI-T/V7 §7.2) -------------------------------------
+def _sub_nop(st: Ml2Station, sub: Any, now: int) -> tuple[Any, Err]:
+    return sub, Err.OK
+
+
+def _sub_prm_rd(st: Ml2Station, sub: ml2.PrmRd, now: int) -> tuple[Any, Err]:
+    data, err = st.store.read(sub.no, sub.size, st.drive.monitor)
+    return ml2.PrmRdResponse(sub.no, sub.size, data), err
+
+
+def _sub_prm_wr(st: Ml2Station, sub: ml2.PrmWr, now: int) -> tuple[Any, Err]:
+    return sub, st._prm_write(sub.no, sub.size, sub.data, now)
+
+
+def _sub_alm_rd(st: Ml2Station, sub: ml2.AlmRd, now: int) -> tuple[Any, Err]:
+    data, err = st._alm_data(sub.alm_rd_mod, sub.alm_index)
+    return ml2.AlmRdResponse(sub.alm_rd_mod, data), err
+
+
+def _sub_config(st: Ml2Station, sub: ml2.Config, now: int) -> tuple[Any, Err]:
+    return sub, st._config(sub.config_mod, now)
+
+
+def _sub_inv_io(st: Ml2Station, sub: ml2.InvIo, now: int) -> tuple[Any, Err]:
+    st._sel_refs(sub.sel_ref34, sub.ref3, sub.ref4)
+    st._sel_refs(sub.sel_ref56, sub.ref5, sub.ref6)
+    m34, m56 = sub.sel_mon34, sub.sel_mon56
+    return ml2.InvIoResponse(sub.sel_ref34, sub.sel_ref56, m34, m56, st._mon(m34 & 0xF), st._mon(m34 >> 4),
+                             st._mon(m56 & 0xF), st._mon(m56 >> 4)), Err.OK
+
+
+SUB_HANDLERS: Mapping[int, SubHandler] = {
+    M2Cmd.NOP: _sub_nop,
+    M2Cmd.PRM_RD: _sub_prm_rd,
+    M2Cmd.PRM_WR: _sub_prm_wr,
+    M2Cmd.ALM_RD: _sub_alm_rd,
+    M2Cmd.CONFIG: _sub_config,
+    M2Cmd.INV_IO: _sub_inv_io,
+}

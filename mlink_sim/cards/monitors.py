@@ -1,0 +1,64 @@
+"""SEL_REF / SEL_MON of INV_CTL and INV_I/O, per card – each card has its own tables:
+
+* SI-T3 Table 17 (SEL REF) and Table 18 (SEL MON);
+* SI-ET3 Table 21 (SEL_REF) and Table 22 (SEL_MON);
+* SI-T/V7 Table 4 (SEL REF: only 4 = terminal outputs; "5 to F Not used. The SI-T/V7 ignores the written
+  data") and Table 5 (SEL MON: 1 = output frequency, not motor speed; 9, A, D–F not used).
+
+SEL_MON code → monitor name comes from the drive's copy of these tables (``mlink_sim.drive.SEL_MON_TABLES``
+via :meth:`DriveLink.sel_mon_name`); here the card resolves what only it knows: E/F read the MEMOBUS register
+set in F6-23/F6-24 at power-up (any parameter or monitor register, through the parameter store), 7/8 the
+drive's fault / minor-fault code (SI-T3 Tables 26/27, SI-T/V7 Tables 10/11), and U2/U3 the fault history that
+survives power cycles. Values travel as 16-bit two's complement.
+
+SEL_REF codes are recorded (they show in the station snapshot); the drive model has no analog outputs, PID
+or pulse output, so REF values change nothing else. Codes a table marks unused are ignored, as the SI-T/V7
+manual says – no alarm.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from types import MappingProxyType
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .drive_link import DriveLink
+    from .paramstore import ParamStore
+
+__all__ = ["SEL_REF_TABLES", "sel_mon_value", "sel_mon_enabled", "sel_ref_item"]
+
+_A1000_REF = ("", "torque compensation", "analog output 1", "analog output 2", "terminal outputs",
+              "PID setpoint", "pulse output", "V/f gain", "", "control selection", "", "", "", "", "", "")
+
+#: SEL_REF code -> reference item ("" = nothing selected / not used).
+SEL_REF_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType({
+    "si-t3": _A1000_REF,  # SI-T3 Table 17
+    "si-et3": _A1000_REF,  # SI-ET3 Table 21
+    "si-t-v7": ("", "", "", "", "terminal outputs", "", "", "", "", "", "", "", "", "", "", ""),  # V7 Table 4
+})
+
+
+def sel_ref_item(card: str, code: int) -> str:
+    return SEL_REF_TABLES[card][code & 0xF]
+
+
+def sel_mon_enabled(link: DriveLink, code: int) -> bool:
+    """SI-ET3 INVCMD_STAT bits 24/25 "SEL_MONx enabled": the code selects something on this card."""
+    return bool(link.sel_mon_name(code))
+
+
+def sel_mon_value(link: DriveLink, store: ParamStore, registers: Mapping[str, int], code: int) -> int:
+    """The 16-bit value SEL_MON *code* selects. *registers*: ``{"F6-23": reg, "F6-24": reg}`` read at power-up."""
+    name = link.sel_mon_name(code)
+    if not name:
+        return 0
+    if name == "ALARM":
+        return link.fault_code(link.status.fault)
+    if name == "WARNING":
+        return link.minor_code(link.status.minor)
+    if name in ("F6-23", "F6-24"):
+        reg = registers.get(name, 0)
+        word = store.read_register(reg, link.monitor) if reg else None
+        return word or 0
+    return link.monitor(name) & 0xFFFF

@@ -1,0 +1,186 @@
+"""Communication phases and command admission, as data.
+
+Three tables per generation, each cited from its manual:
+
+* **phase × main command** – what a command gets in phase 1, 2 and 3:
+  :data:`ML3_MAIN_PHASES` is SI-ET3 Table 9 verbatim (○ = ALLOWED, △ = IGNORED, – = PHASE_ERROR,
+  reported as CMD_ALM CH); :data:`ML2_MAIN_PHASES` collects the per-command rules of SI-T3 §8 and
+  SI-T/V7 §7.1 ("This command can be used in all phases", "If not in phase 2 or 3: Command warning
+  (A.95)", CONNECT "Commands are also ignored in phase 2 (with no alarm)").
+* **phase × sub-command** – SI-ET3 Table 10 (:data:`ML3_SUB_PHASES`); SI-T3 §8 "Sub-commands" and
+  SI-T/V7 §7.2 (:data:`ML2_SUB_PHASES`).
+* **main × sub-command combinations** – SI-ET3 Table 13 (:data:`ML3_COMBINATIONS`, "-" = CMD_ALM BH),
+  SI-T3 Table 7 (:data:`ML2_COMBINATIONS`, "NG" = A.95). The SI-T/V7 manual has no combination table;
+  it uses SI-T3 Table 7 extended with its own CONFIG sub-command (V7 §7.2), treated like PRM_WR
+  (:data:`V7_COMBINATIONS`; docs/cards.md).
+
+A command code absent from a table is unsupported (A.95 / CMD_ALM 8H).
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from types import MappingProxyType
+
+from mlink_sim.wire import M2Cmd, M3Cmd
+
+__all__ = [
+    "Admit",
+    "ML2_MAIN_PHASES",
+    "ML2_SUB_PHASES",
+    "V7_SUB_PHASES",
+    "ML3_MAIN_PHASES",
+    "ML3_SUB_PHASES",
+    "ML2_COMBINATIONS",
+    "V7_COMBINATIONS",
+    "ML3_COMBINATIONS",
+    "admit",
+    "combination_ok",
+]
+
+
+class Admit(enum.Enum):
+    """What a command gets in a phase."""
+
+    ALLOWED = "allowed"  #: executed (○)
+    IGNORED = "ignored"  #: answered, not executed, no alarm (△)
+    PHASE_ERROR = "phase error"  #: not executed; A.95 (MECHATROLINK-I/II) or CMD_ALM/SUBCMD_ALM CH (MECHATROLINK-III)
+
+
+A, I, E = Admit.ALLOWED, Admit.IGNORED, Admit.PHASE_ERROR
+
+
+def _freeze(table: dict[int, tuple[Admit, Admit, Admit]]) -> Mapping[int, tuple[Admit, Admit, Admit]]:
+    return MappingProxyType({int(k): v for k, v in table.items()})
+
+
+#: SI-ET3 Table 9 "Main Command Communication Phases" – (phase 1, phase 2, phase 3).
+#: NOP reads "–" in phase 1 although its section says "can be used in all communication phases";
+#: the table wins, ``CardOptions.et3_nop_in_phase1`` selects the text (docs/cards.md).
+ML3_MAIN_PHASES = _freeze({
+    M3Cmd.NOP: (E, A, A),
+    M3Cmd.PRM_RD: (E, A, A),
+    M3Cmd.PRM_WR: (E, A, A),
+    M3Cmd.ID_RD: (E, A, A),
+    M3Cmd.CONFIG: (E, A, A),
+    M3Cmd.ALM_RD: (E, A, A),
+    M3Cmd.ALM_CLR: (E, A, A),
+    M3Cmd.SYNC_SET: (E, A, I),
+    M3Cmd.CONNECT: (A, I, I),
+    M3Cmd.DISCONNECT: (A, A, A),
+    M3Cmd.INV_CTL: (E, A, A),
+})
+
+#: SI-ET3 Table 10 "Sub-Command Communication Phases".
+ML3_SUB_PHASES = _freeze({
+    M3Cmd.NOP: (E, A, A),
+    M3Cmd.PRM_RD: (E, A, A),
+    M3Cmd.PRM_WR: (E, A, A),
+    M3Cmd.ALM_RD: (E, A, A),
+    M3Cmd.INV_IO: (E, A, A),
+})
+
+#: SI-T3 §8 / SI-T/V7 §7.1 per-command phase rules (A.95 = PHASE_ERROR):
+#: NOP, PRM_RD, ID_RD "can be used in all phases"; ALM_RD names no phase condition; PRM_WR, CONFIG,
+#: ALM_CLR, SYNC_SET, INV_CTL "If not in phase 2 or 3: Command warning (A.95)"; CONNECT is executed in
+#: phase 1 and "ignored in phase 2 (with no alarm)" (phase 3 likewise); DISCONNECT "can be used in
+#: phases 2 and 3" and names no warning, so in phase 1 it is answered and ignored.
+#: SI-T/V7 PRM_WR reads "If not in phase 2" – taken as the "2 or 3" of its sub-command (docs/cards.md).
+ML2_MAIN_PHASES = _freeze({
+    M2Cmd.NOP: (A, A, A),
+    M2Cmd.PRM_RD: (A, A, A),
+    M2Cmd.PRM_WR: (E, A, A),
+    M2Cmd.ID_RD: (A, A, A),
+    M2Cmd.CONFIG: (E, A, A),
+    M2Cmd.ALM_RD: (A, A, A),
+    M2Cmd.ALM_CLR: (E, A, A),
+    M2Cmd.SYNC_SET: (E, A, A),
+    M2Cmd.CONNECT: (A, I, I),
+    M2Cmd.DISCONNECT: (I, A, A),
+    M2Cmd.INV_CTL: (E, A, A),
+})
+
+#: SI-T3 §8 "Sub-commands" / SI-T/V7 §7.2: PRM_WR, CONFIG (SI-T/V7 only) and INV_I/O "If not in phase 2
+#: or 3: A.95"; NOP, PRM_RD and ALM_RD name no phase condition.
+ML2_SUB_PHASES = _freeze({
+    M2Cmd.NOP: (A, A, A),
+    M2Cmd.PRM_RD: (A, A, A),
+    M2Cmd.PRM_WR: (E, A, A),
+    M2Cmd.ALM_RD: (A, A, A),
+    M2Cmd.INV_IO: (E, A, A),
+})
+
+#: SI-T/V7 §7.2 adds CONFIG as a sub-command ("If not in phase 2 or 3: Command fault (A.95)").
+V7_SUB_PHASES = _freeze({**ML2_SUB_PHASES, M2Cmd.CONFIG: (E, A, A)})
+
+
+def _combos(rows: dict[int, str], columns: tuple[int, ...]) -> Mapping[int, frozenset[int]]:
+    """Rows of 'O'/'-' marks per sub-command column -> main code -> allowed sub-command codes."""
+    out: dict[int, frozenset[int]] = {}
+    for main, marks in rows.items():
+        marks = marks.replace(" ", "")
+        if len(marks) != len(columns):
+            raise ValueError(f"combination row {main:#04x}: {len(marks)} marks for {len(columns)} columns")
+        out[int(main)] = frozenset(int(c) for c, m in zip(columns, marks) if m == "O")
+    return MappingProxyType(out)
+
+
+#: SI-T3 Table 7 "Main Command and Sub-command" – columns NOP, PRM_RD, PRM_WR, ALM_RD, INV_I/O;
+#: O = OK, - = NG (A.95).
+_ML2_COLUMNS = (M2Cmd.NOP, M2Cmd.PRM_RD, M2Cmd.PRM_WR, M2Cmd.ALM_RD, M2Cmd.INV_IO)
+_ML2_ROWS = {
+    M2Cmd.NOP: "O O O O O",
+    M2Cmd.PRM_RD: "O - - O O",
+    M2Cmd.PRM_WR: "O - - O O",
+    M2Cmd.ID_RD: "O O O O O",
+    M2Cmd.CONFIG: "O - - - -",
+    M2Cmd.ALM_RD: "O - - - -",
+    M2Cmd.ALM_CLR: "O - - - -",
+    M2Cmd.SYNC_SET: "O O O O O",
+    M2Cmd.CONNECT: "O - - - -",
+    M2Cmd.DISCONNECT: "O - - - -",
+    M2Cmd.INV_CTL: "O O O O O",
+}
+ML2_COMBINATIONS = _combos(_ML2_ROWS, _ML2_COLUMNS)
+
+#: SI-T/V7: SI-T3 Table 7 plus a CONFIG sub-command column marked like PRM_WR (the V7 manual has no
+#: combination table; docs/cards.md).
+_V7_COLUMNS = (*_ML2_COLUMNS, M2Cmd.CONFIG)
+V7_COMBINATIONS = _combos(
+    {k: v + " " + v.replace(" ", "")[2] for k, v in _ML2_ROWS.items()}, _V7_COLUMNS
+)
+
+#: SI-ET3 Table 13 "Main Commands and Sub-Commands" – columns NOP, PRM_RD, PRM_WR, ALM_RD, INV_I/O;
+#: O = OK, - = CMD_ALM BH (sub-command combination error).
+_ML3_COLUMNS = (M3Cmd.NOP, M3Cmd.PRM_RD, M3Cmd.PRM_WR, M3Cmd.ALM_RD, M3Cmd.INV_IO)
+ML3_COMBINATIONS = _combos(
+    {
+        M3Cmd.NOP: "O O O O O",
+        M3Cmd.PRM_RD: "O - - O O",
+        M3Cmd.PRM_WR: "O - - O O",
+        M3Cmd.ID_RD: "O O O O O",
+        M3Cmd.CONFIG: "O - - - -",
+        M3Cmd.ALM_RD: "O - - - -",
+        M3Cmd.ALM_CLR: "O - - - -",
+        M3Cmd.SYNC_SET: "O O O O O",
+        M3Cmd.CONNECT: "O - - - -",
+        M3Cmd.DISCONNECT: "O - - - -",
+        M3Cmd.INV_CTL: "O O O O O",
+    },
+    _ML3_COLUMNS,
+)
+
+
+def admit(table: Mapping[int, tuple[Admit, Admit, Admit]], code: int, phase: int) -> Admit | None:
+    """The admission of *code* in *phase* (1–3), or None when the table does not know the code."""
+    row = table.get(code)
+    return None if row is None else row[phase - 1]
+
+
+def combination_ok(table: Mapping[int, frozenset[int]], main: int, sub: int) -> bool:
+    """True if sub-command *sub* may accompany main command *main* (unknown mains allow only NOP)."""
+    allowed = table.get(main)
+    if allowed is None:
+        return sub == 0
+    return sub in allowed

@@ -1,0 +1,117 @@
+"""Reception-failure monitor: missed commands from gaps in the cycle numbers and from silence.
+
+SI-T3 Tables 22–24 / SI-T/V7 Tables 7–9: in phases 2 and 3 the first reception failure is warning 96,
+a second consecutive one alarm E6; phase 1 never notifies. SI-ET3 "COMM_ALM": warnings 1/2/3, alarms
+8/9/A. This module only counts; :mod:`mlink_sim.cards.alarms` turns the counts into codes.
+
+A failure is one communication cycle (transmission cycle × COM_TIM, SI-ET3 CONNECT) without a valid command
+for this station. Two detectors feed the same count, so nothing is counted twice:
+
+* **gap** – the envelope cycle number of a command advances by more than one communication cycle;
+* **silence** – no valid command for longer than one communication cycle plus a tolerance (default
+  ``max(cycle / 2, 1 ms)``, ``CardOptions.silence_tolerance_ns``), then one more failure per further
+  cycle. Failures found by silence (or by a bad FCS) are subtracted from the next gap.
+
+A valid command ends a run of consecutive failures.
+"""
+
+from __future__ import annotations
+
+import enum
+
+__all__ = ["FailureKind", "ReceptionMonitor", "DEFAULT_MIN_TOLERANCE_NS"]
+
+DEFAULT_MIN_TOLERANCE_NS = 1_000_000
+_HALF = 1 << 31
+_MASK = 0xFFFF_FFFF
+
+
+class FailureKind(enum.Enum):
+    """What was missed (SI-ET3 COMM_ALM distinguishes them; MECHATROLINK-II reports 96/E6 for all)."""
+
+    FCS = "fcs"  #: a datagram for this station with a bad FCS (COMM_ALM 1/8)
+    GAP = "gap"  #: command data not received (COMM_ALM 2/9)
+    SILENCE = "silence"  #: nothing received at all: in phase 3 the synchronous frame is missing (COMM_ALM 3/A)
+    CYCLE = "cycle"  #: transmission cycle fault – header cycle differs from CONNECT's (E6 / COMM_ALM B)
+
+
+class ReceptionMonitor:
+    """Counts missed communication cycles while active (phases 2 and 3)."""
+
+    __slots__ = ("active", "comm_cycle_ns", "cycles_per_comm", "tolerance_ns", "last_cycle", "last_rx",
+                 "accounted", "consecutive", "_deadline")
+
+    def __init__(self) -> None:
+        self.active = False
+        self.comm_cycle_ns = 2_000_000
+        self.cycles_per_comm = 1
+        self.tolerance_ns = DEFAULT_MIN_TOLERANCE_NS
+        self.last_cycle = 0
+        self.last_rx = 0
+        self.accounted = 0  #: failures already counted since the last valid command
+        self.consecutive = 0  #: failures since the last valid command
+        self._deadline = 0
+
+    def start(self, cycle: int, now: int, comm_cycle_ns: int, cycles_per_comm: int,
+              tolerance_ns: int | None) -> None:
+        """Begin monitoring after CONNECT (the CONNECT command is the first valid command)."""
+        self.active = True
+        self.comm_cycle_ns = max(1, comm_cycle_ns)
+        self.cycles_per_comm = max(1, cycles_per_comm)
+        self.tolerance_ns = (max(self.comm_cycle_ns // 2, DEFAULT_MIN_TOLERANCE_NS)
+                             if tolerance_ns is None else max(0, tolerance_ns))
+        self._good(cycle, now)
+
+    def stop(self) -> None:
+        self.active = False
+        self.accounted = self.consecutive = 0
+
+    def _good(self, cycle: int, now: int) -> None:
+        self.last_cycle = cycle
+        self.last_rx = now
+        self.accounted = 0
+        self.consecutive = 0
+        self._deadline = now + self.comm_cycle_ns + self.tolerance_ns
+
+    def rebase(self, cycle: int, now: int) -> None:
+        """Take *cycle* as the new reference without a verdict (a new master after a connection loss)."""
+        self._good(cycle, now)
+
+    def on_command(self, cycle: int, now: int) -> tuple[int, int, int] | None:
+        """A valid command with envelope *cycle*: ``(new failures, consecutive failures before them,
+        communication cycles elapsed)``, or None for a duplicate (the same cycle number again).
+        The run of consecutive failures ends with this command."""
+        delta = (cycle - self.last_cycle) & _MASK
+        if delta == 0:
+            return None
+        if delta >= _HALF:  # the master's numbering went backwards (restart): resynchronise, no verdict
+            elapsed, missed = 1, 0
+        else:
+            elapsed = max(1, (delta + self.cycles_per_comm // 2) // self.cycles_per_comm)
+            missed = max(0, elapsed - 1 - self.accounted)
+        before = self.consecutive
+        self._good(cycle, now)
+        return missed, before, elapsed
+
+    def on_lost(self) -> int:
+        """One failure found elsewhere (a bad FCS), not to be counted again by the next gap; returns the
+        consecutive count before it."""
+        before = self.consecutive
+        self.accounted += 1
+        self.consecutive += 1
+        return before
+
+    def poll(self, now: int) -> tuple[int, int]:
+        """Silence at *now*: ``(communication cycles newly found missing, consecutive count before them)``."""
+        if not self.active or now < self._deadline:
+            return 0, self.consecutive
+        n = (now - self._deadline) // self.comm_cycle_ns + 1
+        before = self.consecutive
+        self._deadline += n * self.comm_cycle_ns
+        self.accounted += n
+        self.consecutive += n
+        return n, before
+
+    def deadline(self) -> int | None:
+        """When :meth:`poll` can next find a failure (None while inactive)."""
+        return self._deadline if self.active else None

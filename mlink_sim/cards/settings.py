@@ -1,0 +1,174 @@
+"""Power-up settings of a card and the documented alternatives (card options).
+
+The manuals read the station address, frame size and link speed once, at power-up ("Power must be cycled
+in order for any setting changes to take affect", SI-T3 Table 4 <3>; SI-ET3 Table 7 <9>): F6-20/F6-21/F6-22
+on SI-T3 and SI-ET3, DIP switch S1 and rotary switch S2 on the SI-T/V7 (V7 §3.4). A station therefore gets
+them in :class:`CardSettings` when it is created (= the slave process starts).
+
+:func:`settings_for` turns the slave command line (``--station 0x21 --frame-size 32 --param C1-01=5.0``)
+into :class:`CardSettings` for a card, with one-sentence errors for impossible input. A station address the
+card rejects at power-up (SI-T3 / SI-T/V7 20H and 3FH) is *not* an error here: the card powers up with the
+AEr minor fault and does not answer, as the manuals describe (docs/cards.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+from mlink_sim.params import ParamError, ParamTable, for_card
+
+__all__ = ["CardOptions", "CardSettings", "settings_for", "CARD_NAMES", "param_table"]
+
+#: Registry keys (``mlink_sim.cards.registry.CARDS``) and their labels in the manuals.
+CARD_NAMES: Mapping[str, str] = MappingProxyType({"si-t3": "SI-T3", "si-et3": "SI-ET3", "si-t-v7": "SI-T/V7"})
+
+
+@dataclass(frozen=True)
+class CardOptions:
+    """Documented alternatives where the manuals disagree (docs/cards.md, "Card options")."""
+
+    #: SI-ET3: read COM_MOD SYNCMODE per SI-ET3 Table 19 (0 = synchronous) instead of the MECHATROLINK-II
+    #: convention (1 = synchronous, phase 3), which is the default.
+    et3_syncmode_table19: bool = False
+    #: SI-ET3: accept NOP in phase 1 as its section text says ("all communication phases") instead of the
+    #: phase error of Table 9 / Table 10.
+    et3_nop_in_phase1: bool = False
+    #: SI-ET3: place the CONNECT response echo at bytes 5–8 as the printed response table shows, instead of
+    #: at the command's bytes 4–7.
+    et3_connect_echo_at_byte5: bool = False
+    #: SI-ET3: also raise AEr for F6-20 = 20H / 3FH (SI-ET3 Table 7 note <10>, copied from SI-T3).
+    et3_aer_on_20_3f: bool = False
+    #: SI-T/V7: accept PRM_RD/PRM_WR as main commands in 32-byte mode (as SI-T3 Table 7 does) instead of A.95.
+    v7_prm_main_in_32byte: bool = False
+    #: MECHATROLINK-I CONNECT: accept EXMOD = 1 (expanded connection, forced asynchronous) instead of A.94.
+    ml1_exmod_accepted: bool = False
+    #: Reception-failure timer tolerance in ns beyond one communication cycle; None = max(cycle / 2, 1 ms).
+    silence_tolerance_ns: int | None = None
+
+
+@dataclass(frozen=True)
+class CardSettings:
+    """What a card reads at power-up (plus the simulated drive's load and the card options)."""
+
+    #: Raw parameter values by name, applied over the family defaults and the EEPROM image (F6-20 station
+    #: address, F6-21 frame size, F6-22 link speed on SI-T3/SI-ET3; nXXX constants on the SI-T/V7).
+    params: Mapping[str, int] = field(default_factory=dict)
+    #: SI-T/V7 DIP switch S1-1: True = 10 Mbps (MECHATROLINK-II, factory setting), False = 4 Mbps (MECHATROLINK-I).
+    s1_1_10mbps: bool = True
+    #: SI-T/V7 DIP switch S1-2: True = 32-byte data transmission (factory setting), False = 17-byte.
+    s1_2_32byte: bool = True
+    #: SI-T/V7 station number, set by S1-3 (tens digit 2/3) and rotary switch S2 (ones digit); None = 21H.
+    station: int | None = None
+    #: Mechanical load of the simulated drive (``mlink_sim.drive.LoadSpec``); None = a load scaled to the motor.
+    load: Any = None
+    #: Documented alternatives (:class:`CardOptions`).
+    options: CardOptions = field(default_factory=CardOptions)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
+
+    def __hash__(self) -> int:
+        return hash((tuple(sorted(self.params.items())), self.s1_1_10mbps, self.s1_2_32byte, self.station,
+                     self.options))
+
+    @property
+    def s1_3(self) -> bool:
+        """SI-T/V7 S1-3: ON = tens digit 3 (V7 §3.4 "Station-number Setting")."""
+        return ((self.station if self.station is not None else 0x21) >> 4) == 3
+
+    @property
+    def s2(self) -> int:
+        """SI-T/V7 rotary switch S2: the ones digit of the station number."""
+        return (self.station if self.station is not None else 0x21) & 0xF
+
+
+def param_table(card: str) -> ParamTable:
+    """The parameter table a card uses (``mlink_sim.params.for_card``)."""
+    return for_card(CARD_NAMES[card])
+
+
+def _check_card(card: str) -> str:
+    if card not in CARD_NAMES:
+        known = ", ".join(CARD_NAMES)
+        raise ValueError(f"unknown option card {card!r} (known cards: {known})")
+    return card
+
+
+def settings_for(
+    card: str,
+    station: int,
+    frame_size: int | None,
+    param_assignments: Iterable[str],
+    load: Any = None,
+    *,
+    link_speed_mbps: int | None = None,
+    options: CardOptions | None = None,
+) -> CardSettings:
+    """:class:`CardSettings` for *card* from the slave command line.
+
+    *station*: SI-T3 F6-20 (20H–3FH), SI-ET3 F6-20 (03H–EFH), SI-T/V7 switches S1-3/S2 (20H–3FH); 20H/3FH
+    are accepted and make SI-T3/SI-T/V7 power up with AEr. *frame_size*: 17/32 (SI-T3, SI-T/V7) or 32/64
+    (SI-ET3); None keeps F6-21 / the S1-2 factory setting. *param_assignments*: ``"C1-01=5.0"``,
+    ``"0x0200=50"``. *link_speed_mbps*: 10 or 4 (MECHATROLINK-II / -I; SI-T3 F6-22, SI-T/V7 S1-1).
+    Raises :class:`ValueError` (or its subclass :class:`~mlink_sim.params.ParamError`) with a one-sentence
+    message.
+    """
+    _check_card(card)
+    label = CARD_NAMES[card]
+    table = param_table(card)
+    params: dict[str, int] = {}
+    for text in param_assignments:
+        p, raw = table.parse_assignment(text)
+        params[p.name] = raw
+    opts = options if options is not None else CardOptions()
+    if isinstance(station, bool) or not isinstance(station, int):
+        raise ValueError(f"{label}: the station address must be a whole number, not {station!r}")
+
+    if card == "si-t-v7":
+        if not 0x20 <= station <= 0x3F:
+            raise ValueError(
+                f"SI-T/V7: station {station:#04x} cannot be set with S1-3 and S2 (20H–3FH; 21H–3EH are valid)"
+            )
+        if frame_size not in (None, 17, 32):
+            raise ValueError(f"SI-T/V7: frame size {frame_size} is not possible (S1-2 selects 17 or 32 bytes)")
+        if link_speed_mbps not in (None, 4, 10):
+            raise ValueError(f"SI-T/V7: link speed {link_speed_mbps} Mbps is not possible (S1-1: 4 or 10 Mbps)")
+        s1_1 = link_speed_mbps != 4
+        s1_2 = frame_size != 17
+        if not s1_1 and s1_2:
+            if frame_size == 32:
+                raise ValueError("SI-T/V7: MECHATROLINK-I (4 Mbps) carries 17-byte frames only (V7 §3.4 S1-1 note)")
+            s1_2 = False
+        return CardSettings(params, s1_1_10mbps=s1_1, s1_2_32byte=s1_2, station=station, load=load, options=opts)
+
+    f6_20 = table.by_name("F6-20")
+    if not f6_20.minimum <= station <= f6_20.maximum:
+        raise ParamError(
+            f"{label}: station {station:#04x} is outside the F6-20 range "
+            f"{f6_20.minimum:02X}H–{f6_20.maximum:02X}H"
+        )
+    params["F6-20"] = station
+    sizes = {32: 0, 17: 1} if card == "si-t3" else {64: 0, 32: 1}
+    if frame_size is not None:
+        if frame_size not in sizes:
+            allowed = " or ".join(str(s) for s in sorted(sizes))
+            raise ValueError(f"{label}: frame size {frame_size} is not possible (F6-21 selects {allowed} bytes)")
+        params["F6-21"] = sizes[frame_size]
+    if card == "si-t3":
+        if link_speed_mbps not in (None, 4, 10):
+            raise ValueError(f"SI-T3: link speed {link_speed_mbps} Mbps is not possible (F6-22: 10 or 4 Mbps)")
+        if link_speed_mbps is not None:
+            params["F6-22"] = 1 if link_speed_mbps == 4 else 0
+        f6_21 = params.get("F6-21", table.by_name("F6-21").default)
+        f6_22 = params.get("F6-22", table.by_name("F6-22").default)
+        if f6_22 == 1 and f6_21 == 0:
+            raise ValueError(
+                "SI-T3: MECHATROLINK-I (F6-22 = 1, 4 Mbps) carries 17-byte frames only (SI-T3 Table 29 <3>); "
+                "use --frame-size 17"
+            )
+    elif link_speed_mbps not in (None, 100):
+        raise ValueError(f"SI-ET3: link speed {link_speed_mbps} Mbps is not possible (100 Mbps only)")
+    return CardSettings(params, load=load, options=opts)

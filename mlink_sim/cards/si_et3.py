@@ -1,0 +1,455 @@
+"""SI-ET3: the MECHATROLINK-III option card, standard inverter profile (YASKAWA SIEP C730600 88).
+
+* Power-up settings (Table 7, note <9>): F6-20 station address 03H–EFH (outside: AEr; 20H/3FH only with
+  ``CardOptions.et3_aer_on_20_3f``, note <10> being a copy of the SI-T3 note); F6-21 frame size (0 = 64-byte
+  with sub-commands, 1 = 32-byte); F6-23/F6-24 the registers of SEL_MON E/F.
+* Commands: Tables 11/12; phases Tables 9/10 ("–" = CMD_ALM / SUBCMD_ALM CH, "△" ignored); combinations
+  Table 13 (CMD_ALM BH). CMD_CTRL / CMD_STAT (§8): RCMD_ID echoes CMD_ID, CMDRDY, D_ALM/D_WAR from the drive,
+  CMD_ALM for the command answered, COMM_ALM latched until ALM_CLR or the rising edge of CMD_CTRL.ALM_CLR
+  (answered with ALM_CLR_CMP). ID_RD Table 14, CONFIG Table 15, ALM_RD Tables 16/17, INVCMD_CTRL Table 20,
+  SEL_REF Table 21, SEL_MON Table 22, SUB_STAT Tables 24/25.
+* CONNECT: VER 30H, COM_MOD Tables 18/19 (reserved bits 0; SUBCMD only with 64-byte frames), COM_TIM 1–255,
+  PROFILE_TYPE 20H, transmission cycle 250 µs–8 ms on the granularity of ID_CODE 18H (31.25/62.5/125/250/500/
+  750 µs, 1–64 ms in 0.5 ms steps, within ID_CODE 16H/17H), communication cycle within ID_CODE 19H/1AH
+  (250 µs–32 ms); otherwise CMD_ALM 9H and, for a cycle, the CYC minor fault (Table 26).
+* LEDs (Table 4): R/E (green/red), CON, LK1, LK2.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Callable, Hashable, Mapping
+from typing import Any, ClassVar
+
+from mlink_sim.wire import (
+    MAGIC, PROFILE_TYPE_INVERTER, CommAlm, Frame, Kind, Link, M3Cmd, Unknown, crc16_x25, encode, ml3,
+)
+from mlink_sim.wire.frame import ENVELOPE
+from mlink_sim.wire.layout import fast_format
+
+from .alarms import Ml3Alarms, ml3_failure_code
+from .base import SLOW, Station
+from .drive_link import DriveCommand, Fault, ml3_invcmd_stat_bits
+from .idinfo import ml3_id_data, ml3_id_window
+from .monitors import sel_mon_enabled
+from .phases import ML3_COMBINATIONS, ML3_MAIN_PHASES, ML3_SUB_PHASES, Admit, combination_ok
+from .reception import FailureKind
+from .results import Err
+from .settings import CardSettings
+
+__all__ = ["SiEt3", "MAIN_HANDLERS", "SUB_HANDLERS", "VALID_TCYCLES_NS"]
+
+_ZERO_MAIN = bytes(ml3.RESPONSE_MAIN.size)
+_ZERO_SUB = bytes(ml3.RESPONSE_SUB.size)
+_MAIN_CODE = {cls: layout.code for cls, layout in ml3.COMMAND_MAIN.by_class.items()}
+_SUB_CODE = {cls: layout.code for cls, layout in ml3.COMMAND_SUB.by_class.items()}
+_ALLOWED, _IGNORED, _PHASE = Admit.ALLOWED, Admit.IGNORED, Admit.PHASE_ERROR
+
+
+def _fmt(declaration: Any, size: int) -> struct.Struct:
+    return struct.Struct(fast_format(declaration, size)[0])
+
+
+# The fast path's formats, derived from the wire declarations (so they cannot drift from them).
+_HEADER = _fmt(ENVELOPE, 12)
+_FCS = struct.Struct("<H")
+_INV_CTL = _fmt(ml3.COMMAND_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.COMMAND_MAIN.size)
+_INV_CTL_R = _fmt(ml3.RESPONSE_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.RESPONSE_MAIN.size)
+_RF32 = _fmt(ml3.RESPONSE_FRAME_32, 32)
+_RF64 = _fmt(ml3.RESPONSE_FRAME_64, 64)
+_US = 1_000
+
+#: ID_CODE 18H = 03H granularity within 16H (250 µs) … 17H (8 ms): 250, 500, 750 µs and 1–8 ms in 0.5 ms steps.
+VALID_TCYCLES_NS = frozenset({250 * _US, 500 * _US, 750 * _US} | {1000 * _US + 500 * _US * k for k in range(15)})
+_COMM_MIN_NS, _COMM_MAX_NS = 250 * _US, 32_000 * _US  # ID_CODE 19H / 1AH
+
+Handler = Callable[["SiEt3", Any, Frame, Hashable, int], tuple[Any, Err]]
+SubHandler = Callable[["SiEt3", Any, int], tuple[Any, Err]]
+
+
+def _echo_main(body: Any) -> Any:
+    t = type(body)
+    if t is ml3.PrmRd:
+        return ml3.PrmRdResponse(body.no, body.size)
+    if t is ml3.IdRd:
+        return ml3.IdRdResponse(body.id_code, body.offset, body.size)
+    if t is ml3.AlmRd:
+        return ml3.AlmRdResponse(body.alm_rd_mod, body.alm_index)
+    if t is ml3.InvCtl:
+        return ml3.InvCtlResponse(invcmd_io=0, sel_ref=body.sel_ref, sel_mon=body.sel_mon)
+    if t is Unknown:
+        return Unknown(body.code, _ZERO_MAIN)
+    return body
+
+
+def _echo_sub(sub: Any) -> Any:
+    t = type(sub)
+    if t is ml3.PrmRd:
+        return ml3.PrmRdResponse(sub.no, sub.size)
+    if t is ml3.AlmRd:
+        return ml3.AlmRdResponse(sub.alm_rd_mod, sub.alm_index)
+    if t is ml3.InvIo:
+        return ml3.InvIoResponse(sub.sel_ref34, sub.sel_ref56, sub.sel_mon34, sub.sel_mon56)
+    if t is Unknown:
+        return Unknown(sub.code, _ZERO_SUB)
+    return sub
+
+
+class SiEt3(Station):
+    """SI-ET3 MECHATROLINK-III option card on an A1000-family drive."""
+
+    card: ClassVar[str] = "si-et3"
+    family: ClassVar[str] = "a1000"
+    handlers: ClassVar[Mapping[int, Handler]]
+    sub_handlers: ClassVar[Mapping[int, SubHandler]]
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.alarms = Ml3Alarms()
+        self._subcmd = False
+        self._profile = 0
+        self._st_obj: object = None
+        self._st_word = 0
+        self._last_cmd_alm = 0
+        self._last_sub_alm = 0
+        self._fast_len = 12 + self.data_size + 2
+
+    def _power_up(self, values: Mapping[str, int], settings: CardSettings) -> None:
+        self.address = values["F6-20"]
+        self.link = Link.ML3
+        self.data_size = 32 if values["F6-21"] == 1 else 64
+        bad = not 0x03 <= self.address <= 0xEF
+        if settings.options.et3_aer_on_20_3f and self.address in (0x20, 0x3F):
+            bad = True
+        if bad:
+            self.station_error = "AEr"
+        self._mon_regs = {"F6-23": values["F6-23"], "F6-24": values["F6-24"]}
+
+    def _bus_limit(self) -> int:
+        return self.store.active.get("F6-26", 2)
+
+    # -- the command ---------------------------------------------------------------------------
+    def _process(self, frame: Frame, source: Hashable, now: int) -> bytes:
+        msg = frame.message
+        alarms = self.alarms
+        ctrl = msg.cmd_ctrl
+        if alarms.alm_clr_edge(bool(ctrl & 0x08)):  # CMD_CTRL.ALM_CLR: "same processing as ALM_CLR_MODE = 0"
+            self._alarm_clear(now)
+            alarms.alm_clr_cmp = True
+        body = msg.body
+        btype = type(body)
+        code = body.code if btype is Unknown else _MAIN_CODE[btype]
+        phase, subcmd = self.phase, self._subcmd  # the state the command arrived in rules the sub-command
+        row = ML3_MAIN_PHASES.get(code)
+        if row is None:
+            rbody, err = _echo_main(body), Err.UNSUPPORTED
+        else:
+            adm = row[phase - 1]
+            if adm is _PHASE and code == M3Cmd.NOP and self.options.et3_nop_in_phase1:
+                adm = _ALLOWED
+            if adm is _ALLOWED:
+                rbody, err = self.handlers[code](self, body, frame, source, now)
+            elif adm is _IGNORED:
+                rbody, err = _echo_main(body), Err.OK
+            else:
+                rbody, err = _echo_main(body), Err.PHASE
+        cmd_alm = err.ml3
+        sub = msg.sub
+        if sub is None:
+            rsub, sub_stat = None, 0
+        else:
+            rsub, sub_err = self._process_sub(code, sub, phase, subcmd, now)
+            sub_alm = sub_err.ml3
+            if sub_err is Err.COMBINATION and not cmd_alm:
+                cmd_alm = 0xB  # Table 13 note: "CMD_ALM = BH (sub-command combination error)"
+            if sub_alm:
+                self.counters.commands_refused += 1
+            self._last_sub_alm = sub_alm
+            sub_stat = 0x04 | sub_alm << 8  # SUBCMDRDY, SUBCMD_ALM (Table 24)
+        if err is not Err.OK:
+            self.counters.commands_refused += 1
+        self._last_cmd_alm = cmd_alm
+        st = self.drive.status
+        stat = (st.faulted | st.minor_fault << 1 | 0x04 | alarms.alm_clr_cmp << 3 | (ctrl & 0xC0)
+                | cmd_alm << 8 | alarms.comm_alm << 12)
+        resp = ml3.M3Response(rbody, self.watchdog.rwdt(), stat, rsub, sub_stat)
+        return encode(Frame(Link.ML3, Kind.RESPONSE, self.address, frame.cycle, frame.tcycle_ns, resp))
+
+    def _fast_receive(self, dg: bytes, source: Hashable, now: int) -> object:
+        """INV_CTL with a NOP (or no) sub-command in phase 2/3 straight from and to bytes (``struct`` formats
+        derived from the wire declarations; identical responses to the general path, tests/cards/test_fast_path.py)."""
+        if len(dg) != self._fast_len:
+            return SLOW
+        magic, link, kind, stn, cycle, tcycle = _HEADER.unpack_from(dg)
+        if (magic != MAGIC or link != 3 or kind != 1 or stn != self.address or dg[12] != M3Cmd.INV_CTL
+                or (self.data_size == 64 and dg[44] != 0)
+                or crc16_x25(dg[:-2]) != dg[-2] | dg[-1] << 8):
+            return SLOW
+        if not self._accept(cycle, tcycle, dg[13], M3Cmd.INV_CTL, source, now):
+            return None
+        alarms = self.alarms
+        ctrl = dg[14]
+        if alarms.alm_clr_edge(bool(ctrl & 0x08)):
+            self._alarm_clear(now)
+            alarms.alm_clr_cmp = True
+        ictrl, _io, speed, torque, sel_ref, sel_mon, ref1, ref2 = _INV_CTL.unpack_from(dg, 16)
+        stat, ofreq, cur, mon1, mon2 = self._inv_ctl(ictrl, speed, torque, sel_ref, sel_mon, ref1, ref2, now)
+        main = _INV_CTL_R.pack(stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2)
+        self._last_cmd_alm = 0
+        st = self.drive.status
+        cstat = (st.faulted | st.minor_fault << 1 | 0x04 | alarms.alm_clr_cmp << 3 | (ctrl & 0xC0)
+                 | alarms.comm_alm << 12)
+        if self.data_size == 64:
+            self._last_sub_alm = 0
+            data = _RF64.pack(M3Cmd.INV_CTL, self.watchdog.rwdt(), cstat, main, 0, 0x04, _ZERO_SUB)
+        else:
+            data = _RF32.pack(M3Cmd.INV_CTL, self.watchdog.rwdt(), cstat, main)
+        out = _HEADER.pack(MAGIC, 3, 2, stn, cycle, tcycle) + data
+        self._sent(now)
+        return out + _FCS.pack(crc16_x25(out))
+
+    def _inv_ctl(self, ctrl: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,
+                 now: int) -> tuple[int, int, int, int, int]:
+        """INV_CTL (Table 20 INVCMD_CTRL): the drive command; returns INVCMD_STAT, output frequency, output
+        current, MON1, MON2."""
+        key = (ctrl, speed, torque)
+        if key != self._cmd_key:
+            self._cmd_key = key
+            cmd = DriveCommand(
+                forward=bool(ctrl & 0x0001), reverse=bool(ctrl & 0x0002), fault_reset=bool(ctrl & 0x0200),
+                external_fault=bool(ctrl & 0x0400), external_baseblock=bool(ctrl & 0x1000),
+                multi_inputs=(ctrl >> 16) & 0x3F, freq_ref_raw=speed, torque_ref_raw=torque,
+                torque_limit_raw=torque, fault_history_clear=bool(ctrl & 0x0800),
+            )
+            self.drive.command(cmd, now)
+            if cmd.fault_history_clear:
+                self._watch_history()
+        if sel_ref:
+            self._sel_refs(sel_ref, ref1, ref2)
+        link = self.drive
+        status = link.status
+        if status is not self._st_obj:
+            self._st_obj = status
+            self._st_word = ml3_invcmd_stat_bits(status)
+        m1, m2 = sel_mon & 0xF, sel_mon >> 4
+        stat = self._st_word | sel_mon_enabled(link, m1) << 24 | sel_mon_enabled(link, m2) << 25
+        return stat, link.output_freq_raw(), link.output_current_raw(), self._mon(m1), self._mon(m2)
+
+    def _process_sub(self, main_code: int, sub: Any, phase: int, subcmd: bool, now: int) -> tuple[Any, Err]:
+        stype = type(sub)
+        scode = sub.code if stype is Unknown else _SUB_CODE[stype]
+        row = ML3_SUB_PHASES.get(scode)
+        if row is None:
+            return _echo_sub(sub), Err.UNSUPPORTED
+        adm = row[phase - 1]
+        if adm is _PHASE and scode == M3Cmd.NOP and (
+            self.options.et3_nop_in_phase1 or main_code in (M3Cmd.CONNECT, M3Cmd.DISCONNECT)
+        ):  # an empty sub-command area beside CONNECT/DISCONNECT is no phase error (docs/cards.md)
+            adm = _ALLOWED
+        if adm is _PHASE:
+            return _echo_sub(sub), Err.PHASE
+        if not subcmd:  # CONNECT with SUBCMD = 0 ("Sub-command disabled"): not executed, no alarm
+            return _echo_sub(sub), Err.OK
+        if not combination_ok(ML3_COMBINATIONS, main_code, scode):
+            return _echo_sub(sub), Err.COMBINATION
+        rsub, err = self.sub_handlers[scode](self, sub, now)
+        return (rsub if err is Err.OK else _echo_sub(sub)), err
+
+    # -- shared command bodies -------------------------------------------------------------------
+    def _alm_data(self, mod: int, index: int) -> tuple[bytes, Err]:
+        """ALM_DATA from byte 8, two bytes per code (SI-ET3 Tables 16/17)."""
+        link = self.drive
+        if mod == 0:
+            names = ("U2-01", "U2-02")
+        elif mod == 1:
+            names = tuple(f"U3-{i:02d}" for i in range(1, 11))
+        elif mod == 2 and 0 <= index <= 10:
+            names = ("U2-01",) if index == 0 else (f"U3-{index:02d}",)
+        else:
+            return bytes(20), Err.DATA
+        data = b"".join((link.monitor(n) & 0xFFFF).to_bytes(2, "little") for n in names)
+        return data.ljust(20, b"\0"), Err.OK
+
+    def _check_connect(self, body: ml3.Connect, tcycle: int) -> tuple[Err, bool, bool]:
+        """``(verdict, synchronous, cycle fault)`` of a CONNECT (SI-ET3 CONNECT, Tables 18/19, Table 14)."""
+        mod = body.com_mod
+        if body.ver != 0x30 or mod & 0x71 or mod & 0x0C:  # VER 30H; reserved bits; DTMODE 0 only
+            return Err.DATA, False, False
+        if mod & 0x80 and self.data_size == 32:  # sub-commands need 64-byte frames (F6-21 = 0)
+            return Err.DATA, False, False
+        if body.profile_type != PROFILE_TYPE_INVERTER:
+            return Err.DATA, False, False
+        tim = body.com_tim
+        comm = tcycle * tim
+        if tim == 0 or tcycle not in VALID_TCYCLES_NS or not _COMM_MIN_NS <= comm <= _COMM_MAX_NS:
+            return Err.DATA, False, True
+        bit = bool(mod & 0x02)
+        sync = not bit if self.options.et3_syncmode_table19 else bit
+        return Err.OK, sync, False
+
+    def _connect_echo(self, body: ml3.Connect) -> Any:
+        if self.options.et3_connect_echo_at_byte5:  # the printed response table: VER at byte 5 … PROFILE at 8
+            echo = bytes((0, body.ver, body.com_mod, body.com_tim, body.profile_type))
+            return Unknown(M3Cmd.CONNECT, echo.ljust(len(_ZERO_MAIN), b"\0"))
+        return body
+
+    # -- failures, alarms, LEDs ------------------------------------------------------------------
+    def _report_failure(self, kind: FailureKind, first: bool) -> None:
+        self.alarms.comm(ml3_failure_code(kind, first and kind is not FailureKind.CYCLE, self.phase))
+
+    def _report_wdt(self) -> None:
+        self.alarms.comm(CommAlm.WDT_ERROR)
+
+    def _clear_comm_alarms(self) -> None:
+        self.alarms.clear()
+
+    def _subcommands_active(self) -> bool:
+        return self._subcmd
+
+    def _alarm_view(self) -> tuple[int, str | None, tuple[str, ...], int]:
+        code = self.alarms.comm_alm
+        name = CommAlm(code).name if code in CommAlm._value2member_map_ and code else None
+        st = self.drive.status
+        warnings = (f"COMM_ALM {code:X}H",) if 0 < code < 8 else ()
+        warnings += tuple(sorted(f.display for f in st.minors))
+        return code, name, warnings, self._last_cmd_alm
+
+    def _leds(self) -> tuple[dict[str, str], dict[str, str]]:
+        """Table 4: R/E green once powered up, red for an error/alarm or a command error (parameter, phase,
+        combination); CON lit with a connection; LK1 while frames arrive (the simulated network has one port,
+        so LK2 stays unlit)."""
+        st = self.drive.status
+        error = (self.station_error is not None or self.alarms.comm_alarm_active or st.faulted
+                 or bool(self._last_cmd_alm) or bool(self._last_sub_alm))
+        leds = {
+            "R/E": "on",
+            "CON": "on" if self.phase > 1 else "off",
+            "LK1": "on" if self._led_recent(self._any_rx) else "off",
+            "LK2": "off",
+        }
+        return leds, {"R/E": "red" if error else "green", "CON": "green", "LK1": "green", "LK2": "green"}
+
+
+# -- handlers ---------------------------------------------------------------------------------------
+def _nop(st: SiEt3, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    return body, Err.OK
+
+
+def _prm_rd(st: SiEt3, body: ml3.PrmRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    data, err = st.store.read(body.no, body.size, st.drive.monitor)
+    return ml3.PrmRdResponse(body.no, body.size, data), err
+
+
+def _prm_wr(st: SiEt3, body: ml3.PrmWr, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    return body, st._prm_write(body.no, body.size, body.data, now)
+
+
+def _id_rd(st: SiEt3, body: ml3.IdRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    data = ml3_id_data(body.id_code, data_size=st.data_size, profile=st._profile,
+                       speed_unit=st.store.active.get("o1-03", 0))
+    window = None if data is None else ml3_id_window(data, body.offset, body.size)
+    if window is None:
+        return _echo_main(body), Err.DATA
+    return ml3.IdRdResponse(body.id_code, body.offset, body.size, window), Err.OK
+
+
+def _config(st: SiEt3, body: ml3.Config, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    return body, st._config(body.config_mod, now)
+
+
+def _alm_rd(st: SiEt3, body: ml3.AlmRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    data, err = st._alm_data(body.alm_rd_mod, body.alm_index)
+    return ml3.AlmRdResponse(body.alm_rd_mod, body.alm_index, data), err
+
+
+def _alm_clr(st: SiEt3, body: ml3.AlmClr, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    if body.alm_clr_mod != 0:
+        return body, Err.DATA
+    st._alarm_clear(now)
+    return body, Err.OK
+
+
+def _sync_set(st: SiEt3, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    st.watchdog.arm(frame.message.wdt)  # "Completing this command commences watchdog data error detection"
+    st._set_phase(3)
+    return body, Err.OK
+
+
+def _connect(st: SiEt3, body: ml3.Connect, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    err, sync, cyc = st._check_connect(body, frame.tcycle_ns)
+    st.drive.minor(Fault.CYC, cyc, now)  # SI-ET3 Table 26 CYC "Communications Cycle Setting Error"
+    if err is not Err.OK:
+        st._log_refused(ver=body.ver, com_mod=body.com_mod, com_tim=body.com_tim,
+                        profile=body.profile_type, tcycle_ns=frame.tcycle_ns, cycle_fault=cyc)
+        return st._connect_echo(body), err
+    st._subcmd = st.data_size == 64 and bool(body.com_mod & 0x80)
+    st._profile = body.profile_type
+    st._connect(source, frame.cycle, now, sync=sync, tcycle_ns=frame.tcycle_ns, com_tim=body.com_tim,
+                comm_cycle_ns=frame.tcycle_ns * body.com_tim, wdt=frame.message.wdt)
+    return st._connect_echo(body), Err.OK
+
+
+def _disconnect(st: SiEt3, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    st._disconnect(now)
+    st._subcmd = False
+    st._profile = 0
+    return body, Err.OK
+
+
+def _inv_ctl(st: SiEt3, body: ml3.InvCtl, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+    stat, ofreq, cur, mon1, mon2 = st._inv_ctl(body.invcmd_ctrl, body.speed_ref, body.torque_ref, body.sel_ref,
+                                               body.sel_mon, body.ref1, body.ref2, now)
+    return ml3.InvCtlResponse(stat, 0, ofreq, cur, body.sel_ref, body.sel_mon, mon1, mon2), Err.OK
+
+
+SiEt3.handlers = {
+    M3Cmd.NOP: _nop,
+    M3Cmd.PRM_RD: _prm_rd,
+    M3Cmd.PRM_WR: _prm_wr,
+    M3Cmd.ID_RD: _id_rd,
+    M3Cmd.CONFIG: _config,
+    M3Cmd.ALM_RD: _alm_rd,
+    M3Cmd.ALM_CLR: _alm_clr,
+    M3Cmd.SYNC_SET: _sync_set,
+    M3Cmd.CONNECT: _connect,
+    M3Cmd.DISCONNECT: _disconnect,
+    M3Cmd.INV_CTL: _inv_ctl,
+}
+MAIN_HANDLERS = SiEt3.handlers
+
+
+# -- sub-command handlers (SI-ET3 §10) --------------------------------------------------------------
+def _sub_nop(st: SiEt3, sub: Any, now: int) -> tuple[Any, Err]:
+    return sub, Err.OK
+
+
+def _sub_prm_rd(st: SiEt3, sub: ml3.PrmRd, now: int) -> tuple[Any, Err]:
+    data, err = st.store.read(sub.no, sub.size, st.drive.monitor)
+    return ml3.PrmRdResponse(sub.no, sub.size, data), err
+
+
+def _sub_prm_wr(st: SiEt3, sub: ml3.PrmWr, now: int) -> tuple[Any, Err]:
+    return sub, st._prm_write(sub.no, sub.size, sub.data, now)
+
+
+def _sub_alm_rd(st: SiEt3, sub: ml3.AlmRd, now: int) -> tuple[Any, Err]:
+    data, err = st._alm_data(sub.alm_rd_mod, sub.alm_index)
+    return ml3.AlmRdResponse(sub.alm_rd_mod, sub.alm_index, data), err
+
+
+def _sub_inv_io(st: SiEt3, sub: ml3.InvIo, now: int) -> tuple[Any, Err]:
+    st._sel_refs(sub.sel_ref34, sub.ref3, sub.ref4)
+    st._sel_refs(sub.sel_ref56, sub.ref5, sub.ref6)
+    m34, m56 = sub.sel_mon34, sub.sel_mon56
+    return ml3.InvIoResponse(sub.sel_ref34, sub.sel_ref56, m34, m56, st._mon(m34 & 0xF), st._mon(m34 >> 4),
+                             st._mon(m56 & 0xF), st._mon(m56 >> 4)), Err.OK
+
+
+SiEt3.sub_handlers = {
+    M3Cmd.NOP: _sub_nop,
+    M3Cmd.PRM_RD: _sub_prm_rd,
+    M3Cmd.PRM_WR: _sub_prm_wr,
+    M3Cmd.ALM_RD: _sub_alm_rd,
+    M3Cmd.INV_IO: _sub_inv_io,
+}
+SUB_HANDLERS = SiEt3.sub_handlers

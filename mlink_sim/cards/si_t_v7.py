@@ -1,0 +1,72 @@
+"""SI-T/V7: the VS-606V7 MECHATROLINK-I/II communications interface unit (SI-T/V7 technical manual).
+
+* Power-up settings (§3.4): DIP switch S1-1 baud rate (OFF 4 Mbps MECHATROLINK-I, ON 10 Mbps), S1-2 data length
+  (OFF 17-byte, ON 32-byte; "Invalid if S1-1 is OFF (4 Mbps) and S1-2 is ON" – 17-byte then), station number
+  from S1-3 (tens digit 2/3) and rotary switch S2 (ones digit); 20H and 3FH "will be faulty": the ERR indicator
+  blinks six times, RUN is off and the unit does not answer.
+* Commands: Tables 1/2 plus the CONFIG sub-command (§7.2). In 32-byte mode PRM_RD/PRM_WR are accepted only as
+  sub-commands ("If received as a main command in 32-byte mode: Command alarm (A.95)";
+  ``CardOptions.v7_prm_main_in_32byte`` accepts them). PRM_WR takes effect at once (CONFIG_MOD 0 "Not
+  required"); CONFIG_MOD 1 saves to EEPROM. ALM_RD modes 0 and 1 (n178, two faults). SEL REF Table 4,
+  SEL MON Table 5 (n035 units).
+* Alarms: §8, Tables 6–11. A communications alarm is notified to the inverter at once (§8.1 "Notification
+  to Inverter"): it faults BUS (Table 10 E6H) when run or reference come from the option (n003 = 3 / n004 = 9).
+* LEDs (§3.3): RUN, ERR, TX, RX.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import ClassVar
+
+from mlink_sim.wire import Link
+
+from .idinfo import V7_ID_AREAS
+from .ml2_card import MAIN_HANDLERS, SUB_HANDLERS, Ml2Station
+from .phases import V7_COMBINATIONS, V7_SUB_PHASES
+from .settings import CardSettings
+
+__all__ = ["SiTV7"]
+
+
+class SiTV7(Ml2Station):
+    """SI-T/V7 MECHATROLINK-I/II interface unit on a VS-606V7 inverter."""
+
+    card: ClassVar[str] = "si-t-v7"
+    family: ClassVar[str] = "v7"
+    prm_immediate: ClassVar[bool] = True
+    has_cyc: ClassVar[bool] = False
+    v7: ClassVar[bool] = True
+    mfi_mask: ClassVar[int] = 0x1F  # Table 3: bits 2–6 = S3–S7, bit 7 not used
+    sub_phases = V7_SUB_PHASES
+    combinations = V7_COMBINATIONS
+    id_areas = V7_ID_AREAS
+    alm_rd_modes = frozenset((0, 1))
+    handlers = MAIN_HANDLERS
+    sub_handlers = SUB_HANDLERS
+
+    def _power_up(self, values: Mapping[str, int], settings: CardSettings) -> None:
+        station = settings.station if settings.station is not None else 0x21
+        if not 0x20 <= station <= 0x3F:
+            raise ValueError(f"SI-T/V7: station {station:#04x} cannot be set with S1-3 and S2 (20H–3FH)")
+        self.address = station
+        self.link = Link.ML2 if settings.s1_1_10mbps else Link.ML1
+        self.data_size = 32 if settings.s1_2_32byte and settings.s1_1_10mbps else 17
+        if settings.s1_2_32byte and not settings.s1_1_10mbps:
+            self._log0.warning("frame_size_forced", reason="S1-2 is invalid with S1-1 OFF (4 Mbps)", size=17)
+        if station in (0x20, 0x3F):
+            self.station_error = "AEr"  # §3.4 "Fault"; ERR blinks six times
+
+    def _leds(self) -> tuple[dict[str, str], dict[str, str]]:
+        """§3.3: RUN lit in normal operation, off on a station address setting error; ERR lit for a watchdog
+        timeout or communications error, blinking for a station address setting error; TX sending; RX
+        receiving carrier."""
+        bad_address = self.station_error is not None
+        err = "blink" if bad_address else ("on" if self.alarms.comm_alarm is not None else "off")
+        leds = {
+            "RUN": "off" if bad_address else "on",
+            "ERR": err,
+            "TX": "on" if self._led_recent(self._tx_at) else "off",
+            "RX": "on" if self._led_recent(self._any_rx) else "off",
+        }
+        return leds, {"RUN": "green", "ERR": "red", "TX": "green", "RX": "green"}
