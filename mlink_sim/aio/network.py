@@ -25,10 +25,15 @@ from .scenario import CheckResult, Scenario
 from .slave import query_control
 from .status import render_status
 from .supervisor import Worker, WorkerError, WorkerSpec, plan_workers
+from .udp import bind_address_for, resolve
 
-__all__ = ["RunOptions", "RunOutcome", "run_up", "run_network", "build_plans"]
+__all__ = ["RunOptions", "RunOutcome", "EndpointError", "run_up", "run_network", "build_plans"]
 
 log = structlog.get_logger("mlink_sim.network")
+
+
+class EndpointError(ValueError):
+    """A station endpoint that cannot be used (unresolvable host name)."""
 
 
 @dataclasses.dataclass
@@ -71,7 +76,7 @@ def build_plans(config: Config) -> dict[Link, Any]:
             subcmd=st.subcmd,
             name=st.name or "",
             card=st.card,
-            et3_syncmode_table19=bool(st.options.get("et3_syncmode_table19", True)),
+            et3_syncmode_table19=bool(st.options.get("et3_syncmode_table19", False)),
         )
         by_link.setdefault(st.link, []).append(plan)
     return {
@@ -81,22 +86,41 @@ def build_plans(config: Config) -> dict[Link, Any]:
 
 
 class _Network:
-    """The running network as the scenario and the status display see it (implements NetworkHandle)."""
+    """The running network as the scenario and the status display see it (implements NetworkHandle).
+
+    Routes every station to the master of its link and keeps each station's INV_CTL fields, so that a partial
+    update (``set_control(0x21, ef0=True)``) leaves the other fields as they were."""
 
     def __init__(self, config: Config, masters: dict[Link, Any], workers: dict[int, Worker]) -> None:
         self.config = config
         self.masters = masters
         self.workers = workers
         self.by_station = {st.address: masters[st.link] for st in config.station}
+        self._controls: dict[int, dict[str, Any]] = {st.address: {} for st in config.station}
+
+    def master(self, station: int) -> Any:
+        """The :class:`~mlink_sim.aio.master.Master` serving *station*."""
+        return self.by_station[station]
 
     def view(self, station: int) -> Any:
         return self.by_station[station].view(station)
 
-    def control(self, station: int) -> Any:
-        return self.by_station[station].control(station)
+    def views(self) -> dict[int, Any]:
+        out: dict[int, Any] = {}
+        for m in self.masters.values():
+            out.update(m.views())
+        return out
+
+    def control(self, station: int) -> dict[str, Any]:
+        return dict(self._controls[station])
 
     def set_control(self, station: int, **fields: Any) -> None:
-        self.by_station[station].set_control(station, **fields)
+        merged = self._controls[station]
+        merged.update(fields)
+        self.by_station[station].set_control(station, **merged)
+
+    async def prm_rd(self, station: int, register: int, size: int = 2) -> Any:
+        return await self.by_station[station].prm_rd(station, register, size)
 
     async def prm_wr(self, station: int, register: int, value: int, size: int = 2) -> Any:
         return await self.by_station[station].prm_wr(station, register, value, size=size)
@@ -111,7 +135,7 @@ class _Network:
         return await self.by_station[station].disconnect(station)
 
     async def reconnect(self, station: int) -> Any:
-        return await self.by_station[station].reconnect(station)
+        self.by_station[station].connect(station)
 
     def kill_slave(self, station: int) -> bool:
         worker = self.workers.get(station)
@@ -217,9 +241,16 @@ async def run_network(
     masters: dict[Link, Any] = {}
     checks: list[CheckResult] = []
     try:
+        resolved: dict[int, tuple[str, int]] = {}
+        for address, (host, port) in endpoints.items():
+            try:
+                resolved[address] = await resolve(host, port)
+            except OSError as exc:
+                raise EndpointError(f"station {address:#04x}: cannot resolve {host!r}: {exc.strerror or exc}") from None
+        local = bind_address_for(list(resolved.values()))
         for link, plan in build_plans(config).items():
-            eps = {sp.address: endpoints[sp.address] for sp in plan.stations}
-            masters[link] = await Master.start(plan, eps, metrics=metrics)
+            eps = {sp.address: resolved[sp.address] for sp in plan.stations}
+            masters[link] = await Master.start(plan, eps, metrics=metrics, local=local)
         net = _Network(config, masters, workers)
         # -- bring-up ------------------------------------------------------------------------------------------
         bring = asyncio.gather(*(m.bring_up(timeout=opts.bringup_timeout_s) for m in masters.values()),
@@ -232,7 +263,7 @@ async def run_network(
                     problems.append(f"bring-up: {result}")
         else:
             bring.cancel()
-        not_up = [v for m in masters.values() for v in m.views() if not v.at_target]
+        not_up = [v for v in net.views().values() if not v.at_target]
         for v in not_up:
             problems.append(f"station {v.address:#04x} did not reach its phase (state {v.state.value})")
         if not stop.is_set():

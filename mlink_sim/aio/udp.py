@@ -9,7 +9,7 @@ from typing import Any
 
 import structlog
 
-__all__ = ["new_event_loop", "DatagramEndpoint", "open_endpoint", "loop_name"]
+__all__ = ["new_event_loop", "DatagramEndpoint", "open_endpoint", "loop_name", "resolve", "bind_address_for"]
 
 log = structlog.get_logger("mlink_sim.aio.udp")
 
@@ -83,3 +83,20 @@ async def open_endpoint(
     sock.setblocking(False)
     _, protocol = await loop.create_datagram_endpoint(lambda: DatagramEndpoint(on_datagram), sock=sock)
     return protocol
+
+
+async def resolve(host: str, port: int) -> tuple[str, int]:
+    """Resolve *host* once (compose service names, ``localhost``) to a numeric address for ``sendto``.
+
+    Raises OSError with the resolver's message when the name does not resolve."""
+    loop = asyncio.get_running_loop()
+    infos = await loop.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
+    infos.sort(key=lambda info: info[0] != socket.AF_INET)  # IPv4 first: the master socket is IPv4 by default
+    return infos[0][4][0], port
+
+
+def bind_address_for(targets: list[tuple[str, int]]) -> tuple[str, int]:
+    """Where a client socket should bind to reach every target: any IPv4 (or IPv6) address, any port.
+
+    A socket bound to 127.0.0.1 cannot send to another host or namespace (EINVAL), so bind the wildcard."""
+    return ("::", 0) if targets and all(":" in h for h, _ in targets) else ("0.0.0.0", 0)

@@ -8,7 +8,7 @@ from typing import Any
 
 import click
 
-from ..aio.network import RunOptions, run_network, run_up
+from ..aio.network import EndpointError, RunOptions, run_network, run_up
 from ..aio.udp import new_event_loop
 from ..config import Config, ConfigError, format_ns, load_config, parse_duration_ns
 from .logs import configure_logging
@@ -136,7 +136,11 @@ def master_cmd(config_path, endpoints, duration, report, asserts, status, bringu
         status=status,
         bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
     )
-    sys.exit(_run(lambda: run_network(config, resolved, opts)))
+    try:
+        sys.exit(_run(lambda: run_network(config, resolved, opts)))
+    except EndpointError as exc:
+        click.echo(f"mlink-sim master: {exc}", err=True)
+        sys.exit(2)
 
 
 @click.command("validate")

@@ -9,7 +9,7 @@ from typing import Any
 
 import click
 
-from ..aio.udp import new_event_loop, open_endpoint
+from ..aio.udp import bind_address_for, new_event_loop, open_endpoint, resolve
 from ..config import parse_address, parse_endpoint
 from ..wire import Frame, Kind, Link, WireError, decode, encode, ml2, ml3
 
@@ -29,8 +29,9 @@ def _nop(link: Link, size: int, station: int, cycle: int) -> bytes:
 async def probe(host: str, port: int, station: int, attempts: list[tuple[Link, int]], timeout: float) -> Frame | None:
     """Send NOPs in each (link, size) until one gets a valid response from *station*; the response or None."""
     loop = asyncio.get_running_loop()
+    host, port = await resolve(host, port)
     answers: asyncio.Queue[bytes] = asyncio.Queue()
-    ep = await open_endpoint(lambda data, addr: answers.put_nowait(data), "::" if ":" in host else "0.0.0.0", 0)
+    ep = await open_endpoint(lambda data, addr: answers.put_nowait(data), *bind_address_for([(host, port)]))
     try:
         per_try = max(timeout / len(attempts), 0.05)
         for cycle, (link, size) in enumerate(attempts, start=1):
@@ -76,7 +77,7 @@ def probe_cmd(target: str, station_text: str, link: str | None, frame_size: str 
     try:
         frame = loop.run_until_complete(probe(host, port, station, attempts, timeout))
     except OSError as exc:
-        click.echo(f"mlink-sim probe: cannot reach {target}: {exc.strerror or exc}", err=True)
+        click.echo(f"mlink-sim probe: cannot reach {target}: {getattr(exc, 'strerror', None) or exc}", err=True)
         sys.exit(1)
     finally:
         loop.close()

@@ -42,16 +42,24 @@ class StationSpec:
 
 def build_station(spec: StationSpec, state_dir: Path | None, now: int) -> Any:
     """Create the card core for *spec*, reading its EEPROM image from *state_dir* if there is one."""
-    from ..cards import create_card, settings_for
+    import dataclasses
 
+    from ..cards import create_card, settings_for
+    from ..cards.settings import CardOptions
+
+    known = {f.name for f in dataclasses.fields(CardOptions)}
+    unknown = sorted(set(spec.options or {}) - known)
+    if unknown:
+        raise ValueError(f"unknown card option(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})")
+    link_speed = {"ML1": 4, "ML2": 10}.get((spec.link or "").upper())
     settings = settings_for(
         spec.card,
         spec.address,
         spec.frame_size,
         spec.params,
         load=spec.load,
-        link=spec.link,
-        options=spec.options or {},
+        link_speed_mbps=link_speed,
+        options=CardOptions(**(spec.options or {})),
     )
     eeprom = read_state(eeprom_path(state_dir, spec.card, spec.address)) if state_dir else None
     return create_card(spec.card, settings=settings, now=now, eeprom=eeprom)
