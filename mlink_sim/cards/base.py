@@ -22,7 +22,7 @@ from typing import Any, ClassVar
 import structlog
 
 from mlink_sim.params import ParamError
-from mlink_sim.wire import DropReason, Kind, Link, WireError, decode
+from mlink_sim.wire import DropReason, Kind, Link, WireError, decode, ml2, ml3
 
 from .drive_link import DriveCommand, DriveLink, Fault
 from .eeprom import EepromError, EepromImage
@@ -49,6 +49,15 @@ SLOW = object()
 _MAX_LOGGED_SOURCES = 32
 
 
+_NOPS = (ml2.Nop, ml3.Nop)
+
+
+def _is_status_query(msg: Any) -> bool:
+    """A main NOP with no sub-command or a NOP one: the only command another source may send (a status query,
+    answered by ``_status_reply`` of the generation's class without changing anything)."""
+    return type(msg.body) in _NOPS and (msg.sub is None or type(msg.sub) in _NOPS)
+
+
 @dataclass(slots=True)
 class StationCounters:
     """What happened to the datagrams a station saw. ``dropped_by_reason`` keys are wire
@@ -60,7 +69,8 @@ class StationCounters:
     tx: int = 0  #: responses returned
     dropped_by_reason: dict[str, int] = field(default_factory=dict)
     other_station: int = 0  #: valid datagrams addressed to another station
-    foreign_source: int = 0  #: commands from a source other than the connected master
+    foreign_source: int = 0  #: commands from a source other than the connected master (ignored)
+    status_queries: int = 0  #: NOPs from another source, answered with the status only (health checks)
     wdt_errors: int = 0
     reception_failures: int = 0  #: missed communication cycles (gap, silence, FCS) in phases 2/3
     fcs_errors: int = 0  #: bad-FCS datagrams for this station in phases 2/3
@@ -324,6 +334,9 @@ class Station:
         if msg.size != self.data_size:
             c.drop(DropReason.BAD_SIZE.name)
             return None
+        if self._source is not None and source != self._source and _is_status_query(msg):
+            self.counters.status_queries += 1
+            return self._status_reply(frame)
         if not self._accept(frame.cycle, frame.tcycle_ns, msg.wdt, msg.code, source, now):
             return None
         out = self._process(frame, source, now)

@@ -144,6 +144,17 @@ class Ml2Station(Station):
             self.drive.minor(Fault.CYC, True, now)
         return encode(Frame(self.link, Kind.RESPONSE, self.address, frame.cycle, frame.tcycle_ns, resp))
 
+    def _status_reply(self, frame: Frame) -> bytes:
+        """NOP response with ALARM/STATUS as they stand, for a source other than the connected master (health
+        checks): nothing is executed, no warning is consumed, RWDT does not advance (docs/cards.md)."""
+        st = self.drive.status
+        alarm, alm, warng = self.alarms.report(st.fault, st.minor, st.fault_reset_input)
+        word = ml2_status_bits(st, cmdrdy=True, v7=self.v7) & ~3 | alm | warng << 1
+        sub = frame.message.sub
+        resp = ml2.M2Response(ml2.Nop(), alarm, word, self.watchdog.peek(), None if sub is None else ml2.Nop(),
+                              0 if sub is None else _SUBRDY)
+        return encode(Frame(self.link, Kind.RESPONSE, self.address, frame.cycle, frame.tcycle_ns, resp))
+
     def _alarm_status(self, prm_rd: bool) -> tuple[int, int]:
         """ALARM byte and STATUS word of the next response (SI-T3 "STATUS Field", Tables 19–21)."""
         st = self.drive.status

@@ -175,6 +175,17 @@ class SiEt3(Station):
         resp = ml3.M3Response(rbody, self.watchdog.rwdt(), stat, rsub, sub_stat)
         return encode(Frame(Link.ML3, Kind.RESPONSE, self.address, frame.cycle, frame.tcycle_ns, resp))
 
+    def _status_reply(self, frame: Frame) -> bytes:
+        """NOP response with CMD_STAT as it stands, for a source other than the connected master (health checks):
+        nothing is executed, CMD_ALM is not touched, RWDT does not advance (docs/cards.md)."""
+        st = self.drive.status
+        alarms = self.alarms
+        stat = st.faulted | st.minor_fault << 1 | 0x04 | alarms.comm_alm << 12
+        sub = frame.message.sub
+        resp = ml3.M3Response(ml3.Nop(), self.watchdog.peek(), stat, None if sub is None else ml3.Nop(),
+                              0 if sub is None else 0x04)
+        return encode(Frame(Link.ML3, Kind.RESPONSE, self.address, frame.cycle, frame.tcycle_ns, resp))
+
     def _fast_receive(self, dg: bytes, source: Hashable, now: int) -> object:
         """INV_CTL with a NOP (or no) sub-command in phase 2/3 straight from and to bytes (``struct`` formats
         derived from the wire declarations; identical responses to the general path, tests/cards/test_fast_path.py)."""

@@ -45,6 +45,10 @@ class Watchdog:
         self.master = count
         return ok
 
+    def peek(self) -> int:
+        """The RWDT byte as it stands, without advancing the slave's count (status replies to other sources)."""
+        return self.slave | (self.master << 4)
+
     def rwdt(self) -> int:
         """The RWDT byte of the next response (advances the slave's count)."""
         self.slave = (self.slave + 1) & 0xF

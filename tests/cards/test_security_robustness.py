@@ -116,3 +116,27 @@ def test_arbitrary_commands_never_raise(card: str, data: st.DataObject) -> None:
     assert m.st.counters.internal_errors == 0
     m.st.receive(b"", MASTER, now)
     assert m.st.counters.internal_errors == 0
+
+
+@pytest.mark.parametrize("card", ["si-t3", "si-t-v7", "si-et3"])
+def test_foreign_nop_is_a_status_query_that_changes_nothing(card: str) -> None:
+    """A health check (``mlink-sim probe``) may ask a connected station for its status with a NOP: it is answered
+    with the status as it stands, nothing is executed and the master's WDT/RWDT sequence is untouched."""
+    m = Master(station(card, params=A if card != "si-t-v7" else ("n003=3", "n004=9")))
+    m.bring_up()
+    before = m.st.snapshot()
+    intruder = Master(m.st, source=INTRUDER, now=m.now)
+    intruder.cycle, intruder.count = m.cycle, m.count
+    answer = intruder.nop()
+    assert answer is not None and answer.station == 0x21
+    rwdt = answer.message.rwdt
+    assert m.st.counters.status_queries == 1 and m.st.counters.foreign_source == 0
+    assert m.st.snapshot().phase == before.phase == 3
+    assert m.st.snapshot().connected_source == MASTER
+    m.now, m.cycle, m.count = intruder.now, intruder.cycle, intruder.count
+    served = m.nop()
+    assert served is not None and served.message.rwdt & 0xF == (rwdt + 1) & 0xF  # the status reply did not count
+    assert m.st.counters.wdt_errors == 0
+    # anything but a NOP from another source is still ignored
+    assert intruder.send(ml3.SyncSet() if card == "si-et3" else ml2.SyncSet()) is None
+    assert m.st.counters.foreign_source == 1
