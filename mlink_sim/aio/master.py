@@ -1,0 +1,361 @@
+"""The master on a real network: :class:`~mlink_sim.master.MasterCore` driven by a :class:`CycleTimer` over one UDP
+socket, with awaitable requests (docs/master.md, "Async API").
+
+The datagram protocol only moves bytes and timestamps (``time.monotonic_ns()`` at ``datagram_received``); the
+core decides everything. Transport errors (an ICMP port unreachable on loopback surfaces as
+``ConnectionRefusedError`` in ``error_received``, or ``sendto`` raising ``OSError``) are counted in
+:attr:`Master.transport_errors`, never raised.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+import time
+from collections import Counter
+from collections.abc import Callable, Coroutine
+from typing import Any, Protocol, TypeVar
+
+import structlog
+
+from ..master import (
+    AlarmCleared,
+    AlarmRaised,
+    Control,
+    Late,
+    MasterCore,
+    Missing,
+    NetworkPlan,
+    Recovered,
+    Request,
+    Rtt,
+    StateChanged,
+    StationState,
+    StationView,
+)
+from ..wire import Link, ml2, ml3
+from .ticker import CycleTimer
+
+__all__ = ["Master", "MetricsSink", "NullMetrics", "run"]
+
+T = TypeVar("T")
+_mono = time.monotonic_ns
+_CONNECTED = (StationState.CONNECTING, StationState.PHASE2, StationState.SYNCING, StationState.PHASE3,
+              StationState.ALARM)
+
+
+class MetricsSink(Protocol):
+    """The hooks the master calls (``mlink_sim.metrics.NetworkMetrics`` implements them)."""
+
+    def record_sent(self, station: int) -> None: ...
+
+    def record_rtt(self, station: int, ns: int) -> None: ...
+
+    def record_late(self, station: int) -> None: ...
+
+    def record_missing(self, station: int) -> None: ...
+
+    def record_cycle_lateness(self, ns: int, skipped: int = 0) -> None: ...
+
+
+class NullMetrics:
+    """A :class:`MetricsSink` that records nothing."""
+
+    def record_sent(self, station: int) -> None:
+        pass
+
+    def record_rtt(self, station: int, ns: int) -> None:
+        pass
+
+    def record_late(self, station: int) -> None:
+        pass
+
+    def record_missing(self, station: int) -> None:
+        pass
+
+    def record_cycle_lateness(self, ns: int, skipped: int = 0) -> None:
+        pass
+
+
+class _DatagramProtocol(asyncio.DatagramProtocol):
+    """Moves bytes and timestamps, nothing else (aioquic ``asyncio/protocol.py`` style)."""
+
+    def __init__(self, on_datagram: Callable[[bytes, int], None], on_error: Callable[[Exception], None]) -> None:
+        self._on_datagram = on_datagram
+        self._on_error = on_error
+
+    def datagram_received(self, data: bytes, addr: Any) -> None:
+        self._on_datagram(data, _mono())
+
+    def error_received(self, exc: Exception) -> None:
+        self._on_error(exc)
+
+
+class Master:
+    """A running master. Create with ``await Master.start(...)``; stop with ``await master.close()``."""
+
+    def __init__(self, core: MasterCore, endpoints: dict[int, tuple[str, int]], metrics: MetricsSink,
+                 loop: asyncio.AbstractEventLoop) -> None:
+        self.core = core
+        self.endpoints = dict(endpoints)
+        self.metrics = metrics
+        self.transport_errors: Counter[str] = Counter()
+        self._loop = loop
+        self._transport: asyncio.DatagramTransport | None = None
+        self._timer: CycleTimer | None = None
+        self._waiters: list[tuple[Callable[[], bool], asyncio.Future[None]]] = []
+        self._pending_missing: dict[int, int] = {}
+        self._closed = False
+        self._log = structlog.get_logger(__name__).bind(component="master", link=core.plan.link.name)
+
+    # ------------------------------------------------------------------ life cycle
+    @classmethod
+    async def start(cls, plan: NetworkPlan, endpoints: dict[int, tuple[str, int]], *,
+                    local: tuple[str, int] = ("127.0.0.1", 0), metrics: MetricsSink | None = None,
+                    loop: asyncio.AbstractEventLoop | None = None, strategy: str = "auto",
+                    rcvbuf: int = 1 << 20) -> Master:
+        """Open one UDP socket on *local*, start cycling at ``plan.tcycle_ns``; *endpoints* maps every station
+        address of the plan to the ``(host, port)`` of its slave."""
+        missing = [f"{sp.address:02X}H" for sp in plan.stations if sp.address not in endpoints]
+        if missing:
+            raise ValueError(f"no UDP endpoint for station(s) {', '.join(missing)}")
+        loop = loop or asyncio.get_running_loop()
+        self = cls(MasterCore(plan), endpoints, metrics if metrics is not None else NullMetrics(), loop)
+        add_stations = getattr(self.metrics, "add_stations", None)
+        if callable(add_stations):
+            add_stations(self.core.addresses)
+        transport, _ = await loop.create_datagram_endpoint(
+            lambda: _DatagramProtocol(self._on_datagram, self._on_error), local_addr=local)
+        self._transport = transport
+        sock = transport.get_extra_info("socket")
+        if sock is not None and rcvbuf:
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+            except OSError:  # pragma: no cover - best effort
+                pass
+        self._timer = CycleTimer(plan.tcycle_ns, self._on_cycle, loop=loop, strategy=strategy)
+        self._timer.start()
+        self._log.info("master_started", local=transport.get_extra_info("sockname"), stations=len(plan.stations),
+                       tcycle_ns=plan.tcycle_ns, strategy=self._timer.strategy)
+        return self
+
+    @property
+    def local_address(self) -> tuple[str, int]:
+        assert self._transport is not None
+        return self._transport.get_extra_info("sockname")[:2]
+
+    @property
+    def timer(self) -> CycleTimer | None:
+        return self._timer
+
+    async def close(self, timeout: float = 1.0) -> None:
+        """DISCONNECT every connected station (waiting up to *timeout* s), then stop cycling and close the socket."""
+        if self._closed:
+            return
+        self._closed = True
+        core = self.core
+        reqs = [core.disconnect(a, timeout_ns=int(timeout * 1e9), now=_mono())
+                for a in core.addresses if core.state(a) in _CONNECTED]
+        if reqs and self._timer is not None and self._timer.running:
+            futs = [self._future(r) for r in reqs]
+            await asyncio.wait(futs, timeout=timeout)
+            for f in futs:
+                if f.done() and not f.cancelled():
+                    f.exception()  # consumed: a station that did not answer is not an error at shutdown
+        if self._timer is not None:
+            self._timer.stop()
+        core.abort_requests("master closed")
+        self._pump()
+        for station in list(self._pending_missing):
+            self.metrics.record_missing(station)
+        self._pending_missing.clear()
+        for _, fut in self._waiters:
+            if not fut.done():
+                fut.set_exception(ConnectionAbortedError("master closed"))
+        self._waiters.clear()
+        if self._transport is not None:
+            self._transport.close()
+        self._log.info("master_closed", transport_errors=dict(self.transport_errors), drops=len(core.drops))
+
+    async def __aenter__(self) -> Master:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+    # ------------------------------------------------------------------ waiting
+    async def wait_until(self, predicate: Callable[[], bool], timeout: float) -> None:
+        """Wait until *predicate()* holds (checked every cycle); ``TimeoutError`` after *timeout* s."""
+        if predicate():
+            return
+        fut: asyncio.Future[None] = self._loop.create_future()
+        entry = (predicate, fut)
+        self._waiters.append(entry)
+        try:
+            await asyncio.wait_for(fut, timeout)
+        finally:
+            if entry in self._waiters:
+                self._waiters.remove(entry)
+
+    async def bring_up(self, timeout: float = 5.0) -> None:
+        """Wait until every station is at its target phase (3, or 2 without ``sync``)."""
+        try:
+            await self.wait_until(self.core.all_at_target, timeout)
+        except (TimeoutError, asyncio.TimeoutError):
+            stuck = {f"{a:02X}H": (v.state.value, v.last_error) for a, v in self.core.views().items()
+                     if not v.at_target}
+            raise TimeoutError(f"bring-up not complete after {timeout} s: {stuck}") from None
+
+    # ------------------------------------------------------------------ requests
+    async def request(self, station: int, body: Any, *, sub: bool | None = None,
+                      timeout: float | None = None) -> Any:
+        """Send *body* (a wire command body) and return the decoded response body; raises
+        :class:`~mlink_sim.master.StationAlarmError` or :class:`~mlink_sim.master.RequestTimeout`."""
+        req = self.core.request(station, body, sub=sub, timeout_ns=None if timeout is None else int(timeout * 1e9),
+                                now=_mono())
+        return await self._future(req)
+
+    def _mod(self, station: int) -> Any:
+        return ml3 if self.core.plan.station(station).link is Link.ML3 else ml2
+
+    async def prm_rd(self, station: int, register: int, size: int = 2, *, sub: bool | None = None,
+                     timeout: float | None = None) -> int | bytes:
+        """PRM_RD of MEMOBUS register *register*: an unsigned int for ``size=2``, else the *size* bytes (LSB first)."""
+        r = await self.request(station, self._mod(station).PrmRd(register, size), sub=sub, timeout=timeout)
+        data = bytes(r.parameter[:size])
+        return int.from_bytes(data, "little") if size == 2 else data
+
+    async def prm_wr(self, station: int, register: int, value: int | bytes, size: int = 2, *,
+                     sub: bool | None = None, timeout: float | None = None) -> None:
+        """PRM_WR; an int *value* is written LSB first in *size* bytes (negative: two's complement)."""
+        if isinstance(value, int):
+            data = (value % (1 << (8 * size))).to_bytes(size, "little")
+        else:
+            data = bytes(value)
+        await self.request(station, self._mod(station).PrmWr(register, size, data.ljust(8, b"\0")), sub=sub,
+                           timeout=timeout)
+
+    async def config(self, station: int, mode: int = 0, *, sub: bool = False, timeout: float | None = None) -> None:
+        """CONFIG: 0 = enable written parameters (RAM), 1 = also store to EEPROM (SI-T3 Table 12, SI-ET3 Table 15)."""
+        await self.request(station, self._mod(station).Config(mode), sub=sub, timeout=timeout)
+
+    async def id_rd(self, station: int, code: int, offset: int = 0, size: int = 8, *,
+                    timeout: float | None = None) -> bytes:
+        """ID_RD: *size* bytes of ID *code* (DEVICE_CODE, SI-T3 Table 10 / ID_CODE, SI-ET3 Table 14) from *offset*."""
+        r = await self.request(station, self._mod(station).IdRd(code, offset, size), timeout=timeout)
+        return bytes(r.id[:size])
+
+    async def alm_rd(self, station: int, mode: int = 0, index: int = 0, *, sub: bool = False,
+                     timeout: float | None = None) -> Any:
+        """ALM_RD: the decoded response body (``alm_data`` per SI-T3 Table 14 / SI-ET3 Tables 16/17)."""
+        return await self.request(station, self._mod(station).AlmRd(mode, index), sub=sub, timeout=timeout)
+
+    async def alm_clr(self, station: int, *, timeout: float | None = None) -> None:
+        """ALM_CLR mode 0: clear present faults and alarms (SI-T3 Table 15)."""
+        await self.request(station, self._mod(station).AlmClr(0), timeout=timeout)
+
+    async def disconnect(self, station: int, *, timeout: float | None = None) -> None:
+        """DISCONNECT and keep the station in phase 1 until :meth:`connect`."""
+        req = self.core.disconnect(station, timeout_ns=None if timeout is None else int(timeout * 1e9), now=_mono())
+        await self._future(req)
+
+    def connect(self, station: int) -> None:
+        """Bring a disconnected station up again (use :meth:`bring_up` to wait for it)."""
+        self.core.connect(station)
+
+    def set_control(self, station: int, forward: bool = False, reverse: bool = False, speed_ref: int = 0,
+                    torque_ref: int = 0, **signals: Any) -> Control:
+        """Cyclic INV_CTL contents (see :meth:`MasterCore.set_control`)."""
+        return self.core.set_control(station, forward, reverse, speed_ref, torque_ref, **signals)
+
+    def view(self, station: int) -> StationView:
+        return self.core.view(station)
+
+    def views(self) -> dict[int, StationView]:
+        return self.core.views()
+
+    def _future(self, req: Request) -> asyncio.Future[Any]:
+        fut: asyncio.Future[Any] = self._loop.create_future()
+
+        def done(r: Request) -> None:
+            if fut.done():
+                return
+            if r.error is not None:
+                fut.set_exception(r.error)
+            else:
+                fut.set_result(r.result)
+
+        req.add_done_callback(done)
+        return fut
+
+    # ------------------------------------------------------------------ hot path
+    def _on_cycle(self, cycle: int, deadline_ns: int, now_ns: int, skipped: int) -> None:
+        metrics = self.metrics
+        metrics.record_cycle_lateness(now_ns - deadline_ns, skipped)
+        transport = self._transport
+        if transport is None or transport.is_closing():
+            return
+        endpoints = self.endpoints
+        for station, datagram in self.core.on_cycle(cycle, now_ns):
+            try:
+                transport.sendto(datagram, endpoints[station])
+            except OSError as exc:
+                self._on_error(exc)
+            metrics.record_sent(station)
+        self._pump()
+
+    def _on_datagram(self, data: bytes, now: int) -> None:
+        self.core.on_response(data, now)
+
+    def _on_error(self, exc: Exception) -> None:
+        name = type(exc).__name__
+        self.transport_errors[name] += 1
+        n = self.transport_errors[name]
+        if n & (n - 1) == 0:  # 1, 2, 4, 8 … : visible, not flooding
+            self._log.debug("transport_error", error=name, detail=str(exc), count=n)
+
+    def _pump(self) -> None:
+        """Feed the core's events to metrics and the log; wake waiters."""
+        events = self.core.events
+        if events:
+            metrics = self.metrics
+            pending = self._pending_missing
+            log = self._log
+            for ev in self.core.drain_events():
+                t = type(ev)
+                if t is Rtt:
+                    metrics.record_rtt(ev.station, ev.ns)
+                elif t is Missing:
+                    # Counted once given up for good: a late answer may still come until the next Missing.
+                    old = pending.get(ev.station)
+                    if old is not None:
+                        metrics.record_missing(ev.station)
+                    pending[ev.station] = ev.cycle
+                elif t is Late:
+                    if pending.get(ev.station) == ev.cycle:
+                        del pending[ev.station]
+                        metrics.record_rtt(ev.station, ev.ns)
+                        metrics.record_late(ev.station)
+                elif t is StateChanged:
+                    log.info("station_state", station=f"{ev.station:02X}H", old=ev.old.value, new=ev.new.value)
+                elif t is AlarmRaised:
+                    log.warning("station_alarm", station=f"{ev.station:02X}H", code=ev.code, name=ev.name,
+                                source=ev.source)
+                elif t is AlarmCleared:
+                    log.info("station_alarm_cleared", station=f"{ev.station:02X}H", source=ev.source)
+                elif t is Recovered:
+                    log.info("station_recovered", station=f"{ev.station:02X}H", reason=ev.reason,
+                             after_ms=round(ev.ns / 1e6, 3))
+        if self._waiters:
+            for pred, fut in list(self._waiters):
+                if not fut.done() and pred():
+                    fut.set_result(None)
+
+
+def run(main: Coroutine[Any, Any, T]) -> T:
+    """Run *main* on uvloop when installed, else on asyncio's default loop."""
+    try:
+        import uvloop
+    except ImportError:  # pragma: no cover
+        return asyncio.run(main)
+    return uvloop.run(main)

@@ -1,0 +1,305 @@
+"""Per-generation command building and response reading for the master core.
+
+MECHATROLINK-I/II and MECHATROLINK-III report the same facts in different places; :class:`Reply` is the common
+reading the state machine works on:
+
+==================  ===========================================  ==============================================
+fact                MECHATROLINK-I/II (SI-T3, SI-T/V7)            MECHATROLINK-III (SI-ET3)
+==================  ===========================================  ==============================================
+command ready       STATUS.CMDRDY (SI-T3 "STATUS Field")          CMD_STAT.CMDRDY
+command refused     ALARM 94H/95H with STATUS.WARNG (Table 25)    CMD_ALM != 0 ("CMD_ALM" table)
+not connected       95H to INV_CTL/SYNC_SET/ALM_CLR ("If not in   CMD_ALM CH, phase error (Table 9)
+                    phase 2 or 3: Command warning (A.95)")
+comm. alarm         ALARM E5H/E6H (Table 23)                      COMM_ALM 8H–CH ("COMM_ALM" table)
+sub ready / error   SUBSTATUS SUBCMDRDY / SUBALM, SUBWARNG        SUB_STAT SUBCMDRDY / SUBCMD_ALM (Tables 24/25)
+==================  ===========================================  ==============================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from ..wire import (
+    CmdAlm,
+    CommAlm,
+    InvCmdCtrl,
+    Link,
+    M2Alarm,
+    M2Cmd,
+    M2Status,
+    M2SubStatus,
+    M3Cmd,
+    OperationSignal,
+    SubCmdAlm,
+    ml2,
+    ml3,
+)
+from ..wire.drive_codes import SiT3DriveAlarm, SiT3DriveWarning, V7InverterAlarm, V7InverterWarning
+from .plan import StationPlan
+from .types import Control
+
+__all__ = ["Reply", "Codec", "codec_for", "compatible", "command_name"]
+
+_NOT_CONNECTED_ML2 = {int(M2Cmd.INV_CTL), int(M2Cmd.SYNC_SET), int(M2Cmd.ALM_CLR)}
+_COMM_ALARMS_ML2 = {int(M2Alarm.WDT_ERROR), int(M2Alarm.COMM_ERROR)}
+_REFUSALS_ML2 = {int(M2Alarm.DATA_SETTING_WARNING), int(M2Alarm.COMMAND_WARNING)}
+_CARD_CODES = {int(m) for m in M2Alarm}
+# SI-T3: the drive's own reaction to a communication fault can be the most recent alarm in the ALARM byte and hide
+# E5H/E6H (Table 21): Table 26 faults E5 (39H, "SI-T3 Watchdog Timer Error") and bUS (22H), or Table 27 minor
+# faults E5 (31H) and bUS (15H) – all are communication faults the master recovers (Table 28 "E5").
+_DRIVE_COMM_FAULTS = {int(SiT3DriveAlarm.E5), int(SiT3DriveAlarm.BUS)}
+_DRIVE_COMM_MINORS = {int(SiT3DriveWarning.E5), int(SiT3DriveWarning.BUS)}
+_CYC = int(SiT3DriveWarning.CYC)
+
+# Main/sub-command combinations (SI-T3 Table 7, SI-ET3 Table 13): main command -> sub-commands it accepts.
+# Mains not listed accept every sub-command (NOP, ID_RD, SYNC_SET, INV_CTL rows are all "OK").
+_ONLY_NOP = frozenset({"NOP"})
+_COMBINATIONS: dict[str, frozenset[str]] = {
+    "PRM_RD": frozenset({"NOP", "ALM_RD", "INV_IO"}),
+    "PRM_WR": frozenset({"NOP", "ALM_RD", "INV_IO"}),
+    "CONFIG": _ONLY_NOP,
+    "ALM_RD": _ONLY_NOP,
+    "ALM_CLR": _ONLY_NOP,
+    "CONNECT": _ONLY_NOP,
+    "DISCONNECT": _ONLY_NOP,
+}
+
+
+def compatible(main: str, sub: str) -> bool:
+    """Whether main command *main* may travel with sub-command *sub* (names as in :class:`M2Cmd`)."""
+    allowed = _COMBINATIONS.get(main)
+    return allowed is None or sub in allowed
+
+
+def command_name(link: Link, code: int) -> str:
+    enum_type = M3Cmd if link is Link.ML3 else M2Cmd
+    try:
+        return enum_type(code).name
+    except ValueError:
+        return f"{code:02X}H"
+
+
+@dataclass(frozen=True, slots=True)
+class Reply:
+    """One response, read the same way on every generation."""
+
+    code: int
+    body: Any
+    ready: bool
+    error: tuple[int, str] | None  #: the main command was refused (code, name)
+    phase_error: bool  #: the slave says it is not connected (ML-III CMD_ALM CH)
+    comm_alarm: tuple[int, str] | None  #: communication alarm (ML-II E5H/E6H, ML-III COMM_ALM >= 8)
+    sub_code: int | None
+    sub_body: Any
+    sub_ready: bool
+    sub_error: tuple[int, str] | None
+    # for the view
+    alarm: int
+    comm_alm: int
+    cmd_alm: int
+    fault: bool
+    warning: bool
+    status: int | None  #: ML-II STATUS (any response) / ML-III INVCMD_STAT (INV_CTL response only)
+
+
+def _enum_name(enum_type: Any, code: int) -> str:
+    try:
+        return enum_type(code).name
+    except ValueError:
+        return f"{code:02X}H"
+
+
+class Codec:
+    """Builds command messages and reads responses for one station's generation."""
+
+    __slots__ = ("plan", "link", "cmd", "mod", "main_slot", "sub_slot", "v7", "_nop")
+
+    def __init__(self, plan: StationPlan) -> None:
+        self.plan = plan
+        self.link = plan.link
+        ml3_link = plan.link is Link.ML3
+        self.cmd = M3Cmd if ml3_link else M2Cmd
+        self.mod = ml3 if ml3_link else ml2
+        self.main_slot = self.mod.COMMAND_MAIN
+        self.sub_slot = self.mod.COMMAND_SUB
+        self.v7 = plan.is_v7
+        self._nop = self.mod.Nop()
+
+    # --- bodies ---------------------------------------------------------------------------------------------
+    def nop(self) -> Any:
+        return self._nop
+
+    def connect(self) -> Any:
+        p = self.plan
+        if self.link is Link.ML3:
+            return ml3.Connect(p.ver, p.com_mod, p.com_tim, p.profile_type)
+        return ml2.Connect(p.ver, p.com_mod, p.com_tim)
+
+    def sync_set(self) -> Any:
+        return self.mod.SyncSet()
+
+    def disconnect(self) -> Any:
+        return self.mod.Disconnect()
+
+    def alm_clr(self) -> Any:
+        return self.mod.AlmClr(0)
+
+    def inv_ctl(self, c: Control) -> Any:
+        """INV_CTL 40H (SI-T3 Table 16 operation signals) or 50H (SI-ET3 Table 20 INVCMD_CTRL)."""
+        if self.link is Link.ML3:
+            ctrl = (
+                (InvCmdCtrl.FORWARD if c.forward else 0)
+                | (InvCmdCtrl.REVERSE if c.reverse else 0)
+                | (InvCmdCtrl.FAULT_RESET if c.fault_reset else 0)
+                | (InvCmdCtrl.EF0 if c.ef0 else 0)
+                | (InvCmdCtrl.FAULT_HISTORY_CLEAR if c.fault_history_clear else 0)
+                | (InvCmdCtrl.EXT_BB if c.ext_bb else 0)
+                | (c.multi_inputs << 16)
+            )
+            return ml3.InvCtl(int(ctrl), 0, c.speed_ref, c.torque_ref, c.sel_ref, c.sel_mon, c.ref1, c.ref2)
+        signals = (
+            (OperationSignal.FORWARD if c.forward else 0)
+            | (OperationSignal.REVERSE if c.reverse else 0)
+            | (c.multi_inputs << 2)
+            | (OperationSignal.EF0 if c.ef0 else 0)
+            | (OperationSignal.FAULT_RESET if c.fault_reset else 0)
+            | (OperationSignal.FAULT_HISTORY_CLEAR if c.fault_history_clear else 0)
+            | (OperationSignal.EXT_BB if c.ext_bb else 0)
+        )
+        return ml2.InvCtl(int(signals), c.speed_ref, c.torque_ref, c.sel_ref, c.sel_mon, c.ref1, c.ref2)
+
+    # --- messages -------------------------------------------------------------------------------------------
+    def message(self, body: Any, wdt: int, sub: Any) -> Any:
+        """The command message; *sub* is ignored (and must be None) on frames without a sub-command area."""
+        if self.plan.has_sub and sub is None:
+            sub = self._nop
+        elif not self.plan.has_sub:
+            sub = None
+        if self.link is Link.ML3:
+            # DISCONNECT: byte 1 is reserved (SI-ET3 "DISCONNECT Command"), so no WDT.
+            if type(body) is ml3.Disconnect:
+                wdt = 0
+            return ml3.M3Command(body, wdt, 0, sub, 0)
+        return ml2.M2Command(body, wdt, sub)
+
+    def code_of(self, body: Any, sub: bool = False) -> int:
+        return (self.sub_slot if sub else self.main_slot).code_of(body)
+
+    def name_of(self, code: int) -> str:
+        return command_name(self.link, code)
+
+    # --- responses ------------------------------------------------------------------------------------------
+    def reply(self, msg: Any) -> Reply:
+        if self.link is Link.ML3:
+            return self._reply3(msg)
+        return self._reply2(msg)
+
+    def alarm_name(self, code: int, status: int) -> str:
+        """Name of an ML-II ALARM byte value: the card's own codes (SI-T3 Tables 23/25, V7 Table 8) unless STATUS.ALM
+        marks a drive fault sharing the value (V7 CPF23 = 94H); else the drive tables (SI-T3 Tables 26/27, V7
+        Tables 10/11) picked by STATUS.ALM."""
+        if code in _CARD_CODES and not (code in _REFUSALS_ML2 and status & M2Status.ALM):
+            return M2Alarm(code).name
+        if self.v7:
+            table: Any = V7InverterAlarm if status & M2Status.ALM else V7InverterWarning
+        else:
+            table = SiT3DriveAlarm if status & M2Status.ALM else SiT3DriveWarning
+        return _enum_name(table, code)
+
+    def _reply2(self, m: ml2.M2Response) -> Reply:
+        status = m.status
+        alarm = m.alarm
+        sub_error = None
+        sub_code = None
+        sub_ready = True
+        if m.sub is not None:
+            sub_code = ml2.RESPONSE_SUB.code_of(m.sub)
+            ss = m.substatus
+            sub_ready = bool(ss & M2SubStatus.SUBCMDRDY)
+            if ss & (M2SubStatus.SUBALM | M2SubStatus.SUBWARNG):
+                sub_error = (alarm, self.alarm_name(alarm, M2Status.WARNG))
+        error = None
+        if alarm in _REFUSALS_ML2 and status & M2Status.WARNG and sub_error is None:
+            error = (alarm, M2Alarm(alarm).name)
+        comm = None
+        if alarm in _COMM_ALARMS_ML2:
+            comm = (alarm, M2Alarm(alarm).name)
+        elif not self.v7 and (alarm in _DRIVE_COMM_FAULTS if status & M2Status.ALM else
+                              alarm in _DRIVE_COMM_MINORS and status & M2Status.WARNG):
+            comm = (alarm, self.alarm_name(alarm, status))
+        return Reply(
+            code=ml2.RESPONSE_MAIN.code_of(m.body),
+            body=m.body,
+            ready=bool(status & M2Status.CMDRDY),
+            error=error,
+            phase_error=False,
+            comm_alarm=comm,
+            sub_code=sub_code,
+            sub_body=m.sub,
+            sub_ready=sub_ready,
+            sub_error=sub_error,
+            alarm=alarm,
+            comm_alm=0,
+            cmd_alm=0,
+            fault=bool(status & M2Status.ALM),
+            warning=bool(status & M2Status.WARNG),
+            status=status,
+        )
+
+    def _reply3(self, m: ml3.M3Response) -> Reply:
+        v = m.cmd_stat
+        cmd_alm = (v >> 8) & 0xF
+        comm_alm = (v >> 12) & 0xF
+        sub_code = None
+        sub_ready = True
+        sub_error = None
+        if m.sub is not None:
+            sub_code = ml3.RESPONSE_SUB.code_of(m.sub)
+            ss = m.sub_stat
+            sub_ready = bool(ss & 4)
+            sub_alm = (ss >> 8) & 0xF
+            if sub_alm:
+                sub_error = (sub_alm, _enum_name(SubCmdAlm, sub_alm))
+        body = m.body
+        return Reply(
+            code=ml3.RESPONSE_MAIN.code_of(body),
+            body=body,
+            ready=bool(v & 4),
+            error=(cmd_alm, _enum_name(CmdAlm, cmd_alm)) if cmd_alm else None,
+            phase_error=cmd_alm == CmdAlm.PHASE_ERROR,
+            comm_alarm=(comm_alm, _enum_name(CommAlm, comm_alm)) if comm_alm >= 8 else None,
+            sub_code=sub_code,
+            sub_body=m.sub,
+            sub_ready=sub_ready,
+            sub_error=sub_error,
+            alarm=0,
+            comm_alm=comm_alm,
+            cmd_alm=cmd_alm,
+            fault=bool(v & 1),
+            warning=bool(v & 2),
+            status=body.invcmd_stat if type(body) is ml3.InvCtlResponse else None,
+        )
+
+    def connect_refusal(self, reply: Reply) -> tuple[int, str] | None:
+        """Why a CONNECT was refused, if it was: its own error, or on the SI-T3 the minor fault CyC (33H, "SI-T3
+        Transmission Cycle Error", Table 27), which as the lower warning code hides the A.94 (Table 21)."""
+        if reply.error is not None:
+            return reply.error
+        if self.link is not Link.ML3 and not self.v7 and reply.alarm == _CYC and reply.warning:
+            return (_CYC, "CYC")
+        return None
+
+    def not_connected(self, sent_code: int, reply: Reply) -> bool:
+        """The response says the slave is in phase 1 although the master sent a phase-2/3 command."""
+        if self.link is Link.ML3:
+            return reply.phase_error
+        return (
+            reply.error is not None
+            and reply.error[0] == M2Alarm.COMMAND_WARNING
+            and sent_code in _NOT_CONNECTED_ML2
+        )
+
+
+def codec_for(plan: StationPlan) -> Codec:
+    return Codec(plan)

@@ -1,0 +1,583 @@
+"""The MECHATROLINK master, sans-I/O: cycle numbers and nanoseconds in, datagrams and events out.
+
+:meth:`MasterCore.on_cycle` is called once per transmission cycle and returns the command datagrams of the
+stations whose communication cycle is due; :meth:`MasterCore.on_response` consumes one response datagram. The core
+never waits: a command still unanswered when its station is due again is recorded as :class:`Missing` and the
+next command goes out on time. Everything else (state machine, WDT, requests, recovery) is in docs/master.md.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections import Counter, deque
+from typing import Any
+
+from ..wire import CmdAlm, CommAlm, DropReason, Frame, Kind, Link, Unknown, WireError, decode, encode
+from .codec import Codec, Reply, compatible
+from .plan import NetworkPlan, StationPlan
+from .types import (
+    AlarmCleared,
+    AlarmRaised,
+    Control,
+    Dropped,
+    Event,
+    Late,
+    MasterDrop,
+    Missing,
+    Recovered,
+    Request,
+    RequestTimeout,
+    Rtt,
+    StateChanged,
+    StationAlarmError,
+    StationDisconnected,
+    StationState,
+    StationView,
+)
+
+__all__ = ["MasterCore"]
+
+S = StationState
+_U32 = 0xFFFFFFFF
+_UP = (S.PHASE2, S.PHASE3)  # states in which requests and INV_CTL are sent
+_CONNECTED = (S.PHASE2, S.SYNCING, S.PHASE3, S.ALARM, S.CONNECTING)
+_MANAGED = frozenset({"CONNECT", "SYNC_SET"})
+#: CONNECT answers meaning "these VER/COM_MOD/COM_TIM do not suit me" (A.94, CMD_ALM 1/9, SI-T3 CyC 33H)
+_PLAN_REFUSED = frozenset({"DATA_SETTING_WARNING", "INVALID_DATA", "INVALID_DATA_WARNING", "CYC"})
+
+
+class _Sent:
+    """The command of one slot, kept until its response arrives or the station's next slot."""
+
+    __slots__ = ("cycle", "at", "kind", "code", "req", "sub_req", "late_seen", "body")
+
+    def __init__(self, cycle: int, at: int, kind: str, code: int, body: Any, req: Request | None,
+                 sub_req: Request | None) -> None:
+        self.cycle = cycle
+        self.at = at
+        self.kind = kind  # probe | connect | reset | disconnect | sync | clear | cyclic | request
+        self.code = code
+        self.body = body
+        self.req = req
+        self.sub_req = sub_req
+        self.late_seen = False
+
+
+class _Station:
+    """Mutable per-station state of the core (the public face is :class:`StationView`)."""
+
+    def __init__(self, plan: StationPlan, index: int, period: int, spread: bool) -> None:
+        self.plan = plan
+        self.address = plan.address
+        self.codec = Codec(plan)
+        self.period = period
+        self.offset = index % period if spread else 0
+        self.state = S.OFFLINE
+        self.target = S.PHASE3 if plan.sync else S.PHASE2
+        self.enabled = True
+        self.was_up = False
+        self.wdt = 0
+        self.rwdt = 0
+        self.outstanding: _Sent | None = None
+        self.expired: _Sent | None = None
+        self.answered: int | None = None
+        self.silent = 0
+        self.main_q: deque[Request] = deque()
+        self.sub_q: deque[Request] = deque()
+        self.disconnect_waiters: list[Request] = []
+        self.control = Control()
+        self.ctl_body = self.codec.inv_ctl(self.control)
+        self.reset_first = False
+        self.hold_until = -1
+        self.clear_rounds = 0
+        self.fault_since: int | None = None
+        self.fault_reason = ""
+        self.last_error: str | None = None
+        # view
+        self.alarm = 0
+        self.alarm_name: str | None = None
+        self.comm_alm = 0
+        self.cmd_alm = 0
+        self.fault = False
+        self.warning = False
+        self.status = 0
+        self.output_freq = 0
+        self.output_current = 0
+        self.mon1 = 0
+        self.mon2 = 0
+        self.rtt: int | None = None
+        self.last_rx: int | None = None
+        self.sent = 0
+        self.responses = 0
+        self.missing = 0
+        self.late = 0
+        self.recoveries = 0
+
+
+class MasterCore:
+    """Master of one network (see module docstring). Not thread-safe; never reads a clock.
+
+    ``events`` is a bounded deque the I/O layer drains (:meth:`drain_events`); ``drops`` counts rejected datagrams
+    by :class:`~mlink_sim.wire.DropReason` or :class:`MasterDrop`."""
+
+    def __init__(self, plan: NetworkPlan, *, max_events: int = 65_536) -> None:
+        self.plan = plan
+        self.events: deque[Event] = deque(maxlen=max_events)
+        self.drops: Counter[Any] = Counter()
+        self.events_lost = 0
+        self.cycles = 0
+        self._now = 0
+        self._cycle = 0
+        self._stations: list[_Station] = []
+        by_period: Counter[int] = Counter()
+        for sp in plan.stations:
+            period = sp.comm_cycles(plan.tcycle_ns)
+            self._stations.append(_Station(sp, by_period[period], period, plan.spread))
+            by_period[period] += 1
+        self._by_addr = {st.address: st for st in self._stations}
+
+    # ------------------------------------------------------------------ cyclic entry points
+    def on_cycle(self, cycle: int, now: int) -> list[tuple[int, bytes]]:
+        """Datagrams ``(station address, bytes)`` to send in transmission cycle *cycle* at *now* (ns)."""
+        self._now = now
+        self._cycle = cycle
+        self.cycles += 1
+        out: list[tuple[int, bytes]] = []
+        for st in self._stations:
+            if st.main_q or st.sub_q or st.disconnect_waiters:
+                self._expire(st, now)
+            if (cycle - st.offset) % st.period == 0:
+                out.append((st.address, self._slot(st, cycle, now)))
+        return out
+
+    def on_response(self, datagram: bytes, now: int) -> None:
+        """Consume one response datagram received at *now*. Never raises on bad input (counted in ``drops``)."""
+        self._now = now
+        try:
+            frame = decode(datagram, kind=Kind.RESPONSE)
+        except WireError as exc:
+            self._drop(None, exc.reason)
+            return
+        except (ValueError, TypeError, KeyError, struct.error):
+            self._drop(None, MasterDrop.MALFORMED)
+            return
+        st = self._by_addr.get(frame.station)
+        if st is None:
+            self._drop(frame.station, MasterDrop.UNKNOWN_STATION)
+            return
+        if frame.link is not st.plan.link:
+            self._drop(st.address, MasterDrop.WRONG_LINK)
+            return
+        if frame.data_size != st.plan.data_size:
+            self._drop(st.address, DropReason.BAD_SIZE)
+            return
+        sent = st.outstanding
+        if sent is not None and frame.cycle == sent.cycle:
+            st.outstanding = None
+            st.rtt = now - sent.at
+            self._emit(Rtt(st.address, st.rtt))
+        else:
+            sent = st.expired
+            if sent is None or frame.cycle != sent.cycle or sent.late_seen:
+                reason = MasterDrop.DUPLICATE if frame.cycle == st.answered else MasterDrop.NOT_EXPECTED
+                self._drop(st.address, reason)
+                return
+            # Answer to the command already recorded missing: late, but what it says is still true (the command
+            # was executed), so it is processed; handlers check the current state, so nothing is done twice.
+            sent.late_seen = True
+            st.late += 1
+            self._emit(Late(st.address, sent.cycle, now - sent.at))
+        st.answered = sent.cycle
+        st.silent = 0
+        st.responses += 1
+        st.last_rx = now
+        msg = frame.message
+        st.rwdt = msg.rwdt
+        reply = st.codec.reply(msg)
+        self._observe(st, sent, reply)
+        if st.state is S.OFFLINE:
+            self._set_state(st, S.PHASE1)
+        self._advance(st, sent, reply, now)
+
+    def drain_events(self) -> list[Event]:
+        """All events since the last call, oldest first."""
+        out = list(self.events)
+        self.events.clear()
+        return out
+
+    # ------------------------------------------------------------------ operator API
+    def request(self, station: int, body: Any, *, sub: bool | None = None, timeout_ns: int | None = None,
+                now: int | None = None) -> Request:
+        """Queue *body* (a wire command body of the station's generation, e.g. ``ml2.PrmRd(0x0200, 2)``).
+
+        Sent in the station's next slots in phase 2/3 (main command, or sub-command with ``sub=True``; ``None``
+        picks the sub-command for PRM_RD/PRM_WR on a 32-byte SI-T/V7, V7 §7.1), repeated while CMDRDY /
+        SUBCMDRDY reports busy and after a missing response, completed with the decoded response body or failed
+        with :class:`StationAlarmError` / :class:`RequestTimeout`. CONNECT and SYNC_SET are the core's own;
+        DISCONNECT is :meth:`disconnect`."""
+        st = self._station(station)
+        codec = st.codec
+        if sub is None:
+            sub = (st.plan.is_v7 and st.plan.subcmd and type(body) in codec.sub_slot.by_class
+                   and type(body) in codec.main_slot.by_class
+                   and codec.name_of(codec.main_slot.code_of(body)) in ("PRM_RD", "PRM_WR"))
+        if sub and not st.plan.subcmd:
+            raise ValueError(f"station {station:02X}H: sub-commands are not enabled in its plan")
+        slot = codec.sub_slot if sub else codec.main_slot
+        if type(body) is not Unknown and type(body) not in slot.by_class:
+            where = "sub-command" if sub else "main command"
+            raise TypeError(f"{type(body).__module__}.{type(body).__name__} is not a {st.plan.link.label} {where}")
+        code = slot.code_of(body)
+        name = codec.name_of(code)
+        if name == "DISCONNECT" and not sub:
+            return self.disconnect(station, timeout_ns=timeout_ns, now=now)
+        if name in _MANAGED:
+            raise ValueError(f"{name} is sent by the master core itself (bring-up and recovery)")
+        req = Request(station, body, sub, name, code, self._deadline(timeout_ns, now))
+        if not st.enabled:
+            req._finish(error=StationDisconnected(f"station {station:02X}H is disconnected; connect() it first"))
+            return req
+        (st.sub_q if sub else st.main_q).append(req)
+        return req
+
+    def disconnect(self, station: int, *, timeout_ns: int | None = None, now: int | None = None) -> Request:
+        """Send DISCONNECT and keep the station in phase 1 (NOP only) until :meth:`connect`."""
+        st = self._station(station)
+        st.enabled = False
+        req = Request(station, st.codec.disconnect(), False, "DISCONNECT", st.codec.code_of(st.codec.disconnect()),
+                      self._deadline(timeout_ns, now))
+        if st.state in (S.OFFLINE, S.PHASE1):
+            req._finish(result=None)
+        else:
+            st.disconnect_waiters.append(req)
+        for q in (st.main_q, st.sub_q):
+            while q:
+                q.popleft()._finish(error=StationDisconnected(f"station {station:02X}H was disconnected"))
+        return req
+
+    def abort_requests(self, message: str = "master stopped") -> int:
+        """Fail every queued request (e.g. when the master stops cycling); returns how many."""
+        n = 0
+        for st in self._stations:
+            for q in (st.main_q, st.sub_q, st.disconnect_waiters):
+                while q:
+                    r = q.pop()
+                    r._finish(error=StationDisconnected(f"station {st.address:02X}H: {message}"))
+                    n += 1
+        return n
+
+    def connect(self, station: int) -> None:
+        """Allow (again) bring-up of a station after :meth:`disconnect`."""
+        st = self._station(station)
+        st.enabled = True
+
+    def set_control(self, station: int, forward: bool = False, reverse: bool = False, speed_ref: int = 0,
+                    torque_ref: int = 0, *, fault_reset: bool = False, ef0: bool = False, ext_bb: bool = False,
+                    fault_history_clear: bool = False, multi_inputs: int = 0, sel_ref: int = 0, sel_mon: int = 0x41,
+                    ref1: int = 0, ref2: int = 0) -> Control:
+        """Set the INV_CTL sent every communication cycle in phase 2/3 when no request is pending."""
+        st = self._station(station)
+        ctl = Control(forward, reverse, speed_ref, torque_ref, fault_reset, ef0, ext_bb, fault_history_clear,
+                      multi_inputs, sel_ref, sel_mon, ref1, ref2)
+        st.control = ctl
+        st.ctl_body = st.codec.inv_ctl(ctl)
+        return ctl
+
+    def control(self, station: int) -> Control:
+        return self._station(station).control
+
+    def state(self, station: int) -> StationState:
+        return self._station(station).state
+
+    def at_target(self, station: int) -> bool:
+        st = self._station(station)
+        if not st.enabled:
+            return st.state in (S.OFFLINE, S.PHASE1)  # disconnected on request
+        return st.state is st.target
+
+    def all_at_target(self) -> bool:
+        return all(self.at_target(st.address) for st in self._stations)
+
+    @property
+    def addresses(self) -> list[int]:
+        return [st.address for st in self._stations]
+
+    def view(self, station: int) -> StationView:
+        st = self._station(station)
+        return StationView(
+            st.address, st.plan.label, st.state, st.state.phase, self.at_target(station), st.alarm, st.alarm_name,
+            st.comm_alm, st.cmd_alm, st.fault, st.warning, st.status, st.output_freq, st.output_current, st.mon1,
+            st.mon2, st.rtt, st.last_rx, st.wdt, st.rwdt, st.sent, st.responses, st.missing, st.late,
+            st.recoveries, st.last_error,
+        )
+
+    def views(self) -> dict[int, StationView]:
+        return {st.address: self.view(st.address) for st in self._stations}
+
+    # ------------------------------------------------------------------ slot: choose and encode the command
+    def _slot(self, st: _Station, cycle: int, now: int) -> bytes:
+        prev = st.outstanding
+        if prev is not None:
+            st.outstanding = None
+            st.expired = prev
+            st.missing += 1
+            st.silent += 1
+            self._emit(Missing(st.address, prev.cycle))
+            for req, q in ((prev.req, st.main_q), (prev.sub_req, st.sub_q)):
+                if req is not None and not req.done:
+                    req.unanswered += 1
+                    if req.unanswered >= self.plan.request_retries:
+                        q.remove(req)
+                        req._finish(error=RequestTimeout(st.address, req.command, req.attempts, req.busy,
+                                                         req.unanswered))
+            if st.silent >= self.plan.offline_after and st.state is not S.OFFLINE:
+                self._fault(st, "silent", now)
+                self._set_state(st, S.OFFLINE)
+        codec = st.codec
+        kind, body, req = self._choose_main(st, cycle)
+        code = codec.main_slot.code_of(body)
+        sub_body = sub_req = None
+        if st.plan.has_sub:
+            sub_req = self._choose_sub(st, codec.name_of(code))
+            sub_body = sub_req.body if sub_req is not None else None
+            if sub_req is not None:
+                sub_req.attempts += 1
+        if req is not None:
+            req.attempts += 1
+        # WDT bits 4-7: the station's communication-cycle count (advances by one per communication cycle, also
+        # over cycles the timer skipped); bits 0-3: echo of the slave's count, RWDT bits 0-3 (docs/master.md).
+        st.wdt = wdt = ((((cycle - st.offset) // st.period) & 0xF) << 4) | (st.rwdt & 0x0F)
+        c32 = cycle & _U32
+        frame = Frame(st.plan.link, Kind.COMMAND, st.address, c32, self.plan.tcycle_ns,
+                      codec.message(body, wdt, sub_body))
+        st.outstanding = _Sent(c32, now, kind, code, body, req, sub_req)
+        st.sent += 1
+        return encode(frame)
+
+    def _choose_main(self, st: _Station, cycle: int) -> tuple[str, Any, Request | None]:
+        codec = st.codec
+        state = st.state
+        if not st.enabled:
+            if state in _CONNECTED:
+                return "disconnect", codec.disconnect(), None
+            return "probe", codec.nop(), None
+        if state is S.OFFLINE or cycle < st.hold_until:
+            return "probe", codec.nop(), None
+        if state is S.PHASE1:
+            self._set_state(st, S.CONNECTING)
+            state = S.CONNECTING
+        if state is S.CONNECTING:
+            if st.reset_first:
+                return "reset", codec.disconnect(), None
+            return "connect", codec.connect(), None
+        if state is S.PHASE2 and st.target is S.PHASE3:
+            self._set_state(st, S.SYNCING)
+            state = S.SYNCING
+        if state is S.SYNCING:
+            return "sync", codec.sync_set(), None
+        if state is S.ALARM:
+            return "clear", codec.alm_clr(), None
+        if st.main_q:
+            req = st.main_q[0]
+            busy_sub = st.sub_q[0] if st.sub_q and st.sub_q[0].attempts else None
+            if busy_sub is None or compatible(req.command, busy_sub.command):
+                return "request", req.body, req
+        return "cyclic", st.ctl_body, None
+
+    def _choose_sub(self, st: _Station, main_name: str) -> Request | None:
+        if not st.sub_q or st.state not in _UP or not st.enabled:
+            return None
+        req = st.sub_q[0]
+        return req if compatible(main_name, req.command) else None
+
+    # ------------------------------------------------------------------ response: state machine
+    def _advance(self, st: _Station, sent: _Sent, reply: Reply, now: int) -> None:
+        if sent.sub_req is not None:
+            self._complete(st, st.sub_q, sent.sub_req, reply.sub_code, reply.sub_ready, reply.sub_error,
+                           reply.sub_body)
+        kind = sent.kind
+        if kind == "probe":
+            return
+        same = reply.code == sent.code
+        if kind == "connect":
+            if st.state is S.CONNECTING and same and (reply.ready or reply.error is not None):
+                self._connected(st, sent, reply)
+            return
+        if kind in ("reset", "disconnect"):
+            if same and (reply.ready or reply.error):
+                if kind == "reset":
+                    st.reset_first = False
+                else:
+                    self._set_state(st, S.PHASE1)
+                    for req in st.disconnect_waiters:
+                        req._finish(result=None)
+                    st.disconnect_waiters.clear()
+            return
+        # Phase-2/3 commands: sync | clear | cyclic | request
+        if st.codec.not_connected(sent.code, reply):
+            if sent.req is not None:
+                self._complete(st, st.main_q, sent.req, reply.code, True, reply.error, reply.body)
+            self._fault(st, "phase 1", now)
+            self._set_state(st, S.PHASE1)
+            return
+        if reply.comm_alarm is not None and st.state in (S.PHASE2, S.SYNCING, S.PHASE3):
+            self._alarm(st, reply.comm_alarm, now)
+        elif kind == "sync":
+            if st.state is S.SYNCING and same and reply.error is not None:
+                self._alarm(st, reply.error, now)  # refused SYNC_SET: clear, then try again (escalates)
+            elif st.state is S.SYNCING and same and reply.ready:
+                self._set_state(st, S.PHASE3)
+                self._reached(st, now)
+        elif kind == "clear":
+            if st.state is S.ALARM and same and reply.error is not None:
+                self._alarm(st, reply.error, now)  # refused ALM_CLR: counts as a round (escalates)
+            elif st.state is S.ALARM and same and reply.ready:
+                self._set_state(st, S.SYNCING if st.target is S.PHASE3 else S.PHASE2)
+                if st.target is S.PHASE2:
+                    self._reached(st, now)
+        if kind == "request" and sent.req is not None:
+            if reply.comm_alarm is not None and reply.warning and st.codec.link is not Link.ML3:
+                return  # SI-T3 Table 21: the alarm hides whether an A.94/A.95 came with it; ask again once cleared
+            self._complete(st, st.main_q, sent.req, reply.code, reply.ready, reply.error, reply.body)
+
+    def _connected(self, st: _Station, sent: _Sent, reply: Reply) -> None:
+        error = st.codec.connect_refusal(reply)
+        echo_ok = reply.body == sent.body
+        if error is not None and error[1] in _PLAN_REFUSED:
+            # The station rejects the plan's VER/COM_MOD/COM_TIM: wait, then try again.
+            st.last_error = f"CONNECT refused: {error[1]} ({error[0]:02X}H)"
+            st.hold_until = self._cycle + self.plan.connect_backoff * st.period
+            self._set_state(st, S.PHASE1)
+            return
+        if error is not None or not echo_ok:
+            # Not in phase 1 (CONNECT ignored or refused): release the old connection first.
+            st.last_error = f"CONNECT not accepted ({error[1] if error else 'echo differs'}); DISCONNECT first"
+            st.reset_first = True
+            return
+        st.last_error = None
+        self._set_state(st, S.PHASE2)
+        if st.target is S.PHASE2:
+            self._reached(st, self._now)
+
+    def _alarm(self, st: _Station, alarm: tuple[int, str], now: int) -> None:
+        self._fault(st, alarm[1], now)
+        st.clear_rounds += 1
+        if st.clear_rounds > self.plan.clear_attempts:
+            st.clear_rounds = 0
+            st.reset_first = True
+            st.last_error = f"{alarm[1]} persists after {self.plan.clear_attempts} ALM_CLR; reconnecting"
+            self._set_state(st, S.CONNECTING)
+        else:
+            self._set_state(st, S.ALARM)
+
+    def _complete(self, st: _Station, queue: deque[Request], req: Request, code: int | None, ready: bool,
+                  error: tuple[int, str] | None, body: Any) -> None:
+        if req.done:
+            return  # already timed out
+        req.unanswered = 0
+        if error is None and code != req.code:
+            return  # the echo is of another command: send it again
+        if error is None and not ready:
+            req.busy += 1
+            return
+        if queue and queue[0] is req:
+            queue.popleft()
+        if error is not None:
+            where = "sub-command" if req.sub else "command"
+            req._finish(error=StationAlarmError(
+                st.address, error[0], error[1],
+                f"station {st.address:02X}H refused {req.command} {where}: {error[1]} ({error[0]:02X}H)"))
+        else:
+            req._finish(result=body)
+
+    def _expire(self, st: _Station, now: int) -> None:
+        for q in (st.main_q, st.sub_q):
+            if q and any(r.deadline_ns <= now for r in q):
+                for r in [r for r in q if r.deadline_ns <= now]:
+                    q.remove(r)
+                    r._finish(error=RequestTimeout(st.address, r.command, r.attempts, r.busy, r.unanswered))
+        waiters = st.disconnect_waiters
+        if waiters and any(r.deadline_ns <= now for r in waiters):
+            for r in [r for r in waiters if r.deadline_ns <= now]:
+                waiters.remove(r)
+                r._finish(error=RequestTimeout(st.address, r.command, r.attempts, r.busy))
+
+    # ------------------------------------------------------------------ bookkeeping
+    def _observe(self, st: _Station, sent: _Sent, reply: Reply) -> None:
+        codec = st.codec
+        if reply.alarm != st.alarm:
+            st.alarm = reply.alarm
+            if reply.alarm:
+                st.alarm_name = codec.alarm_name(reply.alarm, reply.status or 0)
+                self._emit(AlarmRaised(st.address, reply.alarm, st.alarm_name, "alarm"))
+            else:
+                st.alarm_name = None
+                self._emit(AlarmCleared(st.address, "alarm"))
+        if reply.comm_alm != st.comm_alm:
+            st.comm_alm = reply.comm_alm
+            self._alarm_edge(st, reply.comm_alm, "comm")
+        if reply.cmd_alm != st.cmd_alm:
+            st.cmd_alm = reply.cmd_alm
+            self._alarm_edge(st, reply.cmd_alm, "command")
+        name = codec.name_of(reply.code)
+        if name == "PRM_RD" and codec.link is not Link.ML3:
+            return  # SI-T3 "STATUS Field" note: with PRM_RD only CMDRDY is valid
+        st.fault = reply.fault
+        st.warning = reply.warning
+        if name == "INV_CTL":
+            b = reply.body
+            st.status = reply.status or 0
+            st.output_freq = b.output_freq
+            st.output_current = b.output_current
+            st.mon1 = b.mon1
+            st.mon2 = b.mon2
+
+    def _alarm_edge(self, st: _Station, code: int, source: str) -> None:
+        if code:
+            table: Any = CommAlm if source == "comm" else CmdAlm
+            try:
+                name = table(code).name
+            except ValueError:
+                name = f"{code:X}H"
+            self._emit(AlarmRaised(st.address, code, name, source))
+        else:
+            self._emit(AlarmCleared(st.address, source))
+
+    def _fault(self, st: _Station, reason: str, now: int) -> None:
+        if st.was_up and st.fault_since is None:
+            st.fault_since = now
+            st.fault_reason = reason
+
+    def _reached(self, st: _Station, now: int) -> None:
+        st.was_up = True
+        st.clear_rounds = 0
+        if st.fault_since is not None:
+            st.recoveries += 1
+            self._emit(Recovered(st.address, st.fault_reason, now - st.fault_since))
+            st.fault_since = None
+
+    def _set_state(self, st: _Station, new: StationState) -> None:
+        old = st.state
+        if old is not new:
+            st.state = new
+            self._emit(StateChanged(st.address, old, new))
+
+    def _emit(self, ev: Event) -> None:
+        ev_q = self.events
+        if ev_q.maxlen is not None and len(ev_q) == ev_q.maxlen:
+            self.events_lost += 1
+        ev_q.append(ev)
+
+    def _drop(self, station: int | None, reason: Any) -> None:
+        self.drops[reason] += 1
+        self._emit(Dropped(station, reason))
+
+    def _deadline(self, timeout_ns: int | None, now: int | None) -> int:
+        base = self._now if now is None else now
+        return base + (self.plan.request_timeout_ns if timeout_ns is None else timeout_ns)
+
+    def _station(self, station: int) -> _Station:
+        try:
+            return self._by_addr[station]
+        except KeyError:
+            raise KeyError(f"no station {station:02X}H in the plan") from None

@@ -1,0 +1,205 @@
+"""What the master is told to do: one :class:`StationPlan` per slave, gathered in a :class:`NetworkPlan`.
+
+Pure data, validated on construction (``ValueError`` with a complete sentence). The ranges checked here are the
+*network* rules of the manuals; rules of one particular card (e.g. the SI-T3 errata's COM_TIM = 1 on
+MECHATROLINK-II) are left to the card, which answers A.94 and lets the master report it.
+
+Communication cycle (the period at which one station is served):
+
+* MECHATROLINK-II/III: ``COM_TIM`` x transmission cycle (SI-T3 "CONNECT" COM_TIM; SI-ET3 CONNECT byte 6
+  "Sets multiples of the transmission cycle as the communication cycle").
+* MECHATROLINK-I (VER 10H): COM_TIM counts milliseconds on a transmission cycle fixed at 2 ms
+  (SI-T3 errata (2): "COM_TIM = 2 the units for COM_TIM were 1 = 1 ms and transmission cycles were fixed at
+  2 ms"; SI-T/V7 §7.1 "2 [ms] <= COM_TIM <= 64 [ms]"), so COM_TIM 2 is one transmission cycle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..wire import ConnectVersion, Link, M2ComMod, M3ComMod, PROFILE_TYPE_INVERTER
+
+__all__ = ["StationPlan", "NetworkPlan", "TCYCLE_RANGE_NS"]
+
+_US = 1_000
+_MS = 1_000_000
+
+#: Transmission-cycle range per generation: SI-T3 "Specifications" (500 us to 8 ms; MECHATROLINK-I fixed at 2 ms,
+#: SI-T3 errata (2)); SI-ET3 Table 14 ID_CODE 16H/17H (250 us to 8 ms).
+TCYCLE_RANGE_NS: dict[Link, tuple[int, int]] = {
+    Link.ML1: (2 * _MS, 2 * _MS),
+    Link.ML2: (500 * _US, 8 * _MS),
+    Link.ML3: (250 * _US, 8 * _MS),
+}
+
+_DEFAULT_SIZE = {Link.ML1: 17, Link.ML2: 32, Link.ML3: 64}
+_VERSION = {Link.ML1: ConnectVersion.ML1, Link.ML2: ConnectVersion.ML2, Link.ML3: ConnectVersion.ML3}
+
+
+@dataclass(frozen=True, slots=True)
+class StationPlan:
+    """How the master drives one slave station."""
+
+    address: int
+    """Station address (envelope byte 3); 03H–EFH on SI-ET3 (Table 7, F6-20), 21H… on SI-T3."""
+
+    link: Link
+    """Generation of the network; must equal :attr:`NetworkPlan.link`."""
+
+    data_size: int = 0
+    """Frame data size: 17 (ML-I), 17/32 (ML-II), 32/64 (ML-III). 0 = the card's factory setting: 17 on ML-I,
+    32 on ML-II (SI-T3 F6-21 = 0), 64 on ML-III (SI-ET3 Table 7, F6-21 default 0 = 64-byte)."""
+
+    com_tim: int = 0
+    """CONNECT COM_TIM. ML-II/III: communication cycle in transmission cycles (1–32 / 1–255); ML-I: milliseconds
+    (2–64, a multiple of the 2 ms transmission cycle). 0 = default (ML-I 2, else 1)."""
+
+    sync: bool = True
+    """Bring the station to phase 3 (synchronous; CONNECT SYNCMOD + SYNC_SET) rather than stop in phase 2."""
+
+    subcmd: bool = False
+    """Set COM_MOD.SUBCMD and allow sub-command requests; only with 32-byte ML-II or 64-byte ML-III frames."""
+
+    name: str = ""
+    """Informational label used in logs and views."""
+
+    card: str = ""
+    """Informational card name ("si-t3", "si-et3", "si-t/v7"); picks the drive alarm-code table for names and
+    routes PRM_RD/PRM_WR to the sub-command on a 32-byte SI-T/V7 (V7 §7.1 PRM_RD note)."""
+
+    et3_syncmode_table19: bool = True
+    """ML-III only. SI-ET3 Table 19 reads COM_MOD.SYNCMODE 0 = synchronous, 1 = asynchronous – the reverse of
+    the MECHATROLINK-II manuals. True encodes COM_MOD by Table 19; False by the MECHATROLINK-II convention
+    (1 = synchronous). Either way a synchronous station also receives SYNC_SET, so it reaches phase 3."""
+
+    def __post_init__(self) -> None:
+        link = Link(self.link)
+        object.__setattr__(self, "link", link)
+        if not 0 <= self.address <= 0xFF:
+            raise ValueError(f"station address {self.address} does not fit one byte (0–255)")
+        size = self.data_size or _DEFAULT_SIZE[link]
+        object.__setattr__(self, "data_size", size)
+        if size not in link.data_sizes:
+            allowed = " or ".join(map(str, link.data_sizes))
+            raise ValueError(f"station {self.address:02X}H: {size}-byte frames do not exist on {link.label} "
+                             f"({allowed})")
+        com_tim = self.com_tim or (2 if link is Link.ML1 else 1)
+        object.__setattr__(self, "com_tim", com_tim)
+        lo, hi = {Link.ML1: (2, 64), Link.ML2: (1, 32), Link.ML3: (1, 255)}[link]
+        if not lo <= com_tim <= hi:
+            raise ValueError(f"station {self.address:02X}H: COM_TIM {com_tim} is outside {lo}–{hi} on {link.label}")
+        if link is Link.ML1 and com_tim % 2:
+            raise ValueError(f"station {self.address:02X}H: MECHATROLINK-I COM_TIM counts ms on a 2 ms transmission "
+                             f"cycle and must be even, got {com_tim}")
+        if self.subcmd and size != {Link.ML1: 0, Link.ML2: 32, Link.ML3: 64}[link]:
+            raise ValueError(f"station {self.address:02X}H: sub-commands need 32-byte MECHATROLINK-II or 64-byte "
+                             f"MECHATROLINK-III frames, not {size}-byte {link.label}")
+
+    @property
+    def ver(self) -> int:
+        """CONNECT VER: 10H (ML-I), 21H (ML-II), 30H (ML-III)."""
+        return int(_VERSION[self.link])
+
+    @property
+    def profile_type(self) -> int:
+        """CONNECT PROFILE_TYPE (ML-III only): 20H, the standard inverter profile."""
+        return PROFILE_TYPE_INVERTER
+
+    @property
+    def com_mod(self) -> int:
+        """CONNECT COM_MOD: SYNCMOD/SYNCMODE per :attr:`sync`, DTMOD 00 (single transfer), SUBCMD per :attr:`subcmd`
+        (SI-T3 "CONNECT" COM_MOD; SI-ET3 Tables 18/19)."""
+        if self.link is Link.ML3:
+            sync_bit = (not self.sync) if self.et3_syncmode_table19 else self.sync
+            return (int(M3ComMod.SYNCMODE) if sync_bit else 0) | (int(M3ComMod.SUBCMD) if self.subcmd else 0)
+        return (int(M2ComMod.SYNCMOD) if self.sync else 0) | (int(M2ComMod.SUBCMD) if self.subcmd else 0)
+
+    @property
+    def has_sub(self) -> bool:
+        """Frames carry a sub-command area (32-byte ML-II, 64-byte ML-III), used or not."""
+        return self.data_size == (32 if self.link is not Link.ML3 else 64)
+
+    @property
+    def is_v7(self) -> bool:
+        return "".join(ch for ch in self.card.lower() if ch.isalnum()) == "sitv7"
+
+    @property
+    def label(self) -> str:
+        return self.name or f"{self.address:02X}H"
+
+    def comm_cycle_ns(self, tcycle_ns: int) -> int:
+        """Length of this station's communication cycle on a network of *tcycle_ns*."""
+        if self.link is Link.ML1:
+            return self.com_tim * _MS
+        return self.com_tim * tcycle_ns
+
+    def comm_cycles(self, tcycle_ns: int) -> int:
+        """Communication cycle in transmission cycles (>= 1)."""
+        return max(1, self.comm_cycle_ns(tcycle_ns) // tcycle_ns)
+
+
+@dataclass(frozen=True, slots=True)
+class NetworkPlan:
+    """One master, one network generation, one transmission cycle, its stations and the master's policies."""
+
+    link: Link
+    """Generation: ML1, ML2 or ML3."""
+
+    tcycle_ns: int
+    """Transmission cycle in ns (ML-I 2 ms; ML-II 0.5–8 ms; ML-III 250 us–8 ms)."""
+
+    stations: tuple[StationPlan, ...] = ()
+    """The slaves, in service order (addresses unique)."""
+
+    request_timeout_ns: int = 1_000_000_000
+    """Default time limit of a request (PRM_RD, CONFIG …) including repeats while CMDRDY is busy."""
+
+    request_retries: int = 3
+    """A request whose command goes unanswered this many times in a row fails at once with RequestTimeout (so a
+    command the slave never answers cannot make the station look silent until ``request_timeout_ns``)."""
+
+    offline_after: int = 8
+    """A station silent for this many consecutive communication cycles becomes OFFLINE."""
+
+    clear_attempts: int = 3
+    """ALM_CLR + SYNC_SET rounds tried on a communication alarm before falling back to DISCONNECT + CONNECT."""
+
+    connect_backoff: int = 16
+    """Communication cycles to wait (sending NOP) after a CONNECT refused with a data-setting error."""
+
+    spread: bool = True
+    """Spread stations with COM_TIM > 1 over the transmission cycles of their communication cycle (station *i*
+    of that period is served on cycles ``k`` with ``k % n == i % n``); False serves all on ``k % n == 0``."""
+
+    def __post_init__(self) -> None:
+        link = Link(self.link)
+        object.__setattr__(self, "link", link)
+        object.__setattr__(self, "stations", tuple(self.stations))
+        lo, hi = TCYCLE_RANGE_NS[link]
+        if not lo <= self.tcycle_ns <= hi:
+            raise ValueError(f"transmission cycle {self.tcycle_ns} ns is outside {lo}–{hi} ns on {link.label}")
+        if link is Link.ML2 and self.tcycle_ns % (500 * _US):
+            raise ValueError(f"MECHATROLINK-II transmission cycles are multiples of 0.5 ms (SI-T3 \"CONNECT\"), "
+                             f"got {self.tcycle_ns} ns")
+        seen: set[int] = set()
+        for st in self.stations:
+            if st.link is not link:
+                raise ValueError(f"station {st.address:02X}H is {st.link.label} on a {link.label} network")
+            if st.address in seen:
+                raise ValueError(f"station address {st.address:02X}H appears twice")
+            seen.add(st.address)
+            if st.link is Link.ML1 and st.comm_cycle_ns(self.tcycle_ns) % self.tcycle_ns:
+                raise ValueError(f"station {st.address:02X}H: COM_TIM {st.com_tim} ms is not a whole number of "
+                                 f"{self.tcycle_ns} ns transmission cycles")
+        if self.offline_after < 2:
+            raise ValueError("offline_after must be at least 2 communication cycles")
+        if self.request_retries < 1:
+            raise ValueError("request_retries must be at least 1")
+        if self.request_timeout_ns <= 0:
+            raise ValueError("request_timeout_ns must be positive")
+
+    def station(self, address: int) -> StationPlan:
+        for st in self.stations:
+            if st.address == address:
+                return st
+        raise KeyError(f"no station {address:02X}H in the plan")
