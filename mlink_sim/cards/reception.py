@@ -9,7 +9,7 @@ for this station. Two detectors feed the same count, so nothing is counted twice
 
 * **gap** – the envelope cycle number of a command advances by more than one communication cycle;
 * **silence** – no valid command for longer than one communication cycle plus a tolerance (default
-  ``max(cycle / 2, 1 ms)``, ``CardOptions.silence_tolerance_ns``), then one more failure per further
+  ``max(cycle, 2 ms)``, ``CardOptions.silence_tolerance_ns``), then one more failure per further
   cycle. Failures found by silence (or by a bad FCS) are subtracted from the next gap.
 
 A valid command ends a run of consecutive failures.
@@ -21,7 +21,7 @@ import enum
 
 __all__ = ["FailureKind", "ReceptionMonitor", "DEFAULT_MIN_TOLERANCE_NS"]
 
-DEFAULT_MIN_TOLERANCE_NS = 1_000_000
+DEFAULT_MIN_TOLERANCE_NS = 2_000_000
 _HALF = 1 << 31
 _MASK = 0xFFFF_FFFF
 
@@ -58,7 +58,7 @@ class ReceptionMonitor:
         self.active = True
         self.comm_cycle_ns = max(1, comm_cycle_ns)
         self.cycles_per_comm = max(1, cycles_per_comm)
-        self.tolerance_ns = (max(self.comm_cycle_ns // 2, DEFAULT_MIN_TOLERANCE_NS)
+        self.tolerance_ns = (max(self.comm_cycle_ns, DEFAULT_MIN_TOLERANCE_NS)
                              if tolerance_ns is None else max(0, tolerance_ns))
         self._good(cycle, now)
 
@@ -99,6 +99,7 @@ class ReceptionMonitor:
         before = self.consecutive
         self.accounted += 1
         self.consecutive += 1
+        self._deadline += self.comm_cycle_ns  # that cycle is accounted for: silence starts counting after it
         return before
 
     def poll(self, now: int) -> tuple[int, int]:

@@ -45,7 +45,7 @@ class CardOptions:
     v7_prm_main_in_32byte: bool = False
     #: MECHATROLINK-I CONNECT: accept EXMOD = 1 (expanded connection, forced asynchronous) instead of A.94.
     ml1_exmod_accepted: bool = False
-    #: Reception-failure timer tolerance in ns beyond one communication cycle; None = max(cycle / 2, 1 ms).
+    #: Reception-failure timer tolerance in ns beyond one communication cycle; None = max(cycle, 2 ms).
     silence_tolerance_ns: int | None = None
 
 

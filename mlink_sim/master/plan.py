@@ -67,10 +67,11 @@ class StationPlan:
     """Informational card name ("si-t3", "si-et3", "si-t/v7"); picks the drive alarm-code table for names and
     routes PRM_RD/PRM_WR to the sub-command on a 32-byte SI-T/V7 (V7 §7.1 PRM_RD note)."""
 
-    et3_syncmode_table19: bool = True
+    et3_syncmode_table19: bool = False
     """ML-III only. SI-ET3 Table 19 reads COM_MOD.SYNCMODE 0 = synchronous, 1 = asynchronous – the reverse of
-    the MECHATROLINK-II manuals. True encodes COM_MOD by Table 19; False by the MECHATROLINK-II convention
-    (1 = synchronous). Either way a synchronous station also receives SYNC_SET, so it reaches phase 3."""
+    the MECHATROLINK-II manuals. False (default, the same default as the cards' ``CardOptions``) encodes
+    1 = synchronous as the MECHATROLINK-II manuals do; True encodes COM_MOD by Table 19. Either way a
+    synchronous station also receives SYNC_SET, so it reaches phase 3 (docs/cards.md, "Ambiguities")."""
 
     def __post_init__(self) -> None:
         link = Link(self.link)

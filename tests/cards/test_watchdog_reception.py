@@ -107,20 +107,21 @@ def test_v7_tables_7_8_9_reception_failures() -> None:
 
 
 def test_silence_96_then_e6_then_bus_after_f6_26() -> None:
-    """Silence: no valid command for longer than the communication cycle plus the tolerance (1 ms cycle:
-    max(0.5 ms, 1 ms) = 1 ms). F6-26 = 2: the second communication alarm faults bUS, stop per F6-01 (coast)."""
+    """SI-T3 Tables 22/23: silence – no valid command for longer than the communication cycle plus the tolerance
+    (1 ms cycle: max(1 ms, 2 ms) = 2 ms) – is a reception failure: the first warning 96, the next E6. F6-26 = 2:
+    the second communication alarm faults bUS, stop per F6-01 (coast)."""
     m = _running("si-t3")
     st = m.st
     last = m.now
-    assert st.next_deadline() == last + 2 * MS
-    st.poll(last + 2 * MS - 1)
+    assert st.next_deadline() == last + 3 * MS
+    st.poll(last + 3 * MS - 1)
     assert st.counters.reception_failures == 0
-    st.poll(last + 2 * MS)  # first failure: warning 96 (shown in the next response)
+    st.poll(last + 3 * MS)  # first failure: warning 96 (shown in the next response)
     assert st.counters.reception_failures == 1 and st.phase == 3
-    st.poll(last + 3 * MS)  # second consecutive: E6, phase 2, bUS alarm 1 of 2
+    st.poll(last + 4 * MS)  # second consecutive: E6, phase 2, bUS alarm 1 of 2
     assert st.phase == 2 and st.snapshot().alarm_code == M2Alarm.COMM_ERROR
     assert st.snapshot().drive.fault is None
-    st.poll(last + 4 * MS)  # third: bUS alarm 2 of 2 -> drive fault bUS, coast (F6-01 = 1)
+    st.poll(last + 5 * MS)  # third: bUS alarm 2 of 2 -> drive fault bUS, coast (F6-01 = 1)
     snap = st.snapshot()
     assert snap.drive.fault == "bUS" and st.counters.bus_alarms == 2
     assert snap.connected_source is None  # connection lost: the lock is released
@@ -165,9 +166,9 @@ def test_si_et3_comm_alm_gap_2_then_9() -> None:
 
 def test_si_et3_comm_alm_silence_in_phase_3_is_sync_frame_3_then_a() -> None:
     m = _running("si-et3", "F6-26=10")
-    m.st.poll(m.now + 2 * MS)
+    m.st.poll(m.now + 3 * MS)  # 1 ms cycle + tolerance max(1 ms, 2 ms)
     assert m.st.snapshot().alarm_code == CommAlm.SYNC_NOT_RECEIVED_WARNING
-    m.st.poll(m.now + 3 * MS)
+    m.st.poll(m.now + 4 * MS)
     assert m.st.snapshot().alarm_code == CommAlm.SYNC_NOT_RECEIVED and m.st.phase == 2
 
 

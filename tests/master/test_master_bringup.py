@@ -49,24 +49,25 @@ def test_connect_carries_ver_com_mod_com_tim_and_profile(link, tcycle, com_tim):
     assert body.com_tim == com_tim
     if link is Link.ML3:
         assert body.profile_type == 0x20
-        assert body.com_mod & M3ComMod.SYNCMODE == 0  # SI-ET3 Table 19: 0 = synchronous
+        assert body.com_mod & M3ComMod.SYNCMODE  # default: 1 = synchronous, as the cards read it (docs/cards.md)
     else:
         assert body.com_mod & M2ComMod.SYNCMOD  # SI-T3 "CONNECT": 1 = move to phase 3
 
 
 def test_si_et3_table_19_syncmode_convention_is_per_station():
-    table19 = StationPlan(0x21, Link.ML3, sync=True)
-    ml2_style = StationPlan(0x22, Link.ML3, sync=True, et3_syncmode_table19=False)
-    asynchronous = StationPlan(0x23, Link.ML3, sync=False)
+    table19 = StationPlan(0x21, Link.ML3, sync=True, et3_syncmode_table19=True)
+    ml2_style = StationPlan(0x22, Link.ML3, sync=True)  # the default, as CardOptions
+    asynchronous = StationPlan(0x23, Link.ML3, sync=False, et3_syncmode_table19=True)
     assert table19.com_mod & M3ComMod.SYNCMODE == 0
     assert ml2_style.com_mod & M3ComMod.SYNCMODE
     assert asynchronous.com_mod & M3ComMod.SYNCMODE
+    assert StationPlan(0x24, Link.ML3, sync=False).com_mod & M3ComMod.SYNCMODE == 0
 
 
 def test_si_et3_slave_reading_syncmode_the_other_way_still_reaches_phase3(net_of, slave_factory):
     """CONNECT asks for phase 3 by the Table 19 reading; a slave reading the bit the ML-II way lands in phase 2 and
     the master's SYNC_SET brings it to phase 3 anyway."""
-    net = net_of(Link.ML3, MS, StationPlan(0x21, Link.ML3))
+    net = net_of(Link.ML3, MS, StationPlan(0x21, Link.ML3, et3_syncmode_table19=True))
     net.slaves[0x21] = slave_factory(MS)(Link.ML3, 0x21, 64, et3_table19=False)
     net.run_until(net.core.all_at_target, limit=20)
     assert net.slaves[0x21].phase == 3
@@ -134,7 +135,7 @@ def test_com_tim_2_bring_up_and_wdt_counts_communication_cycles(net_of):
 
 def test_skipped_cycles_keep_wdt_in_step_with_cycle_numbers(net_of):
     """The timer may skip cycles; the WDT count follows the communication cycles elapsed (cards/watchdog.py)."""
-    net = net_of(Link.ML3, MS, StationPlan(0x21, Link.ML3))
+    net = net_of(Link.ML3, MS, StationPlan(0x21, Link.ML3, et3_syncmode_table19=True))
     net.run_until(net.core.all_at_target, limit=20)
     net.cycle += 3  # three cycles not started: the slave sees a gap (reception failures) but no WDT error
     net.run(20)
@@ -164,7 +165,7 @@ def test_ml2_17_byte_and_32_byte_frames(net_of):
 
 
 def test_inv_ctl_every_cycle_in_phase3_with_control(net_of):
-    net = net_of(Link.ML3, MS, StationPlan(0x21, Link.ML3))
+    net = net_of(Link.ML3, MS, StationPlan(0x21, Link.ML3, et3_syncmode_table19=True))
     net.run_until(net.core.all_at_target, limit=20)
     net.core.set_control(0x21, forward=True, speed_ref=6000)
     net.run(5)

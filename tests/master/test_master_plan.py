@@ -24,8 +24,9 @@ def test_connect_fields_per_generation():
     p = StationPlan(0x21, Link.ML2, subcmd=True)
     assert p.com_mod == M2ComMod.SYNCMOD | M2ComMod.SUBCMD
     assert StationPlan(0x21, Link.ML2, sync=False).com_mod == 0
-    assert StationPlan(0x21, Link.ML3, subcmd=True).com_mod == M3ComMod.SUBCMD  # Table 19: SYNCMODE 0 = sync
-    assert StationPlan(0x21, Link.ML3, sync=False, et3_syncmode_table19=False).com_mod == 0
+    assert StationPlan(0x21, Link.ML3, subcmd=True).com_mod == M3ComMod.SUBCMD | M3ComMod.SYNCMODE  # ML-II reading
+    assert StationPlan(0x21, Link.ML3, subcmd=True, et3_syncmode_table19=True).com_mod == M3ComMod.SUBCMD  # Table 19
+    assert StationPlan(0x21, Link.ML3, sync=False).com_mod == 0
 
 
 def test_communication_cycle():
