@@ -339,7 +339,7 @@ class Master:
                 elif t is StateChanged:
                     log.info("station_state", station=f"{ev.station:02X}H", old=ev.old.value, new=ev.new.value)
                 elif t is AlarmRaised:
-                    log.warning("station_alarm", station=f"{ev.station:02X}H", code=ev.code, name=ev.name,
+                    log.info("station_alarm", station=f"{ev.station:02X}H", code=ev.code, name=ev.name,
                                 source=ev.source)
                 elif t is AlarmCleared:
                     log.info("station_alarm_cleared", station=f"{ev.station:02X}H", source=ev.source)

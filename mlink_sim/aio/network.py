@@ -92,7 +92,7 @@ class _Network:
     update (``set_control(0x21, ef0=True)``) leaves the other fields as they were."""
 
     def __init__(self, config: Config, masters: dict[Link, Any], workers: dict[int, Worker]) -> None:
-        self.config = config
+        self.network_config = config
         self.masters = masters
         self.workers = workers
         self.by_station = {st.address: masters[st.link] for st in config.station}
@@ -198,7 +198,7 @@ async def run_up(config: Config, opts: RunOptions) -> RunOutcome:
         endpoints = {
             st["address"]: (_local_target(st["host"]), st["port"]) for w in workers for st in w.ready["stations"]
         }  # type: ignore[index]
-        return await run_network(config, endpoints, opts, by_station)
+        return await run_network(config, endpoints, opts, by_station, problems)
     finally:
         stopping = True
         for task in list(restart_tasks):
@@ -223,16 +223,23 @@ async def _collect_slave_stats(workers: dict[int, Worker]) -> dict[str, Any]:
 
 
 async def run_network(
-    config: Config, endpoints: dict[int, tuple[str, int]], opts: RunOptions, workers: dict[int, Worker] | None = None
+    config: Config,
+    endpoints: dict[int, tuple[str, int]],
+    opts: RunOptions,
+    workers: dict[int, Worker] | None = None,
+    problems: list[str] | None = None,
 ) -> RunOutcome:
-    """Start one master per link against *endpoints*, bring the stations up, run the timeline, report."""
+    """Start one master per link against *endpoints*, bring the stations up, run the timeline, report.
+
+    *problems* collects what went wrong outside the checks (a slave worker that died, …) and may be appended to
+    by the caller while the run goes on; they are printed as notes and stored in the report's meta."""
     from ..aio.master import Master
     from ..metrics import NetworkMetrics, check_all, host_info, write_report
 
     loop = asyncio.get_running_loop()
     workers = workers or {}
     metrics = NetworkMetrics(config.network.transmission_cycle)
-    problems: list[str] = []
+    problems = problems if problems is not None else []
     stop = asyncio.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)

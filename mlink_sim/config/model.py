@@ -149,7 +149,11 @@ class StationConfig(BaseModel):
     frame_size: int | None = Field(None, description="data bytes: 17/32 (MECHATROLINK-I/II) or 32/64 (III)")
     com_tim: int | None = Field(None, ge=1, le=255, description="communication cycle = COM_TIM × transmission cycle")
     sync: bool = Field(True, description="bring the station to phase 3 (synchronous) rather than phase 2")
-    subcmd: bool = Field(False, description="enable sub-commands (32-byte MECHATROLINK-II, 64-byte III)")
+    subcmd: bool | None = Field(
+        None,
+        description="enable sub-commands (32-byte MECHATROLINK-II, 64-byte III); default on for a 32-byte SI-T/V7, "
+        "which takes PRM_RD/PRM_WR only as sub-commands (V7 §7.1), off otherwise",
+    )
     endpoint: str | None = Field(None, description="HOST:PORT the slave listens on (port 0: chosen at start)")
     params: dict[str, float | int | str] = Field(
         default_factory=dict, description="parameters in engineering units, e.g. {'C1-01' = 5.0, 'b1-02' = 3}"
@@ -276,6 +280,8 @@ class Config(BaseModel):
                 raise ValueError(f"{where}.frame_size: {link.label} uses {sizes}-byte frames, got {st.frame_size}")
             if st.com_tim is None:
                 st.com_tim = DEFAULT_COM_TIM[link]
+            if st.subcmd is None:
+                st.subcmd = st.card == "si-t-v7" and st.frame_size == 32
             if st.subcmd and st.frame_size not in (32, 64) or st.subcmd and link is Link.ML1:
                 raise ValueError(f"{where}.subcmd: sub-commands need 32-byte MECHATROLINK-II or 64-byte III frames")
             why = check_cycle(link, st.frame_size, self.network.transmission_cycle)

@@ -26,11 +26,13 @@ transmission_cycle = "2ms"
 address = 0x21
 card = "si-t3"
 params = { "b1-01" = 3, "b1-02" = 3, "C1-01" = 1.0, "C1-02" = 1.0 }
+load = { kind = "fan" }
 
 [[station]]
 address = 0x23
 card = "si-et3"
 params = { "b1-01" = 3, "b1-02" = 3, "C1-01" = 1.0, "C1-02" = 1.0 }
+load = { kind = "fan" }
 
 [[timeline]]
 at = "0.2s"
