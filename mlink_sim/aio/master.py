@@ -103,6 +103,8 @@ class Master:
         self._loop = loop
         self._transport: asyncio.DatagramTransport | None = None
         self._timer: CycleTimer | None = None
+        self._owns_timer = True
+        self.record_lateness = True  #: False for the 2nd+ master on a shared clock (counted once)
         self._waiters: list[tuple[Callable[[], bool], asyncio.Future[None]]] = []
         self._pending_missing: dict[int, int] = {}
         self._closed = False
@@ -113,9 +115,13 @@ class Master:
     async def start(cls, plan: NetworkPlan, endpoints: dict[int, tuple[str, int]], *,
                     local: tuple[str, int] = ("127.0.0.1", 0), metrics: MetricsSink | None = None,
                     loop: asyncio.AbstractEventLoop | None = None, strategy: str = "auto",
-                    rcvbuf: int = 1 << 20) -> Master:
+                    rcvbuf: int = 1 << 20, clock: CycleTimer | None = None) -> Master:
         """Open one UDP socket on *local*, start cycling at ``plan.tcycle_ns``; *endpoints* maps every station
-        address of the plan to the ``(host, port)`` of its slave."""
+        address of the plan to the ``(host, port)`` of its slave.
+
+        *clock*: a :class:`CycleTimer` shared with other masters of the same network (one per link), whose
+        callback calls :meth:`on_cycle` of each; the first master records the cycle lateness. Two spinning
+        timers in one loop delay each other, so ``mlink-sim up`` drives every link from one clock."""
         missing = [f"{sp.address:02X}H" for sp in plan.stations if sp.address not in endpoints]
         if missing:
             raise ValueError(f"no UDP endpoint for station(s) {', '.join(missing)}")
@@ -133,8 +139,11 @@ class Master:
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
             except OSError:  # pragma: no cover - best effort
                 pass
-        self._timer = CycleTimer(plan.tcycle_ns, self._on_cycle, loop=loop, strategy=strategy)
-        self._timer.start()
+        if clock is None:
+            self._timer = CycleTimer(plan.tcycle_ns, self._on_cycle, loop=loop, strategy=strategy)
+            self._timer.start()
+        else:
+            self._timer, self._owns_timer = clock, False
         self._log.info("master_started", local=transport.get_extra_info("sockname"), stations=len(plan.stations),
                        tcycle_ns=plan.tcycle_ns, strategy=self._timer.strategy)
         return self
@@ -162,7 +171,7 @@ class Master:
             for f in futs:
                 if f.done() and not f.cancelled():
                     f.exception()  # consumed: a station that did not answer is not an error at shutdown
-        if self._timer is not None:
+        if self._timer is not None and self._owns_timer:
             self._timer.stop()
         core.abort_requests("master closed")
         self._pump()
@@ -291,7 +300,8 @@ class Master:
     # ------------------------------------------------------------------ hot path
     def _on_cycle(self, cycle: int, deadline_ns: int, now_ns: int, skipped: int) -> None:
         metrics = self.metrics
-        metrics.record_cycle_lateness(now_ns - deadline_ns, skipped)
+        if self.record_lateness:
+            metrics.record_cycle_lateness(now_ns - deadline_ns, skipped)
         transport = self._transport
         if transport is None or transport.is_closing():
             return
@@ -303,6 +313,8 @@ class Master:
                 self._on_error(exc)
             metrics.record_sent(station)
         self._pump()
+
+    on_cycle = _on_cycle  #: the cycle callback, for a shared clock
 
     def _on_datagram(self, data: bytes, now: int) -> None:
         self.core.on_response(data, now)

@@ -1,12 +1,14 @@
 """Latency histogram: an HDR histogram of nanosecond values, 1 ns .. 10 s at 3 significant digits.
 
 :class:`LatencyHistogram` uses :class:`hdrh.histogram.HdrHistogram` (package ``hdrhistogram``) for its layout,
-its percentile rules and the HDR compressed transport form, but records into a plain Python list laid out
-exactly like the HDR counts array. ``HdrHistogram.record_value`` costs ~1.3 µs a call in CPython (``bin()``
+its percentile rules and the HDR compressed transport form, but records into a sparse ``dict`` keyed by the
+index of the HDR counts array (a few hundred keys for real latencies, so copying, merging and summarising
+take microseconds to a millisecond instead of scanning 25 600 buckets, and a live report does not stall the
+cycle). ``HdrHistogram.record_value`` costs ~1.3 µs a call in CPython (``bin()``
 based leading-zero count, ctypes counters, min/max bookkeeping); the inlined index computation below costs
 0.25 – 0.4 µs (docs/report.md, "Cost on the recording path"). Summaries are computed from the non-zero
 buckets with HdrHistogram's own index ⇄ value functions (tests check they equal the library's figures); the
-list is copied into an ``HdrHistogram`` only to encode it or for :meth:`LatencyHistogram.to_hdr`.
+counts are copied into an ``HdrHistogram`` only to encode it or for :meth:`LatencyHistogram.to_hdr`.
 
 Index computation (same as ``HdrHistogram._counts_index_for`` for ``lowest_trackable_value == 1``, i.e.
 ``unit_magnitude == 0``; a test checks equality over the whole range)::
@@ -20,6 +22,7 @@ is never lost; ``max`` then reads 10 s).
 
 from __future__ import annotations
 
+from collections import defaultdict
 from collections.abc import Iterable
 
 from hdrh.histogram import HdrHistogram
@@ -57,6 +60,17 @@ def _index(ns: int) -> int:
     return ((b + 1) << _SHIFT) + (ns >> b) - _HALF
 
 
+def _median_of_index(index: int) -> int:
+    """``_LAYOUT._hdr_median_equiv_value(_LAYOUT.get_value_from_index(index))`` in closed form (~10× faster;
+    a test checks equality over every index): the bucket's lowest value plus half its width."""
+    bucket = (index >> _SHIFT) - 1
+    sub = (index & (_HALF - 1)) + _HALF
+    if bucket < 0:
+        sub -= _HALF
+        bucket = 0
+    return (sub << bucket) + ((1 << bucket) >> 1)
+
+
 class LatencyHistogram:
     """HDR histogram of nanosecond latencies (1 ns .. 10 s, 3 significant digits, i.e. ≤ 0.1 % quantisation).
 
@@ -71,7 +85,7 @@ class LatencyHistogram:
     __slots__ = ("_counts",)
 
     def __init__(self) -> None:
-        self._counts: list[int] = [0] * _COUNTS_LEN     # HdrHistogram's counts array layout
+        self._counts: defaultdict[int, int] = defaultdict(int)   # HdrHistogram counts-array index -> count
 
     # ------------------------------------------------------------------ hot path
     def record(self, ns: int) -> None:
@@ -87,7 +101,7 @@ class LatencyHistogram:
     @property
     def count(self) -> int:
         """Number of recorded values."""
-        return sum(self._counts)
+        return sum(self._counts.values())
 
     def __len__(self) -> int:
         return self.count
@@ -96,17 +110,15 @@ class LatencyHistogram:
         """A new :class:`hdrh.histogram.HdrHistogram` holding these counts (~2 ms), for anything the summary
         does not give (other percentiles, iterators, ``output_percentile_distribution``)."""
         h = _new_hdr()
-        counts = self._counts
-        h.counts[:] = counts
-        total = sum(counts)
-        if total:
-            lo = next(i for i, c in enumerate(counts) if c)
-            hi = next(i for i in range(_COUNTS_LEN - 1, -1, -1) if counts[i])
-            h.set_internal_tacking_values(lo, hi, total)
+        nonzero = self._nonzero()
+        for i, c in nonzero:
+            h.counts[i] = c
+        if nonzero:
+            h.set_internal_tacking_values(nonzero[0][0], nonzero[-1][0], sum(c for _, c in nonzero))
         return h
 
     def _nonzero(self) -> list[tuple[int, int]]:
-        return [(i, c) for i, c in enumerate(self._counts) if c]
+        return sorted((i, c) for i, c in self._counts.items() if c)
 
     def percentile(self, p: float) -> int:
         """Value at percentile ``p`` (0..100) in ns, as ``HdrHistogram.get_value_at_percentile``; 0 when empty."""
@@ -147,17 +159,16 @@ class LatencyHistogram:
         out = {"count": total, "min": int(_LAYOUT.get_value_from_index(lo))}
         out.update(zip(_PERCENTILES, self._percentiles(nonzero, tuple(_PERCENTILES.values()))))
         out["max"] = int(_LAYOUT.get_highest_equivalent_value(_LAYOUT.get_value_from_index(hi)))
-        weighted = sum(c * _LAYOUT._hdr_median_equiv_value(_LAYOUT.get_value_from_index(i)) for i, c in nonzero)
+        weighted = sum(c * _median_of_index(i) for i, c in nonzero)
         out["mean"] = round(weighted / total)
         return out
 
     # ------------------------------------------------------------------ combining and transport
     def merge(self, other: LatencyHistogram) -> None:
         """Add ``other``'s counts to this histogram (``other`` is unchanged)."""
-        if other is self:
-            self._counts = [c + c for c in self._counts]
-        else:
-            self._counts = [a + b for a, b in zip(self._counts, other._counts)]
+        counts = self._counts
+        for i, c in list(other._counts.items()):
+            counts[i] += c
 
     @classmethod
     def merged(cls, histograms: Iterable[LatencyHistogram]) -> LatencyHistogram:
@@ -168,11 +179,27 @@ class LatencyHistogram:
         return out
 
     def reset(self) -> None:
-        self._counts = [0] * _COUNTS_LEN
+        self._counts = defaultdict(int)
 
     def copy(self) -> LatencyHistogram:
         out = LatencyHistogram()
-        out._counts = list(self._counts)
+        out._counts = defaultdict(int, self._counts)
+        return out
+
+    def to_pairs(self) -> list[list[int]]:
+        """``[[index, count], …]`` of the non-zero buckets: a cheap JSON form between processes of this package
+        (for anything else use the standard :meth:`encode`)."""
+        return [[i, c] for i, c in self._nonzero()]
+
+    @classmethod
+    def from_pairs(cls, pairs: Iterable[Iterable[int]]) -> LatencyHistogram:
+        """Rebuild from :meth:`to_pairs`; ``ValueError`` for an index outside the layout or a negative count."""
+        out = cls()
+        for pair in pairs:
+            i, c = (int(x) for x in pair)
+            if not 0 <= i < _COUNTS_LEN or c < 0:
+                raise ValueError(f"bad histogram bucket {pair!r}")
+            out._counts[i] += c
         return out
 
     def encode(self) -> str:
@@ -199,11 +226,11 @@ class LatencyHistogram:
                 f"(expected {LOWEST_NS}..{HIGHEST_NS}, {SIGNIFICANT_DIGITS} digits)"
             )
         out = cls()
-        out._counts = [int(c) for c in h.counts[:_COUNTS_LEN]]
+        out._counts = defaultdict(int, {i: int(c) for i, c in enumerate(h.counts[:_COUNTS_LEN]) if c})
         return out
 
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, LatencyHistogram) and self._counts == other._counts
+        return isinstance(other, LatencyHistogram) and self._nonzero() == other._nonzero()
 
     __hash__ = None  # type: ignore[assignment]   # mutable
 

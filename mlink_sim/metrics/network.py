@@ -42,20 +42,25 @@ def station_key(station: int) -> str:
 class _Cumulative:
     """A counter fed with a remote process's cumulative value; survives the process restarting (value drops)."""
 
-    __slots__ = ("base", "last")
+    __slots__ = ("base", "last", "zero")
 
     def __init__(self) -> None:
         self.base = 0
         self.last = 0
+        self.zero = 0  # the total at the last reset()
 
     def feed(self, value: int) -> None:
         if value < self.last:          # the remote counter restarted from 0
             self.base += self.last
         self.last = value
 
+    def reset(self) -> None:
+        """Count from now on: the total drops to 0, later values count from the current one."""
+        self.zero = self.base + self.last
+
     @property
     def total(self) -> int:
-        return self.base + self.last
+        return self.base + self.last - self.zero
 
 
 class StationMetrics:
@@ -71,6 +76,22 @@ class StationMetrics:
         self.late = 0
         self.missing = 0
         self._slave = {name: _Cumulative() for name in SLAVE_COUNTERS}
+
+    def copy(self) -> StationMetrics:
+        out = StationMetrics(self.address)
+        out.rtt = self.rtt.copy()
+        out.sent, out.answered, out.late, out.missing = self.sent, self.answered, self.late, self.missing
+        for name, c in self._slave.items():
+            o = out._slave[name]
+            o.base, o.last, o.zero = c.base, c.last, c.zero
+        return out
+
+    def reset(self) -> None:
+        """Forget what was counted so far (RTT, master counters; slave counters count from their current value)."""
+        self.rtt.reset()
+        self.sent = self.answered = self.late = self.missing = 0
+        for c in self._slave.values():
+            c.reset()
 
     @property
     def reception_failures(self) -> int:
@@ -119,25 +140,27 @@ class StationMetrics:
         out.update({name: self._slave[name].total for name in SLAVE_COUNTERS})
         return out
 
-    def to_wire(self) -> dict[str, Any]:
-        """JSON-safe state (histogram HDR-encoded) for shipping to another process; see ``from_wire``."""
+    def to_wire(self, *, hdr: bool = True) -> dict[str, Any]:
+        """JSON-safe state for shipping to another process (histogram HDR-encoded, or as bucket pairs with
+        ``hdr=False``: ~100× cheaper); see ``from_wire``."""
         return {
-            "rtt": self.rtt.encode(),
+            "rtt": self.rtt.encode() if hdr else self.rtt.to_pairs(),
             **{name: getattr(self, name) for name in _MASTER_COUNTERS},
-            "slave": {name: [c.base, c.last] for name, c in self._slave.items()},
+            "slave": {name: [c.base, c.last, c.zero] for name, c in self._slave.items()},
         }
 
     @classmethod
     def from_wire(cls, address: int, data: Mapping[str, Any]) -> StationMetrics:
         out = cls(address)
-        out.rtt = LatencyHistogram.decode(data["rtt"])
+        out.rtt = _histogram(data["rtt"])
         for name in _MASTER_COUNTERS:
             setattr(out, name, _non_negative(data[name], name))
         for name, pair in data.get("slave", {}).items():
             if name in out._slave:
-                base, last = pair
+                base, last, *zero = pair
                 out._slave[name].base = _non_negative(base, name)
                 out._slave[name].last = _non_negative(last, name)
+                out._slave[name].zero = _non_negative(zero[0], name) if zero else 0
         return out
 
     def merge(self, other: StationMetrics) -> None:
@@ -174,6 +197,27 @@ class NetworkMetrics:
     def add_stations(self, stations: Iterable[int]) -> None:
         for s in stations:
             self.station(s)
+
+    def copy(self) -> NetworkMetrics:
+        """An independent copy (sparse histograms: well under a millisecond), e.g. to build a live report
+        outside the event loop that records into this one."""
+        out = NetworkMetrics(self.cycle_ns)
+        out.lateness = self.lateness.copy()
+        out.started, out.missed = self.started, self.missed
+        out.stations = {a: sm.copy() for a, sm in self.stations.items()}
+        out.checks = [dict(c) for c in self.checks]
+        out._cpu = {role: list(v) for role, v in self._cpu.items()}
+        return out
+
+    def reset(self) -> None:
+        """Forget the master-side figures (lateness, cycles, RTT, counters, checks) but keep the stations and the
+        CPU accounting, e.g. to measure only the steady state after bring-up."""
+        self.lateness.reset()
+        self.started = 0
+        self.missed = 0
+        self.checks.clear()
+        for sm in self.stations.values():
+            sm.reset()
 
     def record_cycle_lateness(self, ns: int, skipped: int = 0) -> None:
         """One cycle started ``ns`` after its ideal start; ``skipped`` earlier cycles were not started at all.
@@ -297,14 +341,15 @@ class NetworkMetrics:
         }
 
     # ------------------------------------------------------------------ transport between processes
-    def to_wire(self) -> dict[str, Any]:
-        """JSON-safe state of everything recorded (histograms HDR-encoded), for :meth:`from_wire`."""
+    def to_wire(self, *, hdr: bool = True) -> dict[str, Any]:
+        """JSON-safe state of everything recorded (histograms HDR-encoded, or bucket pairs with ``hdr=False``),
+        for :meth:`from_wire`."""
         return {
             "cycle_ns": self.cycle_ns,
             "started": self.started,
             "missed": self.missed,
-            "lateness": self.lateness.encode(),
-            "stations": {station_key(a): sm.to_wire() for a, sm in self.stations.items()},
+            "lateness": self.lateness.encode() if hdr else self.lateness.to_pairs(),
+            "stations": {station_key(a): sm.to_wire(hdr=hdr) for a, sm in self.stations.items()},
             "cpu": {role: list(v) for role, v in self._cpu.items()},
             "checks": list(self.checks),
         }
@@ -315,7 +360,7 @@ class NetworkMetrics:
         out = cls(int(data["cycle_ns"]))
         out.started = _non_negative(data["started"], "started")
         out.missed = _non_negative(data["missed"], "missed")
-        out.lateness = LatencyHistogram.decode(data["lateness"])
+        out.lateness = _histogram(data["lateness"])
         for key, sd in data["stations"].items():
             address = int(key, 16)
             out.stations[address] = StationMetrics.from_wire(address, sd)
@@ -338,6 +383,13 @@ class NetworkMetrics:
             st[0] += sb + s
             st[1] += wb + w
         self.checks.extend(other.checks)
+
+
+def _histogram(data: Any) -> LatencyHistogram:
+    """A histogram from its wire form: an HDR blob (str) or bucket pairs (list)."""
+    if isinstance(data, list):
+        return LatencyHistogram.from_pairs(data)
+    return LatencyHistogram.decode(data)
 
 
 def _non_negative(value: Any, name: str) -> int:

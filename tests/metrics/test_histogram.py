@@ -8,7 +8,7 @@ import pytest
 from hdrh.histogram import HdrHistogram
 
 from mlink_sim.metrics import LatencyHistogram, format_ns
-from mlink_sim.metrics.histogram import HIGHEST_NS, SUMMARY_KEYS, _index
+from mlink_sim.metrics.histogram import _LAYOUT, HIGHEST_NS, SUMMARY_KEYS, _index, _median_of_index
 
 US = 1_000
 MS = 1_000_000
@@ -35,6 +35,20 @@ def test_inlined_index_equals_hdrh_index():
     probes.update(rnd.randrange(HIGHEST_NS) for _ in range(2000))
     for v in sorted(p for p in probes if p <= HIGHEST_NS):
         assert _index(v) == ref._counts_index_for(v), v
+
+
+def test_closed_form_bucket_midpoint_equals_hdrh_for_every_index():
+    for i in range(_LAYOUT.counts_len):
+        assert _median_of_index(i) == _LAYOUT._hdr_median_equiv_value(_LAYOUT.get_value_from_index(i)), i
+
+
+def test_copy_is_independent_and_sparse():
+    h = LatencyHistogram()
+    h.record(1_000)
+    c = h.copy()
+    c.record(2_000)
+    assert (h.count, c.count) == (1, 2)
+    assert len(h._counts) == 1
 
 
 def test_uniform_1_to_1000_us():

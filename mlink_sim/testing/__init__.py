@@ -1,0 +1,9 @@
+"""Testing support: a network running beside a test, live figures, and the pytest plugin (``mlink_network``).
+
+The plugin is registered through the ``pytest11`` entry point when mlink-sim is installed; see docs/ci.md.
+"""
+
+from .harness import NetworkNotUp, RunningNetwork
+from .metrics import Latency, MetricsView, StationMetricsView
+
+__all__ = ["RunningNetwork", "NetworkNotUp", "MetricsView", "Latency", "StationMetricsView"]

@@ -1,0 +1,202 @@
+"""The process that hosts a network for :class:`~mlink_sim.testing.RunningNetwork` (``python -m mlink_sim.testing.host``).
+
+The test process must not share a GIL with the master's cycle (a test computing anything would delay it), so
+the network — slave workers and masters, exactly as ``mlink-sim up`` runs them — lives in this process. It
+prints one JSON line ``{"event": "ready", "port": P, "not_up": [...], "problems": [...]}`` on stdout once
+bring-up is over, then serves requests on ``127.0.0.1:P``: one JSON object per line each way::
+
+    → {"id": 7, "method": "prm_rd", "args": [33, 512]}
+    ← {"id": 7, "result": 20}
+    ← {"id": 7, "error": {"type": "StationAlarmError", "message": "…", "station": 33, "code": 148, "name": "…"}}
+
+Methods: the request methods of :class:`~mlink_sim.aio.session.NetworkApi` (``prm_rd`` … ``reconnect``),
+``set_control``, ``view``, ``views``, ``kill_slave``, ``snapshot`` (figures as bucket pairs + report meta; the
+client builds the report, so the cycle is never held up by it), ``reset_metrics``, ``timeline`` (waits for the
+config's timeline and returns its checks) and ``stop`` (DISCONNECT, final report, exit). SIGTERM, SIGINT or the
+test process dying (``PR_SET_PDEATHSIG``) stop it too; its slave workers never outlive it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import dataclasses
+import json
+import signal
+import sys
+from pathlib import Path
+from typing import Any
+
+import structlog
+
+from ..aio.scenario import Scenario
+from ..aio.session import NetworkSession
+from ..aio.udp import new_event_loop
+from ..config import ConfigError, load_config
+from ..jsonable import to_jsonable
+
+log = structlog.get_logger("mlink_sim.testing.host")
+
+_REQUESTS = frozenset({"prm_rd", "prm_wr", "config", "id_rd", "alm_rd", "alm_clr", "disconnect"})
+
+
+def encode_value(value: Any) -> Any:
+    """A result as JSON: bytes as ``{"bytes": hex}``, dataclasses and mappings as objects."""
+    if isinstance(value, (bytes, bytearray)):
+        return {"bytes": bytes(value).hex()}
+    return to_jsonable(value)
+
+
+def encode_error(exc: BaseException) -> dict[str, Any]:
+    out: dict[str, Any] = {"type": type(exc).__name__, "message": str(exc)}
+    for name in ("station", "code", "name", "command", "attempts", "busy"):
+        value = getattr(exc, name, None)
+        if isinstance(value, (int, str)):
+            out[name] = value
+    return out
+
+
+class Host:
+    """Serves one :class:`NetworkSession` to one test process."""
+
+    def __init__(self, session: NetworkSession, *, timeline: bool) -> None:
+        self.session = session
+        self.stop = asyncio.Event()
+        self.final: dict[str, Any] | None = None
+        self.scenario: Scenario | None = None
+        self.scenario_task: asyncio.Task[None] | None = None
+        if timeline:
+            loop = asyncio.get_running_loop()
+            assert session.net is not None
+            self.scenario = Scenario(session.config, session.net)
+
+            async def sleep_until(when: float) -> None:
+                await asyncio.sleep(max(0.0, when - loop.time()))
+
+            self.scenario_task = loop.create_task(self.scenario.run(loop.time(), sleep_until))
+
+    async def handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        try:
+            while line := await reader.readline():
+                try:
+                    req = json.loads(line)
+                    rid, method, args = req.get("id"), req["method"], req.get("args", [])
+                    kwargs = req.get("kwargs", {})
+                except (ValueError, KeyError, TypeError, AttributeError) as exc:
+                    reply: dict[str, Any] = {"id": None, "error": {"type": "ValueError",
+                                                                   "message": f"bad request: {exc}"}}
+                else:
+                    try:
+                        reply = {"id": rid, "result": await self.dispatch(method, args, kwargs)}
+                    except Exception as exc:  # noqa: BLE001 - every failure goes back to the test as an error
+                        reply = {"id": rid, "error": encode_error(exc)}
+                writer.write(json.dumps(reply).encode() + b"\n")
+                await writer.drain()
+                if method == "stop":
+                    break
+        except (ConnectionError, asyncio.IncompleteReadError):
+            pass
+        finally:
+            writer.close()
+
+    async def dispatch(self, method: str, args: list[Any], kwargs: dict[str, Any]) -> Any:
+        net = self.session.net
+        assert net is not None
+        if method in _REQUESTS:
+            return encode_value(await getattr(net, method)(*args, **kwargs))
+        if method == "reconnect":
+            station, timeout = args[0], kwargs.get("timeout", 10.0)
+            await net.reconnect(station)
+            await net.master(station).wait_until(lambda: net.view(station).at_target, timeout)
+            return None
+        if method == "set_control":
+            net.set_control(*args, **kwargs)
+            return None
+        if method == "view":
+            return encode_value(net.view(*args))
+        if method == "views":
+            return {str(a): encode_value(v) for a, v in net.views().items()}
+        if method == "kill_slave":
+            return net.kill_slave(*args)
+        if method == "snapshot":
+            metrics, meta = await self.session.snapshot(slave_stats=kwargs.get("slave_stats", True))
+            return {"metrics": metrics.to_wire(hdr=False), "meta": meta}
+        if method == "reset_metrics":
+            self.session.reset_metrics()
+            return None
+        if method == "timeline":
+            if self.scenario is None or self.scenario_task is None:
+                raise RuntimeError("the network was started without timeline=True")
+            await asyncio.wait_for(asyncio.shield(self.scenario_task), kwargs.get("timeout"))
+            return [dataclasses.asdict(c) for c in self.scenario.results]
+        if method == "stop":
+            self.final = await self._final_report()
+            self.stop.set()
+            return self.final
+        raise ValueError(f"unknown method {method!r}")
+
+    async def _final_report(self) -> dict[str, Any]:
+        if self.scenario_task is not None:
+            self.scenario_task.cancel()
+        await self.session.refresh_slave_stats()
+        await self.session.close_masters()
+        for c in self.scenario.results if self.scenario else []:
+            self.session.metrics.record_check(c.at_s, c.what, c.ok, c.detail)
+        return await self.session.report(slave_stats=False)
+
+
+async def serve(args: argparse.Namespace) -> int:
+    loop = asyncio.get_running_loop()
+    config = load_config(args.config)
+    interrupted = asyncio.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, interrupted.set)
+    session = await NetworkSession.open(config, Path(args.config), workers=args.workers,
+                                        state_dir=args.state_dir, run_dir=args.run_dir)
+    try:
+        not_up = await session.bring_up(args.bringup_timeout)
+        if args.reset:
+            session.reset_metrics()
+        host = Host(session, timeline=args.timeline)
+        server = await asyncio.start_server(host.handle, "127.0.0.1", 0)
+        port = server.sockets[0].getsockname()[1]
+        print(json.dumps({"event": "ready", "port": port, "not_up": not_up, "problems": session.problems}),
+              flush=True)
+        waiters = [loop.create_task(host.stop.wait()), loop.create_task(interrupted.wait())]
+        await asyncio.wait(waiters, return_when=asyncio.FIRST_COMPLETED)
+        for w in waiters:
+            w.cancel()
+        server.close()
+        await asyncio.sleep(0.05)  # let the reply to "stop" leave
+    finally:
+        await session.close()
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m mlink_sim.testing.host", description=__doc__.splitlines()[0])
+    parser.add_argument("config")
+    parser.add_argument("--workers", type=int)
+    parser.add_argument("--bringup-timeout", type=float, default=10.0)
+    parser.add_argument("--timeline", action="store_true")
+    parser.add_argument("--no-reset", dest="reset", action="store_false")
+    parser.add_argument("--state-dir", type=Path)
+    parser.add_argument("--run-dir", type=Path)
+    parser.add_argument("--log-level", default="warning")
+    args = parser.parse_args(argv)
+    from ..cli.logs import configure_logging
+    from ..aio.supervisor import WorkerError
+
+    configure_logging(level=args.log_level)
+    loop = new_event_loop()
+    try:
+        return loop.run_until_complete(serve(args))
+    except (ConfigError, WorkerError, OSError, ValueError) as exc:
+        print(json.dumps({"event": "error", "message": str(exc)}), flush=True)
+        return 1
+    finally:
+        loop.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,111 @@
+"""The pytest plugin (entry point ``pytest11``): fixtures that bring a network up for the duration of a test.
+
+    @pytest.mark.mlink_network("configs/quickstart.toml")
+    def test_latency(mlink_network):
+        mlink_network.run(0x21, hz=30)
+        mlink_network.wait(2.0)
+        assert mlink_network.metrics.rtt.p99 < 0.5e-3
+
+Fixtures:
+
+- ``mlink_network`` — a started :class:`~mlink_sim.testing.RunningNetwork`. Its config comes from the test's
+  ``mlink_network`` marker (``@pytest.mark.mlink_network(CONFIG, workers=…, timeline=…, bringup_timeout=…)``),
+  else ``--mlink-config`` / the ``mlink_config`` ini option. Stopped after the test.
+- ``mlink_network_factory`` — ``start(CONFIG, **options)`` for tests that need several networks or options
+  decided in the test; every network started is stopped after the test.
+
+Options: ``--mlink-config PATH``, ``--mlink-workers N``, ``--mlink-report-dir DIR`` (each network's final report
+is written there as ``<test name>.json``). Relative config paths are taken from the current directory, then from
+the pytest root directory.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+__all__ = ["mlink_network", "mlink_network_factory"]
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("mlink-sim", "mlink-sim networks")
+    group.addoption("--mlink-config", metavar="PATH", help="Config of the mlink_network fixture (if no marker).")
+    group.addoption("--mlink-workers", metavar="N", type=int, help="Host the stations in N worker processes.")
+    group.addoption("--mlink-report-dir", metavar="DIR", help="Write each network's final report (JSON) here.")
+    parser.addini("mlink_config", "Config of the mlink_network fixture (if no marker and no --mlink-config).")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers",
+        "mlink_network(config, *, workers=None, timeline=False, bringup_timeout=10.0): "
+        "the network the mlink_network fixture brings up for this test",
+    )
+
+
+def _resolve(path: str | Path, config: pytest.Config) -> Path:
+    p = Path(path)
+    if p.is_absolute() or p.exists():
+        return p
+    rooted = Path(config.rootpath) / p
+    return rooted if rooted.exists() else p
+
+
+def _report_name(nodeid: str, index: int) -> str:
+    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", nodeid).strip("_")
+    return f"{name}{'-' + str(index) if index else ''}.json"
+
+
+class _Factory:
+    def __init__(self, request: pytest.FixtureRequest) -> None:
+        self.request = request
+        self.started: list[Any] = []
+
+    def __call__(self, config: str | Path, **options: Any) -> Any:
+        from .harness import RunningNetwork
+
+        pconfig = self.request.config
+        options.setdefault("workers", pconfig.getoption("--mlink-workers"))
+        net = RunningNetwork(_resolve(config, pconfig), **options)
+        net.start()
+        self.started.append(net)
+        return net
+
+    def stop_all(self) -> None:
+        from ..metrics import write_report
+
+        report_dir = self.request.config.getoption("--mlink-report-dir")
+        for index, net in enumerate(self.started):
+            report = net.stop()
+            if report_dir and report is not None:
+                Path(report_dir).mkdir(parents=True, exist_ok=True)
+                write_report(Path(report_dir) / _report_name(self.request.node.nodeid, index), report)
+
+
+@pytest.fixture
+def mlink_network_factory(request: pytest.FixtureRequest) -> Iterator[Callable[..., Any]]:
+    """``start(CONFIG, workers=None, timeline=False, bringup_timeout=10.0, …)`` → a running network."""
+    factory = _Factory(request)
+    try:
+        yield factory
+    finally:
+        factory.stop_all()
+
+
+@pytest.fixture
+def mlink_network(request: pytest.FixtureRequest, mlink_network_factory: _Factory) -> Any:
+    """A network brought up from the ``mlink_network`` marker's config (or ``--mlink-config`` / ``mlink_config``)."""
+    marker = request.node.get_closest_marker("mlink_network")
+    args: tuple[Any, ...] = marker.args if marker else ()
+    options: dict[str, Any] = dict(marker.kwargs) if marker else {}
+    config = args[0] if args else options.pop("config", None)
+    config = config or request.config.getoption("--mlink-config") or request.config.getini("mlink_config")
+    if not config:
+        raise pytest.UsageError(
+            "mlink_network needs a config: @pytest.mark.mlink_network('net.toml'), --mlink-config PATH, "
+            "or 'mlink_config' in the pytest ini options")
+    return mlink_network_factory(config, **options)

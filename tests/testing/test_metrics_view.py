@@ -1,0 +1,46 @@
+"""MetricsView: report fields in seconds for tests (mlink_sim.testing.metrics)."""
+
+from __future__ import annotations
+
+import pytest
+
+from mlink_sim.metrics import NetworkMetrics
+from mlink_sim.testing import MetricsView
+
+META = {"config": "net.toml", "started": "2026-01-01T00:00:00+00:00", "duration_s": 1.0}
+
+
+@pytest.fixture
+def view() -> MetricsView:
+    m = NetworkMetrics(1_000_000)
+    for ns in (100_000, 200_000, 300_000):
+        m.record_sent(0x21)
+        m.record_rtt(0x21, ns)
+    m.record_sent(0x22)
+    m.record_missing(0x22)
+    m.record_cycle_lateness(5_000, skipped=2)
+    return MetricsView(m.report(meta=META))
+
+
+def test_latencies_are_seconds_and_ns(view):
+    assert view.rtt.count == 3
+    assert view.rtt.p50 == pytest.approx(200e-6, rel=1e-3)
+    assert view.rtt.p50_ns == pytest.approx(200_000, rel=1e-3)
+    assert view.rtt.max == pytest.approx(300e-6, rel=1e-3)
+
+
+def test_counters_and_stations(view):
+    assert (view.missed, view.missing, view.sent, view.answered) == (2, 1, 4, 3)
+    assert view.station[0x22].missing == 1
+    assert view.station["22H"].missing == 1
+    assert view.station["0x21"].rtt.count == 3
+    assert sorted(view.station) == [0x21, 0x22]
+
+
+def test_unknown_fields_say_what_exists(view):
+    with pytest.raises(AttributeError, match="p99_9"):
+        view.rtt.p95
+    with pytest.raises(AttributeError, match="missed"):
+        view.mised
+    with pytest.raises(KeyError, match="0x21"):
+        view.station[0x30]

@@ -1,0 +1,44 @@
+"""The example of docs/ci.md: a test that brings the quickstart network up with the ``mlink_network`` fixture
+(pytest plugin, entry point ``pytest11``), drives it through the master and asserts on live figures.
+
+Bounds are loose on purpose: the suite runs on busy 2-core CI machines. A latency gate worth its name runs
+``mlink-sim up … --assert`` on a quiet runner (docs/ci.md).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from mlink_sim.master import StationAlarmError
+
+pytestmark = pytest.mark.e2e
+
+C1_01 = 0x0200  # SI-T3 Tables 8/9: C1-01 acceleration time 1 at register 0200H (0.1 s)
+
+
+@pytest.mark.mlink_network("configs/quickstart.toml")
+def test_quickstart_runs_and_answers_within_a_cycle(mlink_network):
+    net = mlink_network
+    assert {v.phase for v in net.views().values()} == {3}
+
+    net.run(0x21, hz=30)  # C1-01 = 2.0 s to E1-04 = 60 Hz: 30 Hz after 1 s
+    net.wait_until(lambda: net.output_hz(0x21) > 29.5, timeout=10)
+    assert net.running(0x21)
+
+    assert net.prm_rd(0x21, C1_01) == 20  # 2.0 s in 0.1 s units, as the config sets it
+    with pytest.raises(StationAlarmError) as err:
+        net.prm_rd(0x21, 0x7FFF)  # no such register: A.94 (SI-T3 Table 23), carried on the exception
+    assert err.value.code == 0x94
+
+    m = net.metrics
+    assert m.rtt.count > 100
+    assert m.rtt.p50 < 2e-3  # answered within the 2 ms transmission cycle
+    assert m.station[0x21].answered > 0
+    net.check("station[0x21].rtt.p50 < 2ms", "wdt_errors == 0")
+
+
+@pytest.mark.mlink_network("configs/quickstart.toml", timeline=True)
+def test_quickstart_timeline_checks_hold(mlink_network):
+    checks = mlink_network.wait_timeline()
+    assert checks, "the quickstart timeline has checks"
+    assert [c for c in checks if not c.ok] == []

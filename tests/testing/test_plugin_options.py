@@ -1,0 +1,47 @@
+"""The pytest plugin's configuration errors and report files, run in a pytester sandbox."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+pytest_plugins = ["pytester"]
+
+QUICKSTART = Path(__file__).resolve().parents[2] / "configs" / "quickstart.toml"
+
+
+@pytest.fixture(autouse=True)
+def _ini(pytester):
+    pytester.makeini("[pytest]\nasyncio_default_fixture_loop_scope = function\n")
+
+
+def test_fixture_without_a_config_is_a_usage_error(pytester):
+    pytester.makepyfile("def test_x(mlink_network):\n    pass\n")
+    result = pytester.runpytest("-p", "no:cacheprovider")
+    result.stdout.fnmatch_lines(["*mlink_network needs a config*--mlink-config*"])
+    assert result.ret != 0
+
+
+def test_marker_is_registered(pytester):
+    result = pytester.runpytest("--markers")
+    result.stdout.fnmatch_lines(["*mlink_network(config*"])
+
+
+@pytest.mark.e2e
+def test_report_dir_gets_one_report_per_network(pytester, tmp_path):
+    pytester.makepyfile(f"""
+        import pytest
+
+        @pytest.mark.mlink_network({str(QUICKSTART)!r})
+        def test_up(mlink_network):
+            mlink_network.wait(0.3)
+            assert mlink_network.metrics.cycles > 0
+    """)
+    reports = tmp_path / "reports"
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", f"--mlink-report-dir={reports}")
+    result.assert_outcomes(passed=1)
+    (path,) = reports.glob("*.json")
+    report = json.loads(path.read_text())
+    assert report["meta"]["network"] == "quickstart" and report["cycles"] > 0
