@@ -168,9 +168,8 @@ class Master:
         if reqs and self._timer is not None and self._timer.running:
             futs = [self._future(r) for r in reqs]
             await asyncio.wait(futs, timeout=timeout)
-            for f in futs:
-                if f.done() and not f.cancelled():
-                    f.exception()  # consumed: a station that did not answer is not an error at shutdown
+            for f in futs:  # a station that did not answer is not an error at shutdown: consume its exception
+                f.add_done_callback(_consume)
         if self._timer is not None and self._owns_timer:
             self._timer.stop()
         core.abort_requests("master closed")
@@ -362,6 +361,11 @@ class Master:
             for pred, fut in list(self._waiters):
                 if not fut.done() and pred():
                     fut.set_result(None)
+
+
+def _consume(fut: asyncio.Future[Any]) -> None:
+    if not fut.cancelled():
+        fut.exception()
 
 
 def run(main: Coroutine[Any, Any, T]) -> T:
