@@ -14,6 +14,7 @@ After a loss the next valid command binds the connection again (docs/cards.md).
 
 from __future__ import annotations
 
+import abc
 from collections.abc import Hashable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -133,7 +134,7 @@ class StationSnapshot:
     eeprom_error: str | None
 
 
-class Station:
+class Station(abc.ABC):
     """Base of the card profiles; see the module docstring. Subclasses set the class attributes below and
     implement the generation-specific hooks (``_power_up``, ``_process``, ``_report_failure``,
     ``_report_wdt``, ``_clear_comm_alarms``, ``_leds``, ``_alarm_view``)."""
@@ -212,33 +213,40 @@ class Station:
         self._log.info("power_up", link=self.link.name, data_size=self.data_size)
 
     # -- hooks -----------------------------------------------------------------------------------
+    @abc.abstractmethod
     def _power_up(self, values: Mapping[str, int], settings: CardSettings) -> None:
         """Set address, link, data_size (and station_error) from the power-up settings."""
-        raise NotImplementedError
+        ...
 
+    @abc.abstractmethod
     def _process(self, frame: Any, source: Hashable, now: int) -> bytes:
         """Execute one accepted command; return the response datagram."""
-        raise NotImplementedError
+        ...
 
+    @abc.abstractmethod
     def _report_failure(self, kind: FailureKind, first: bool) -> None:
         """Show a reception failure: warning (*first*) or communications alarm."""
-        raise NotImplementedError
+        ...
 
+    @abc.abstractmethod
     def _report_wdt(self) -> None:
-        raise NotImplementedError
+        ...
 
+    @abc.abstractmethod
     def _clear_comm_alarms(self) -> None:
-        raise NotImplementedError
+        ...
 
     def _observe_drive(self) -> None:
         """Take note of the drive's fault now (MECHATROLINK-II "most recent alarm" ordering)."""
 
+    @abc.abstractmethod
     def _leds(self) -> tuple[dict[str, str], dict[str, str]]:
-        raise NotImplementedError
+        ...
 
+    @abc.abstractmethod
     def _alarm_view(self) -> tuple[int, str | None, tuple[str, ...], int]:
         """(alarm code, its name, warning names, CMD_ALM) for the snapshot."""
-        raise NotImplementedError
+        ...
 
     # -- the Station API --------------------------------------------------------------------------
     def receive(self, datagram: bytes, source: Hashable, now: int) -> bytes | None:
