@@ -54,7 +54,7 @@ class CardSettings:
     """What a card reads at power-up (plus the simulated drive's load and the card options)."""
 
     #: Raw parameter values by name, applied over the family defaults and the EEPROM image (F6-20 station
-    #: address, F6-21 frame size, F6-22 link speed on SI-T3/SI-ET3; nXXX constants on the SI-T/V7).
+    #: address, F6-21 frame size, F6-22 link speed on SI-T3/SI-ET3; n-number constants such as n003 on the SI-T/V7).
     params: Mapping[str, int] = field(default_factory=dict)
     #: SI-T/V7 DIP switch S1-1: True = 10 Mbps (MECHATROLINK-II, factory setting), False = 4 Mbps (MECHATROLINK-I).
     s1_1_10mbps: bool = True

@@ -48,7 +48,7 @@ def _unverified(why: str, base: str = _TOE) -> str:
 
 def _n(number: int, title: str, unit: str, scale: float, minimum: int, maximum: int, default: int,
        source: str, **extra: object) -> Param:
-    """Constant nXXX at MEMOBUS register 0100H + XXX."""
+    """A constant n<number> (e.g. n003) at MEMOBUS register 0100H + <number>."""
     return Param(f"n{number:03d}", 0x0100 + number, title, unit, scale, minimum, maximum, default,
                  source=source, **extra)  # type: ignore[arg-type]
 
