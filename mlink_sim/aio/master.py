@@ -1,9 +1,12 @@
 """The master on a real network: :class:`~mlink_sim.master.MasterCore` driven by a :class:`CycleTimer` over one UDP
 socket, with awaitable requests (docs/master.md, "Async API").
 
-The datagram protocol only moves bytes and timestamps (``time.monotonic_ns()`` at ``datagram_received``); the
-core decides everything. Transport errors (an ICMP port unreachable on loopback surfaces as
-``ConnectionRefusedError`` in ``error_received``, or ``sendto`` raising ``OSError``) are counted in
+The I/O here only moves bytes and timestamps; the core decides everything. The master owns a non-blocking UDP
+socket watched with ``loop.add_reader``: each wake-up reads every datagram waiting (up to a bound), each stamped
+with ``time.monotonic_ns()`` as it is read. The socket is also read just before each cycle's commands go out and
+while the :class:`CycleTimer` spins before a deadline, so an answer that arrived in time is never counted
+missing only because the loop was busy with the clock. Transport errors (``sendto``/``recv`` raising
+``OSError``, e.g. ``ConnectionRefusedError`` after an ICMP port unreachable) are counted in
 :attr:`Master.transport_errors`, never raised.
 """
 
@@ -77,18 +80,7 @@ class NullMetrics:
         pass
 
 
-class _DatagramProtocol(asyncio.DatagramProtocol):
-    """Moves bytes and timestamps, nothing else (aioquic ``asyncio/protocol.py`` style)."""
-
-    def __init__(self, on_datagram: Callable[[bytes, int], None], on_error: Callable[[Exception], None]) -> None:
-        self._on_datagram = on_datagram
-        self._on_error = on_error
-
-    def datagram_received(self, data: bytes, addr: Any) -> None:
-        self._on_datagram(data, _mono())
-
-    def error_received(self, exc: Exception) -> None:
-        self._on_error(exc)
+_READ_BURST = 512  # datagrams read per wake-up at most, so a flood cannot starve the clock
 
 
 class Master:
@@ -101,7 +93,7 @@ class Master:
         self.metrics = metrics
         self.transport_errors: Counter[str] = Counter()
         self._loop = loop
-        self._transport: asyncio.DatagramTransport | None = None
+        self._sock: socket.socket | None = None
         self._timer: CycleTimer | None = None
         self._owns_timer = True
         self.record_lateness = True  #: False for the 2nd+ master on a shared clock (counted once)
@@ -130,28 +122,34 @@ class Master:
         add_stations = getattr(self.metrics, "add_stations", None)
         if callable(add_stations):
             add_stations(self.core.addresses)
-        transport, _ = await loop.create_datagram_endpoint(
-            lambda: _DatagramProtocol(self._on_datagram, self._on_error), local_addr=local)
-        self._transport = transport
-        sock = transport.get_extra_info("socket")
-        if sock is not None and rcvbuf:
-            try:
-                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
-            except OSError:  # pragma: no cover - best effort
-                pass
+        sock = socket.socket(socket.AF_INET6 if ":" in local[0] else socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            sock.setblocking(False)
+            if rcvbuf:
+                try:
+                    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+                except OSError:  # pragma: no cover - best effort
+                    pass
+            sock.bind(local)
+            loop.add_reader(sock.fileno(), self.read_responses)
+        except BaseException:
+            sock.close()
+            raise
+        self._sock = sock
         if clock is None:
-            self._timer = CycleTimer(plan.tcycle_ns, self._on_cycle, loop=loop, strategy=strategy)
+            self._timer = CycleTimer(plan.tcycle_ns, self._on_cycle, loop=loop, strategy=strategy,
+                                     idle=self.read_one)
             self._timer.start()
         else:
             self._timer, self._owns_timer = clock, False
-        self._log.info("master_started", local=transport.get_extra_info("sockname"), stations=len(plan.stations),
+        self._log.info("master_started", local=sock.getsockname(), stations=len(plan.stations),
                        tcycle_ns=plan.tcycle_ns, strategy=self._timer.strategy)
         return self
 
     @property
     def local_address(self) -> tuple[str, int]:
-        assert self._transport is not None
-        return self._transport.get_extra_info("sockname")[:2]
+        assert self._sock is not None
+        return self._sock.getsockname()[:2]
 
     @property
     def timer(self) -> CycleTimer | None:
@@ -181,8 +179,13 @@ class Master:
             if not fut.done():
                 fut.set_exception(ConnectionAbortedError("master closed"))
         self._waiters.clear()
-        if self._transport is not None:
-            self._transport.close()
+        sock, self._sock = self._sock, None
+        if sock is not None:
+            try:
+                self._loop.remove_reader(sock.fileno())
+            except (RuntimeError, ValueError, OSError):
+                pass  # loop already closed
+            sock.close()
         self._log.info("master_closed", transport_errors=dict(self.transport_errors), drops=len(core.drops))
 
     async def __aenter__(self) -> Master:
@@ -301,22 +304,43 @@ class Master:
         metrics = self.metrics
         if self.record_lateness:
             metrics.record_cycle_lateness(now_ns - deadline_ns, skipped)
-        transport = self._transport
-        if transport is None or transport.is_closing():
+        sock = self._sock
+        if sock is None:
             return
+        self.read_responses()  # answers already here belong to the cycle that just ended
         endpoints = self.endpoints
+        sendto = sock.sendto
         for station, datagram in self.core.on_cycle(cycle, now_ns):
             try:
-                transport.sendto(datagram, endpoints[station])
-            except OSError as exc:
+                sendto(datagram, endpoints[station])
+            except OSError as exc:  # BlockingIOError (send buffer full) included: that datagram is lost
                 self._on_error(exc)
             metrics.record_sent(station)
         self._pump()
 
     on_cycle = _on_cycle  #: the cycle callback, for a shared clock
 
-    def _on_datagram(self, data: bytes, now: int) -> None:
-        self.core.on_response(data, now)
+    def read_responses(self, limit: int = _READ_BURST) -> None:
+        """Hand the datagrams waiting on the socket (at most *limit*) to the core, each stamped as it is read:
+        the reader callback and the start of each cycle read them all, the clock's spin one at a time."""
+        sock = self._sock
+        if sock is None:
+            return
+        recv = sock.recv
+        on_response = self.core.on_response
+        for _ in range(limit):
+            try:
+                data = recv(4096)
+            except BlockingIOError:
+                return
+            except OSError as exc:
+                self._on_error(exc)
+                continue
+            on_response(data, _mono())
+
+    def read_one(self) -> None:
+        """The clock's ``idle`` hook: one datagram at most, so the spin ends close to its deadline."""
+        self.read_responses(1)
 
     def _on_error(self, exc: Exception) -> None:
         name = type(exc).__name__

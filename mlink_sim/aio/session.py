@@ -247,6 +247,13 @@ class NetworkSession:
             self.masters[link] = master
         self._cycle_callbacks = [m.on_cycle for m in self.masters.values()]
         if clock is not None:
+            readers = [m.read_one for m in self.masters.values()]
+
+            def idle() -> None:
+                for read in readers:
+                    read()
+
+            clock.idle = idle
             clock.start()
         self.net = NetworkApi(self.config, self.masters, self.workers)
 

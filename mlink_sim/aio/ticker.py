@@ -90,12 +90,13 @@ class CycleTimer:
     ``strategy``: one of :data:`STRATEGIES` or ``"auto"`` (see the module docstring). ``spin_ns``: fixed busy-spin
     budget for a ``"+spin"`` strategy (``None`` = adaptive, ``0`` = none). ``spin_max_ns``: cap of the adaptive
     spin (default: one period for ``call_at+spin``, half a period otherwise). ``loop``: defaults to the running
-    loop at :meth:`start`.
+    loop at :meth:`start`. ``idle``: called over and over while spinning, so the spin does useful work (the master
+    reads the responses that arrive meanwhile); it must be short and must not raise.
     """
 
     def __init__(self, period_ns: int, on_cycle: OnCycle, *, loop: asyncio.AbstractEventLoop | None = None,
                  strategy: str = "auto", spin_ns: int | None = None, start_ns: int | None = None,
-                 spin_max_ns: int | None = None) -> None:
+                 spin_max_ns: int | None = None, idle: Callable[[], None] | None = None) -> None:
         period_ns = int(period_ns)
         if period_ns <= 0:
             raise ValueError("period_ns must be positive")
@@ -107,6 +108,7 @@ class CycleTimer:
             raise ValueError(f"spin_ns needs a '+spin' strategy, got {self._strategy!r}")
         self._period = period_ns
         self._on_cycle = on_cycle
+        self.idle = idle  #: called repeatedly during the spin (see the class docstring)
         self._loop = loop
         self._start_ns = start_ns
         # call_at's error is about a millisecond, so let its spin cover a whole period if need be.
@@ -298,8 +300,14 @@ class CycleTimer:
                 q -= _Q_DOWN_NS
             self._q = q
             self._spin = self._clamp_spin(q + _SPIN_MARGIN_NS)
-        while now < d:
-            now = mono()
+        idle = self.idle
+        if idle is None:
+            while now < d:
+                now = mono()
+        else:
+            while now < d:
+                idle()
+                now = mono()
         period = self._period
         k = self._next_k
         skipped = 0

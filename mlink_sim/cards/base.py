@@ -48,6 +48,10 @@ _IDLE = DriveCommand()
 #: :meth:`Station._fast_receive` declines: take the general path.
 SLOW = object()
 _MAX_LOGGED_SOURCES = 32
+#: Incidents that can repeat every cycle on an overloaded machine (reception failures, WDT errors, phase 3 <-> 2)
+#: are logged the first _LOG_FIRST times, then at the 2**k-th occurrence only; the counters keep every one. An
+#: unbounded log line per lost cycle made an overloaded worker slower still (docs/performance.md).
+_LOG_FIRST = 8
 
 
 _NOPS = (ml2.Nop, ml3.Nop)
@@ -206,6 +210,10 @@ class Station(abc.ABC):
         self._seen_fault: Fault | None = None
         self._history = self.drive.history_names()
         self._foreign_logged: set[str] = set()
+        self._incidents: dict[str, int] = {}
+        self.keep_outputs = True  #: False: compute the INV_CTL outputs every cycle (tests)
+        self._out_key: tuple[int, int] | None = None
+        self._out: tuple[int, int, int, int] = (0, 0, 0, 0)
         self._last_refused: tuple[Any, ...] = ()
         if self.station_error is not None:
             self.drive.minor(Fault.AER, True, now)
@@ -407,9 +415,7 @@ class Station(abc.ABC):
         if alarms:
             self._report_failure(kind, False)
             self._comm_alarm(alarms, now)
-        total = before + n
-        if before < 2 or (total & (total - 1)) == 0 or total.bit_length() > before.bit_length():
-            self._log.info("reception_failure", kind=kind.value, count=n, consecutive=total)
+        self._incident("reception_failure", kind=kind.value, count=n, consecutive=before + n)
 
     def _comm_alarm(self, n: int, now: int) -> None:
         """*n* communications alarms (E6 / COMM_ALM 8–B): phase 3 -> 2, bUS after F6-26 of them."""
@@ -436,7 +442,13 @@ class Station(abc.ABC):
         self._report_wdt()
         if self.phase == 3:
             self._set_phase(2)
-        self._log.warning("wdt_error", master_count=self.watchdog.master)
+        self._incident("wdt_error", level="warning", master_count=self.watchdog.master)
+
+    def _incident(self, event: str, level: str = "info", **fields: Any) -> None:
+        """Log a repeatable incident, bounded (see ``_LOG_FIRST``); ``occurrence`` numbers it."""
+        n = self._incidents[event] = self._incidents.get(event, 0) + 1
+        if n <= _LOG_FIRST or n & (n - 1) == 0:
+            getattr(self._log, level)(event, occurrence=n, **fields)
 
     def _foreign(self, source: Hashable) -> None:
         self.counters.foreign_source += 1
@@ -470,7 +482,7 @@ class Station(abc.ABC):
         if phase != self.phase:
             old, self.phase = self.phase, phase
             self._log = self._log0.bind(phase=phase)
-            self._log.info("phase_changed", old=old, new=phase)
+            self._incident("phase_changed", old=old, new=phase)
             if phase == 3:
                 self.watchdog.armed = True
             else:
@@ -556,3 +568,15 @@ class Station(abc.ABC):
 
     def _mon(self, code: int) -> int:
         return sel_mon_value(self.drive, self.store, self._mon_regs, code)
+
+    def _outputs(self, sel_mon: int) -> tuple[int, int, int, int]:
+        """Output frequency, output current, MON1 and MON2 of the INV_CTL response. While the drive is steady they
+        cannot change, so they are kept under :meth:`DriveLink.outputs_key` (the per-cycle cost of a steady
+        station); tests/cards/test_fast_path.py checks the kept values against fresh ones."""
+        link = self.drive
+        key = link.outputs_key(sel_mon) if self.keep_outputs else None
+        if key is not None and key == self._out_key:
+            return self._out
+        out = (link.output_freq_raw(), link.output_current_raw(), self._mon(sel_mon & 0xF), self._mon(sel_mon >> 4))
+        self._out_key, self._out = key, out
+        return out

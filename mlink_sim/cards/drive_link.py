@@ -54,7 +54,7 @@ def fault_by_name(name: str) -> Fault | None:
 class DriveLink:
     """A drive of *family* ("a1000" / "v7") driven by one card."""
 
-    __slots__ = ("family", "fam", "drive", "_restored", "_sel_mon", "_card_label")
+    __slots__ = ("family", "fam", "drive", "_restored", "_sel_mon", "_card_label", "_mon_static")
 
     def __init__(self, family: str, card_label: str, values: Mapping[str, int], load: LoadSpec | None,
                  now: int, history: Iterable[str] = ()) -> None:
@@ -68,6 +68,11 @@ class DriveLink:
         self._restored: list[Fault] = [f for f in restored if f is not None][:HISTORY_DEPTH]
         self._card_label = card_label
         self._sel_mon = SEL_MON_TABLES.get(card_label, ("",) * 16)
+        # SEL_MON codes whose value only the drive's state decides (Tables SI-T3 18 / SI-ET3 22 / SI-T/V7 5):
+        # not the fault history (U2-xx, U3-xx, U-09) nor a parameter (F6-23/F6-24).
+        self._mon_static = tuple(
+            name in ("", "ALARM", "WARNING") or (name.startswith("U1-") or name.startswith("U-")) and name != "U-09"
+            for name in self._sel_mon)
 
     # -- time and commands ------------------------------------------------------------------------
     def advance(self, now: int) -> None:
@@ -180,4 +185,13 @@ class DriveLink:
 
     def is_steady(self) -> bool:
         return self.drive.is_steady
+
+    def outputs_key(self, sel_mon: int) -> tuple[int, int] | None:
+        """A key under which the INV_CTL response's output frequency, current, MON1 and MON2 stay the same: set
+        while the drive is steady and both SEL_MON codes show drive state (None: compute them)."""
+        d = self.drive
+        static = self._mon_static
+        if d.is_steady and static[sel_mon & 0xF] and static[sel_mon >> 4 & 0xF]:
+            return d.steady_epoch, sel_mon
+        return None
 

@@ -212,8 +212,7 @@ class Ml2Station(Station):
                 self._watch_history()
         if sel_ref:
             self._sel_refs(sel_ref, ref1, ref2)
-        link = self.drive
-        return link.output_freq_raw(), link.output_current_raw(), self._mon(sel_mon & 0xF), self._mon(sel_mon >> 4)
+        return self._outputs(sel_mon)
 
     def _process_sub(self, main_code: int, sub: Any, phase: int, subcmd: bool, now: int) -> tuple[Any, int]:
         stype = type(sub)

@@ -244,7 +244,8 @@ class SiEt3(Station):
             self._st_word = ml3_invcmd_stat_bits(status)
         m1, m2 = sel_mon & 0xF, sel_mon >> 4
         stat = self._st_word | sel_mon_enabled(link, m1) << 24 | sel_mon_enabled(link, m2) << 25
-        return stat, link.output_freq_raw(), link.output_current_raw(), self._mon(m1), self._mon(m2)
+        ofreq, cur, mon1, mon2 = self._outputs(sel_mon)
+        return stat, ofreq, cur, mon1, mon2
 
     def _process_sub(self, main_code: int, sub: Any, phase: int, subcmd: bool, now: int) -> tuple[Any, Err]:
         stype = type(sub)

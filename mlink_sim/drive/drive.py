@@ -59,7 +59,7 @@ class Drive:
         "_m", "_q", "_dir", "_out", "_w", "_theta", "_T", "_I", "_P", "_fout", "_E", "_V",
         "_fault", "_fault_stop", "_history", "_latched", "_cond", "_dyn", "_mains", "_ope",
         "_stop_alarm", "_d104", "_ef_since", "_event_at", "_hold_acc", "_hold_dec",
-        "_tlimited", "_status", "_steady", "_run", "_mt", "_dt", "_A", "_D", "_Js", "_Je",
+        "_tlimited", "_status", "_steady", "steady_epoch", "_run", "_mt", "_dt", "_A", "_D", "_Js", "_Je",
         "_Jds", "_Jde", "_tmode", "_tval", "_ref_hz", "_remote", "_net_run", "_net_ref",
         # constants
         "_K", "_wph", "_Tr", "_I0", "_IT", "_Ir", "_R3", "_fb", "_J", "_lkind", "_Tl", "_B",
@@ -99,6 +99,9 @@ class Drive:
         self._skey: tuple[bool, ...] = ()
         self._slast: DriveStatus | None = None
         self._steady = False
+        #: Bumped whenever the drive becomes steady or stops being steady: while it is steady and this number
+        #: is unchanged, no output or monitor of the drive changes (only the oL1 thermal state moves).
+        self.steady_epoch = 0
         self.load = load
         self._apply_settings(settings)
         self._E, self._V = self._En, self._Vn
@@ -226,6 +229,7 @@ class Drive:
     def clear_fault_history(self) -> None:
         """Fault history trace clear (SI-T3 Table 16 bit E, SI-ET3 Table 20 bit 11)."""
         self._history = [self._fault] if self._fault is not None else []
+        self.steady_epoch += 1
 
     def _cause_present(self, f: Fault) -> bool:
         c, s = self._cmd, self.settings
@@ -265,6 +269,7 @@ class Drive:
         s, c = self.settings, self._cmd
         inp, mi = s.inputs, self._cmd.multi_inputs
         self._steady = False
+        self.steady_epoch += 1
         self._status = self._slast = None
         run_src = self._net_run
         fwd, rev = (c.forward, c.reverse) if run_src else (False, False)

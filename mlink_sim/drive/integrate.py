@@ -236,3 +236,4 @@ def substep(self: Drive, h: float) -> None:  # noqa: C901, PLR0912, PLR0915 - th
     if E1 == E and (w1 == w or -1e-9 * (1.0 + abs(w)) <= w1 - w <= 1e-9 * (1.0 + abs(w))):
         if not out or (m1 == m0 and q == 0.0 and self._dt == self._dir):
             self._steady = True
+            self.steady_epoch += 1

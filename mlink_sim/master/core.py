@@ -14,6 +14,7 @@ from typing import Any
 
 from ..wire import CmdAlm, CommAlm, DropReason, Frame, Kind, Link, Unknown, WireError, decode, encode
 from .codec import Codec, Reply, compatible
+from .fastpath import CyclicFrames
 from .plan import NetworkPlan, StationPlan
 from .types import (
     AlarmCleared,
@@ -66,10 +67,11 @@ class _Sent:
 class _Station:
     """Mutable per-station state of the core (the public face is :class:`StationView`)."""
 
-    def __init__(self, plan: StationPlan, index: int, period: int, spread: bool) -> None:
+    def __init__(self, plan: StationPlan, index: int, period: int, spread: bool, tcycle_ns: int) -> None:
         self.plan = plan
         self.address = plan.address
         self.codec = Codec(plan)
+        self.frames = CyclicFrames(plan, tcycle_ns, self.codec)
         self.period = period
         self.offset = index % period if spread else 0
         self.state = S.OFFLINE
@@ -126,13 +128,15 @@ class MasterCore:
         self.drops: Counter[Any] = Counter()
         self.events_lost = 0
         self.cycles = 0
+        #: Steady-state INV_CTL straight from and to bytes (:mod:`.fastpath`); False = general path only (tests).
+        self.fast_path = True
         self._now = 0
         self._cycle = 0
         self._stations: list[_Station] = []
         by_period: Counter[int] = Counter()
         for sp in plan.stations:
             period = sp.comm_cycles(plan.tcycle_ns)
-            self._stations.append(_Station(sp, by_period[period], period, plan.spread))
+            self._stations.append(_Station(sp, by_period[period], period, plan.spread, plan.tcycle_ns))
             by_period[period] += 1
         self._by_addr = {st.address: st for st in self._stations}
 
@@ -153,6 +157,25 @@ class MasterCore:
     def on_response(self, datagram: bytes, now: int) -> None:
         """Consume one response datagram received at *now*. Never raises on bad input (counted in ``drops``)."""
         self._now = now
+        if self.fast_path and len(datagram) > 3:
+            st = self._by_addr.get(datagram[3])
+            if st is not None:
+                sent = st.outstanding
+                if (sent is not None and sent.kind == "cyclic" and sent.sub_req is None and st.state in _UP
+                        and not (st.alarm or st.cmd_alm) and st.comm_alm < 8):
+                    r = st.frames.response(datagram, sent.cycle, st.comm_alm)
+                    if r is not None:
+                        # What the general path does for a clean answer to the cyclic INV_CTL (_observe, _advance).
+                        st.outstanding = None
+                        st.rtt = rtt = now - sent.at
+                        self._emit(Rtt(st.address, rtt))
+                        st.answered = sent.cycle
+                        st.silent = 0
+                        st.responses += 1
+                        st.last_rx = now
+                        st.rwdt, st.status, st.output_freq, st.output_current, st.mon1, st.mon2, st.warning = r
+                        st.fault = False
+                        return
         try:
             frame = decode(datagram, kind=Kind.RESPONSE)
         except WireError as exc:
@@ -348,11 +371,12 @@ class MasterCore:
         # over cycles the timer skipped); bits 0-3: echo of the slave's count, RWDT bits 0-3 (docs/master.md).
         st.wdt = wdt = ((((cycle - st.offset) // st.period) & 0xF) << 4) | (st.rwdt & 0x0F)
         c32 = cycle & _U32
-        frame = Frame(st.plan.link, Kind.COMMAND, st.address, c32, self.plan.tcycle_ns,
-                      codec.message(body, wdt, sub_body))
         st.outstanding = _Sent(c32, now, kind, code, body, req, sub_req)
         st.sent += 1
-        return encode(frame)
+        if kind == "cyclic" and sub_body is None and self.fast_path:
+            return st.frames.command(body, c32, wdt)
+        return encode(Frame(st.plan.link, Kind.COMMAND, st.address, c32, self.plan.tcycle_ns,
+                            codec.message(body, wdt, sub_body)))
 
     def _choose_main(self, st: _Station, cycle: int) -> tuple[str, Any, Request | None]:
         codec = st.codec

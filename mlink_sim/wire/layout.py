@@ -21,7 +21,7 @@ from typing import Any, Callable, Generic, TypeVar
 
 import construct as cs
 
-__all__ = ["Layout", "Slot", "Unknown", "fast_format"]
+__all__ = ["Layout", "Slot", "Unknown", "fast_format", "field_offset"]
 
 T = TypeVar("T")
 
@@ -56,6 +56,16 @@ def fast_format(declaration: cs.Struct, size: int) -> tuple[str, tuple[str, ...]
     if used < size:
         fmt.append(f"{size - used}x")
     return "".join(fmt), tuple(names)
+
+
+def field_offset(declaration: cs.Struct, name: str) -> int:
+    """Byte offset of field *name* in a construct ``Struct`` (fixed-size little-endian fields only)."""
+    fmt = "<"
+    for sub in declaration.subcons:
+        if isinstance(sub, cs.Renamed) and sub.name == name:
+            return struct.calcsize(fmt)
+        fmt += _subcon_format(sub.subcon if isinstance(sub, cs.Renamed) else sub)
+    raise KeyError(f"no field {name!r} in the layout")
 
 
 @dataclasses.dataclass(frozen=True, slots=True)

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mlink_sim.cards.base import SLOW
-from mlink_sim.wire import encode, ml2, ml3
+from mlink_sim.wire import Kind, decode, encode, ml2, ml3
 
 from .helpers import MS, Master, station
 
@@ -72,3 +74,39 @@ def test_fast_path_taken() -> None:
     m.send(ml2.InvCtl(signals=1, speed_ref=3000))
     assert calls == [] and m.last is not None
     m.st.poll(m.now + 100 * MS)
+
+
+def _inv_ctl(ml3_link: bool, signals: int, speed: int, sel_mon: int) -> Any:
+    if ml3_link:
+        return ml3.InvCtl(signals, 0, speed, 0, 0, sel_mon, 0, 0)
+    return ml2.InvCtl(signals, speed, 0, 0, sel_mon, 0, 0)
+
+
+@pytest.mark.parametrize("card, size", [("si-t3", 17), ("si-t-v7", 17), ("si-et3", 32)])
+def test_kept_outputs_equal_fresh_ones_table18_table22(card: str, size: int) -> None:
+    """While the drive is steady the INV_CTL outputs are kept (Station._outputs); they must equal values computed
+    every cycle through ramps, steady running, every SEL_MON code (SI-T3 Table 18, SI-ET3 Table 22, SI-T/V7
+    Table 5), an external fault (EF0) and its reset, and a fault-history clear."""
+    kept = Master(station(card, params=PARAMS[card], frame_size=size))
+    fresh = Master(station(card, params=PARAMS[card], frame_size=size))
+    fresh.st.keep_outputs = False
+    for m in (kept, fresh):
+        m.bring_up()
+    ml3_link = kept.ml3
+    fwd, ef0, reset, hist_clear = (1, 0x400, 0x200, 0x800) if ml3_link else (1, 0x100, 0x200, 0x4000)
+    plan = [(fwd, 1000, 0x21, 3000)]                                    # accelerate (C1-01), run steady
+    plan += [(fwd, 1000, code | code << 4, 50) for code in range(16)]   # every SEL_MON code while steady
+    plan += [(fwd, 6000, 0x21, 1500), (fwd | ef0, 6000, 0x21, 300), (0, 0, 0x21, 300), (reset, 0, 0x21, 5),
+             (0, 0, 0x21, 300), (hist_clear, 0, 0x21, 5), (0, 0, 0x98, 200)]
+    hits = 0
+    for signals, speed, sel_mon, cycles in plan:
+        body = _inv_ctl(ml3_link, signals, speed, sel_mon)
+        for _ in range(cycles):
+            for m in (kept, fresh):
+                m.tick()
+            raw = [m.st.receive(encode(m.command(body)), m.source, m.now) for m in (kept, fresh)]
+            assert raw[0] == raw[1] and raw[0] is not None
+            hits += kept.st._out_key is not None
+            for m in (kept, fresh):
+                m.slave_echo = decode(raw[0], kind=Kind.RESPONSE).message.rwdt & 0xF
+    assert hits > 2000  # the kept values were used
