@@ -48,6 +48,7 @@ _mono = time.monotonic_ns
 _SPIN_INIT_NS = {"call_at": 1_100_000, "timerfd": 60_000, "thread": 100_000}
 _SPIN_MARGIN_NS = 10_000          # added to the p99 estimate of the wake-up error
 _SPIN_MIN_NS = 10_000
+_SPIN_CAP_NS = 150_000            # default cap of the adaptive spin for timerfd/thread (see CycleTimer)
 _Q_UP_NS = 2_000                  # quantile estimator step when a wake-up error exceeds the estimate ...
 _Q_DOWN_NS = _Q_UP_NS // 99       # ... and when it does not: equilibrium at P(err > q) = 1 %
 _ERRORS_LOGGED_IN_FULL = 10       # then only when the error count is a power of two
@@ -112,7 +113,7 @@ class CycleTimer:
         self._loop = loop
         self._start_ns = start_ns
         # call_at's error is about a millisecond, so let its spin cover a whole period if need be.
-        default_max = period_ns if self._source == "call_at" else period_ns // 2
+        default_max = period_ns if self._source == "call_at" else min(period_ns // 2, _SPIN_CAP_NS)
         self._spin_max = min(period_ns, default_max if spin_max_ns is None else int(spin_max_ns))
         self._adaptive = bool(spin) and spin_ns is None
         if not spin:

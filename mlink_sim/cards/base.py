@@ -48,8 +48,8 @@ _IDLE = DriveCommand()
 #: :meth:`Station._fast_receive` declines: take the general path.
 SLOW = object()
 _MAX_LOGGED_SOURCES = 32
-#: Incidents that can repeat every cycle on an overloaded machine (reception failures, WDT errors, phase 3 <-> 2)
-#: are logged the first _LOG_FIRST times, then at the 2**k-th occurrence only; the counters keep every one. An
+#: Incidents that can repeat every cycle on an overloaded machine (reception failures, WDT errors, phase changes,
+#: bUS errors and the reconnections after them) are logged the first _LOG_FIRST times, then at the 2**k-th occurrence only; the counters keep every one. An
 #: unbounded log line per lost cycle made an overloaded worker slower still (docs/performance.md).
 _LOG_FIRST = 8
 
@@ -373,7 +373,7 @@ class Station(abc.ABC):
         if self.phase > 1 and self._source is None:  # connection lost earlier: this master takes it again
             self._source = source
             self.reception.rebase(cycle, now)  # its cycle numbers say nothing about the old master's
-            self._log.info("connection_rebound", source=repr(source))
+            self._incident("connection_rebound", source=repr(source))
             self.watchdog.check(wdt, 1)
         elif self.phase > 1:  # failures found by poll() are already counted; the gap tells the rest
             seen = self.reception.on_command(cycle, now)
@@ -427,9 +427,9 @@ class Station(abc.ABC):
         limit = self._bus_limit()
         if before < limit <= self._bus_count:
             detected = self.drive.trip_bus(now)
-            self._log.warning("bus_error", alarms=self._bus_count, limit=limit, drive_fault=detected)
+            self._incident("bus_error", "warning", alarms=self._bus_count, limit=limit, drive_fault=detected)
             if self._source is not None:
-                self._log.warning("connection_lost", source=repr(self._source))
+                self._incident("connection_lost", "warning", source=repr(self._source))
                 self._source = None
 
     def _bus_limit(self) -> int:
@@ -502,12 +502,12 @@ class Station(abc.ABC):
         self._set_phase(3 if sync else 2)
         if not sync:
             self.watchdog.disarm()
-        self._log.info("connected", source=repr(source), tcycle_ns=tcycle_ns, com_tim=com_tim, sync=sync)
+        self._incident("connected", source=repr(source), tcycle_ns=tcycle_ns, com_tim=com_tim, sync=sync)
 
     def _disconnect(self, now: int) -> None:
         """DISCONNECT: "the data for the control command to the Drive is cleared to 0, and a fault reset
         command is carried out" (SI-T3 / SI-T/V7); back to phase 1 and the 2 ms default cycle."""
-        self._log.info("disconnected", source=repr(self._source))
+        self._incident("disconnected", source=repr(self._source))
         self._source = None
         self.reception.stop()
         self.tcycle_ns = self.comm_cycle_ns = DEFAULT_TCYCLE_NS
