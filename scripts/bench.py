@@ -2,7 +2,7 @@
 """Capacity sweep: stations × transmission cycle × generation, each against a bare uvloop UDP echo baseline.
 
 For every cell the sweep brings a network up exactly as ``mlink-sim up --workers W`` does (slave worker
-processes, the master in this process), measures for ``--duration`` after bring-up, then runs the baseline in the
+processes, the master in this process; W defaults to one per CPU but one, so the master keeps a CPU for itself), measures for ``--duration`` after bring-up, then runs the baseline in the
 same way: W echo processes (bare uvloop ``DatagramProtocol`` that sends every datagram back) and, in this
 process, a client that sends the same burst (one datagram of the same size per station) on the same cycle clock
 (``CycleTimer``) and times the answers. Figures per cell: missed-cycle rate, RTT p50/p99, cycle-start lateness
@@ -42,7 +42,7 @@ from mlink_sim.cli.logs import configure_logging  # noqa: E402
 from mlink_sim.config import format_ns, load_config, parse_duration_ns  # noqa: E402
 from mlink_sim.metrics import LatencyHistogram  # noqa: E402
 
-STATIONS = (1, 9, 15, 30, 62)
+STATIONS = (1, 8, 9, 15, 30, 62)  # the issue's sweep, plus 8 for the 250 µs × 8 stations target
 CYCLES = ("250us", "500us", "1ms", "2ms")
 LINKS = ("ML2", "ML3")
 HEADER = 12 + 2  # envelope + FCS (docs/wire-format.md)
@@ -266,8 +266,9 @@ def main() -> int:
     ap.add_argument("--cycles", default=",".join(CYCLES), help="comma-separated transmission cycles")
     ap.add_argument("--links", default=",".join(LINKS), help="ML2, ML3 or both")
     ap.add_argument("--duration", default="5s", help="measuring time per cell (and per baseline)")
-    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1,
-                    help="slave worker processes (and echo processes); default: one per CPU")
+    ap.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 1) - 1),
+                    help="slave worker processes (and echo processes); default: one per CPU but one, which is left "
+                         "to the master's clock")
     ap.add_argument("--json", type=Path, default=Path("bench.json"), help="write the cells here")
     ap.add_argument("--png", type=Path, default=Path("bench.png"), help="draw the chart here ('' = none)")
     ap.add_argument("--quick", action="store_true", help="1 and 9 stations at 1 ms and 2 ms, 2 s each")

@@ -79,9 +79,11 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
     checks: list[CheckResult] = []
     session: NetworkSession | None = None
     cpus = os.cpu_count() or 1
-    if endpoints is None and opts.workers is None and len(config.station) > 2 * cpus:
+    if endpoints is None and opts.workers is None and len(config.station) > max(2, cpus):
+        hint = max(1, cpus - 1)
         print(f"note: {len(config.station)} slave processes on {cpus} CPUs compete with the master for CPU time; "
-              f"--workers {cpus} hosts them in {cpus} processes (docs/performance.md)", file=sys.stderr)
+              f"--workers {hint} hosts them in {hint} process(es) and leaves a CPU to the master's clock "
+              "(docs/performance.md)", file=sys.stderr)
     try:
         session = await NetworkSession.open(
             config, opts.config_path, endpoints=endpoints, workers=opts.workers, state_dir=opts.state_dir,

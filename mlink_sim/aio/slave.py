@@ -24,13 +24,14 @@ import structlog
 
 from ..jsonable import to_jsonable
 from .state import atomic_write, eeprom_path
-from .udp import DatagramEndpoint, open_endpoint
+from .udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endpoint
 
 __all__ = ["HostedStation", "SlaveServer", "query_control"]
 
 log = structlog.get_logger("mlink_sim.slave")
 
 _POLL_INTERVAL_S = 0.001
+_KEEP_BEHIND = 2  # datagrams per source processed from one read; older ones are superseded (see _receiver)
 
 
 def _cpu_seconds() -> float:
@@ -45,7 +46,7 @@ class HostedStation:
     station: Any  #: a mlink_sim.cards Station
     host: str
     port: int
-    endpoint: DatagramEndpoint | None = None
+    endpoint: BatchEndpoint | None = None
     eeprom: Path | None = None
     responses: int = field(default=0)
 
@@ -82,7 +83,7 @@ class SlaveServer:
         loop = asyncio.get_running_loop()
         try:
             for hs in self.stations:
-                hs.endpoint = await open_endpoint(self._receiver(hs), hs.host, hs.port)
+                hs.endpoint = await open_batch_endpoint(self._receiver(hs), hs.host, hs.port)
                 hs.port = hs.endpoint.local_address[1]
             if self._control_addr is not None:
                 self._control = await open_endpoint(self._on_control, *self._control_addr)
@@ -132,18 +133,29 @@ class SlaveServer:
     # -- datagrams --------------------------------------------------------------------------------------------
 
     def _receiver(self, hs: HostedStation):  # noqa: ANN202 - closure for the hot path
+        """The batch handler of one station's socket. More than ``_KEEP_BEHIND`` datagrams from one source waiting
+        means the worker fell that many cycles behind: the oldest are counted as ``SUPERSEDED`` drops and only the
+        newest ``_KEEP_BEHIND`` are processed. On a bus their slots have passed; answering every one would queue
+        latency up (a 1 MiB receive buffer holds about a second of commands) and keep an overloaded worker behind
+        for good. A hiccup of a cycle or two is still answered in full (late, not lost)."""
         station = hs.station
         receive = station.receive
+        counters = station.counters
         monotonic_ns = time.monotonic_ns
 
-        def on_datagram(data: bytes, addr: Any) -> None:
-            response = receive(data, addr, monotonic_ns())
-            if response is not None:
-                hs.endpoint.sendto(response, addr)  # type: ignore[union-attr]
-                hs.responses += 1
-            self._collect_eeprom(hs)
+        def on_batch(batch: list[tuple[bytes, Any]]) -> None:
+            if len(batch) > _KEEP_BEHIND:
+                batch = _newest(batch, counters)
+            endpoint = hs.endpoint
+            for data, addr in batch:
+                response = receive(data, addr, monotonic_ns())
+                if response is not None and endpoint is not None:
+                    endpoint.sendto(response, addr)
+                    hs.responses += 1
+            if station.eeprom_pending:
+                self._collect_eeprom(hs)
 
-        return on_datagram
+        return on_batch
 
     def _on_tick(self) -> None:
         now = time.monotonic_ns()
@@ -213,6 +225,21 @@ class SlaveServer:
             payload = json.dumps({"ok": False, "error": "stats too large for one datagram"}).encode()
         assert self._control is not None
         self._control.sendto(payload, addr)
+
+
+def _newest(batch: list[tuple[bytes, Any]], counters: Any) -> list[tuple[bytes, Any]]:
+    """The newest ``_KEEP_BEHIND`` datagrams of each source, in arrival order; the rest counted SUPERSEDED."""
+    seen: dict[Any, int] = {}
+    keep: list[tuple[bytes, Any]] = []
+    for data, addr in reversed(batch):
+        n = seen.get(addr, 0)
+        if n < _KEEP_BEHIND:
+            keep.append((data, addr))
+            seen[addr] = n + 1
+        else:
+            counters.drop("SUPERSEDED")
+    keep.reverse()
+    return keep
 
 
 async def query_control(host: str, port: int, op: str = "stats", timeout: float = 1.0) -> dict[str, Any] | None:

@@ -9,7 +9,8 @@ from typing import Any
 
 import structlog
 
-__all__ = ["new_event_loop", "DatagramEndpoint", "open_endpoint", "loop_name", "resolve", "bind_address_for"]
+__all__ = ["new_event_loop", "DatagramEndpoint", "open_endpoint", "BatchEndpoint", "open_batch_endpoint", "loop_name",
+           "resolve", "bind_address_for"]
 
 log = structlog.get_logger("mlink_sim.aio.udp")
 
@@ -83,6 +84,78 @@ async def open_endpoint(
     sock.setblocking(False)
     _, protocol = await loop.create_datagram_endpoint(lambda: DatagramEndpoint(on_datagram), sock=sock)
     return protocol
+
+
+class BatchEndpoint:
+    """A non-blocking UDP socket watched with ``loop.add_reader``: each wake-up reads every datagram waiting (at most
+    *burst*) and hands them over at once, ``on_batch([(data, addr), …])``, so the receiver can see that it fell
+    behind (a slave keeps only the newest command per source, see :mod:`mlink_sim.aio.slave`).
+
+    ``sendto`` never raises: a full send buffer or an ICMP error reported on the socket is counted in
+    :attr:`errors`, like :class:`DatagramEndpoint`."""
+
+    def __init__(self, sock: socket.socket, on_batch: Callable[[list[tuple[bytes, Any]]], None], burst: int) -> None:
+        self._sock: socket.socket | None = sock
+        self._on_batch = on_batch
+        self._burst = burst
+        self.errors = 0
+        self._loop = asyncio.get_running_loop()
+        self._loop.add_reader(sock.fileno(), self._on_readable)
+
+    def _on_readable(self) -> None:
+        sock = self._sock
+        if sock is None:
+            return
+        recvfrom = sock.recvfrom
+        batch: list[tuple[bytes, Any]] = []
+        for _ in range(self._burst):
+            try:
+                batch.append(recvfrom(4096))
+            except BlockingIOError:
+                break
+            except OSError:  # e.g. ConnectionRefusedError after an ICMP port unreachable
+                self.errors += 1
+        if batch:
+            self._on_batch(batch)
+
+    def sendto(self, data: bytes, addr: Any) -> None:
+        sock = self._sock
+        if sock is not None:
+            try:
+                sock.sendto(data, addr)
+            except OSError:
+                self.errors += 1
+
+    @property
+    def local_address(self) -> tuple[str, int]:
+        assert self._sock is not None
+        sockname = self._sock.getsockname()
+        return sockname[0], sockname[1]
+
+    def close(self) -> None:
+        sock, self._sock = self._sock, None
+        if sock is None:
+            return
+        try:
+            self._loop.remove_reader(sock.fileno())
+        except (RuntimeError, ValueError, OSError):
+            pass  # loop already closed
+        sock.close()
+
+
+async def open_batch_endpoint(on_batch: Callable[[list[tuple[bytes, Any]]], None], host: str = "127.0.0.1",
+                              port: int = 0, *, rcvbuf: int = 1 << 20, burst: int = 64) -> BatchEndpoint:
+    """Bind a UDP socket on *host*:*port* (0 = any free port) and read it in batches (:class:`BatchEndpoint`)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_DGRAM)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+        sock.bind((host, port))
+        sock.setblocking(False)
+        return BatchEndpoint(sock, on_batch, burst)
+    except BaseException:
+        sock.close()
+        raise
 
 
 async def resolve(host: str, port: int) -> tuple[str, int]:

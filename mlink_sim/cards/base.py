@@ -289,6 +289,11 @@ class Station(abc.ABC):
             due = tick if due is None else min(due, tick)
         return due
 
+    @property
+    def eeprom_pending(self) -> bool:
+        """An EEPROM image waits for :meth:`take_eeprom`."""
+        return self._eeprom_dirty
+
     def take_eeprom(self) -> bytes | None:
         """The EEPROM image to persist, when CONFIG_MOD = 1 or a fault-history change asks for it."""
         if not self._eeprom_dirty:

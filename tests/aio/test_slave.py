@@ -1,0 +1,72 @@
+"""The slave server's I/O (mlink_sim.aio.slave): a backlog of commands from one source is cut to the newest two
+(the older ones counted SUPERSEDED), each source of a batch is answered, and a single command is answered at once."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+
+from mlink_sim.aio.slave import HostedStation, SlaveServer
+from mlink_sim.cards import create_card, settings_for
+from mlink_sim.wire import Frame, Kind, Link, decode, encode, ml2
+
+TCYCLE = 1_000_000
+
+
+def _nop(cycle: int) -> bytes:
+    """NOP (SI-T3 Table 6: allowed in phase 1) to station 21H."""
+    return encode(Frame(Link.ML2, Kind.COMMAND, 0x21, cycle, TCYCLE, ml2.M2Command(ml2.Nop(), 0)))
+
+
+async def _server() -> tuple[SlaveServer, tuple[str, int]]:
+    card = create_card("si-t3", settings=settings_for("si-t3", 0x21, 17, []), now=0)
+    server = SlaveServer([HostedStation(card, "127.0.0.1", 0)], control=None)
+    await server.start()
+    return server, ("127.0.0.1", server.stations[0].port)
+
+
+def _client() -> socket.socket:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    s.setblocking(False)
+    return s
+
+
+async def _answers(sock: socket.socket, settle: float = 0.2) -> list[int]:
+    await asyncio.sleep(settle)
+    cycles = []
+    while True:
+        try:
+            data = sock.recv(4096)
+        except BlockingIOError:
+            return cycles
+        cycles.append(decode(data, kind=Kind.RESPONSE).cycle)
+
+
+async def test_backlog_from_one_source_keeps_the_newest_two() -> None:
+    server, addr = await _server()
+    master, other = _client(), _client()
+    try:
+        for cycle in range(1, 6):  # all queued before the loop runs: one batch
+            master.sendto(_nop(cycle), addr)
+        other.sendto(_nop(100), addr)
+        assert await _answers(master) == [4, 5]
+        assert await _answers(other, settle=0.0) == [100]
+        counters = server.stations[0].station.counters.as_dict()
+        assert counters["dropped_by_reason"].get("SUPERSEDED") == 3
+    finally:
+        master.close()
+        other.close()
+        await server.close()
+
+
+async def test_single_command_is_answered() -> None:
+    server, addr = await _server()
+    master = _client()
+    try:
+        master.sendto(_nop(7), addr)
+        assert await _answers(master) == [7]
+        assert "SUPERSEDED" not in server.stations[0].station.counters.as_dict()["dropped_by_reason"]
+    finally:
+        master.close()
+        await server.close()
