@@ -130,7 +130,7 @@ async def _slave_cpu(session: NetworkSession) -> dict[str, float]:
     out: dict[str, float] = {}
     for w in session.worker_list:
         if w.alive and w.control_port:
-            reply = await query_control("127.0.0.1", w.control_port, "stats", timeout=1.0)
+            reply = await query_control("127.0.0.1", w.control_port, "cpu", timeout=1.0)
             if reply:
                 out[str(w.spec.index)] = float(reply.get("cpu_s", 0.0))
     return out
@@ -224,7 +224,8 @@ def table(cells: list[Cell]) -> str:
         rows.append(
             f"{c.link:<4}{c.stations:>4}{format_ns(c.cycle_ns):>8} {c.missed_rate * 100:>7.2f}% "
             f"{format_ns(c.rtt_p50_ns):>9} {format_ns(c.rtt_p99_ns):>9} {format_ns(c.lateness_p99_ns):>9} "
-            f"{c.cpu_master:>5.0f}/{c.cpu_slaves:<5.0f} {format_ns(c.echo_p99_ns):>9} {c.ratio_p99:>6.2f}"
+            f"{c.cpu_master:>5.0f}/{c.cpu_slaves:<5.0f} {format_ns(c.echo_p99_ns) if c.echo_p99_ns else '—':>9} "
+            f"{c.ratio_p99:>6.2f}"
             + (f"  ({'; '.join(c.notes)})" if c.notes else ""))
     return "\n".join(rows)
 

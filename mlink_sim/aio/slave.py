@@ -1,12 +1,13 @@
 """The slave side over UDP: one datagram endpoint per hosted station, feeding the sans-I/O card cores.
 
-The server only moves bytes and keeps time: ``datagram -> station.receive(data, addr, now) -> sendto``; a 1 ms
-housekeeping tick calls ``station.poll(now)`` for stations whose deadline has come (silence detection, drive);
+The server only moves bytes and keeps time: ``datagram -> station.receive(data, addr, now) -> sendto``. Each
+station's socket is read in batches; a backlog beyond two commands per source is superseded (see ``_receiver``).
+A 1 ms housekeeping tick calls ``station.poll(now)`` for stations whose deadline has come (silence detection, drive);
 EEPROM images the cards hand over (``take_eeprom``) are written atomically in a worker thread.
 
 A small JSON-over-UDP *control* endpoint answers ``{"op": "stats"}`` with every station's snapshot, counters and
-the process CPU time, so the supervisor (``mlink-sim up``) can collect slave-side figures without sharing
-anything but the network.
+the process CPU time (``{"op": "cpu"}``: the CPU time only, small at any station count), so the supervisor
+(``mlink-sim up``) can collect slave-side figures without sharing anything but the network.
 """
 
 from __future__ import annotations
@@ -195,18 +196,18 @@ class SlaveServer:
 
     # -- control ----------------------------------------------------------------------------------------------
 
-    def stats(self) -> dict[str, Any]:
-        """Snapshot of every hosted station plus this process's CPU use."""
+    def cpu(self) -> dict[str, Any]:
+        """This process's CPU use since start (``{"op": "cpu"}``: small at any station count)."""
         wall = time.monotonic() - self._started_wall
         cpu = _cpu_seconds() - self._started_cpu
-        return {
-            "ok": True,
-            "pid": os.getpid(),
-            "wall_s": wall,
-            "cpu_s": cpu,
-            "cpu_pct": 100.0 * cpu / wall if wall > 0 else 0.0,
-            "stations": {f"{hs.station.address:#04x}": to_jsonable(hs.station.snapshot()) for hs in self.stations},
-        }
+        return {"ok": True, "pid": os.getpid(), "wall_s": wall, "cpu_s": cpu,
+                "cpu_pct": 100.0 * cpu / wall if wall > 0 else 0.0}
+
+    def stats(self) -> dict[str, Any]:
+        """Snapshot of every hosted station plus this process's CPU use."""
+        return {**self.cpu(),
+                "stations": {f"{hs.station.address:#04x}": to_jsonable(hs.station.snapshot())
+                             for hs in self.stations}}
 
     def _on_control(self, data: bytes, addr: Any) -> None:
         try:
@@ -216,10 +217,12 @@ class SlaveServer:
             op = None
         if op == "stats":
             reply: dict[str, Any] = self.stats()
+        elif op == "cpu":
+            reply = self.cpu()
         elif op == "ping":
             reply = {"ok": True, "pid": os.getpid()}
         else:
-            reply = {"ok": False, "error": "expected a JSON object with op = 'stats' or 'ping'"}
+            reply = {"ok": False, "error": "expected a JSON object with op = 'stats', 'cpu' or 'ping'"}
         payload = json.dumps(reply, separators=(",", ":")).encode()
         if len(payload) > 60_000:
             payload = json.dumps({"ok": False, "error": "stats too large for one datagram"}).encode()

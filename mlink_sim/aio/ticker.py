@@ -48,7 +48,6 @@ _mono = time.monotonic_ns
 _SPIN_INIT_NS = {"call_at": 1_100_000, "timerfd": 60_000, "thread": 100_000}
 _SPIN_MARGIN_NS = 10_000          # added to the p99 estimate of the wake-up error
 _SPIN_MIN_NS = 10_000
-_SPIN_CAP_NS = 150_000            # default cap of the adaptive spin for timerfd/thread (see CycleTimer)
 _Q_UP_NS = 2_000                  # quantile estimator step when a wake-up error exceeds the estimate ...
 _Q_DOWN_NS = _Q_UP_NS // 99       # ... and when it does not: equilibrium at P(err > q) = 1 %
 _ERRORS_LOGGED_IN_FULL = 10       # then only when the error count is a power of two
@@ -90,9 +89,10 @@ class CycleTimer:
 
     ``strategy``: one of :data:`STRATEGIES` or ``"auto"`` (see the module docstring). ``spin_ns``: fixed busy-spin
     budget for a ``"+spin"`` strategy (``None`` = adaptive, ``0`` = none). ``spin_max_ns``: cap of the adaptive
-    spin (default: one period for ``call_at+spin``, half a period otherwise). ``loop``: defaults to the running
-    loop at :meth:`start`. ``idle``: called over and over while spinning, so the spin does useful work (the master
-    reads the responses that arrive meanwhile); it must be short and must not raise.
+    spin (default: one period for ``call_at+spin``, half a period otherwise).
+    ``loop``: defaults to the running loop at :meth:`start`. ``idle``: called over and over while spinning, so the
+    spin does useful work (the master reads the responses that arrive meanwhile); it must be short and must not
+    raise.
     """
 
     def __init__(self, period_ns: int, on_cycle: OnCycle, *, loop: asyncio.AbstractEventLoop | None = None,
@@ -113,7 +113,7 @@ class CycleTimer:
         self._loop = loop
         self._start_ns = start_ns
         # call_at's error is about a millisecond, so let its spin cover a whole period if need be.
-        default_max = period_ns if self._source == "call_at" else min(period_ns // 2, _SPIN_CAP_NS)
+        default_max = period_ns if self._source == "call_at" else period_ns // 2
         self._spin_max = min(period_ns, default_max if spin_max_ns is None else int(spin_max_ns))
         self._adaptive = bool(spin) and spin_ns is None
         if not spin:
