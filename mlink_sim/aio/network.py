@@ -19,7 +19,7 @@ import structlog
 
 from ..config import Config, format_ns
 from ..metrics import write_report
-from .scenario import CheckResult, Scenario
+from .scenario import CheckResult, Scenario, speed_scales
 from .session import EndpointError, NetworkApi, NetworkSession, build_plans
 from .status import render_status
 
@@ -38,6 +38,7 @@ class RunOptions:
     assertions: Sequence[Any] = ()  #: parsed --assert expressions
     status: bool = True  #: live status on stdout
     bringup_timeout_s: float = 10.0
+    include_bringup: bool = False  #: False: the report's figures count from the end of bring-up
     workers: int | None = None  #: stations per worker process (up): None = one process per station
     state_dir: Path | None = None  #: EEPROM images of the slaves (up)
     run_dir: Path | None = None  #: worker logs (up); default a temporary directory
@@ -84,6 +85,7 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
         print(f"note: {len(config.station)} slave processes on {cpus} CPUs compete with the master for CPU time; "
               f"--workers {hint} hosts them in {hint} process(es) and leaves a CPU to the master's clock "
               "(docs/performance.md)", file=sys.stderr)
+    scales = speed_scales(config)  # now, not in the event loop once it keeps time
     try:
         session = await NetworkSession.open(
             config, opts.config_path, endpoints=endpoints, workers=opts.workers, state_dir=opts.state_dir,
@@ -100,9 +102,11 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
         not_up = session.not_up()
         if not stop.is_set():
             log.info("network_up", stations=len(config.station), not_up=len(not_up))
+            if not opts.include_bringup:
+                session.reset_metrics()  # the report is about the running network, not five processes starting
             # -- timeline + status -----------------------------------------------------------------------------
             t0 = loop.time()
-            scenario = Scenario(config, net)
+            scenario = Scenario(config, net, scales)
             length = opts.duration_ns if opts.duration_ns is not None else config.run_length_ns
             tasks = [loop.create_task(scenario.run(t0, _sleep_until))]
             if opts.status:

@@ -14,9 +14,12 @@ from typing import Any, Protocol
 import structlog
 
 from ..config import CARD_FAMILY, Config, StationConfig, TimelineStep
+from ..drive import DriveSettings, Family
+from ..drive.monitors import hz_to_ref, ref_to_hz
+from ..params import FAMILIES
 from ..wire import InvCmdStat, Link, M2Status
 
-__all__ = ["SpeedScale", "CheckResult", "NetworkHandle", "Scenario", "speed_scale"]
+__all__ = ["SpeedScale", "CheckResult", "NetworkHandle", "Scenario", "speed_scale", "speed_scales"]
 
 log = structlog.get_logger("mlink_sim.scenario")
 
@@ -28,20 +31,14 @@ class SpeedScale:
         self._settings = settings
 
     def to_raw(self, hz: float) -> int:
-        from ..drive.monitors import hz_to_ref
-
         return int(hz_to_ref(self._settings, hz))
 
     def to_hz(self, raw: int) -> float:
-        from ..drive.monitors import ref_to_hz
-
         return float(ref_to_hz(self._settings, raw))
 
 
 def station_values(st: StationConfig) -> dict[str, int]:
     """The station's parameter set: family defaults with the config's assignments applied (raw values)."""
-    from ..params import FAMILIES
-
     table = FAMILIES[CARD_FAMILY[st.card]]
     values = table.defaults()
     for name, value in st.params.items():
@@ -51,10 +48,14 @@ def station_values(st: StationConfig) -> dict[str, int]:
 
 
 def speed_scale(st: StationConfig) -> SpeedScale:
-    from ..drive import DriveSettings, Family
-
     family = Family(CARD_FAMILY[st.card])
     return SpeedScale(DriveSettings.from_params(family, station_values(st)))
+
+
+def speed_scales(config: Config) -> dict[int, SpeedScale]:
+    """Every station's :class:`SpeedScale`. Build them before the cycle starts: deriving drive settings costs
+    about a millisecond per station, which is too long to spend in the event loop once it keeps time."""
+    return {st.address: speed_scale(st) for st in config.station}
 
 
 @dataclass(frozen=True)
@@ -95,12 +96,12 @@ def _agree(link: Link, status: int) -> bool:
 class Scenario:
     """Runs the timeline of *config* against a :class:`NetworkHandle`; collects :class:`CheckResult`s."""
 
-    def __init__(self, config: Config, net: NetworkHandle) -> None:
+    def __init__(self, config: Config, net: NetworkHandle, scales: dict[int, SpeedScale] | None = None) -> None:
         self.config = config
         self.net = net
         self.results: list[CheckResult] = []
         self.action_errors: list[str] = []
-        self.scales = {st.address: speed_scale(st) for st in config.station}
+        self.scales = scales if scales is not None else speed_scales(config)
         self.links = {st.address: st.link for st in config.station}
 
     def _targets(self, step: TimelineStep) -> list[int]:
@@ -138,8 +139,6 @@ class Scenario:
         elif step.do == "stop":
             net.set_control(address, forward=False, reverse=False)
         elif step.do == "set-param":
-            from ..params import FAMILIES
-
             st = self.config.station_by_address(address)
             param, raw = FAMILIES[CARD_FAMILY[st.card]].parse_assignment(f"{step.param}={step.value}")
             await net.prm_wr(address, param.register, param.encode(raw))

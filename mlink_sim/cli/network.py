@@ -62,6 +62,8 @@ _common = [
                  help="Check a bound at the end, e.g. 'rtt.p99 < 500us' (repeatable; docs/report.md)."),
     click.option("--status/--no-status", default=True, show_default=True, help="Live status lines on stdout."),
     click.option("--bringup-timeout", default="10s", show_default=True, help="How long bring-up may take."),
+    click.option("--include-bringup", is_flag=True,
+                 help="Count bring-up in the report and --assert figures (default: from the end of bring-up)."),
     click.option("--log-json", is_flag=True, help="Log JSON lines on stderr."),
     click.option("--log-level", default="warning", show_default=True,
                  type=click.Choice(["debug", "info", "warning", "error"])),
@@ -80,8 +82,8 @@ def _with_common(fn: Any) -> Any:
 @click.option("--state-dir", type=click.Path(file_okay=False), help="EEPROM images of the slaves (survive restarts).")
 @click.option("--run-dir", type=click.Path(file_okay=False), help="Where worker logs go (default: a temp dir).")
 @_with_common
-def up_cmd(config_path, workers, state_dir, run_dir, duration, report, asserts, status, bringup_timeout, log_json,
-           log_level) -> None:  # noqa: ANN001
+def up_cmd(config_path, workers, state_dir, run_dir, duration, report, asserts, status, bringup_timeout,
+           include_bringup, log_json, log_level) -> None:  # noqa: ANN001
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held."""
     configure_logging(json=log_json, level=log_level)
     config = _load(config_path)
@@ -91,6 +93,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, duration, report, asserts, 
         report_path=Path(report) if report else None,
         assertions=_assertions(asserts),
         status=status,
+        include_bringup=include_bringup,
         bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
         workers=workers,
         state_dir=Path(state_dir) if state_dir else None,
@@ -110,8 +113,8 @@ def up_cmd(config_path, workers, state_dir, run_dir, duration, report, asserts, 
 @click.option("--endpoint", "endpoints", multiple=True, metavar="ADDR=HOST:PORT",
               help="Where station ADDR listens (overrides the config's endpoint); repeatable.")
 @_with_common
-def master_cmd(config_path, endpoints, duration, report, asserts, status, bringup_timeout, log_json,
-               log_level) -> None:  # noqa: ANN001
+def master_cmd(config_path, endpoints, duration, report, asserts, status, bringup_timeout, include_bringup,
+               log_json, log_level) -> None:  # noqa: ANN001
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
     config = _load(config_path)
@@ -134,6 +137,7 @@ def master_cmd(config_path, endpoints, duration, report, asserts, status, bringu
         report_path=Path(report) if report else None,
         assertions=_assertions(asserts),
         status=status,
+        include_bringup=include_bringup,
         bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
     )
     try:

@@ -14,6 +14,7 @@ from typing import Any
 import click
 import structlog
 
+from ..aio.heap import settle_heap
 from ..aio.slave import HostedStation, SlaveServer
 from ..aio.state import eeprom_path, read_state
 from ..aio.udp import loop_name, new_event_loop
@@ -105,6 +106,7 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool) -> None:
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
     await server.start()
+    settle_heap()  # before the first command arrives: no full collection of the start-up heap mid-cycle
     info = server.ready_info()
     if ready_json:
         print(json.dumps(info), flush=True)

@@ -29,7 +29,7 @@ from typing import Any
 
 import structlog
 
-from ..aio.scenario import Scenario
+from ..aio.scenario import Scenario, speed_scales
 from ..aio.session import NetworkSession
 from ..aio.udp import new_event_loop
 from ..config import ConfigError, load_config
@@ -59,7 +59,7 @@ def encode_error(exc: BaseException) -> dict[str, Any]:
 class Host:
     """Serves one :class:`NetworkSession` to one test process."""
 
-    def __init__(self, session: NetworkSession, *, timeline: bool) -> None:
+    def __init__(self, session: NetworkSession, *, timeline: bool, scales: dict[int, Any] | None = None) -> None:
         self.session = session
         self.stop = asyncio.Event()
         self.final: dict[str, Any] | None = None
@@ -68,7 +68,7 @@ class Host:
         if timeline:
             loop = asyncio.get_running_loop()
             assert session.net is not None
-            self.scenario = Scenario(session.config, session.net)
+            self.scenario = Scenario(session.config, session.net, scales)
 
             async def sleep_until(when: float) -> None:
                 await asyncio.sleep(max(0.0, when - loop.time()))
@@ -151,13 +151,14 @@ async def serve(args: argparse.Namespace) -> int:
     interrupted = asyncio.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, interrupted.set)
+    scales = speed_scales(config) if args.timeline else None  # before the clock starts (aio/scenario.py)
     session = await NetworkSession.open(config, Path(args.config), workers=args.workers,
                                         state_dir=args.state_dir, run_dir=args.run_dir)
     try:
         not_up = await session.bring_up(args.bringup_timeout)
         if args.reset:
             session.reset_metrics()
-        host = Host(session, timeline=args.timeline)
+        host = Host(session, timeline=args.timeline, scales=scales)
         server = await asyncio.start_server(host.handle, "127.0.0.1", 0)
         port = server.sockets[0].getsockname()[1]
         print(json.dumps({"event": "ready", "port": port, "not_up": not_up, "problems": session.problems}),

@@ -95,12 +95,17 @@ def test_up_runs_the_timeline_and_writes_a_valid_report(config: Path, tmp_path: 
     assert doc["rtt"]["count"] > 100
     assert {c["ok"] for c in doc["checks"]} == {True} and len(doc["checks"]) == 4
     assert doc["station"]["0x21"]["answered"] > 0 and doc["station"]["0x23"]["answered"] > 0
+    assert doc["meta"]["measured_from"] == "bring-up done"  # figures count from the end of bring-up by default
 
 
-def test_up_assertions_fail_with_the_bound_and_the_measured_value(config: Path) -> None:
-    r = run_cli("up", str(config), "--no-status", "--duration", "1s", "--assert", "rtt.p99 < 1ns", timeout=60)
+def test_up_assertions_fail_with_the_bound_and_the_measured_value(config: Path, tmp_path: Path) -> None:
+    report = tmp_path / "report.json"
+    r = run_cli("up", str(config), "--no-status", "--duration", "1s", "--assert", "rtt.p99 < 1ns",
+                "--include-bringup", "--report", str(report), timeout=60)
     assert r.returncode == 1
     assert "rtt.p99 < 1ns failed: measured" in r.stdout
+    doc = json.loads(report.read_text())
+    assert doc["meta"]["measured_from"] == "start" and doc["meta"]["duration_s"] >= 1.0
     bad = run_cli("up", str(config), "--assert", "rtt.p99 <")
     assert bad.returncode == 2 and "--assert" in bad.stderr
 
