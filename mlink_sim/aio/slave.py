@@ -1,7 +1,7 @@
 """The slave side over UDP: one datagram endpoint per hosted station, feeding the sans-I/O card cores.
 
 The server only moves bytes and keeps time: ``datagram -> station.receive(data, addr, now) -> sendto``. Each
-station's socket is read in batches; a backlog beyond two commands per source is superseded (see ``_receiver``).
+station's socket is read in batches; a backlog beyond eight commands per source is superseded (``_receiver``).
 A 1 ms housekeeping tick calls ``station.poll(now)`` for stations whose deadline has come (silence detection, drive);
 EEPROM images the cards hand over (``take_eeprom``) are written atomically in a worker thread.
 
@@ -32,7 +32,7 @@ __all__ = ["HostedStation", "SlaveServer", "query_control"]
 log = structlog.get_logger("mlink_sim.slave")
 
 _POLL_INTERVAL_S = 0.001
-_KEEP_BEHIND = 2  # datagrams per source processed from one read; older ones are superseded (see _receiver)
+_KEEP_BEHIND = 8  # datagrams per source processed from one read; older ones are superseded (see _receiver)
 
 
 def _cpu_seconds() -> float:
@@ -138,7 +138,9 @@ class SlaveServer:
         means the worker fell that many cycles behind: the oldest are counted as ``SUPERSEDED`` drops and only the
         newest ``_KEEP_BEHIND`` are processed. On a bus their slots have passed; answering every one would queue
         latency up (a 1 MiB receive buffer holds about a second of commands) and keep an overloaded worker behind
-        for good. A hiccup of a cycle or two is still answered in full (late, not lost)."""
+        for good. A hiccup of up to ``_KEEP_BEHIND`` cycles is still answered in full (late, not lost): with 2,
+        a 3-cycle hiccup of a worker on a busy machine became lost commands, reception failures and a bUS trip
+        in the quickstart (3 of 6 runs failed; with 8, 0 of 6)."""
         station = hs.station
         receive = station.receive
         counters = station.counters

@@ -1,4 +1,4 @@
-"""The slave server's I/O (mlink_sim.aio.slave): a backlog of commands from one source is cut to the newest two
+"""The slave server's I/O (mlink_sim.aio.slave): a backlog of commands from one source is cut to the newest eight
 (the older ones counted SUPERSEDED), each source of a batch is answered, and a single command is answered at once."""
 
 from __future__ import annotations
@@ -43,29 +43,30 @@ async def _answers(sock: socket.socket, settle: float = 0.2) -> list[int]:
         cycles.append(decode(data, kind=Kind.RESPONSE).cycle)
 
 
-async def test_backlog_from_one_source_keeps_the_newest_two() -> None:
+async def test_backlog_from_one_source_keeps_the_newest_eight() -> None:
     server, addr = await _server()
     master, other = _client(), _client()
     try:
-        for cycle in range(1, 6):  # all queued before the loop runs: one batch
+        for cycle in range(1, 13):  # all queued before the loop runs: one batch
             master.sendto(_nop(cycle), addr)
         other.sendto(_nop(100), addr)
-        assert await _answers(master) == [4, 5]
+        assert await _answers(master) == list(range(5, 13))
         assert await _answers(other, settle=0.0) == [100]
         counters = server.stations[0].station.counters.as_dict()
-        assert counters["dropped_by_reason"].get("SUPERSEDED") == 3
+        assert counters["dropped_by_reason"].get("SUPERSEDED") == 4
     finally:
         master.close()
         other.close()
         await server.close()
 
 
-async def test_single_command_is_answered() -> None:
+async def test_a_short_backlog_is_answered_in_full() -> None:
     server, addr = await _server()
     master = _client()
     try:
-        master.sendto(_nop(7), addr)
-        assert await _answers(master) == [7]
+        for cycle in range(1, 4):  # a 3-cycle hiccup: late, not lost
+            master.sendto(_nop(cycle), addr)
+        assert await _answers(master) == [1, 2, 3]
         assert "SUPERSEDED" not in server.stations[0].station.counters.as_dict()["dropped_by_reason"]
     finally:
         master.close()
