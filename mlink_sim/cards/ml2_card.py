@@ -11,15 +11,14 @@ INV_CTL main command and an INV_I/O sub-command conflict, the sub-command is giv
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Callable, Hashable, Mapping
 from typing import Any, ClassVar
 
 from mlink_sim.wire import (
-    MAGIC, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, Unknown, crc16_x25, encode, ml2,
+    MAGIC, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, Unknown, encode, ml2,
 )
-from mlink_sim.wire.frame import ENVELOPE
-from mlink_sim.wire.layout import fast_format
+from mlink_sim.wire.frame import HEADER, fcs_ok, with_fcs
+from mlink_sim.wire.layout import fast_struct
 
 from .alarms import Ml2Alarms, ml2_failure_code
 from .base import SLOW, Station
@@ -38,17 +37,11 @@ _SUB_CODE = {cls: layout.code for cls, layout in ml2.COMMAND_SUB.by_class.items(
 _ALLOWED, _IGNORED = Admit.ALLOWED, Admit.IGNORED
 
 
-def _fmt(declaration: Any, size: int) -> struct.Struct:
-    return struct.Struct(fast_format(declaration, size)[0])
-
-
 # The fast path's formats, derived from the wire declarations (so they cannot drift from them).
-_HEADER = _fmt(ENVELOPE, 12)
-_FCS = struct.Struct("<H")
-_INV_CTL = _fmt(ml2.COMMAND_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.COMMAND_MAIN.size)
-_INV_CTL_R = _fmt(ml2.RESPONSE_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.RESPONSE_MAIN.size)
-_RF17 = _fmt(ml2.RESPONSE_FRAME_17, 17)
-_RF32 = _fmt(ml2.RESPONSE_FRAME_32, 32)
+_INV_CTL = fast_struct(ml2.COMMAND_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.COMMAND_MAIN.size)
+_INV_CTL_R = fast_struct(ml2.RESPONSE_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.RESPONSE_MAIN.size)
+_RF17 = fast_struct(ml2.RESPONSE_FRAME_17, 17)
+_RF32 = fast_struct(ml2.RESPONSE_FRAME_32, 32)
 _CMDRDY = int(M2Status.CMDRDY)
 _SUBRDY = int(M2SubStatus.SUBCMDRDY)
 _SUBWARN = int(M2SubStatus.SUBCMDRDY | M2SubStatus.SUBWARNG)
@@ -174,10 +167,10 @@ class Ml2Station(Station):
         path (tests/cards/test_fast_path.py)."""
         if len(dg) != self._fast_len:
             return SLOW
-        magic, link, kind, stn, cycle, tcycle = _HEADER.unpack_from(dg)
+        magic, link, kind, stn, cycle, tcycle = HEADER.unpack_from(dg)
         if (magic != MAGIC or link != self.link or kind != 1 or stn != self.address or dg[12] != M2Cmd.INV_CTL
                 or (self.data_size == 32 and dg[28] != 0)
-                or crc16_x25(dg[:-2]) != dg[-2] | dg[-1] << 8):
+                or not fcs_ok(dg)):
             return SLOW
         if not self._accept(cycle, tcycle, dg[27], M2Cmd.INV_CTL, source, now):
             return None
@@ -190,9 +183,8 @@ class Ml2Station(Station):
         else:
             data = _RF17.pack(M2Cmd.INV_CTL, alarm, word, main, self.watchdog.rwdt())
         self.alarms.reported()
-        out = _HEADER.pack(MAGIC, link, 2, stn, cycle, tcycle) + data
         self._sent(now)
-        return out + _FCS.pack(crc16_x25(out))
+        return with_fcs(HEADER.pack(MAGIC, link, 2, stn, cycle, tcycle) + data)
 
     def _inv_ctl(self, sig: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,
                  now: int) -> tuple[int, int, int, int]:

@@ -17,15 +17,14 @@
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Callable, Hashable, Mapping
 from typing import Any, ClassVar
 
 from mlink_sim.wire import (
-    MAGIC, PROFILE_TYPE_INVERTER, CommAlm, Frame, Kind, Link, M3Cmd, Unknown, crc16_x25, encode, ml3,
+    MAGIC, PROFILE_TYPE_INVERTER, CommAlm, Frame, Kind, Link, M3Cmd, Unknown, encode, ml3,
 )
-from mlink_sim.wire.frame import ENVELOPE
-from mlink_sim.wire.layout import fast_format
+from mlink_sim.wire.frame import HEADER, fcs_ok, with_fcs
+from mlink_sim.wire.layout import fast_struct
 
 from .alarms import Ml3Alarms, ml3_failure_code
 from .base import SLOW, Station
@@ -46,17 +45,11 @@ _SUB_CODE = {cls: layout.code for cls, layout in ml3.COMMAND_SUB.by_class.items(
 _ALLOWED, _IGNORED, _PHASE = Admit.ALLOWED, Admit.IGNORED, Admit.PHASE_ERROR
 
 
-def _fmt(declaration: Any, size: int) -> struct.Struct:
-    return struct.Struct(fast_format(declaration, size)[0])
-
-
 # The fast path's formats, derived from the wire declarations (so they cannot drift from them).
-_HEADER = _fmt(ENVELOPE, 12)
-_FCS = struct.Struct("<H")
-_INV_CTL = _fmt(ml3.COMMAND_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.COMMAND_MAIN.size)
-_INV_CTL_R = _fmt(ml3.RESPONSE_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.RESPONSE_MAIN.size)
-_RF32 = _fmt(ml3.RESPONSE_FRAME_32, 32)
-_RF64 = _fmt(ml3.RESPONSE_FRAME_64, 64)
+_INV_CTL = fast_struct(ml3.COMMAND_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.COMMAND_MAIN.size)
+_INV_CTL_R = fast_struct(ml3.RESPONSE_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.RESPONSE_MAIN.size)
+_RF32 = fast_struct(ml3.RESPONSE_FRAME_32, 32)
+_RF64 = fast_struct(ml3.RESPONSE_FRAME_64, 64)
 _US = 1_000
 
 #: ID_CODE 18H = 03H granularity within 16H (250 µs) … 17H (8 ms): 250, 500, 750 µs and 1–8 ms in 0.5 ms steps.
@@ -191,10 +184,10 @@ class SiEt3(Station):
         derived from the wire declarations; identical responses to the general path, tests/cards/test_fast_path.py)."""
         if len(dg) != self._fast_len:
             return SLOW
-        magic, link, kind, stn, cycle, tcycle = _HEADER.unpack_from(dg)
+        magic, link, kind, stn, cycle, tcycle = HEADER.unpack_from(dg)
         if (magic != MAGIC or link != 3 or kind != 1 or stn != self.address or dg[12] != M3Cmd.INV_CTL
                 or (self.data_size == 64 and dg[44] != 0)
-                or crc16_x25(dg[:-2]) != dg[-2] | dg[-1] << 8):
+                or not fcs_ok(dg)):
             return SLOW
         if not self._accept(cycle, tcycle, dg[13], M3Cmd.INV_CTL, source, now):
             return None
@@ -215,9 +208,8 @@ class SiEt3(Station):
             data = _RF64.pack(M3Cmd.INV_CTL, self.watchdog.rwdt(), cstat, main, 0, 0x04, _ZERO_SUB)
         else:
             data = _RF32.pack(M3Cmd.INV_CTL, self.watchdog.rwdt(), cstat, main)
-        out = _HEADER.pack(MAGIC, 3, 2, stn, cycle, tcycle) + data
         self._sent(now)
-        return out + _FCS.pack(crc16_x25(out))
+        return with_fcs(HEADER.pack(MAGIC, 3, 2, stn, cycle, tcycle) + data)
 
     def _inv_ctl(self, ctrl: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,
                  now: int) -> tuple[int, int, int, int, int]:

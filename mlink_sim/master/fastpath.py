@@ -30,18 +30,15 @@ from typing import Any
 
 from ..wire import Frame, Kind, Link, encode, ml2, ml3
 from ..wire.codes import M2Cmd, M3Cmd
-from ..wire.fcs import crc16_x25
-from ..wire.frame import ENVELOPE, FCS_SIZE, HEADER_SIZE, MAGIC
+from ..wire.frame import ENVELOPE, FCS_SIZE, HEADER, HEADER_SIZE, MAGIC, fcs_ok, with_fcs
 from ..wire.layout import fast_format, field_offset
 from .codec import Codec
 from .plan import StationPlan
 
 __all__ = ["CyclicFrames"]
 
-_HEADER = struct.Struct(fast_format(ENVELOPE, HEADER_SIZE)[0])
 _CYCLE_OFFSET = field_offset(ENVELOPE, "cycle")
 _CYCLE = struct.Struct("<I")
-_FCS = struct.Struct("<H")
 
 #: ML-II STATUS bits 0/1 (ALM, WARNG; SI-T3 Table 19) and the ALARM byte must be zero for the fast path.
 _ML2_TROUBLE = 0x0003
@@ -64,7 +61,7 @@ def _frames(link: Link, size: int) -> tuple[Any, Any, int, Any, int]:
 class CyclicFrames:
     """Encode the cyclic INV_CTL command and decode its clean response for one station (see module docstring)."""
 
-    __slots__ = ("link", "address", "size", "_codec", "_tcycle", "_wdt_at", "_body", "_template", "_frame", "_names",
+    __slots__ = ("link", "address", "size", "_codec", "_tcycle", "_wdt_at", "_body", "_template", "_frame",
                  "_main", "_main_at", "_code", "_status_at", "_alarm_at", "_rwdt_at", "_ml3", "_pick")
 
     def __init__(self, plan: StationPlan, tcycle_ns: int, codec: Codec) -> None:
@@ -80,8 +77,8 @@ class CyclicFrames:
         self._template = bytearray()
         fmt, names = fast_format(rsp, size)
         self._frame = struct.Struct(fmt)
-        self._names = names
-        self._main = main._fast
+        body_fmt, body_names = fast_format(main.struct.subcon, main.size)
+        self._main = struct.Struct(body_fmt)
         self._main_at = HEADER_SIZE + main_at
         self._code = int(code)
         self._ml3 = link is Link.ML3
@@ -89,7 +86,6 @@ class CyclicFrames:
         self._alarm_at = None if self._ml3 else names.index("alarm")
         self._rwdt_at = names.index("rwdt")
         # The station's STATUS as the general path keeps it: ML-III INVCMD_STAT of the body, ML-II the STATUS word.
-        body_names = main._names
         self._pick = tuple(body_names.index(n) for n in ("output_freq", "output_current", "mon1", "mon2"))
         self._pick += (body_names.index("invcmd_stat"),) if self._ml3 else ()
 
@@ -104,7 +100,7 @@ class CyclicFrames:
             self._body = body
         _CYCLE.pack_into(tpl, _CYCLE_OFFSET, cycle)
         tpl[self._wdt_at] = wdt
-        return bytes(tpl) + _FCS.pack(crc16_x25(tpl))
+        return with_fcs(tpl)
 
     # ------------------------------------------------------------------ response
     def response(self, dg: bytes, cycle: int, comm_alm: int) -> tuple[int, int, int, int, int, int, bool] | None:
@@ -115,7 +111,7 @@ class CyclicFrames:
         warning (COMM_ALM 1-7, latched until ALM_CLR) is still clean, any change goes the general way."""
         if len(dg) != self.size:
             return None
-        magic, link, kind, station, c, _ = _HEADER.unpack_from(dg)
+        magic, link, kind, station, c, _ = HEADER.unpack_from(dg)
         if (magic != MAGIC or link != self.link or kind != 2 or station != self.address or c != cycle
                 or dg[HEADER_SIZE] != self._code):
             return None
@@ -126,7 +122,7 @@ class CyclicFrames:
                 return None
         elif cstat & _ML2_TROUBLE or head[self._alarm_at]:
             return None
-        if crc16_x25(dg[:-FCS_SIZE]) != dg[-2] | dg[-1] << 8:
+        if not fcs_ok(dg):
             return None
         body = self._main.unpack_from(dg, self._main_at)
         pick = self._pick

@@ -28,7 +28,7 @@ from construct import Int8ul, Int16ul, Int32ul, Struct
 from . import ml2, ml3
 from .codes import Kind, Link
 from .fcs import crc16_x25
-from .layout import fast_format
+from .layout import fast_struct
 
 __all__ = [
     "MAGIC",
@@ -42,6 +42,9 @@ __all__ = [
     "encode",
     "decode",
     "datagram_size",
+    "HEADER",
+    "with_fcs",
+    "fcs_ok",
 ]
 
 MAGIC = 0x4D
@@ -57,8 +60,20 @@ ENVELOPE = Struct(
     "cycle" / Int32ul,
     "tcycle_ns" / Int32ul,
 )
-_HEADER = struct.Struct(fast_format(ENVELOPE, HEADER_SIZE)[0])
-_FCS = struct.Struct(fast_format(Struct("fcs" / Int16ul), FCS_SIZE)[0])
+#: ``struct`` codec of :data:`ENVELOPE`: ``HEADER.unpack_from(datagram)`` -> (magic, link, kind, station, cycle,
+#: tcycle_ns). The per-cycle fast paths (cards, master) use it with :func:`with_fcs` and :func:`fcs_ok`.
+HEADER = fast_struct(ENVELOPE, HEADER_SIZE)
+_FCS = fast_struct(Struct("fcs" / Int16ul), FCS_SIZE)
+
+
+def with_fcs(body: bytes | bytearray) -> bytes:
+    """*body* (envelope + data) with its FCS appended: the datagram."""
+    return bytes(body) + _FCS.pack(crc16_x25(body))
+
+
+def fcs_ok(datagram: bytes) -> bool:
+    """The datagram's trailing FCS matches its contents (callers check the length first)."""
+    return crc16_x25(datagram[:-FCS_SIZE]) == _FCS.unpack_from(datagram, len(datagram) - FCS_SIZE)[0]
 
 Message = Union[ml2.M2Command, ml2.M2Response, ml3.M3Command, ml3.M3Response]
 
@@ -130,11 +145,10 @@ def encode(frame: Frame) -> bytes:
     if frame.kind is not kind:
         raise ValueError(f"a {kind.name.lower()} message in a frame of kind {Kind(frame.kind).name.lower()}")
     try:
-        head = _HEADER.pack(MAGIC, frame.link, kind, frame.station, frame.cycle, frame.tcycle_ns)
+        head = HEADER.pack(MAGIC, frame.link, kind, frame.station, frame.cycle, frame.tcycle_ns)
     except struct.error as exc:
         raise ValueError(f"envelope field out of range: {exc}") from None
-    body = head + data
-    return body + _FCS.pack(crc16_x25(body))
+    return with_fcs(head + data)
 
 
 def decode(datagram: bytes, *, data_size: int | None = None, kind: Kind | None = None) -> Frame:
@@ -149,7 +163,7 @@ def decode(datagram: bytes, *, data_size: int | None = None, kind: Kind | None =
         raise WireError(DropReason.TOO_SHORT, f"{n} bytes, the shortest datagram is {_MIN_DATAGRAM}")
     if n > _MAX_DATAGRAM:
         raise WireError(DropReason.TOO_LONG, f"{n} bytes, the longest datagram is {_MAX_DATAGRAM}")
-    magic, link_b, kind_b, station, cycle, tcycle = _HEADER.unpack_from(datagram)
+    magic, link_b, kind_b, station, cycle, tcycle = HEADER.unpack_from(datagram)
     if magic != MAGIC:
         raise WireError(DropReason.BAD_MAGIC, f"{magic:#04x}, expected {MAGIC:#04x}")
     # The FCS is checked before the header fields it protects, so a corrupted link/kind byte counts as a bad FCS

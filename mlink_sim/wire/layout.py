@@ -21,7 +21,7 @@ from typing import Any, Callable, Generic, TypeVar
 
 import construct as cs
 
-__all__ = ["Layout", "Slot", "Unknown", "fast_format", "field_offset"]
+__all__ = ["Layout", "Slot", "Unknown", "fast_format", "fast_struct", "field_offset"]
 
 T = TypeVar("T")
 
@@ -56,6 +56,11 @@ def fast_format(declaration: cs.Struct, size: int) -> tuple[str, tuple[str, ...]
     if used < size:
         fmt.append(f"{size - used}x")
     return "".join(fmt), tuple(names)
+
+
+def fast_struct(declaration: cs.Struct, size: int) -> struct.Struct:
+    """``struct.Struct`` of :func:`fast_format` (for hot paths that unpack a whole region at once)."""
+    return struct.Struct(fast_format(declaration, size)[0])
 
 
 def field_offset(declaration: cs.Struct, name: str) -> int:
