@@ -38,6 +38,7 @@ from ..master import (
 )
 from ..wire import Link, ml2, ml3
 from .ticker import CycleTimer
+from .udp import bound_socket, close_watched
 
 __all__ = ["Master", "MetricsSink", "NullMetrics", "run"]
 
@@ -122,20 +123,8 @@ class Master:
         add_stations = getattr(self.metrics, "add_stations", None)
         if callable(add_stations):
             add_stations(self.core.addresses)
-        sock = socket.socket(socket.AF_INET6 if ":" in local[0] else socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            sock.setblocking(False)
-            if rcvbuf:
-                try:
-                    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
-                except OSError:  # pragma: no cover - best effort
-                    pass
-            sock.bind(local)
-            loop.add_reader(sock.fileno(), self.read_responses)
-        except BaseException:
-            sock.close()
-            raise
-        self._sock = sock
+        sock = self._sock = bound_socket(local[0], local[1], rcvbuf)
+        loop.add_reader(sock.fileno(), self.read_responses)
         if clock is None:
             self._timer = CycleTimer(plan.tcycle_ns, self._on_cycle, loop=loop, strategy=strategy,
                                      idle=self.read_one)
@@ -181,11 +170,7 @@ class Master:
         self._waiters.clear()
         sock, self._sock = self._sock, None
         if sock is not None:
-            try:
-                self._loop.remove_reader(sock.fileno())
-            except (RuntimeError, ValueError, OSError):
-                pass  # loop already closed
-            sock.close()
+            close_watched(self._loop, sock)
         self._log.info("master_closed", transport_errors=dict(self.transport_errors), drops=len(core.drops))
 
     async def __aenter__(self) -> Master:

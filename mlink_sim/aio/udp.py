@@ -10,7 +10,7 @@ from typing import Any
 import structlog
 
 __all__ = ["new_event_loop", "DatagramEndpoint", "open_endpoint", "BatchEndpoint", "open_batch_endpoint", "loop_name",
-           "resolve", "bind_address_for"]
+           "resolve", "bind_address_for", "bound_socket", "close_watched"]
 
 log = structlog.get_logger("mlink_sim.aio.udp")
 
@@ -68,20 +68,39 @@ class DatagramEndpoint(asyncio.DatagramProtocol):
             self.transport.close()
 
 
+def bound_socket(host: str, port: int, rcvbuf: int = 1 << 20) -> socket.socket:
+    """A non-blocking UDP socket bound to *host*:*port* (0 = any free port), receive buffer *rcvbuf* (best effort).
+    Raises OSError (the socket is closed then)."""
+    sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        if rcvbuf:
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+            except OSError:  # pragma: no cover - best effort
+                pass
+        sock.bind((host, port))
+        sock.setblocking(False)
+    except BaseException:
+        sock.close()
+        raise
+    return sock
+
+
+def close_watched(loop: asyncio.AbstractEventLoop, sock: socket.socket) -> None:
+    """Stop watching *sock* (``loop.add_reader``) and close it; a loop already closed is fine."""
+    try:
+        loop.remove_reader(sock.fileno())
+    except (RuntimeError, ValueError, OSError):
+        pass  # loop already closed: its selector no longer holds the fd
+    sock.close()
+
+
 async def open_endpoint(
     on_datagram: Callable[[bytes, Any], None], host: str = "127.0.0.1", port: int = 0, *, rcvbuf: int = 1 << 20
 ) -> DatagramEndpoint:
     """Bind a UDP socket on *host*:*port* (0 = any free port) and return its endpoint."""
     loop = asyncio.get_running_loop()
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_DGRAM)
-    try:
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
-        sock.bind((host, port))
-    except OSError:
-        sock.close()
-        raise
-    sock.setblocking(False)
+    sock = bound_socket(host, port, rcvbuf)
     _, protocol = await loop.create_datagram_endpoint(lambda: DatagramEndpoint(on_datagram), sock=sock)
     return protocol
 
@@ -134,24 +153,15 @@ class BatchEndpoint:
 
     def close(self) -> None:
         sock, self._sock = self._sock, None
-        if sock is None:
-            return
-        try:
-            self._loop.remove_reader(sock.fileno())
-        except (RuntimeError, ValueError, OSError):
-            pass  # loop already closed
-        sock.close()
+        if sock is not None:
+            close_watched(self._loop, sock)
 
 
 async def open_batch_endpoint(on_batch: Callable[[list[tuple[bytes, Any]]], None], host: str = "127.0.0.1",
                               port: int = 0, *, rcvbuf: int = 1 << 20, burst: int = 64) -> BatchEndpoint:
     """Bind a UDP socket on *host*:*port* (0 = any free port) and read it in batches (:class:`BatchEndpoint`)."""
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_DGRAM)
+    sock = bound_socket(host, port, rcvbuf)
     try:
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
-        sock.bind((host, port))
-        sock.setblocking(False)
         return BatchEndpoint(sock, on_batch, burst)
     except BaseException:
         sock.close()
