@@ -11,6 +11,13 @@ p99, CPU % of master and slaves, the echo's RTT p50/p99 and the ratio RTT p99 / 
     scripts/bench.py                                   # the full sweep (~8 min), table + bench.json + bench.png
     scripts/bench.py --stations 30 --cycles 1ms --links ML2 --duration 60s     # one cell, one minute
     scripts/bench.py --quick                           # a few cells, 2 s each (smoke test)
+    scripts/bench.py --targets                         # the three capacity targets of docs/performance.md, ~3 min
+
+``--targets`` runs the cells of the capacity targets (30 ML-II stations at 1 ms for 60 s, 62 ML-III stations at
+1 ms, 8 ML-III stations at 250 µs) and prints, for each bound, the figure measured and the same figure of the
+bare echo in the same run: where the echo breaks the bound too, the bound is below what this machine gives any
+process on its clock and loopback (the platform floor), not a limit of mlink-sim. Exit status 0 either way: a
+benchmark reports, it does not gate.
 
 Cells the manuals rule out are listed as such and not run: MECHATROLINK-II below 0.5 ms (17-byte) or beyond
 30 stations (SI-T3 Table 29). Loops are bounded by --duration; all traffic stays on loopback.
@@ -30,7 +37,7 @@ import tempfile
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -54,6 +61,7 @@ class Cell:
     stations: int
     cycle_ns: int
     workers: int
+    duration_s: float = 0.0     #: measuring time of the network and of the echo, each
     status: str = "ok"          #: ok / n/a (reason) / failed (reason)
     frame_size: int = 0
     missed_rate: float = 0.0
@@ -69,6 +77,8 @@ class Cell:
     echo_p50_ns: int = 0
     echo_p99_ns: int = 0
     echo_missed_rate: float = 0.0
+    echo_missed: int = 0
+    echo_lateness_p99_ns: int = 0
     ratio_p99: float = 0.0
     notes: list[str] = field(default_factory=list)
 
@@ -204,7 +214,9 @@ async def measure_echo(stations: int, size: int, cycle_ns: int, workers: int, du
         s = hist.summary()
         cell.echo_p50_ns, cell.echo_p99_ns = s["p50"], s["p99"]
         total = lateness.count + missed
+        cell.echo_missed = missed
         cell.echo_missed_rate = missed / total if total else 0.0
+        cell.echo_lateness_p99_ns = lateness.summary()["p99"]
     finally:
         for proc in procs:
             proc.terminate()
@@ -215,19 +227,104 @@ async def measure_echo(stations: int, size: int, cycle_ns: int, workers: int, du
 # ----------------------------------------------------------------------------------------------- output
 def table(cells: list[Cell]) -> str:
     head = (f"{'gen':<4}{'st':>4}{'cycle':>8} {'missed':>8} {'rtt p50':>9} {'rtt p99':>9} {'late p99':>9} "
-            f"{'cpu m/s %':>11} {'echo p99':>9} {'ratio':>6}")
+            f"{'cpu m/s %':>11} {'echo p99':>9} {'ratio':>6} {'echo missed':>12} {'echo late p99':>14}")
     rows = [head, "-" * len(head)]
     for c in cells:
         if c.status != "ok":
             rows.append(f"{c.link:<4}{c.stations:>4}{format_ns(c.cycle_ns):>8}  {c.status}")
             continue
+        echo = c.echo_p99_ns != 0
         rows.append(
             f"{c.link:<4}{c.stations:>4}{format_ns(c.cycle_ns):>8} {c.missed_rate * 100:>7.2f}% "
             f"{format_ns(c.rtt_p50_ns):>9} {format_ns(c.rtt_p99_ns):>9} {format_ns(c.lateness_p99_ns):>9} "
-            f"{c.cpu_master:>5.0f}/{c.cpu_slaves:<5.0f} {format_ns(c.echo_p99_ns) if c.echo_p99_ns else '—':>9} "
-            f"{c.ratio_p99:>6.2f}"
+            f"{c.cpu_master:>5.0f}/{c.cpu_slaves:<5.0f} {format_ns(c.echo_p99_ns) if echo else '—':>9} "
+            f"{c.ratio_p99:>6.2f} {c.echo_missed_rate * 100:>11.2f}% "
+            f"{format_ns(c.echo_lateness_p99_ns) if echo else '—':>14}"
             + (f"  ({'; '.join(c.notes)})" if c.notes else ""))
     return "\n".join(rows)
+
+
+# --------------------------------------------------------------------------------------- the capacity targets
+@dataclass(frozen=True)
+class Bound:
+    """One bound of a target: ``what`` measured on the network and on the echo, against ``limit``."""
+
+    text: str
+    network: Callable[[Cell], float]
+    echo: Callable[[Cell], float] | None
+    limit: float
+    unit: str  #: "%" (fractions shown in per cent, bound strict), "ns", "x" or "n" (a count)
+
+    def holds(self, value: float) -> bool:
+        return value < self.limit if self.unit == "%" else value <= self.limit
+
+
+@dataclass(frozen=True)
+class Target:
+    link: str
+    stations: int
+    cycle: str
+    duration: str
+    bounds: tuple[Bound, ...]
+
+
+#: The capacity targets (issue 6; docs/performance.md "Targets"). A bound holds when measured ≤ limit (< for %).
+TARGETS = (
+    Target("ML2", 30, "1ms", "60s", (
+        Bound("missed cycles == 0 over 60 s", lambda c: c.missed, lambda c: c.echo_missed, 0, "n"),
+        Bound("RTT p99 ≤ 1.5 × echo p99", lambda c: c.ratio_p99, None, 1.5, "x"),
+    )),
+    Target("ML3", 62, "1ms", "10s", (
+        Bound("missed < 0.1 %", lambda c: c.missed_rate, lambda c: c.echo_missed_rate, 0.001, "%"),
+    )),
+    Target("ML3", 8, "250us", "10s", (
+        Bound("lateness p99 ≤ 50 µs", lambda c: c.lateness_p99_ns, lambda c: c.echo_lateness_p99_ns, 50_000, "ns"),
+    )),
+)
+
+
+def _fmt(value: float, unit: str) -> str:
+    if unit == "%":
+        return f"{value * 100:.2f} %"
+    if unit == "ns":
+        return format_ns(int(value))
+    if unit == "x":
+        return f"{value:.2f} ×"
+    return f"{int(value)}"
+
+
+def verdicts(cells: list[Cell]) -> tuple[str, list[dict[str, Any]]]:
+    """The targets' table and its rows as data: each bound, measured, the echo's figure, met or not and why."""
+    rows: list[dict[str, Any]] = []
+    for target, cell in zip(TARGETS, cells):
+        name = f"{target.stations} {target.link} @ {target.cycle}, {target.duration}"
+        for b in target.bounds:
+            if cell.status != "ok":
+                rows.append({"target": name, "bound": b.text, "verdict": cell.status})
+                continue
+            measured = b.network(cell)
+            echo = b.echo(cell) if b.echo is not None else None
+            met = b.holds(measured)
+            if met:
+                verdict = "met"
+            elif echo is not None and not b.holds(echo):
+                verdict = "not met: platform floor (the bare echo breaks it too)"
+                if measured > 2 * echo:
+                    verdict += ", and CPU per exchange"
+            elif echo is None:  # a bound relative to the echo
+                verdict = "not met: CPU per exchange"
+            else:
+                verdict = "not met: CPU per exchange (the bare echo holds it)"
+            rows.append({"target": name, "bound": b.text, "measured": _fmt(measured, b.unit),
+                         "echo": "—" if echo is None else _fmt(echo, b.unit), "met": met, "verdict": verdict})
+    w = max(len(r["target"]) for r in rows)
+    wb = max(len(r["bound"]) for r in rows)
+    lines = [f"{'target':<{w}}  {'bound':<{wb}}  {'measured':>10}  {'bare echo':>10}  verdict",
+             "-" * (w + wb + 40)]
+    for r in rows:
+        lines.append(f"{r['target']:<{w}}  {r['bound']:<{wb}}  {r.get('measured', '—'):>10}  "
+                     f"{r.get('echo', '—'):>10}  {r['verdict']}")
+    return "\n".join(lines), rows
 
 
 def chart(cells: list[Cell], path: Path) -> None:
@@ -258,6 +355,30 @@ def chart(cells: list[Cell], path: Path) -> None:
 
 
 # ----------------------------------------------------------------------------------------------- main
+def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycle: int, workers: int,
+             duration_s: float) -> Cell:
+    """One cell: the network, then the echo baseline, both for *duration_s*; never raises."""
+    cell = Cell(link, n, cycle, min(workers, n), duration_s)
+    reason = applicable(link, n, cycle)
+    if reason:
+        cell.status = reason
+        return cell
+    path = tmp / f"{link}-{n}-{cycle}.toml"
+    cell.frame_size = write_config(path, link, n, cycle)
+    print(f"{link} {n:>2} stations {format_ns(cycle):>6} …", end=" ", file=sys.stderr, flush=True)
+    try:
+        loop.run_until_complete(measure_network(path, cell.workers, duration_s, cell))
+        loop.run_until_complete(measure_echo(n, cell.frame_size, cycle, cell.workers, duration_s, cell))
+    except Exception as exc:  # noqa: BLE001 - one failed cell must not end the sweep
+        cell.status = f"failed: {type(exc).__name__}: {exc}"
+    if cell.echo_p99_ns:
+        cell.ratio_p99 = round(cell.rtt_p99_ns / cell.echo_p99_ns, 2)
+    print(cell.status if cell.status != "ok" else
+          f"missed {cell.missed_rate * 100:.2f}% rtt p99 {format_ns(cell.rtt_p99_ns)} "
+          f"(echo {format_ns(cell.echo_p99_ns)})", file=sys.stderr, flush=True)
+    return cell
+
+
 def main() -> int:
     if len(sys.argv) == 3 and sys.argv[1] == "--echo-server":
         echo_server(int(sys.argv[2]))
@@ -273,6 +394,8 @@ def main() -> int:
     ap.add_argument("--json", type=Path, default=Path("bench.json"), help="write the cells here")
     ap.add_argument("--png", type=Path, default=Path("bench.png"), help="draw the chart here ('' = none)")
     ap.add_argument("--quick", action="store_true", help="1 and 9 stations at 1 ms and 2 ms, 2 s each")
+    ap.add_argument("--targets", action="store_true",
+                    help="only the capacity targets' cells, each bound beside the bare echo's figure (~3 min)")
     args = ap.parse_args()
     try:
         if args.quick:
@@ -286,41 +409,30 @@ def main() -> int:
     except ValueError as exc:
         print(f"bench.py: {exc}", file=sys.stderr)
         return 2
+    if args.targets:
+        plan = [(t.link, t.stations, parse_duration_ns(t.cycle), parse_duration_ns(t.duration) / 1e9)
+                for t in TARGETS]
+    else:
+        plan = [(link, n, cycle, duration_s) for link in links for n in stations for cycle in cycles]
     configure_logging(level="error")
-    cells: list[Cell] = []
     loop = new_event_loop()
     with tempfile.TemporaryDirectory(prefix="mlink-bench-") as tmp:
-        for link in links:
-            for n in stations:
-                for cycle in cycles:
-                    cell = Cell(link, n, cycle, min(args.workers, n))
-                    cells.append(cell)
-                    reason = applicable(link, n, cycle)
-                    if reason:
-                        cell.status = reason
-                        continue
-                    path = Path(tmp) / f"{link}-{n}-{cycle}.toml"
-                    cell.frame_size = write_config(path, link, n, cycle)
-                    print(f"{link} {n:>2} stations {format_ns(cycle):>6} …", end=" ", file=sys.stderr, flush=True)
-                    try:
-                        loop.run_until_complete(measure_network(path, cell.workers, duration_s, cell))
-                        loop.run_until_complete(measure_echo(n, cell.frame_size, cycle, cell.workers, duration_s,
-                                                             cell))
-                    except Exception as exc:  # noqa: BLE001 - one failed cell must not end the sweep
-                        cell.status = f"failed: {type(exc).__name__}: {exc}"
-                    if cell.echo_p99_ns:
-                        cell.ratio_p99 = round(cell.rtt_p99_ns / cell.echo_p99_ns, 2)
-                    print(cell.status if cell.status != "ok" else
-                          f"missed {cell.missed_rate * 100:.2f}% rtt p99 {format_ns(cell.rtt_p99_ns)} "
-                          f"(echo {format_ns(cell.echo_p99_ns)})", file=sys.stderr, flush=True)
+        cells = [run_cell(loop, Path(tmp), link, n, cycle, args.workers, seconds)
+                 for link, n, cycle, seconds in plan]
     loop.close()
     print(table(cells))
-    doc = {"host": {"node": platform.node(), "cpus": os.cpu_count(), "python": platform.python_version(),
-                    "kernel": platform.release()},
-           "duration_s": duration_s, "cells": [asdict(c) for c in cells]}
+    doc: dict[str, Any] = {
+        "host": {"node": platform.node(), "cpus": os.cpu_count(), "python": platform.python_version(),
+                 "kernel": platform.release()},
+        "duration_s": duration_s, "cells": [asdict(c) for c in cells]}
+    if args.targets:
+        text, rows = verdicts(cells)
+        print()
+        print(text)
+        doc["targets"] = rows
     args.json.write_text(json.dumps(doc, indent=1))
     print(f"wrote {args.json}", file=sys.stderr)
-    if str(args.png) not in ("", "."):
+    if str(args.png) not in ("", ".") and not args.targets:
         try:
             chart(cells, args.png)
             print(f"wrote {args.png}", file=sys.stderr)

@@ -1,0 +1,83 @@
+"""scripts/bench.py: the capacity targets' verdicts (no network: synthetic cells)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def bench():  # noqa: ANN201 - a script, loaded as a module
+    spec = importlib.util.spec_from_file_location("mlink_bench", ROOT / "scripts" / "bench.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["mlink_bench"] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    yield module
+    del sys.modules["mlink_bench"]
+
+
+def _cells(bench, **per_target):  # noqa: ANN001, ANN202
+    cells = []
+    for t in bench.TARGETS:
+        cell = bench.Cell(t.link, t.stations, 0, 1)
+        for k, v in per_target.get(f"{t.link}{t.stations}", {}).items():
+            setattr(cell, k, v)
+        cells.append(cell)
+    return cells
+
+
+def test_targets_cover_the_issue_cells(bench) -> None:  # noqa: ANN001
+    assert [(t.link, t.stations, t.cycle) for t in bench.TARGETS] == [
+        ("ML2", 30, "1ms"), ("ML3", 62, "1ms"), ("ML3", 8, "250us")]
+    assert bench.TARGETS[0].duration == "60s"
+
+
+def test_verdict_tells_platform_floor_from_cpu_bound(bench) -> None:  # noqa: ANN001
+    cells = _cells(
+        bench,
+        ML230={"missed": 50, "echo_missed": 30, "ratio_p99": 1.2},           # both miss: floor; ratio met
+        ML362={"missed_rate": 0.004, "echo_missed_rate": 0.0002},           # echo holds: ours
+        ML38={"lateness_p99_ns": 40_000, "echo_lateness_p99_ns": 9_000},    # met
+    )
+    text, rows = bench.verdicts(cells)
+    by_bound = {r["bound"]: r for r in rows}
+    assert by_bound["missed cycles == 0 over 60 s"]["met"] is False
+    assert by_bound["missed cycles == 0 over 60 s"]["verdict"] == (
+        "not met: platform floor (the bare echo breaks it too)")
+    assert by_bound["missed cycles == 0 over 60 s"]["measured"] == "50"
+    assert by_bound["RTT p99 ≤ 1.5 × echo p99"]["verdict"] == "met"
+    assert by_bound["RTT p99 ≤ 1.5 × echo p99"]["echo"] == "—"
+    assert by_bound["missed < 0.1 %"]["met"] is False
+    assert by_bound["missed < 0.1 %"]["verdict"] == "not met: CPU per exchange (the bare echo holds it)"
+    assert by_bound["missed < 0.1 %"]["measured"] == "0.40 %"
+    assert by_bound["lateness p99 ≤ 50 µs"]["met"] is True
+    assert "platform floor" in text and "verdict" in text.splitlines()[0]
+
+
+def test_far_beyond_the_floor_names_both_bounds(bench) -> None:  # noqa: ANN001
+    cells = _cells(bench, ML362={"missed_rate": 0.4979, "echo_missed_rate": 0.0011})  # measured 2026-11-23
+    _, rows = bench.verdicts(cells)
+    row = next(r for r in rows if r["bound"] == "missed < 0.1 %")
+    assert row["verdict"] == "not met: platform floor (the bare echo breaks it too), and CPU per exchange"
+    assert (row["measured"], row["echo"]) == ("49.79 %", "0.11 %")
+
+
+def test_failed_cell_is_reported_not_judged(bench) -> None:  # noqa: ANN001
+    cells = _cells(bench)
+    cells[1].status = "failed: OSError: boom"
+    _, rows = bench.verdicts(cells)
+    assert [r["verdict"] for r in rows if r["target"].startswith("62")] == ["failed: OSError: boom"]
+
+
+def test_table_shows_the_echo_floor_columns(bench) -> None:  # noqa: ANN001
+    cell = bench.Cell("ML3", 8, 250_000, 1, missed_rate=0.29, rtt_p99_ns=1_620_000, echo_p99_ns=186_000,
+                      echo_missed_rate=0.0037, echo_lateness_p99_ns=12_000)
+    out = bench.table([cell])
+    assert "echo missed" in out and "echo late p99" in out
+    assert "0.37%" in out and "12us" in out.replace("µs", "us")
