@@ -22,6 +22,7 @@ from ..metrics import write_report
 from .scenario import CheckResult, Scenario, speed_scales
 from .session import EndpointError, NetworkApi, NetworkSession, build_plans
 from .status import render_status
+from .supervisor import resolve_workers
 
 __all__ = ["RunOptions", "RunOutcome", "EndpointError", "run_up", "run_network", "build_plans"]
 
@@ -39,7 +40,9 @@ class RunOptions:
     status: bool = True  #: live status on stdout
     bringup_timeout_s: float = 10.0
     include_bringup: bool = False  #: False: the report's figures count from the end of bring-up
-    workers: int | None = None  #: stations per worker process (up): None = one process per station
+    #: worker processes of the slaves (up): a number, "auto" (one per station up to max(2, CPUs − 1) stations, else
+    #: CPUs − 1 processes) or "station" (one process per station); see ``supervisor.resolve_workers``
+    workers: int | str = "auto"
     state_dir: Path | None = None  #: EEPROM images of the slaves (up)
     run_dir: Path | None = None  #: worker logs (up); default a temporary directory
     restart_slaves: bool = True  #: restart a worker that died (up)
@@ -61,7 +64,8 @@ async def _sleep_until(when: float) -> None:
 
 
 async def run_up(config: Config, opts: RunOptions) -> RunOutcome:
-    """Start a worker process per station (or per ``--workers`` group), then run the network against them."""
+    """Start the slave worker processes (``--workers``: one per station, or packed), then run the network against
+    them."""
     return await _run(config, opts, None)
 
 
@@ -79,16 +83,17 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
         loop.add_signal_handler(sig, stop.set)
     checks: list[CheckResult] = []
     session: NetworkSession | None = None
-    cpus = os.cpu_count() or 1
-    if endpoints is None and opts.workers is None and len(config.station) > max(2, cpus):
-        hint = max(1, cpus - 1)
-        print(f"note: {len(config.station)} slave processes on {cpus} CPUs compete with the master for CPU time; "
-              f"--workers {hint} hosts them in {hint} process(es) and leaves a CPU to the master's clock "
-              "(docs/performance.md)", file=sys.stderr)
+    workers = None
+    if endpoints is None:
+        workers = resolve_workers(opts.workers, len(config.station))
+        if opts.workers == "auto" and workers is not None:
+            print(f"note: {len(config.station)} stations on {os.cpu_count() or 1} CPUs: hosted in {workers} slave "
+                  f"process(es), so the master's clock keeps a CPU (--workers station: one process per station; "
+                  "docs/performance.md)", file=sys.stderr)
     scales = speed_scales(config)  # now, not in the event loop once it keeps time
     try:
         session = await NetworkSession.open(
-            config, opts.config_path, endpoints=endpoints, workers=opts.workers, state_dir=opts.state_dir,
+            config, opts.config_path, endpoints=endpoints, workers=workers, state_dir=opts.state_dir,
             run_dir=opts.run_dir, restart_slaves=opts.restart_slaves)
         net = session.net
         assert net is not None

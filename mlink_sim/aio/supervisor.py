@@ -22,7 +22,7 @@ from typing import Any
 
 import structlog
 
-__all__ = ["WorkerSpec", "Worker", "WorkerError", "plan_workers"]
+__all__ = ["WorkerSpec", "Worker", "WorkerError", "plan_workers", "parse_workers", "resolve_workers"]
 
 log = structlog.get_logger("mlink_sim.supervisor")
 
@@ -39,6 +39,45 @@ def _die_with_parent() -> None:  # runs in the child between fork and exec
 
 class WorkerError(RuntimeError):
     """A worker that could not be started; the message says why (and where its log is)."""
+
+
+def parse_workers(text: str | int | None) -> int | str:
+    """A ``--workers`` value: a number ≥ 1, ``auto`` (also for None) or ``station``; ValueError says what is
+    expected."""
+    if text is None:
+        return "auto"
+    if isinstance(text, int) and not isinstance(text, bool):
+        value = text
+    else:
+        word = str(text).strip().lower()
+        if word in ("auto", "station"):
+            return word
+        try:
+            value = int(word)
+        except ValueError:
+            raise ValueError(f"expected a number of processes (≥ 1), 'auto' or 'station', got {text!r}") from None
+    if value < 1:
+        raise ValueError(f"expected a number of processes (≥ 1), 'auto' or 'station', got {value}")
+    return value
+
+
+def resolve_workers(spec: int | str | None, stations: int, cpus: int | None = None) -> int | None:
+    """How many worker processes host *stations* stations (None: one process per station).
+
+    ``auto`` (the default, also None): one process per station while there are at most ``max(2, CPUs − 1)``
+    stations; beyond that, ``CPUs − 1`` processes (at least one), so that the master's cycle clock keeps a CPU of
+    its own. Measured on 2 vCPUs (docs/performance.md, "Slave processes"): 9 ML-II stations at 1 ms missed
+    3.2 % and 37 % of the cycles with one process per station (slave CPU 101–123 %), 0.58 % and 0.32 % with one
+    process (56–58 %); every process wakes up for its own datagrams, and a wake-up costs 20–30 µs of CPU on this
+    VM. ``station``: one process per station; a number: that many (round-robin, at most one per station)."""
+    spec = parse_workers(spec)
+    if spec == "station":
+        return None
+    if spec == "auto":
+        cpus = cpus if cpus is not None else (os.cpu_count() or 1)
+        packed = max(1, cpus - 1)
+        return packed if stations > max(2, packed) else None
+    return int(spec)
 
 
 def plan_workers(addresses: list[int], workers: int | None) -> list[list[int]]:

@@ -25,6 +25,23 @@ def _load(path: str) -> Config:
         sys.exit(2)
 
 
+class _Workers(click.ParamType):
+    """``--workers``: a number of processes, ``auto`` or ``station`` (``supervisor.parse_workers``)."""
+
+    name = "workers"
+
+    def get_metavar(self, param: Any, ctx: Any = None) -> str:
+        return "[N|auto|station]"
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> int | str:
+        from ..aio.supervisor import parse_workers
+
+        try:
+            return parse_workers(value)
+        except ValueError as exc:
+            self.fail(str(exc), param, ctx)
+
+
 def _duration(text: str | None, flag: str) -> int | None:
     if text is None:
         return None
@@ -78,7 +95,9 @@ def _with_common(fn: Any) -> Any:
 
 @click.command("up")
 @click.argument("config_path", metavar="CONFIG", type=click.Path(dir_okay=False))
-@click.option("--workers", type=click.IntRange(min=1), help="Host the stations in N worker processes.")
+@click.option("--workers", type=_Workers(), default="auto", show_default=True,
+              help="Slave processes: N (stations spread round-robin), 'station' (one per station) or 'auto' (one "
+                   "per station up to max(2, CPUs-1) stations, else CPUs-1, so the master keeps a CPU).")
 @click.option("--state-dir", type=click.Path(file_okay=False), help="EEPROM images of the slaves (survive restarts).")
 @click.option("--run-dir", type=click.Path(file_okay=False), help="Where worker logs go (default: a temp dir).")
 @_with_common

@@ -31,6 +31,7 @@ from types import SimpleNamespace
 from typing import Any
 
 from ..aio.scenario import CheckResult, speed_scale
+from ..aio.supervisor import parse_workers
 from ..config import Config, load_config
 from ..master.types import RequestTimeout, StationAlarmError, StationState, StationView
 from ..wire import InvCmdStat, Link, M2Status
@@ -100,19 +101,20 @@ class _AsyncApi:
 class RunningNetwork:
     """The network of *config* (a TOML path), up for as long as the ``with`` block (or :meth:`start`/:meth:`stop`).
 
-    *workers* hosts the stations in that many processes (``up --workers``); *timeline* also runs the config's
+    *workers* is ``up --workers``: a number of slave processes, ``"station"`` (one per station) or ``"auto"``
+    (None, the default: one per station up to max(2, CPUs − 1) stations, else CPUs − 1); *timeline* also runs the config's
     timeline (its checks: :meth:`wait_timeline`); *reset_after_bringup* starts the figures after bring-up so they
     describe the steady state; *log_level* is the host's (its log: :attr:`log_path`)."""
 
-    def __init__(self, config: str | Path, *, workers: int | None = None, bringup_timeout: float = 10.0,
+    def __init__(self, config: str | Path, *, workers: int | str | None = None, bringup_timeout: float = 10.0,
                  timeline: bool = False, reset_after_bringup: bool = True, state_dir: str | Path | None = None,
                  run_dir: str | Path | None = None, log_level: str | None = None) -> None:
         self.config_path = Path(config)
         self.config: Config = load_config(self.config_path)
         self._args = [str(self.config_path), "--bringup-timeout", str(bringup_timeout),
                       "--log-level", log_level or os.environ.get("MLINK_SIM_LOG_LEVEL", "warning")]
-        if workers:
-            self._args += ["--workers", str(workers)]
+        if workers is not None:
+            self._args += ["--workers", str(parse_workers(workers))]  # ValueError here, not in the host
         if timeline:
             self._args.append("--timeline")
         if not reset_after_bringup:

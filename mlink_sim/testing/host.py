@@ -31,6 +31,7 @@ import structlog
 
 from ..aio.scenario import Scenario, speed_scales
 from ..aio.session import NetworkSession
+from ..aio.supervisor import resolve_workers
 from ..aio.udp import new_event_loop
 from ..config import ConfigError, load_config
 from ..jsonable import to_jsonable
@@ -152,7 +153,8 @@ async def serve(args: argparse.Namespace) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, interrupted.set)
     scales = speed_scales(config) if args.timeline else None  # before the clock starts (aio/scenario.py)
-    session = await NetworkSession.open(config, Path(args.config), workers=args.workers,
+    workers = resolve_workers(args.workers, len(config.station))  # ValueError: reported as an error event
+    session = await NetworkSession.open(config, Path(args.config), workers=workers,
                                         state_dir=args.state_dir, run_dir=args.run_dir)
     try:
         not_up = await session.bring_up(args.bringup_timeout)
@@ -177,7 +179,7 @@ async def serve(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m mlink_sim.testing.host", description=__doc__.splitlines()[0])
     parser.add_argument("config")
-    parser.add_argument("--workers", type=int)
+    parser.add_argument("--workers", default="auto", help="N, 'auto' or 'station' (as for mlink-sim up)")
     parser.add_argument("--bringup-timeout", type=float, default=10.0)
     parser.add_argument("--timeline", action="store_true")
     parser.add_argument("--no-reset", dest="reset", action="store_false")

@@ -14,7 +14,7 @@ Fixtures:
 - ``mlink_network_factory`` — ``start(CONFIG, **options)`` for tests that need several networks or options
   decided in the test; every network started is stopped after the test.
 
-Options: ``--mlink-config PATH``, ``--mlink-workers N``, ``--mlink-report-dir DIR`` (each network's final report
+Options: ``--mlink-config PATH``, ``--mlink-workers N|auto|station``, ``--mlink-report-dir DIR`` (each network's final report
 is written there as ``<test name>.json``). Relative config paths are taken from the current directory, then from
 the pytest root directory.
 """
@@ -34,7 +34,8 @@ __all__ = ["mlink_network", "mlink_network_factory"]
 def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("mlink-sim", "mlink-sim networks")
     group.addoption("--mlink-config", metavar="PATH", help="Config of the mlink_network fixture (if no marker).")
-    group.addoption("--mlink-workers", metavar="N", type=int, help="Host the stations in N worker processes.")
+    group.addoption("--mlink-workers", metavar="N|auto|station",
+                    help="Slave processes, as for 'mlink-sim up --workers' (default auto).")
     group.addoption("--mlink-report-dir", metavar="DIR", help="Write each network's final report (JSON) here.")
     parser.addini("mlink_config", "Config of the mlink_network fixture (if no marker and no --mlink-config).")
 
@@ -42,7 +43,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers",
-        "mlink_network(config, *, workers=None, timeline=False, bringup_timeout=10.0): "
+        "mlink_network(config, *, workers='auto', timeline=False, bringup_timeout=10.0): "
         "the network the mlink_network fixture brings up for this test",
     )
 
@@ -88,7 +89,7 @@ class _Factory:
 
 @pytest.fixture
 def mlink_network_factory(request: pytest.FixtureRequest) -> Iterator[Callable[..., Any]]:
-    """``start(CONFIG, workers=None, timeline=False, bringup_timeout=10.0, …)`` → a running network."""
+    """``start(CONFIG, workers="auto", timeline=False, bringup_timeout=10.0, …)`` → a running network."""
     factory = _Factory(request)
     try:
         yield factory

@@ -117,6 +117,12 @@ def test_up_bad_config_is_exit_2(tmp_path: Path) -> None:
     assert r.returncode == 2 and "bad.toml: station[1].card" in r.stderr and "Traceback" not in r.stderr
 
 
+def test_up_bad_workers_is_exit_2_and_says_what_is_expected(config: Path) -> None:
+    r = run_cli("up", str(config), "--workers", "two")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "expected a number of processes (≥ 1), 'auto' or 'station', got 'two'" in r.stderr
+
+
 def test_master_alone_against_slaves_started_elsewhere(config: Path, slave) -> None:  # noqa: ANN001
     a = slave("--config", str(config), "--only", "0x21")
     b = slave("--config", str(config), "--only", "0x23")
