@@ -166,6 +166,11 @@ class SlaveServer:
             st = hs.station
             deadline = st.next_deadline()
             if deadline is not None and deadline <= now:
+                if hs.endpoint is not None and st.silence_due(now):
+                    # After a hold-up of this worker the loop runs its timers before it reads the sockets: the
+                    # commands that arrived meanwhile are read first, or they would count as the master's silence
+                    # (2 cycles = bUS on an SI-T/V7; seen in tests/testbed/test_netns.py).
+                    hs.endpoint.read_pending()
                 st.poll(now)
                 self._collect_eeprom(hs)
         if not self._closing:

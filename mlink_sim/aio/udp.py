@@ -121,6 +121,10 @@ class BatchEndpoint:
         self._loop = asyncio.get_running_loop()
         self._loop.add_reader(sock.fileno(), self._on_readable)
 
+    def read_pending(self) -> None:
+        """Hand over what is waiting now (at most *burst*), as the reader callback does."""
+        self._on_readable()
+
     def _on_readable(self) -> None:
         sock = self._sock
         if sock is None:

@@ -281,6 +281,15 @@ class Station(abc.ABC):
         except Exception:  # noqa: BLE001
             self._internal_error("poll")
 
+    def silence_due(self, now: int) -> bool:
+        """:meth:`poll` at *now* would count reception failures for silence (phase 2/3, no command for a whole
+        communication cycle plus the tolerance). The I/O layer first reads the commands waiting on the socket:
+        a worker that was held up must not take its own delay for the master's silence."""
+        if self.phase < 2:
+            return False
+        due = self.reception.deadline()
+        return due is not None and now >= due
+
     def next_deadline(self) -> int | None:
         """Absolute time (ns) when :meth:`poll` is next due, or None when nothing is pending."""
         due = self.reception.deadline() if self.phase > 1 else None

@@ -71,3 +71,28 @@ async def test_a_short_backlog_is_answered_in_full() -> None:
     finally:
         master.close()
         await server.close()
+
+
+async def test_tick_reads_waiting_commands_before_it_counts_silence() -> None:
+    """A worker held up past a station's reception deadline: the tick runs before the reader, so it must read the
+    queued commands first; otherwise they count as reception failures (SI-T3 Table 22, E6 after two)."""
+    server, addr = await _server()
+    master = _client()
+    station = server.stations[0].station
+    try:
+        station.silence_due = lambda now: True  # type: ignore[method-assign]  # deadline passed
+        station.next_deadline = lambda: 0  # type: ignore[method-assign]
+        for cycle in (1, 2):
+            master.sendto(_nop(cycle), addr)  # on loopback: waiting in the receive buffer at once
+        assert station.counters.rx_ok == 0  # no await since: the loop's reader has not run
+        server._on_tick()
+        assert station.counters.rx_ok == 2  # read by the tick itself, before it polled
+        assert await _answers(master, settle=0.05) == [1, 2]
+    finally:
+        master.close()
+        await server.close()
+
+
+def test_no_silence_is_due_before_phase_2() -> None:
+    card = create_card("si-t3", settings=settings_for("si-t3", 0x21, 17, []), now=0)
+    assert card.phase == 1 and card.silence_due(10**12) is False
