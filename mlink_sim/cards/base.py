@@ -285,18 +285,20 @@ class Station(abc.ABC):
         """:meth:`poll` at *now* would count reception failures for silence (phase 2/3, no command for a whole
         communication cycle plus the tolerance). The I/O layer first reads the commands waiting on the socket:
         a worker that was held up must not take its own delay for the master's silence."""
-        if self.phase < 2:
-            return False
-        due = self.reception.deadline()
+        due = self._silence_deadline()
         return due is not None and now >= due
 
     def next_deadline(self) -> int | None:
         """Absolute time (ns) when :meth:`poll` is next due, or None when nothing is pending."""
-        due = self.reception.deadline() if self.phase > 1 else None
+        due = self._silence_deadline()
         if not self.drive.is_steady():
             tick = self._now + DRIVE_TICK_NS
             due = tick if due is None else min(due, tick)
         return due
+
+    def _silence_deadline(self) -> int | None:
+        """When silence becomes a reception failure (SI-T3 Table 22); None outside phase 2/3 or while inactive."""
+        return self.reception.deadline() if self.phase > 1 else None
 
     @property
     def eeprom_pending(self) -> bool:

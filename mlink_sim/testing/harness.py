@@ -102,9 +102,9 @@ class RunningNetwork:
     """The network of *config* (a TOML path), up for as long as the ``with`` block (or :meth:`start`/:meth:`stop`).
 
     *workers* is ``up --workers``: a number of slave processes, ``"station"`` (one per station) or ``"auto"``
-    (None, the default: one per station up to max(2, CPUs − 1) stations, else CPUs − 1); *timeline* also runs the config's
-    timeline (its checks: :meth:`wait_timeline`); *reset_after_bringup* starts the figures after bring-up so they
-    describe the steady state; *log_level* is the host's (its log: :attr:`log_path`)."""
+    (None, the default: one per station up to max(2, CPUs − 1) stations, else CPUs − 1); *timeline* also runs
+    the config's timeline (its checks: :meth:`wait_timeline`); *reset_after_bringup* starts the figures after
+    bring-up so they describe the steady state; *log_level* is the host's (its log: :attr:`log_path`)."""
 
     def __init__(self, config: str | Path, *, workers: int | str | None = None, bringup_timeout: float = 10.0,
                  timeline: bool = False, reset_after_bringup: bool = True, state_dir: str | Path | None = None,

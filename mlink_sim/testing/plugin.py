@@ -14,9 +14,9 @@ Fixtures:
 - ``mlink_network_factory`` — ``start(CONFIG, **options)`` for tests that need several networks or options
   decided in the test; every network started is stopped after the test.
 
-Options: ``--mlink-config PATH``, ``--mlink-workers N|auto|station``, ``--mlink-report-dir DIR`` (each network's final report
-is written there as ``<test name>.json``). Relative config paths are taken from the current directory, then from
-the pytest root directory.
+Options: ``--mlink-config PATH``, ``--mlink-workers N|auto|station``, ``--mlink-report-dir DIR`` (each
+network's final report is written there as ``<test name>.json``). Relative config paths are taken from the
+current directory, then from the pytest root directory.
 """
 
 from __future__ import annotations

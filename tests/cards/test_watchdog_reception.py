@@ -136,6 +136,20 @@ def test_bus_not_detected_without_run_or_reference_from_the_option() -> None:
     assert m.st.snapshot().drive.fault is None and m.st.snapshot().alarm_code == M2Alarm.COMM_ERROR
 
 
+def test_silence_due_is_exactly_when_poll_counts_the_table_22_failure() -> None:
+    """The I/O layer reads waiting commands before a poll that would count silence (aio/slave.py): silence_due
+    must turn true at the same instant as the SI-T3 Table 22 reception failure, and not before."""
+    m = _running("si-t3")
+    st, last = m.st, m.now
+    assert not st.silence_due(last + 3 * MS - 1)
+    st.poll(last + 3 * MS - 1)
+    assert st.counters.reception_failures == 0
+    assert st.silence_due(last + 3 * MS)
+    st.poll(last + 3 * MS)
+    assert st.counters.reception_failures == 1
+    assert not st.silence_due(last + 4 * MS - 1) and st.silence_due(last + 4 * MS)
+
+
 def test_silence_tolerance_option() -> None:
     from mlink_sim.cards import CardOptions
 
