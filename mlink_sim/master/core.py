@@ -159,23 +159,33 @@ class MasterCore:
         self._now = now
         if self.fast_path and len(datagram) > 3:
             st = self._by_addr.get(datagram[3])
-            if st is not None:
+            if st is not None and st.state in _UP and not (st.alarm or st.cmd_alm) and st.comm_alm < 8:
+                # What the general path does for a clean answer to the cyclic INV_CTL (_observe, _advance): on time
+                # (the outstanding command), or late (the command already counted missing, once), as below.
                 sent = st.outstanding
-                if (sent is not None and sent.kind == "cyclic" and sent.sub_req is None and st.state in _UP
-                        and not (st.alarm or st.cmd_alm) and st.comm_alm < 8):
+                r = None
+                if sent is not None and sent.kind == "cyclic" and sent.sub_req is None:
                     r = st.frames.response(datagram, sent.cycle, st.comm_alm)
                     if r is not None:
-                        # What the general path does for a clean answer to the cyclic INV_CTL (_observe, _advance).
                         st.outstanding = None
                         st.rtt = rtt = now - sent.at
                         self._emit(Rtt(st.address, rtt))
-                        st.answered = sent.cycle
-                        st.silent = 0
-                        st.responses += 1
-                        st.last_rx = now
-                        st.rwdt, st.status, st.output_freq, st.output_current, st.mon1, st.mon2, st.warning = r
-                        st.fault = False
-                        return
+                if r is None:
+                    sent = st.expired
+                    if sent is not None and sent.kind == "cyclic" and sent.sub_req is None and not sent.late_seen:
+                        r = st.frames.response(datagram, sent.cycle, st.comm_alm)
+                        if r is not None:
+                            sent.late_seen = True
+                            st.late += 1
+                            self._emit(Late(st.address, sent.cycle, now - sent.at))
+                if r is not None:
+                    st.answered = sent.cycle  # type: ignore[union-attr]
+                    st.silent = 0
+                    st.responses += 1
+                    st.last_rx = now
+                    st.rwdt, st.status, st.output_freq, st.output_current, st.mon1, st.mon2, st.warning = r
+                    st.fault = False
+                    return
         try:
             frame = decode(datagram, kind=Kind.RESPONSE)
         except WireError as exc:

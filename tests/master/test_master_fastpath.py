@@ -97,3 +97,34 @@ def test_fast_path_matches_general_path_table16_table21(net_of: Callable[..., Ne
     hits = sum(st.frames.hits for st in fast.core._stations)
     assert hits > 0.5 * sum(st.responses for st in fast.core._stations)  # the fast path carried the steady state
 
+
+
+@pytest.mark.parametrize("link, size", CASES, ids=IDS)
+def test_late_answers_to_the_cyclic_inv_ctl_take_the_fast_path_too(net_of: Callable[..., Net], link: Link,
+                                                                   size: int) -> None:
+    """Every response one and a half cycles late (RTT beyond the cycle, as on an overloaded host): each INV_CTL
+    answer arrives after the next slot and is a Late answer to the command counted missing. The fast path takes
+    those too, with the same events, views and drops as the general path; the station stays in phase 3."""
+    fast, slow, fast_sent, slow_sent = _pair(net_of, link, size)
+    _both(fast, slow, lambda n: n.run(200))
+    first = fast.core.addresses[0]
+    _both(fast, slow, lambda n: n.core.set_control(first, forward=True, speed_ref=3000))
+
+    def late(direction: str, station: int, dg: bytes, now: int) -> Any:
+        return (dg, MS + MS // 2) if direction == "rsp" else dg
+
+    for n in (fast, slow):
+        n.fault = late
+    hits0 = sum(st.frames.hits for st in fast.core._stations)
+    late0 = sum(v.late for v in fast.core.views().values())
+    _both(fast, slow, lambda n: n.run(200))
+
+    assert fast.events == slow.events
+    assert fast.core.views() == slow.core.views()
+    assert dict(fast.core.drops) == dict(slow.core.drops)
+    assert fast_sent == slow_sent
+    views = fast.core.views().values()
+    assert all(v.state.value == "phase3" for v in views)
+    late_answers = sum(v.late for v in views) - late0
+    assert late_answers >= 2 * 190  # nearly every answer of the 200 cycles, both stations
+    assert sum(st.frames.hits for st in fast.core._stations) - hits0 >= late_answers
