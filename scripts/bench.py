@@ -8,10 +8,11 @@ process, a client that sends the same burst (one datagram of the same size per s
 (``CycleTimer``) and times the answers. Figures per cell: missed-cycle rate, RTT p50/p99, cycle-start lateness
 p99, CPU % of master and slaves, the echo's RTT p50/p99 and the ratio RTT p99 / echo p99.
 
-    scripts/bench.py                                   # the full sweep (~8 min), table + bench.json + bench.png
+    scripts/bench.py                                   # the full sweep (~10 min), table + bench.json + bench.png
     scripts/bench.py --stations 30 --cycles 1ms --links ML2 --duration 60s     # one cell, one minute
     scripts/bench.py --quick                           # a few cells, 2 s each (smoke test)
     scripts/bench.py --targets                         # the three capacity targets of docs/performance.md, ~4 min
+    scripts/bench.py --render docs/bench.json --markdown   # an earlier run's table, as in docs/performance.md
 
 ``--targets`` runs the cells of the capacity targets (30 ML-II stations at 1 ms for 60 s, 62 ML-III stations at
 1 ms, 8 ML-III stations at 250 µs) and prints, for each bound, the figure measured and the same figure of the
@@ -244,6 +245,47 @@ def table(cells: list[Cell]) -> str:
     return "\n".join(rows)
 
 
+def _human(ns: int) -> str:
+    """A time for the docs table: 139 ns, 27 µs, 1.86 ms (three significant figures at most)."""
+    if ns < 1_000:
+        return f"{ns} ns"
+    if ns < 1_000_000:
+        return f"{ns / 1e3:.3g} µs"
+    return f"{ns / 1e6:.3g} ms"
+
+
+def markdown(cells: list[Cell]) -> str:
+    """The sweep as the Markdown table of docs/performance.md (cells the manuals rule out are left out)."""
+    rows = ["| gen | stations | cycle | missed | RTT p50 | RTT p99 | lateness p99 | CPU master / slaves % | echo p99 "
+            "| RTT p99 ÷ echo p99 | echo missed | echo lateness p99 |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for c in cells:
+        if c.status.startswith("n/a"):
+            continue
+        head = f"| {c.link} | {c.stations} | {_human(c.cycle_ns)} |"
+        if c.status != "ok":
+            rows.append(f"{head} {c.status} |" + " |" * 8)
+            continue
+        notes = f" ({'; '.join(n.replace(' station(s)', '') for n in c.notes)})" if c.notes else ""
+        echo = c.echo_p99_ns != 0
+        rows.append(
+            f"{head} {c.missed_rate * 100:.2f} %{notes} | {_human(c.rtt_p50_ns)} | {_human(c.rtt_p99_ns)} | "
+            f"{_human(c.lateness_p99_ns)} | {c.cpu_master:.0f} / {c.cpu_slaves:.0f} | "
+            f"{_human(c.echo_p99_ns) if echo else '—'} | {f'{c.ratio_p99:.2f}' if echo else '—'} | "
+            f"{c.echo_missed_rate * 100:.2f} % | {_human(c.echo_lateness_p99_ns) if echo else '—'} |")
+    return "\n".join(rows)
+
+
+def load_cells(path: Path) -> tuple[list[Cell], dict[str, Any]]:
+    """The cells of an earlier run's ``--json`` file, and the whole document. Raises ValueError when it is not one."""
+    try:
+        doc = json.loads(path.read_text())
+        cells = [Cell(**c) for c in doc["cells"]]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"{path}: not a bench.py --json file ({type(exc).__name__}: {exc})") from None
+    return cells, doc
+
+
 # --------------------------------------------------------------------------------------- the capacity targets
 @dataclass(frozen=True)
 class Bound:
@@ -383,6 +425,33 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
     return cell
 
 
+def render(path: Path, as_markdown: bool, png: Path | None) -> int:
+    """``--render JSON``: the table (and with ``--png`` the chart) of an earlier run, nothing run."""
+    try:
+        cells, doc = load_cells(path)
+    except ValueError as exc:
+        print(f"bench.py: {exc}", file=sys.stderr)
+        return 2
+    print(markdown(cells) if as_markdown else table(cells))
+    if doc.get("targets"):
+        print()
+        print(verdicts(cells)[0])
+    if png is not None:
+        draw(cells, png)
+    return 0
+
+
+def draw(cells: list[Cell], png: Path) -> None:
+    """The chart at *png* ('' or '.': none); without matplotlib a hint, not an error."""
+    if str(png) in ("", "."):
+        return
+    try:
+        chart(cells, png)
+        print(f"wrote {png}", file=sys.stderr)
+    except ImportError:
+        print("matplotlib missing: pip install -e '.[bench]' for the chart", file=sys.stderr)
+
+
 def main() -> int:
     if len(sys.argv) == 3 and sys.argv[1] == "--echo-server":
         echo_server(int(sys.argv[2]))
@@ -396,11 +465,17 @@ def main() -> int:
                     help="slave worker processes (and echo processes); default: one per CPU but one, which is left "
                          "to the master's clock")
     ap.add_argument("--json", type=Path, default=Path("bench.json"), help="write the cells here")
-    ap.add_argument("--png", type=Path, default=Path("bench.png"), help="draw the chart here ('' = none)")
+    ap.add_argument("--png", type=Path, default=None,
+                    help="draw the chart here (default bench.png; '' = none; with --render only when given)")
     ap.add_argument("--quick", action="store_true", help="1 and 9 stations at 1 ms and 2 ms, 2 s each")
     ap.add_argument("--targets", action="store_true",
                     help="only the capacity targets' cells, each bound beside the bare echo's figure (~4 min)")
+    ap.add_argument("--markdown", action="store_true", help="print the table as Markdown (docs/performance.md)")
+    ap.add_argument("--render", type=Path, metavar="JSON",
+                    help="run nothing: print the table (and draw --png) from an earlier run's --json file")
     args = ap.parse_args()
+    if args.render is not None:
+        return render(args.render, args.markdown, args.png)
     try:
         if args.quick:
             args.stations, args.cycles, args.duration = "1,9", "1ms,2ms", "2s"
@@ -424,7 +499,7 @@ def main() -> int:
         cells = [run_cell(loop, Path(tmp), link, n, cycle, args.workers, seconds)
                  for link, n, cycle, seconds in plan]
     loop.close()
-    print(table(cells))
+    print(markdown(cells) if args.markdown else table(cells))
     doc: dict[str, Any] = {
         "host": {"node": platform.node(), "cpus": os.cpu_count(), "python": platform.python_version(),
                  "kernel": platform.release()},
@@ -437,12 +512,8 @@ def main() -> int:
         doc["targets"] = rows
     args.json.write_text(json.dumps(doc, indent=1))
     print(f"wrote {args.json}", file=sys.stderr)
-    if str(args.png) not in ("", ".") and not args.targets:
-        try:
-            chart(cells, args.png)
-            print(f"wrote {args.png}", file=sys.stderr)
-        except ImportError:
-            print("matplotlib missing: pip install -e '.[bench]' for the chart", file=sys.stderr)
+    if not args.targets:
+        draw(cells, Path("bench.png") if args.png is None else args.png)
     return 0
 
 

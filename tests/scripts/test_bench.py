@@ -81,3 +81,40 @@ def test_table_shows_the_echo_floor_columns(bench) -> None:  # noqa: ANN001
     out = bench.table([cell])
     assert "echo missed" in out and "echo late p99" in out
     assert "0.37%" in out and "12us" in out.replace("µs", "us")
+
+
+def test_markdown_is_the_docs_table(bench) -> None:  # noqa: ANN001
+    cells = [
+        bench.Cell("ML2", 1, 250_000, 1, status="n/a: MECHATROLINK-II's shortest cycle is 0.5 ms"),
+        bench.Cell("ML3", 8, 250_000, 1, missed_rate=0.29, rtt_p50_ns=662_000, rtt_p99_ns=1_620_000,
+                   lateness_p99_ns=246_000, cpu_master=99.6, cpu_slaves=98.7, echo_p99_ns=186_000, ratio_p99=8.71,
+                   echo_missed_rate=0.0011, echo_lateness_p99_ns=139, notes=["6 station(s) not up"]),
+        bench.Cell("ML3", 62, 250_000, 1, status="failed: OSError: boom"),
+    ]
+    lines = bench.markdown(cells).splitlines()
+    assert lines[0].startswith("| gen | stations | cycle | missed |") and lines[0].endswith("| echo lateness p99 |")
+    assert len(lines) == 4  # header, rule, two rows: the n/a cell is left out
+    assert lines[2] == ("| ML3 | 8 | 250 µs | 29.00 % (6 not up) | 662 µs | 1.62 ms | 246 µs | 100 / 99 | 186 µs "
+                        "| 8.71 | 0.11 % | 139 ns |")
+    assert lines[3].startswith("| ML3 | 62 | 250 µs | failed: OSError: boom |")
+    assert all(line.count("|") == lines[0].count("|") for line in lines)
+
+
+def test_render_prints_an_earlier_run_without_running_it(bench, tmp_path, capsys) -> None:  # noqa: ANN001
+    import json
+    from dataclasses import asdict
+
+    cell = bench.Cell("ML2", 9, 1_000_000, 1, missed_rate=0.0026, rtt_p99_ns=1_380_000, echo_p99_ns=410_000)
+    path = tmp_path / "bench.json"
+    path.write_text(json.dumps({"host": {}, "duration_s": 5.0, "cells": [asdict(cell)]}))
+    assert bench.render(path, True, None) == 0
+    out = capsys.readouterr().out
+    assert "| ML2 | 9 | 1 ms | 0.26 % |" in out and "1.38 ms" in out
+
+
+def test_render_of_a_file_that_is_not_a_run_exits_2(bench, tmp_path, capsys) -> None:  # noqa: ANN001
+    path = tmp_path / "other.json"
+    path.write_text('{"cells": [{"nope": 1}]}')
+    assert bench.render(path, False, None) == 2
+    assert "not a bench.py --json file" in capsys.readouterr().err
+    assert bench.render(tmp_path / "missing.json", False, None) == 2
