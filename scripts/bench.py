@@ -2,10 +2,11 @@
 """Capacity sweep: stations × transmission cycle × generation, each against a bare uvloop UDP echo baseline.
 
 For every cell the sweep brings a network up exactly as ``mlink-sim up --workers W`` does (slave worker
-processes, the master in this process; W defaults to one per CPU but one, so the master keeps a CPU for itself), measures for ``--duration`` after bring-up, then runs the baseline in the
-same way: W echo processes (bare uvloop ``DatagramProtocol`` that sends every datagram back) and, in this
-process, a client that sends the same burst (one datagram of the same size per station) on the same cycle clock
-(``CycleTimer``) and times the answers. Figures per cell: missed-cycle rate, RTT p50/p99, cycle-start lateness
+processes, the master in this process; W defaults to one per CPU but one, so the master keeps a CPU for
+itself), measures for ``--duration`` after bring-up, then runs the baseline in the same way: W echo processes
+(bare uvloop ``DatagramProtocol`` that sends every datagram back) and, in this process, a client that sends the
+same burst (one datagram of the same size per station) on the same cycle clock (``CycleTimer``) and times the
+answers. Figures per cell: missed-cycle rate, RTT p50/p99, cycle-start lateness
 p99, CPU % of master and slaves, the echo's RTT p50/p99 and the ratio RTT p99 / echo p99.
 
     scripts/bench.py                                   # the full sweep (~10 min), table + bench.json + bench.png

@@ -49,8 +49,9 @@ _IDLE = DriveCommand()
 SLOW = object()
 _MAX_LOGGED_SOURCES = 32
 #: Incidents that can repeat every cycle on an overloaded machine (reception failures, WDT errors, phase changes,
-#: bUS errors and the reconnections after them) are logged the first _LOG_FIRST times, then at the 2**k-th occurrence only; the counters keep every one. An
-#: unbounded log line per lost cycle made an overloaded worker slower still (docs/performance.md).
+#: bUS errors and the reconnections after them) are logged the first _LOG_FIRST times, then at the 2**k-th
+#: occurrence only; the counters keep every one. An unbounded log line per lost cycle made an overloaded worker
+#: slower still (docs/performance.md).
 _LOG_FIRST = 8
 
 
@@ -443,9 +444,9 @@ class Station(abc.ABC):
         limit = self._bus_limit()
         if before < limit <= self._bus_count:
             detected = self.drive.trip_bus(now)
-            self._incident("bus_error", "warning", alarms=self._bus_count, limit=limit, drive_fault=detected)
+            self._incident("bus_error", level="warning", alarms=self._bus_count, limit=limit, drive_fault=detected)
             if self._source is not None:
-                self._incident("connection_lost", "warning", source=repr(self._source))
+                self._incident("connection_lost", level="warning", source=repr(self._source))
                 self._source = None
 
     def _bus_limit(self) -> int:

@@ -13,8 +13,9 @@ from collections import Counter, deque
 from typing import Any
 
 from ..wire import CmdAlm, CommAlm, DropReason, Frame, Kind, Link, Unknown, WireError, decode, encode
+from ..wire.frame import HEADER_SIZE
 from .codec import Codec, Reply, compatible
-from .fastpath import CyclicFrames
+from .fastpath import CyclicFrames, cycle_of
 from .plan import NetworkPlan, StationPlan
 from .types import (
     AlarmCleared,
@@ -157,35 +158,8 @@ class MasterCore:
     def on_response(self, datagram: bytes, now: int) -> None:
         """Consume one response datagram received at *now*. Never raises on bad input (counted in ``drops``)."""
         self._now = now
-        if self.fast_path and len(datagram) > 3:
-            st = self._by_addr.get(datagram[3])
-            if st is not None and st.state in _UP and not (st.alarm or st.cmd_alm) and st.comm_alm < 8:
-                # What the general path does for a clean answer to the cyclic INV_CTL (_observe, _advance): on time
-                # (the outstanding command), or late (the command already counted missing, once), as below.
-                sent = st.outstanding
-                r = None
-                if sent is not None and sent.kind == "cyclic" and sent.sub_req is None:
-                    r = st.frames.response(datagram, sent.cycle, st.comm_alm)
-                    if r is not None:
-                        st.outstanding = None
-                        st.rtt = rtt = now - sent.at
-                        self._emit(Rtt(st.address, rtt))
-                if r is None:
-                    sent = st.expired
-                    if sent is not None and sent.kind == "cyclic" and sent.sub_req is None and not sent.late_seen:
-                        r = st.frames.response(datagram, sent.cycle, st.comm_alm)
-                        if r is not None:
-                            sent.late_seen = True
-                            st.late += 1
-                            self._emit(Late(st.address, sent.cycle, now - sent.at))
-                if r is not None:
-                    st.answered = sent.cycle  # type: ignore[union-attr]
-                    st.silent = 0
-                    st.responses += 1
-                    st.last_rx = now
-                    st.rwdt, st.status, st.output_freq, st.output_current, st.mon1, st.mon2, st.warning = r
-                    st.fault = False
-                    return
+        if self.fast_path and self._fast_response(datagram, now):
+            return
         try:
             frame = decode(datagram, kind=Kind.RESPONSE)
         except WireError as exc:
@@ -204,26 +178,12 @@ class MasterCore:
         if frame.data_size != st.plan.data_size:
             self._drop(st.address, DropReason.BAD_SIZE)
             return
-        sent = st.outstanding
-        if sent is not None and frame.cycle == sent.cycle:
-            st.outstanding = None
-            st.rtt = now - sent.at
-            self._emit(Rtt(st.address, st.rtt))
-        else:
-            sent = st.expired
-            if sent is None or frame.cycle != sent.cycle or sent.late_seen:
-                reason = MasterDrop.DUPLICATE if frame.cycle == st.answered else MasterDrop.NOT_EXPECTED
-                self._drop(st.address, reason)
-                return
-            # Answer to the command already recorded missing: late, but what it says is still true (the command
-            # was executed), so it is processed; handlers check the current state, so nothing is done twice.
-            sent.late_seen = True
-            st.late += 1
-            self._emit(Late(st.address, sent.cycle, now - sent.at))
-        st.answered = sent.cycle
-        st.silent = 0
-        st.responses += 1
-        st.last_rx = now
+        sent = self._answer_to(st, frame.cycle)
+        if sent is None:
+            reason = MasterDrop.DUPLICATE if frame.cycle == st.answered else MasterDrop.NOT_EXPECTED
+            self._drop(st.address, reason)
+            return
+        self._take(st, sent, now)
         msg = frame.message
         st.rwdt = msg.rwdt
         reply = st.codec.reply(msg)
@@ -231,6 +191,52 @@ class MasterCore:
         if st.state is S.OFFLINE:
             self._set_state(st, S.PHASE1)
         self._advance(st, sent, reply, now)
+
+    def _fast_response(self, datagram: bytes, now: int) -> bool:
+        """A clean answer to a cyclic INV_CTL, on time or late, straight from the bytes (:mod:`.fastpath`): what
+        the general path does for it (:meth:`_observe`, :meth:`_advance`). False: the general path decides."""
+        st = self._by_addr.get(datagram[3]) if len(datagram) >= HEADER_SIZE else None
+        if st is None or st.state not in _UP or st.alarm or st.cmd_alm or st.comm_alm >= 8:
+            return False
+        sent = self._answer_to(st, cycle_of(datagram))
+        if sent is None or sent.kind != "cyclic" or sent.sub_req is not None:
+            return False
+        r = st.frames.response(datagram, sent.cycle, st.comm_alm)
+        if r is None:
+            return False
+        self._take(st, sent, now)
+        st.rwdt, st.status, st.output_freq, st.output_current, st.mon1, st.mon2, st.warning = r
+        st.fault = False
+        return True
+
+    @staticmethod
+    def _answer_to(st: _Station, cycle: int) -> _Sent | None:
+        """The command a response for *cycle* answers: the outstanding one, or the one already counted missing
+        (once: a late answer); None when it answers neither (a duplicate or unexpected datagram)."""
+        sent = st.outstanding
+        if sent is not None and sent.cycle == cycle:
+            return sent
+        sent = st.expired
+        if sent is not None and sent.cycle == cycle and not sent.late_seen:
+            return sent
+        return None
+
+    def _take(self, st: _Station, sent: _Sent, now: int) -> None:
+        """Count the answer to *sent*: ``Rtt`` when it is the outstanding command, else ``Late``. A late answer
+        still tells the truth (the command was executed), so it is processed; handlers check the current state,
+        so nothing is done twice."""
+        if sent is st.outstanding:
+            st.outstanding = None
+            st.rtt = rtt = now - sent.at
+            self._emit(Rtt(st.address, rtt))
+        else:
+            sent.late_seen = True
+            st.late += 1
+            self._emit(Late(st.address, sent.cycle, now - sent.at))
+        st.answered = sent.cycle
+        st.silent = 0
+        st.responses += 1
+        st.last_rx = now
 
     def drain_events(self) -> list[Event]:
         """All events since the last call, oldest first."""

@@ -18,9 +18,10 @@ declarations. Nothing here is declared a second time:
 
 :meth:`CyclicFrames.response` returns ``None`` for anything that is not a clean INV_CTL answer, e.g. a
 non-zero ALARM byte or STATUS.ALM/WARNG (ML-II), CMD_STAT ALM or CMD_ALM or a COMM_ALM edge (ML-III), another
-code, a bad FCS or another size. The core then takes the general path, so alarms, phase errors and malformed input are
-all handled in one place. tests/master/test_master_fastpath.py checks that both paths give the same bytes,
-views and events.
+code, a bad FCS or another size. The core then takes the general path, so alarms, phase errors and malformed
+input are all handled in one place. Which command an answer is for (on time or late) the core decides for both
+paths in one place (``MasterCore._answer_to``). tests/master/test_master_fastpath.py checks that both paths
+give the same bytes, views and events.
 """
 
 from __future__ import annotations
@@ -35,10 +36,15 @@ from ..wire.layout import fast_format, field_offset
 from .codec import Codec
 from .plan import StationPlan
 
-__all__ = ["CyclicFrames"]
+__all__ = ["CyclicFrames", "cycle_of"]
 
 _CYCLE_OFFSET = field_offset(ENVELOPE, "cycle")
 _CYCLE = struct.Struct("<I")
+
+
+def cycle_of(datagram: bytes) -> int:
+    """The envelope's cycle number (u32, bytes 4–7) of a datagram at least a header long."""
+    return _CYCLE.unpack_from(datagram, _CYCLE_OFFSET)[0]
 
 #: ML-II STATUS bits 0/1 (ALM, WARNG; SI-T3 Table 19) and the ALARM byte must be zero for the fast path.
 _ML2_TROUBLE = 0x0003

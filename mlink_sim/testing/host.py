@@ -1,4 +1,5 @@
-"""The process that hosts a network for :class:`~mlink_sim.testing.RunningNetwork` (``python -m mlink_sim.testing.host``).
+"""The process that hosts a network for :class:`~mlink_sim.testing.RunningNetwork`
+(``python -m mlink_sim.testing.host``).
 
 The test process must not share a GIL with the master's cycle (a test computing anything would delay it), so
 the network — slave workers and masters, exactly as ``mlink-sim up`` runs them — lives in this process. It
