@@ -61,6 +61,10 @@ class Drive:
         "_stop_alarm", "_d104", "_ef_since", "_event_at", "_hold_acc", "_hold_dec",
         "_tlimited", "_status", "_steady", "steady_epoch", "_run", "_mt", "_dt", "_A", "_D", "_Js", "_Je",
         "_Jds", "_Jde", "_tmode", "_tval", "_ref_hz", "_remote", "_net_run", "_net_ref",
+        # speed search (integrate.search_step): phase 0 off / 1 output off (b3-05, b3-25) / 2 sweep; sweep
+        # frequency, where it started, time left in phase 1, restarts so far, time above b3-17 (None: not
+        # watching), (sweep rate Hz/s, found level A, restart level A)
+        "_ss", "_ss_f", "_ss_start", "_ss_wait", "_ss_n", "_ss_hi", "_ss_k",
         # constants
         "_K", "_wph", "_Tr", "_I0", "_IT", "_Ir", "_R3", "_fb", "_J", "_lkind", "_Tl", "_B",
         "_kf", "_En", "_Vn", "_C", "_Pc", "_ov", "_uv", "_oc", "_acc_lvl", "_dec_lvl",
@@ -95,6 +99,10 @@ class Drive:
         self._ef_since: int | None = None
         self._event_at: int | None = None
         self._hold_acc = self._hold_dec = self._tlimited = False
+        self._ss = self._ss_n = 0
+        self._ss_f = self._ss_start = self._ss_wait = 0.0
+        self._ss_hi: float | None = None
+        self._ss_k = (0.0, 0.0, INF)
         self._status: DriveStatus | None = None
         self._skey: tuple[bool, ...] = ()
         self._slast: DriveStatus | None = None
@@ -258,7 +266,8 @@ class Drive:
 
     def drain_events(self) -> list[tuple[int, str, str]]:
         """Events since the last call, oldest first: ``(t_ns, kind, detail)`` with kind
-        ``"fault"`` (detail ``"<display> <stop>"``), ``"fault_reset"``, ``"ope"``.  At most the
+        ``"fault"`` (detail ``"<display> <stop>"``), ``"fault_reset"``, ``"ope"``, ``"speed_search"`` (detail
+        ``"start"``, ``"restart <n>"``, ``"found <Hz> Hz"``).  At most the
         last 64 are kept; the card logs them with its bound context (the drive does no I/O)."""
         ev, self._events = self._events, []
         return ev
@@ -318,8 +327,11 @@ class Drive:
             self._dt = 1 if fwd else -1
             mt = min(ref, fmax)
             self._mt = mt if mt >= s.min_freq_hz else 0.0
-            if not out:  # output on: V/f starts at 0 Hz (speed search not modelled)
+            if not out:  # output on: V/f starts at 0 Hz, or at the speed a speed search finds
                 self._out, self._m, self._q, self._dir = True, 0.0, 0.0, self._dt
+                if s.search.at_start or mi & (inp.search_max | inp.search_ref):
+                    from_ref = bool(mi & inp.search_ref) and not mi & inp.search_max
+                    self._begin_search(self._mt if from_ref else fmax, s.search.delay_s)
         else:
             self._dt, self._mt = self._dir, 0.0
             coast = bb or self._ope is not None or not pon
@@ -331,8 +343,8 @@ class Drive:
                 fast = True
             elif not self._stop_alarm:
                 coast |= s.coast_on_run_off
-            if coast or (out and self._m == 0.0 and self._q == 0.0):
-                self._out = False
+            if coast or self._ss or (out and self._m == 0.0 and self._q == 0.0):
+                self._out = False  # a search cut short by a stop leaves the motor coasting
             if fast and s.fast_stop_s > 0:
                 fast_rate = fmax / s.fast_stop_s
             elif fast:
@@ -340,6 +352,8 @@ class Drive:
         if not self._out:
             self._m = self._q = self._fout = 0.0
             self._T = self._I = 0.0
+            self._ss = self._ss_n = 0
+            self._ss_hi = None
             self._hold_acc = self._hold_dec = self._tlimited = False
         self._A = fmax / acc_s if acc_s > 0 else INF
         self._Js = self._A / s0 if s0 > 0 else INF
@@ -357,6 +371,16 @@ class Drive:
                 self._tmode, self._tval = 1, abs(c.torque_limit_raw) * 0.001 * self._Tr
         else:
             self._tmode, self._tval = 0, 0.0
+
+    def _begin_search(self, start_hz: float, wait_s: float) -> None:
+        """Start (or restart) a speed search: output off for ``wait_s``, then sweep down from ``start_hz``."""
+        s = self.settings
+        ss, i_drive = s.search, s.drive_rated_current_a
+        self._ss, self._ss_f, self._ss_start, self._ss_wait = 1, start_hz, start_hz, wait_s
+        self._ss_hi = None
+        self._ss_k = (s.max_freq_hz / ss.decel_s, ss.current_pct * 0.01 * i_drive, ss.restart_pct * 0.01 * i_drive)
+        self._m = self._q = self._fout = 0.0
+        self._event("speed_search", f"restart {self._ss_n}" if self._ss_n else "start")
 
     def _select_ref(self, mi: int) -> float:
         """Selected frequency reference (Hz): d1-04 override, jog, multi-step (F6-07), network."""
@@ -429,10 +453,11 @@ class Drive:
         f = self._fout if out else 0.0
         running = self._run or out
         af = f if f >= 0.0 else -f
+        on = out and not self._ss  # no speed agree while a speed search sweeps
         key = (running, f < 0.0 or (f == 0.0 and running and self._dir < 0),
                af < s.min_freq_hz or not out,
-               running and out and abs(af - min(self._ref_hz, s.max_freq_hz)) <= s.agree_width_hz,
-               running and out and abs(af - s.agree_level_hz) <= s.agree_width_hz,
+               running and on and abs(af - min(self._ref_hz, s.max_freq_hz)) <= s.agree_width_hz,
+               running and on and abs(af - s.agree_level_hz) <= s.agree_width_hz,
                self._tlimited, self._hold_acc or self._hold_dec)
         last = self._slast
         if last is not None and key == self._skey:
@@ -510,6 +535,11 @@ class Drive:
     def motor_thermal(self) -> float:
         """oL1 thermal state theta (per unit of rated-current heating; trips at 1.21)."""
         return self._theta
+
+    @property
+    def speed_search_active(self) -> bool:
+        """True while a speed search runs (b3 / n101, n102): its delay, its sweep, the wait before a restart."""
+        return self._ss != 0
 
     @property
     def is_steady(self) -> bool:

@@ -15,6 +15,11 @@ Per sub-step ``h`` (docs/drive-model.md, "Numerics"):
    load linearised at the start of the step (exact for inertia, constant, friction loads);
 4. DC bus energy ``E = C V^2 / 2`` takes ``-(P_out + P_ctrl) h`` above the rectified level;
 5. oL1 thermal state, oC / ov / Uv1 checks, stall-prevention flags, steady-state detection.
+
+While a speed search runs (:func:`search_step`) the drive applies no torque (its search voltage is
+reduced; the shaft coasts through steps 2-3) and the sweep frequency and the search current replace
+step 1; after it, :func:`restart_watch` restarts a search whose current stays above b3-17 (SEr when
+b3-19 is exceeded).
 """
 
 from __future__ import annotations
@@ -28,7 +33,7 @@ from .settings import OL1_TRIP_LEVEL, StopMethod
 if TYPE_CHECKING:
     from .drive import Drive
 
-__all__ = ["steady_to", "substep"]
+__all__ = ["restart_watch", "search_step", "steady_to", "substep"]
 
 INF = math.inf
 _STOP_W = 1e-4  # rad/s below which a coasting shaft is taken as stopped
@@ -62,7 +67,8 @@ def substep(self: Drive, h: float) -> None:  # noqa: C901, PLR0912, PLR0915 - th
     mains = self._mains
     w = self._w
     E = self._E
-    out = self._out
+    srch = self._ss
+    out = self._out and not srch
     m0 = m1 = self._m
     q = 0.0
     T1 = I1 = pag = 0.0
@@ -166,6 +172,8 @@ def substep(self: Drive, h: float) -> None:  # noqa: C901, PLR0912, PLR0915 - th
         w1 = 0.0  # a passive load stops the shaft and holds it
     if not out and -_STOP_W < w1 < _STOP_W:
         w1 = 0.0
+    if srch:
+        I1 = search_step(self, h, w1)
     # ---- electrical ---------------------------------------------------------------------
     if out:
         T1 = aT + kk * (ws1 - w1)
@@ -194,7 +202,7 @@ def substep(self: Drive, h: float) -> None:  # noqa: C901, PLR0912, PLR0915 - th
         E1, V = E, self._V
     # ---- state, protections --------------------------------------------------------------
     self._w, self._T, self._I, self._P, self._E, self._V = w1, T1, I1, P, E1, V
-    changed = False
+    changed = srch and not self._ss  # a speed search found the motor speed
     if ol1:
         i2 = I1 / Ir
         i2 *= i2
@@ -219,6 +227,8 @@ def substep(self: Drive, h: float) -> None:  # noqa: C901, PLR0912, PLR0915 - th
             self._hold_acc, self._hold_dec, self._tlimited = ha, hd, limited
         if not self._run and m1 == 0.0 and q == 0.0:
             changed = True  # stop completed: baseblock
+        if self._ss_hi is not None and not changed:
+            changed = restart_watch(self, h, I1)
     dyn = self._dyn
     if dyn or V >= ov or (not mains and V < uv):
         nd = set()
@@ -233,7 +243,82 @@ def substep(self: Drive, h: float) -> None:  # noqa: C901, PLR0912, PLR0915 - th
         self._recompute()
         return
     self._status = None
-    if E1 == E and (w1 == w or -1e-9 * (1.0 + abs(w)) <= w1 - w <= 1e-9 * (1.0 + abs(w))):
+    if not srch and E1 == E and (w1 == w or -1e-9 * (1.0 + abs(w)) <= w1 - w <= 1e-9 * (1.0 + abs(w))):
         if not out or (m1 == m0 and q == 0.0 and self._dt == self._dir):
             self._steady = True
             self.steady_epoch += 1
+
+
+def search_step(self: Drive, h: float, w: float) -> float:
+    """One sub-step of a speed search; returns the output current.  ``w``: shaft speed at the step's end.
+
+    Phase 1 (b3-05 delay, b3-25 wait): output off.  Then Speed Estimation (b3-24 = 1) outputs the rotor's
+    own electrical frequency, in its direction.  Current Detection sweeps the output down from the start
+    frequency at E1-04 / b3-03 Hz/s with the current held at the b3-02 level; at full V/f voltage the
+    motor would draw ``I = phi sqrt(I0^2 + (I_T s / s_r)^2)`` at slip ``s`` (section 4), so the current
+    drops below b3-02 where ``s = s_r sqrt((I_b302 / phi)^2 - I0^2) / I_T``: the output resumes there.
+    """
+    rate, level, _ = self._ss_k
+    d = self._dir
+    if self._ss == 1:
+        self._ss_wait -= h
+        self._fout = 0.0
+        if self._ss_wait > 1e-12:
+            return 0.0
+        if self.settings.search.estimation:
+            fr = w / self._wph
+            if fr:
+                d = 1 if fr > 0.0 else -1
+            fr = min(abs(fr), self.settings.max_freq_hz)
+            _resume(self, fr, d)
+            return self._I0 * (self._fb / fr if fr > self._fb else 1.0)
+        self._ss = 2
+        self._fout = d * self._ss_f
+        return level
+    f0 = self._ss_f
+    f1 = f0 - rate * h
+    if f1 < 0.0:
+        f1 = 0.0
+    fr = d * w / self._wph  # rotor electrical frequency in the search direction
+    lim = level / (self._fb / f1) if f1 > self._fb else level
+    x = lim * lim - self._I0 * self._I0
+    if x > 0.0:
+        s_th = self.settings.motor_rated_slip_hz * math.sqrt(x) / self._IT
+        if f1 - fr <= s_th:
+            _resume(self, min(max(fr + s_th, f1), f0), d)
+            return level
+    if f1 == 0.0:  # swept to 0 Hz without finding it (e.g. turning the other way): a plain start
+        _resume(self, 0.0, d)
+        return 0.0
+    self._ss_f = f1
+    self._fout = d * f1
+    return level
+
+
+def _resume(self: Drive, f: float, d: int) -> None:
+    """Output on at ``f`` Hz in direction ``d``; the ramp goes on from there.  Watch b3-17 from now."""
+    self._ss = 0
+    self._m, self._q, self._dir = f, 0.0, d
+    self._fout = d * f
+    self._ss_hi = 0.0
+    self._event("speed_search", f"found {f:.2f} Hz")
+
+
+def restart_watch(self: Drive, h: float, i: float) -> bool:
+    """After a search: current >= b3-17 for b3-18 restarts it (after the b3-25 wait); more than b3-19
+    restarts trip SEr (SI-T3 Table 26, 3BH).  The first step below b3-17 ends the watch and the count."""
+    ss = self.settings.search
+    if i < self._ss_k[2]:
+        self._ss_hi = None
+        self._ss_n = 0
+        return False
+    hi = self._ss_hi = (self._ss_hi or 0.0) + h
+    if hi < ss.restart_s - 1e-12:
+        return False
+    self._ss_n += 1
+    if self._ss_n > ss.restarts:
+        self._ss_hi = None
+        self._trip_now(Fault.SER, StopMethod.COAST)
+    else:
+        self._begin_search(self._ss_start, ss.wait_s)
+    return True

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from .faults import Fault
+from .search import SpeedSearch, a1000_search, v7_search
 
 __all__ = [
     "OPTIONAL_DEFAULTS",
@@ -78,6 +79,8 @@ class InputMap:
     fast_stop_no: int = 0
     fast_stop_nc: int = 0
     motor2: int = 0
+    search_max: int = 0  # speed search from the maximum frequency (H1 = 61H, n05x = 14)
+    search_ref: int = 0  # speed search from the frequency reference (H1 = 62H, n05x = 15)
     ext_faults: tuple[ExtFaultInput, ...] = ()
     duplicated: bool = False  # same function on two inputs -> oPE03
 
@@ -134,17 +137,18 @@ class InputMap:
             multi_step=(g("ms1", 0), g("ms2", 0), g("ms3", 0), g("ms4", 0)),
             jog=g("jog", 0), accel_decel_2=g("acc2", 0), baseblock_no=g("bb_no", 0),
             baseblock_nc=g("bb_nc", 0), fault_reset=g("reset", 0), fast_stop_no=g("fs_no", 0),
-            fast_stop_nc=g("fs_nc", 0), motor2=g("motor2", 0), ext_faults=ext, duplicated=dup)
+            fast_stop_nc=g("fs_nc", 0), motor2=g("motor2", 0), search_max=g("ss_max", 0),
+            search_ref=g("ss_ref", 0), ext_faults=ext, duplicated=dup)
 
 
 _EF_BY_TERMINAL = {3: Fault.EF3, 4: Fault.EF4, 5: Fault.EF5, 6: Fault.EF6, 7: Fault.EF7, 8: Fault.EF8}
 # A1000 H1-xx setting values (hex) -> function
 _A1000_H1 = {0x03: "ms1", 0x04: "ms2", 0x05: "ms3", 0x32: "ms4", 0x06: "jog", 0x07: "acc2",
              0x08: "bb_no", 0x09: "bb_nc", 0x14: "reset", 0x15: "fs_no", 0x17: "fs_nc",
-             0x16: "motor2"}
+             0x16: "motor2", 0x61: "ss_max", 0x62: "ss_ref"}
 # VS-606V7 n050..n056 setting values -> function
 _V7_N05X = {5: "reset", 6: "ms1", 7: "ms2", 8: "ms3", 9: "ms4", 10: "jog", 11: "acc2",
-            12: "bb_no", 13: "bb_nc"}
+            12: "bb_no", 13: "bb_nc", 14: "ss_max", 15: "ss_ref"}
 
 _A1000_REQUIRED = (
     ("A1-02", "b1-01", "b1-02", "b1-03", "C1-01", "C1-02", "C1-03", "C1-04", "C1-09",
@@ -173,12 +177,17 @@ OPTIONAL_DEFAULTS: dict[Family, dict[str, int]] = {
         "L1-01": 1,  # motor overload: 1 = general-purpose motor (A1000 TM, L1-01 default)
         "L1-02": 10,  # motor overload time 1.0 min (A1000 TM, L1-02 default)
         "F6-23": 0, "F6-24": 0,  # SEL_MON E/F registers (SI-T3 Table 4 default 0)
+        # speed search b3 (A1000 TM b3 table; A1-02 = 2 defaults as in mlink_sim.params): off, 100 %, 2.0 s,
+        # 0.2 s, restart at 150 % for 0.10 s, 3 restarts, Current Detection, 0.5 s between restarts
+        "b3-01": 0, "b3-02": 100, "b3-03": 20, "b3-05": 2, "b3-17": 150, "b3-18": 10, "b3-19": 3,
+        "b3-24": 0, "b3-25": 5,
     },
     Family.V7: {
         "n018": 0,  # accel/decel time unit: 0 = 0.1 s (VS-606V7 manual, n018 default)
         "n037": 0,  # electronic thermal: 0 = general-purpose motor (VS-606V7, n037 default)
         "n038": 8,  # electronic thermal time constant 8 min (VS-606V7, n038 default)
         "n095": 0,  # frequency detection level 0.00 Hz (VS-606V7, n095 default)
+        "n101": 20, "n102": 150,  # speed search decel time 2.0 s, operation level 150 % (VS-606V7 TOE-S606-12)
     },
 }
 
@@ -266,6 +275,7 @@ class DriveSettings:
     control_power_w: float = 20.0
     f6_23: int = 0  # MEMOBUS register of SEL_MON E (F6-23)
     f6_24: int = 0  # MEMOBUS register of SEL_MON F (F6-24)
+    search: SpeedSearch = field(default_factory=SpeedSearch)  # b3 group / n101, n102
     # raw values kept for check() --------------------------------------------------------------
     _ope_inputs: tuple[float, ...] = ()
 
@@ -429,7 +439,7 @@ def _from_a1000(values: Mapping[str, int], current_unit_a: float | None,
         bus_stop=_stop(g("F6-01")), e5_stop=_stop(g("F6-25")), ef0_stop=_stop(g("F6-03")),
         ef0_run_only=g("F6-02") == 1, inputs=inputs, current_unit_a=cu,
         power_unit_kw=0.01 if cu <= 0.01 else 0.1, bus_capacitance_f=bus_capacitance_f,
-        control_power_w=control_power_w, f6_23=g("F6-23"), f6_24=g("F6-24"),
+        control_power_w=control_power_w, f6_23=g("F6-23"), f6_24=g("F6-24"), search=a1000_search(g),
         _ope_inputs=(fmax, fbase, fmid, fmin, i_rated, i0, poles, inputs.duplicated),
     )
 
@@ -495,7 +505,7 @@ def _from_v7(values: Mapping[str, int], drive_rated_current_a: float | None,
         agree_level_hz=g("n095") * 0.01, agree_width_hz=2.0,
         bus_stop=fault_stop, e5_stop=fault_stop, ef0_stop=fault_stop, ef0_run_only=False,
         inputs=inputs, current_unit_a=0.1, power_unit_kw=0.1,
-        bus_capacitance_f=bus_capacitance_f, control_power_w=control_power_w,
+        bus_capacitance_f=bus_capacitance_f, control_power_w=control_power_w, search=v7_search(g),
         _ope_inputs=(fmax, fbase, fmid, fmin, i_rated, i0, motor_poles, inputs.duplicated),
     )
 

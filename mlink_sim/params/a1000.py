@@ -65,6 +65,36 @@ B1 = (
     Param("b1-04", 0x0183, "Reverse Operation Selection", "", 1, 0, 1, 0, source=_A1K),
 )
 
+# -- b3: speed search.  The option manuals only list SEr "Too Many Speed Search Restarts" (SI-T3 Table 26,
+# code 3BH).  Registers, ranges and defaults: A1000 Technical Manual, b3 parameter table (recalled, no copy
+# of the manual at hand: unverified).  Cross-checked against the same b3 group as Yaskawa publishes it for the
+# P1000 / Z1000 / T1000V / V1000 / GA700 (b3-01 "Speed Search Selection at Start", b3-02 operation current,
+# b3-03 decel time, b3-05 delay, b3-24 0 = Current Detection / 1 = Speed Estimation, b3-25 0.0…30.0 s
+# default 0.5 s), which agrees with every figure below that those pages show. ------------------------------
+_B3 = "A1000 Technical Manual SIEP C710616 27, b3 Speed Search table (option manuals silent)"
+_B3_REG = "register and range recalled"
+B3 = (
+    Param("b3-01", 0x0191, "Speed Search Selection at Start", "", 1, 0, 1, 0,
+          source=_unverified(_B3_REG + "; default 0 for A1-02 = 0/2 (V/f, OLV), 1 for CLV and V/f w/PG", _B3)),
+    Param("b3-02", 0x0192, "Speed Search Deactivation Current", "%", 1, 0, 200, 100,
+          source=_unverified(_B3_REG + "; % of drive rated current; default 100 % for A1-02 = 2 (OLV), "
+                             "120 % for V/f", _B3)),
+    Param("b3-03", 0x0193, "Speed Search Deceleration Time", "0.1 s", 0.1, 1, 100, 20,
+          source=_unverified(_B3_REG + "; 0.1…10.0 s, default 2.0 s", _B3)),
+    Param("b3-05", 0x0195, "Speed Search Delay Time", "0.1 s", 0.1, 0, 1000, 2,
+          source=_unverified(_B3_REG + "; 0.0…100.0 s, default 0.2 s", _B3)),
+    Param("b3-17", 0x01F0, "Speed Search Restart Current Level", "%", 1, 0, 200, 150,
+          source=_unverified(_B3_REG + "; % of drive rated current, default 150 %", _B3)),
+    Param("b3-18", 0x01F1, "Speed Search Restart Detection Time", "0.01 s", 0.01, 0, 100, 10,
+          source=_unverified(_B3_REG + "; 0.00…1.00 s, default 0.10 s", _B3)),
+    Param("b3-19", 0x01F2, "Number of Speed Search Restarts", "", 1, 0, 10, 3,
+          source=_unverified(_B3_REG + "; default 3; exceeding it trips SEr (SI-T3 Table 26, 3BH)", _B3)),
+    Param("b3-24", 0x01C0, "Speed Search Method Selection", "", 1, 0, 1, 0,
+          source=_unverified(_B3_REG + "; 0 = Current Detection, 1 = Speed Estimation, default 0", _B3)),
+    Param("b3-25", 0x01C8, "Speed Search Wait Time", "0.1 s", 0.1, 0, 300, 5,
+          source=_unverified(_B3_REG + "; 0.0…30.0 s, default 0.5 s (as the V1000 TM prints it)", _B3)),
+)
+
 # -- C1: acceleration/deceleration times (C1-10 = 1: 0.1 s units) ------------------------------
 C1 = (
     Param("C1-01", 0x0200, "Acceleration Time 1", "0.1 s", 0.1, 0, 60000, 100,
@@ -344,7 +374,7 @@ U3 = tuple(
 MONITORS: tuple[Param, ...] = (*U1, *U2, *U3)
 
 SETTINGS: tuple[Param, ...] = (
-    *A1, *B1, *C1, *C2, *D1, *D2, *D5, *E1, *E2, *F6, *H1, *H2, *H4, *L3, *L4, *O1,
+    *A1, *B1, *B3, *C1, *C2, *D1, *D2, *D5, *E1, *E2, *F6, *H1, *H2, *H4, *L3, *L4, *O1,
 )
 
 A1000 = ParamTable("a1000", "A1000", (*SETTINGS, *MONITORS))

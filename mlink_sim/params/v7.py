@@ -131,6 +131,12 @@ PROTECTION = (
     _n(93, "Stall Prevention Level during Acceleration", "%", 1, 30, 200, 170, _TOE),
     _n(94, "Stall Prevention Level during Running", "%", 1, 30, 200, 160, _TOE),
     _n(95, "Frequency Detection Level", *_HZ, 0, 40000, 0, _unverified("raw unit 0.01 Hz assumed")),
+    # Speed search (VS-606V7 TOE-S606-12 constant list): the search runs when a multi-function input set to
+    # 14 (search from maximum frequency) or 15 (search from set frequency) is on at the run command.
+    _n(101, "Speed Search Deceleration Time", "0.1 s", 0.1, 1, 100, 20,
+       _unverified("range 0.1…10.0 s and default 2.0 s recalled")),
+    _n(102, "Speed Search Operation Level", "%", 1, 0, 200, 150,
+       _unverified("% of inverter rated current; range 0…200 % and default 150 % recalled")),
     _n(103, "Torque Compensation Gain", "0.1", 0.1, 0, 25, 10, _TOE),
     _n(106, "Motor Rated Slip", "0.1 Hz", 0.1, 0, 200, 26, _unverified(_CAP)),
     _n(107, "Motor Line-to-Neutral Resistance", "0.001 Ω", 0.001, 0, 65500, 1233,
