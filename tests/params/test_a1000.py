@@ -209,3 +209,34 @@ def test_engineering_defaults() -> None:
     assert A1000.by_name("E1-04").to_eng(600) == 60.0
     assert A1000.by_name("d1-17").to_eng(A1000.by_name("d1-17").default) == 6.0
     assert A1000.by_name("E1-01").default == 200
+
+
+# -- b3 speed search (A1000 TM b3 table; SI-T3 Table 26 names SEr 3BH) ---------------------------
+# name: (register, minimum, maximum, default) in raw counts
+B3_SPEED_SEARCH = {
+    "b3-01": (0x0191, 0, 1, 0),  # off for A1-02 = 0/2
+    "b3-02": (0x0192, 0, 200, 100),  # % of drive rated current, A1-02 = 2
+    "b3-03": (0x0193, 1, 100, 20),  # 0.1 s: 0.1…10.0 s, 2.0 s
+    "b3-05": (0x0195, 0, 1000, 2),  # 0.1 s: 0.0…100.0 s, 0.2 s
+    "b3-17": (0x01F0, 0, 200, 150),
+    "b3-18": (0x01F1, 0, 100, 10),  # 0.01 s: 0.00…1.00 s, 0.10 s
+    "b3-19": (0x01F2, 0, 10, 3),
+    "b3-24": (0x01C0, 0, 1, 0),  # 0 Current Detection, 1 Speed Estimation
+    "b3-25": (0x01C8, 0, 300, 5),  # 0.1 s: 0.0…30.0 s, 0.5 s
+}
+
+
+@pytest.mark.parametrize("name", sorted(B3_SPEED_SEARCH))
+def test_b3_speed_search_rows_registers_ranges_defaults(name: str) -> None:
+    for table in (A1000, A1000_SI_T3, A1000_SI_ET3):
+        row = table.by_name(name)
+        assert (row.register, row.minimum, row.maximum, row.default) == B3_SPEED_SEARCH[name]
+        assert table.by_register(row.register) is row
+    row = A1000.by_name(name)
+    assert row.unverified and "b3 Speed Search" in row.source  # recalled: said so in the row
+
+
+def test_b3_engineering_values() -> None:
+    assert A1000.by_name("b3-03").to_eng(20) == pytest.approx(2.0)
+    assert A1000.by_name("b3-18").to_eng(10) == pytest.approx(0.10)
+    assert A1000.parse_assignment("b3-01=1") == (A1000.by_name("b3-01"), 1)

@@ -81,3 +81,12 @@ def test_engineering_values() -> None:
     assert VS606V7.parse_assignment("n011=60") == (VS606V7.by_name("n011"), 600)
     assert VS606V7.parse_assignment("n024=6.00")[1] == 600
     assert VS606V7.by_name("n107").format(1233) == "1.233 Ω"
+
+
+def test_speed_search_n101_n102() -> None:
+    """VS-606V7 speed search: n101 decel time 2.0 s (0.1…10.0 s), n102 operation level 150 % (0…200 %)."""
+    n101, n102 = VS606V7.by_name("n101"), VS606V7.by_name("n102")
+    assert (n101.register, n101.minimum, n101.maximum, n101.default) == (0x0165, 1, 100, 20)
+    assert (n102.register, n102.minimum, n102.maximum, n102.default) == (0x0166, 0, 200, 150)
+    assert n101.to_eng(n101.default) == pytest.approx(2.0)
+    assert n101.unverified and n102.unverified
