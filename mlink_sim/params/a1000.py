@@ -72,27 +72,30 @@ B1 = (
 # b3-03 decel time, b3-05 delay, b3-24 0 = Current Detection / 1 = Speed Estimation, b3-25 0.0…30.0 s
 # default 0.5 s), which agrees with every figure below that those pages show. ------------------------------
 _B3 = "A1000 Technical Manual SIEP C710616 27, b3 Speed Search table (option manuals silent)"
-_B3_REG = "register and range recalled"
+
+def _b3(name: str, register: int, title: str, unit: str, scale: float, lo: int, hi: int, default: int,
+        figures: str) -> Param:
+    return Param(name, register, title, unit, scale, lo, hi, default,
+                 source=_unverified("register and range recalled; " + figures, _B3))
+
+
 B3 = (
-    Param("b3-01", 0x0191, "Speed Search Selection at Start", "", 1, 0, 1, 0,
-          source=_unverified(_B3_REG + "; default 0 for A1-02 = 0/2 (V/f, OLV), 1 for CLV and V/f w/PG", _B3)),
-    Param("b3-02", 0x0192, "Speed Search Deactivation Current", "%", 1, 0, 200, 100,
-          source=_unverified(_B3_REG + "; % of drive rated current; default 100 % for A1-02 = 2 (OLV), "
-                             "120 % for V/f", _B3)),
-    Param("b3-03", 0x0193, "Speed Search Deceleration Time", "0.1 s", 0.1, 1, 100, 20,
-          source=_unverified(_B3_REG + "; 0.1…10.0 s, default 2.0 s", _B3)),
-    Param("b3-05", 0x0195, "Speed Search Delay Time", "0.1 s", 0.1, 0, 1000, 2,
-          source=_unverified(_B3_REG + "; 0.0…100.0 s, default 0.2 s", _B3)),
-    Param("b3-17", 0x01F0, "Speed Search Restart Current Level", "%", 1, 0, 200, 150,
-          source=_unverified(_B3_REG + "; % of drive rated current, default 150 %", _B3)),
-    Param("b3-18", 0x01F1, "Speed Search Restart Detection Time", "0.01 s", 0.01, 0, 100, 10,
-          source=_unverified(_B3_REG + "; 0.00…1.00 s, default 0.10 s", _B3)),
-    Param("b3-19", 0x01F2, "Number of Speed Search Restarts", "", 1, 0, 10, 3,
-          source=_unverified(_B3_REG + "; default 3; exceeding it trips SEr (SI-T3 Table 26, 3BH)", _B3)),
-    Param("b3-24", 0x01C0, "Speed Search Method Selection", "", 1, 0, 1, 0,
-          source=_unverified(_B3_REG + "; 0 = Current Detection, 1 = Speed Estimation, default 0", _B3)),
-    Param("b3-25", 0x01C8, "Speed Search Wait Time", "0.1 s", 0.1, 0, 300, 5,
-          source=_unverified(_B3_REG + "; 0.0…30.0 s, default 0.5 s (as the V1000 TM prints it)", _B3)),
+    _b3("b3-01", 0x0191, "Speed Search Selection at Start", "", 1, 0, 1, 0,
+        "default 0 for A1-02 = 0/2 (V/f, OLV), 1 for CLV and V/f w/PG"),
+    _b3("b3-02", 0x0192, "Speed Search Deactivation Current", "%", 1, 0, 200, 100,
+        "% of drive rated current; default 100 % for A1-02 = 2 (OLV), 120 % for V/f"),
+    _b3("b3-03", 0x0193, "Speed Search Deceleration Time", "0.1 s", 0.1, 1, 100, 20, "0.1…10.0 s, default 2.0 s"),
+    _b3("b3-05", 0x0195, "Speed Search Delay Time", "0.1 s", 0.1, 0, 1000, 2, "0.0…100.0 s, default 0.2 s"),
+    _b3("b3-17", 0x01F0, "Speed Search Restart Current Level", "%", 1, 0, 200, 150,
+        "% of drive rated current, default 150 %"),
+    _b3("b3-18", 0x01F1, "Speed Search Restart Detection Time", "0.01 s", 0.01, 0, 100, 10,
+        "0.00…1.00 s, default 0.10 s"),
+    _b3("b3-19", 0x01F2, "Number of Speed Search Restarts", "", 1, 0, 10, 3,
+        "default 3; exceeding it trips SEr (SI-T3 Table 26, 3BH)"),
+    _b3("b3-24", 0x01C0, "Speed Search Method Selection", "", 1, 0, 1, 0,
+        "0 = Current Detection, 1 = Speed Estimation, default 0"),
+    _b3("b3-25", 0x01C8, "Speed Search Wait Time", "0.1 s", 0.1, 0, 300, 5,
+        "0.0…30.0 s, default 0.5 s (as the V1000 TM prints it)"),
 )
 
 # -- C1: acceleration/deceleration times (C1-10 = 1: 0.1 s units) ------------------------------

@@ -136,16 +136,23 @@ def test_current_detection_is_unidirectional_sweeps_to_zero_for_reverse_rotation
     assert f_found == 0.0
 
 
-def test_external_search_command_62h_sweeps_from_the_reference():
-    """H1 = 62H (External Search Command 2): the sweep starts at the frequency reference, not at E1-04."""
-    s = a1000(H1_05=0x62)  # terminal S5 = bit 2 of multi_inputs
-    d = _coasting(s)
+@pytest.mark.parametrize("settings, bit, level_pct, start_hz, delay_s", [
+    # A1000 H1-05 = 62H External Search Command 2: from the reference, after b3-05 (0.2 s), b3-02 100 %
+    (a1000(H1_05=0x62), 2, 100.0, 40.0, 0.2),
+    # V7 n055 = 14 search command from maximum frequency: n011, no delay, n101 2.0 s, n102 150 %
+    (v7(n055=14), 3, 150.0, 60.0, 0.0),
+])
+def test_search_command_input(settings, bit, level_pct, start_hz, delay_s):
+    """A search-command input on at the run command: no oC; the sweep (60 Hz / 2.0 s) starts at E1-04 / n011
+    or at the reference; the output resumes at f_rotor + s_th and reaches the reference."""
+    d = _coasting(settings)
     f_rotor = _rotor_hz(d)
-    d.command(DriveCommand(forward=True, freq_ref_raw=4000, multi_inputs=1 << 2), T_RUN)
+    d.command(DriveCommand(forward=True, freq_ref_raw=4000, multi_inputs=1 << bit), T_RUN)
     assert run_until(d, T_RUN + 5 * S, MS, lambda x: x.status.faulted) is None
     t_found, f_found = _found(d)
-    assert f_found == pytest.approx(f_rotor + _found_slip_hz(s, 100.0), abs=0.05)
-    assert (t_found - T_RUN) / S == pytest.approx(0.2 + (40.0 - f_found) / 30.0, abs=0.003)
+    assert f_found == pytest.approx(f_rotor + _found_slip_hz(settings, level_pct), abs=0.05)
+    assert (t_found - T_RUN) / S == pytest.approx(delay_s + (start_hz - f_found) / 30.0, abs=0.003)
+    assert d.output_frequency_hz == pytest.approx(40.0)
 
 
 def test_ser_after_b3_19_restarts_when_the_current_stays_above_b3_17():
@@ -183,19 +190,6 @@ def test_run_removed_during_the_search_leaves_the_motor_coasting():
     d.command(DriveCommand(), T_RUN + 500 * MS)
     assert d.status.baseblock and not d.speed_search_active and not d.status.running
     assert _rotor_hz(d) == pytest.approx(30.0, abs=0.05)
-
-
-def test_v7_search_command_input_14_from_max_frequency():
-    """VS-606V7: n05x = 14 "search command from maximum frequency", n101 2.0 s, n102 150 %."""
-    s = v7(n055=14)  # terminal S6 = bit 3 of multi_inputs (SI-T/V7 Table 3)
-    d = _coasting(s)
-    f_rotor = _rotor_hz(d)
-    d.command(DriveCommand(forward=True, freq_ref_raw=4000, multi_inputs=1 << 3), T_RUN)
-    assert run_until(d, T_RUN + 5 * S, MS, lambda x: x.status.faulted) is None
-    t_found, f_found = _found(d)
-    assert f_found == pytest.approx(f_rotor + _found_slip_hz(s, 150.0), abs=0.05)
-    assert (t_found - T_RUN) / S == pytest.approx((60.0 - f_found) / 30.0, abs=0.003)  # no b3-05 on the V7
-    assert d.output_frequency_hz == pytest.approx(40.0)
 
 
 def test_v7_without_the_search_input_trips_oc():
