@@ -108,13 +108,16 @@ class Master:
     async def start(cls, plan: NetworkPlan, endpoints: dict[int, tuple[str, int]], *,
                     local: tuple[str, int] = ("127.0.0.1", 0), metrics: MetricsSink | None = None,
                     loop: asyncio.AbstractEventLoop | None = None, strategy: str = "auto",
-                    rcvbuf: int = 1 << 20, clock: CycleTimer | None = None) -> Master:
+                    rcvbuf: int = 1 << 20, clock: CycleTimer | None = None, catch_up_ns: int = 0) -> Master:
         """Open one UDP socket on *local*, start cycling at ``plan.tcycle_ns``; *endpoints* maps every station
         address of the plan to the ``(host, port)`` of its slave.
 
         *clock*: a :class:`CycleTimer` shared with other masters of the same network (one per link), whose
         callback calls :meth:`on_cycle` of each; the first master records the cycle lateness. Two spinning
-        timers in one loop delay each other, so ``mlink-sim up`` drives every link from one clock."""
+        timers in one loop delay each other, so ``mlink-sim up`` drives every link from one clock.
+
+        *catch_up_ns*: the host-stall policy of its own clock (``CycleTimer``'s ``catch_up_ns``; 0 = strict);
+        stalls are recorded through the metrics' ``stall_recorder`` when it has one."""
         missing = [f"{sp.address:02X}H" for sp in plan.stations if sp.address not in endpoints]
         if missing:
             raise ValueError(f"no UDP endpoint for station(s) {', '.join(missing)}")
@@ -126,8 +129,10 @@ class Master:
         sock = self._sock = bound_socket(local[0], local[1], rcvbuf)
         loop.add_reader(sock.fileno(), self.read_responses)
         if clock is None:
+            recorder = getattr(self.metrics, "stall_recorder", None)
             self._timer = CycleTimer(plan.tcycle_ns, self._on_cycle, loop=loop, strategy=strategy,
-                                     idle=self.read_one)
+                                     idle=self.read_one, catch_up_ns=catch_up_ns,
+                                     on_stall=recorder("master") if callable(recorder) else None)
             self._timer.start()
         else:
             self._timer, self._owns_timer = clock, False

@@ -82,6 +82,7 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
     checks: list[CheckResult] = []
+    t0 = loop.time()
     session: NetworkSession | None = None
     workers = None
     if endpoints is None:
@@ -131,6 +132,7 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
         stopper.cancel()
         await session.refresh_slave_stats()
         await session.close_masters()  # DISCONNECT while the slaves still run
+        checks = [_with_stalls(c, session.metrics.stalls, t0) for c in checks]
         for c in checks:
             session.metrics.record_check(c.at_s, c.what, c.ok, c.detail)
         report = await session.report(assertions=opts.assertions, slave_stats=False)
@@ -147,6 +149,12 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
     _print_summary(config, report, checks, failed_asserts, problems, opts)
     ok = not failed_checks and not failed_asserts and not [p for p in problems if "did not reach" in p]
     return RunOutcome(0 if ok else 1, report, checks, problems)
+
+
+def _with_stalls(check: CheckResult, stalls: Any, t0: float) -> CheckResult:
+    """A failed check names the host stalls of the three seconds before it (loop time is the monotonic clock)."""
+    near = "" if check.ok else stalls.describe_near(int((t0 + check.at_s) * 1e9), zero_ns=int(t0 * 1e9))
+    return dataclasses.replace(check, detail=f"{check.detail}; {near}") if near else check
 
 
 async def _status_loop(config: Config, net: NetworkApi, t0: float, scales: dict[int, Any]) -> None:
@@ -174,6 +182,12 @@ def _print_summary(config: Config, report: dict[str, Any], checks: list[CheckRes
         print(f"rtt p50 {format_ns(rtt['p50'])}  p99 {format_ns(rtt['p99'])}  max {format_ns(rtt['max'])}  "
               f"({rtt['count']} responses); missed cycles {report.get('missed', 0)}, "
               f"missing responses {report.get('missing', 0)}, late {report.get('late', 0)}", file=out)
+    host = report.get("host")
+    if host:
+        st = host["stall"]
+        bound = f"absorbs up to {format_ns(host['bound'])}" if host["policy"] == "absorb" else "strict"
+        print(f"host stalls {st['count']}, longest {format_ns(st['max'])}, {st['cycles']} cycles delayed: "
+              f"{st['absorbed']} run late, {st['lost']} lost (policy {bound})", file=out)
     for c in checks:
         print(f"  {'ok  ' if c.ok else 'FAIL'} {c.what}: {c.detail}", file=out)
     for r in report.get("assertions", []):

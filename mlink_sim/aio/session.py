@@ -23,6 +23,7 @@ from typing import Any
 import structlog
 
 from ..config import Config
+from ..metrics.stalls import StallLog
 from ..wire import Link
 from .heap import settle_heap
 from .slave import query_control
@@ -30,7 +31,7 @@ from .ticker import CycleTimer
 from .supervisor import Worker, WorkerError, WorkerSpec, plan_workers
 from .udp import bind_address_for, resolve
 
-__all__ = ["NetworkSession", "NetworkApi", "EndpointError", "build_plans", "build_report"]
+__all__ = ["NetworkSession", "NetworkApi", "EndpointError", "build_plans", "build_report", "stall_args"]
 
 log = structlog.get_logger("mlink_sim.session")
 
@@ -59,9 +60,16 @@ def build_plans(config: Config) -> dict[Link, Any]:
         )
         by_link.setdefault(st.link, []).append(plan)
     return {
-        link: NetworkPlan(link=link, tcycle_ns=config.network.transmission_cycle, stations=tuple(stations))
+        link: NetworkPlan(link=link, tcycle_ns=config.network.transmission_cycle, stations=tuple(stations),
+                          answer_window_ns=config.network.absorb_ns)
         for link, stations in by_link.items()
     }
+
+
+def stall_args(config: Config) -> list[str]:
+    """The ``mlink-sim slave`` flags that give a worker the network's host-stall policy."""
+    net = config.network
+    return ["--host-stalls", net.host_stalls, "--stall-bound", f"{net.stall_bound}ns"]
 
 
 class NetworkApi:
@@ -152,6 +160,8 @@ class NetworkSession:
         self.config = config
         self.config_path = Path(config_path)
         self.metrics = NetworkMetrics(config.network.transmission_cycle)
+        self.metrics.stalls = StallLog(config.network.host_stalls, config.network.absorb_ns)
+        self.metrics.stalls.reset(time.monotonic_ns())
         self.problems: list[str] = problems if problems is not None else []
         self.masters: dict[Link, Any] = {}
         self.worker_list: list[Worker] = []
@@ -193,7 +203,8 @@ class NetworkSession:
         run_dir = self.run_dir = self.run_dir or Path(tempfile.mkdtemp(prefix="mlink-sim-run-"))
         groups = plan_workers([st.address for st in self.config.station], self._n_workers)
         self.worker_list = [
-            Worker(WorkerSpec(i, self.config_path, addrs, run_dir, self._state_dir), on_exit=self._on_worker_exit)
+            Worker(WorkerSpec(i, self.config_path, addrs, run_dir, self._state_dir,
+                              extra_args=stall_args(self.config)), on_exit=self._on_worker_exit)
             for i, addrs in enumerate(groups)
         ]
         self.workers = {a: w for w in self.worker_list for a in w.spec.addresses}
@@ -243,12 +254,15 @@ class NetworkSession:
         host_info()  # its first call reads the interpreter binary (~17 ms): not in the middle of a run
         settle_heap()  # before the clock starts: no full collection of the start-up heap mid-cycle
         clock = None
+        catch_up = self.config.network.absorb_ns
         if len(plans) > 1:  # one clock for every link: two spinning timers in one loop would delay each other
             clock = self._clock = CycleTimer(self.config.network.transmission_cycle, self._on_cycle,
-                                             loop=asyncio.get_running_loop())
+                                             loop=asyncio.get_running_loop(), catch_up_ns=catch_up,
+                                             on_stall=self.metrics.stall_recorder("master"))
         for link, plan in plans.items():
             eps = {sp.address: resolved[sp.address] for sp in plan.stations}
-            master = await Master.start(plan, eps, metrics=self.metrics, local=local, clock=clock)
+            master = await Master.start(plan, eps, metrics=self.metrics, local=local, clock=clock,
+                                        catch_up_ns=catch_up)
             master.record_lateness = not self.masters
             self.masters[link] = master
         self._cycle_callbacks = [m.on_cycle for m in self.masters.values()]
@@ -318,9 +332,12 @@ class NetworkSession:
 
         async def one(w: Worker) -> None:
             if w.alive and w.control_port:
-                reply = await query_control("127.0.0.1", w.control_port, "stats", timeout=1.0)
+                reply = await query_control("127.0.0.1", w.control_port, "stats", timeout=1.0,
+                                            since=self.metrics.stalls.origin_ns)
                 if reply:
                     stats[f"worker:{w.spec.index}"] = reply
+                    self.metrics.stalls.add(f"worker:{w.spec.index}", reply.get("stalls", []))
+                    self.metrics.stalls.set_totals(f"worker:{w.spec.index}", reply.get("stall_totals", {}))
 
         await asyncio.gather(*(one(w) for w in self.worker_list))
         wall = time.monotonic() - self._wall0
@@ -336,6 +353,7 @@ class NetworkSession:
         report's ``meta.started``/``duration_s`` then cover the span from here, ``meta.measured_from`` says
         ``"bring-up done"``; ``cpu`` keeps covering the whole run (docs/report.md)."""
         self.metrics.reset()
+        self.metrics.stalls.reset(time.monotonic_ns())
         self._span0 = time.monotonic()
         self._span_wall = datetime.now(timezone.utc)
         self._measured_from = "bring-up done"

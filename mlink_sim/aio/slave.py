@@ -24,6 +24,7 @@ from typing import Any
 import structlog
 
 from ..jsonable import to_jsonable
+from ..metrics.stalls import WORKER_STALL_NS, StallLog
 from .state import atomic_write, eeprom_path
 from .udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endpoint
 
@@ -32,7 +33,10 @@ __all__ = ["HostedStation", "SlaveServer", "query_control"]
 log = structlog.get_logger("mlink_sim.slave")
 
 _POLL_INTERVAL_S = 0.001
+_POLL_INTERVAL_NS = 1_000_000
 _KEEP_BEHIND = 8  # datagrams per source processed from one read; older ones are superseded (see _receiver)
+_MIN_CYCLE_NS = 250_000  # the shortest transmission cycle (SI-ET3 Table 14): sizes the backlog "absorb" keeps
+_STALLS_REPORTED = 256  # recent stalls in each stats reply (the session keeps them by time)
 
 
 def _cpu_seconds() -> float:
@@ -61,8 +65,15 @@ class SlaveServer:
         *,
         state_dir: str | Path | None = None,
         control: tuple[str, int] | None = ("127.0.0.1", 0),
+        absorb_ns: int = 0,
     ) -> None:
         self.stations = stations
+        #: host-stall policy (docs/timing.md): 0 = strict, else the stall bound. With "absorb" a backlog that a
+        #: stall of this worker of up to the bound left on a socket is answered in full (late, not superseded).
+        self.absorb_ns = absorb_ns
+        self._keep_behind = max(_KEEP_BEHIND, absorb_ns // _MIN_CYCLE_NS + 2)
+        self.stalls = StallLog("absorb" if absorb_ns else "strict", absorb_ns)
+        self._tick_due = 0
         self.state_dir = Path(state_dir) if state_dir else None
         self._control_addr = control
         self._control: DatagramEndpoint | None = None
@@ -92,6 +103,7 @@ class SlaveServer:
             await self.close()
             raise
         self._writer = loop.create_task(self._write_loop())
+        self._tick_due = time.monotonic_ns() + _POLL_INTERVAL_NS
         self._tick = loop.call_later(_POLL_INTERVAL_S, self._on_tick)
         self._started_wall = time.monotonic()
         self._started_cpu = _cpu_seconds()
@@ -136,7 +148,8 @@ class SlaveServer:
     def _receiver(self, hs: HostedStation):  # noqa: ANN202 - closure for the hot path
         """The batch handler of one station's socket. More than ``_KEEP_BEHIND`` datagrams from one source waiting
         means the worker fell that many cycles behind: the oldest are counted as ``SUPERSEDED`` drops and only the
-        newest ``_KEEP_BEHIND`` are processed. On a bus their slots have passed; answering every one would queue
+        newest ``_KEEP_BEHIND`` are processed (with the host-stall policy "absorb", as many as a stall of the
+        bound leaves at the shortest cycle: a stall of this process within the bound costs no command). On a bus their slots have passed; answering every one would queue
         latency up (a 1 MiB receive buffer holds about a second of commands) and keep an overloaded worker behind
         for good. A hiccup of up to ``_KEEP_BEHIND`` cycles is still answered in full (late, not lost): with 2,
         a 3-cycle hiccup of a worker on a busy machine became lost commands, reception failures and a bUS trip
@@ -146,9 +159,11 @@ class SlaveServer:
         counters = station.counters
         monotonic_ns = time.monotonic_ns
 
+        keep = self._keep_behind
+
         def on_batch(batch: list[tuple[bytes, Any]]) -> None:
-            if len(batch) > _KEEP_BEHIND:
-                batch = _newest(batch, counters)
+            if len(batch) > keep:
+                batch = _newest(batch, counters, keep)
             endpoint = hs.endpoint
             for data, addr in batch:
                 response = receive(data, addr, monotonic_ns())
@@ -162,6 +177,9 @@ class SlaveServer:
 
     def _on_tick(self) -> None:
         now = time.monotonic_ns()
+        lag = now - self._tick_due
+        if lag >= WORKER_STALL_NS:  # this process was held up (metrics/stalls.py): the report names it
+            self.stalls.record("self", self._tick_due, lag, 0, lag <= self.absorb_ns)
         for hs in self.stations:
             st = hs.station
             deadline = st.next_deadline()
@@ -174,6 +192,7 @@ class SlaveServer:
                 st.poll(now)
                 self._collect_eeprom(hs)
         if not self._closing:
+            self._tick_due = time.monotonic_ns() + _POLL_INTERVAL_NS
             self._tick = asyncio.get_running_loop().call_later(_POLL_INTERVAL_S, self._on_tick)
 
     # -- EEPROM -----------------------------------------------------------------------------------------------
@@ -210,9 +229,13 @@ class SlaveServer:
         return {"ok": True, "pid": os.getpid(), "wall_s": wall, "cpu_s": cpu,
                 "cpu_pct": 100.0 * cpu / wall if wall > 0 else 0.0}
 
-    def stats(self) -> dict[str, Any]:
-        """Snapshot of every hosted station plus this process's CPU use."""
+    def stats(self, since: int = 0) -> dict[str, Any]:
+        """Snapshot of every hosted station plus this process's CPU use and its stalls since *since* (monotonic
+        ns): the most recent events and the totals."""
+        self.stalls.reset(since)
         return {**self.cpu(),
+                "stalls": self.stalls.events("self", last=_STALLS_REPORTED, since=since),
+                "stall_totals": self.stalls.totals("self"),
                 "stations": {f"{hs.station.address:#04x}": to_jsonable(hs.station.snapshot())
                              for hs in self.stations}}
 
@@ -223,7 +246,9 @@ class SlaveServer:
         except (ValueError, UnicodeDecodeError):
             op = None
         if op == "stats":
-            reply: dict[str, Any] = self.stats()
+            since = request.get("since", 0)
+            reply: dict[str, Any] = self.stats(since if isinstance(since, int) and not isinstance(since, bool)
+                                               else 0)
         elif op == "cpu":
             reply = self.cpu()
         elif op == "ping":
@@ -237,13 +262,13 @@ class SlaveServer:
         self._control.sendto(payload, addr)
 
 
-def _newest(batch: list[tuple[bytes, Any]], counters: Any) -> list[tuple[bytes, Any]]:
-    """The newest ``_KEEP_BEHIND`` datagrams of each source, in arrival order; the rest counted SUPERSEDED."""
+def _newest(batch: list[tuple[bytes, Any]], counters: Any, behind: int) -> list[tuple[bytes, Any]]:
+    """The newest *behind* datagrams of each source, in arrival order; the rest counted SUPERSEDED."""
     seen: dict[Any, int] = {}
     keep: list[tuple[bytes, Any]] = []
     for data, addr in reversed(batch):
         n = seen.get(addr, 0)
-        if n < _KEEP_BEHIND:
+        if n < behind:
             keep.append((data, addr))
             seen[addr] = n + 1
         else:
@@ -252,8 +277,10 @@ def _newest(batch: list[tuple[bytes, Any]], counters: Any) -> list[tuple[bytes, 
     return keep
 
 
-async def query_control(host: str, port: int, op: str = "stats", timeout: float = 1.0) -> dict[str, Any] | None:
-    """Ask a slave process's control endpoint; None when it does not answer in time."""
+async def query_control(host: str, port: int, op: str = "stats", timeout: float = 1.0,
+                        **fields: Any) -> dict[str, Any] | None:
+    """Ask a slave process's control endpoint (*fields* go into the request); None when it does not answer in
+    time."""
     loop = asyncio.get_running_loop()
     fut: asyncio.Future[bytes] = loop.create_future()
 
@@ -263,7 +290,7 @@ async def query_control(host: str, port: int, op: str = "stats", timeout: float 
 
     ep = await open_endpoint(on_datagram, "::" if ":" in host else "0.0.0.0", 0)
     try:
-        ep.sendto(json.dumps({"op": op}).encode(), (host, port))
+        ep.sendto(json.dumps({"op": op, **fields}).encode(), (host, port))
         data = await asyncio.wait_for(fut, timeout)
         return json.loads(data)
     except (asyncio.TimeoutError, ValueError):

@@ -18,9 +18,15 @@ Wake-up sources (``strategy``), measured in ``docs/timing.md`` with ``scripts/be
   source's wake-up error (streaming quantile estimate) plus a margin, clamped to ``spin_max_ns``.
 * ``"auto"``     – ``"timerfd+spin"`` where a timerfd can be created, else ``"call_at+spin"``.
 
-Invariant at every call: ``deadline_ns <= now_ns < deadline_ns + period_ns``. If whole periods went by
-(blocked loop, long callback), the calls for them are not made; the next call is for the most recent
-deadline, ``skipped`` says how many were dropped, and the one after is on the next future deadline.
+Invariant at every on-time call: ``deadline_ns <= now_ns < deadline_ns + period_ns``. If whole periods went by
+(a host stall: blocked loop, long callback, a descheduled process), either
+
+* the calls for them are made at once, in order, each with its own (past) deadline and ``skipped = 0``, when
+  the stall is no longer than ``catch_up_ns`` (the host-stall policy ``absorb``, docs/timing.md); or
+* they are not made (``catch_up_ns = 0``, the policy ``strict``, or a longer stall): the next call is for the
+  most recent deadline, ``skipped`` says how many were dropped, and the one after is on the next future deadline.
+
+Either way ``on_stall(deadline_ns, now_ns, cycles_behind, absorbed)`` is told once per such wake-up.
 """
 
 from __future__ import annotations
@@ -40,6 +46,8 @@ __all__ = ["CycleTimer", "available_strategies", "STRATEGIES"]
 STRATEGIES: tuple[str, ...] = ("call_at", "call_at+spin", "timerfd", "timerfd+spin", "thread", "thread+spin")
 
 OnCycle = Callable[[int, int, int, int], None]
+#: ``on_stall(deadline_ns, now_ns, cycles_behind, absorbed)``: a wake-up came whole periods after its deadline
+OnStall = Callable[[int, int, int, bool], None]
 
 _mono = time.monotonic_ns
 
@@ -82,8 +90,9 @@ class CycleTimer:
     """Calls ``on_cycle(cycle, deadline_ns, now_ns, skipped)`` once per period against absolute deadlines.
 
     ``deadline_k = start_ns + k * period_ns`` (``time.monotonic_ns`` clock; ``start_ns`` defaults to one period
-    after :meth:`start`). If the loop was so late that whole periods passed, those cycles are skipped (not run
-    in a burst) and ``skipped`` says how many; the next call is on the next future deadline. ``on_cycle`` runs
+    after :meth:`start`). If the loop was so late that whole periods passed, those cycles are run at once, late
+    and in order, when the stall is at most ``catch_up_ns``; otherwise they are skipped and ``skipped`` says how
+    many, and the next call is on the next future deadline. ``on_stall`` hears of every such stall. ``on_cycle`` runs
     in the event-loop thread; an exception from it is logged (structlog, ``on_cycle_failed``) and counted in
     :attr:`errors`, and the timer continues.
 
@@ -97,10 +106,15 @@ class CycleTimer:
 
     def __init__(self, period_ns: int, on_cycle: OnCycle, *, loop: asyncio.AbstractEventLoop | None = None,
                  strategy: str = "auto", spin_ns: int | None = None, start_ns: int | None = None,
-                 spin_max_ns: int | None = None, idle: Callable[[], None] | None = None) -> None:
+                 spin_max_ns: int | None = None, idle: Callable[[], None] | None = None,
+                 catch_up_ns: int = 0, on_stall: OnStall | None = None) -> None:
         period_ns = int(period_ns)
         if period_ns <= 0:
             raise ValueError("period_ns must be positive")
+        if catch_up_ns < 0:
+            raise ValueError("catch_up_ns must be >= 0")
+        self._catch_up = int(catch_up_ns)
+        self.on_stall = on_stall  #: called once per wake-up that comes whole periods late (see the class docstring)
         self._strategy = _resolve(strategy)
         self._source, _, spin = self._strategy.partition("+")
         if spin_ns is not None and spin_ns < 0:
@@ -135,6 +149,7 @@ class CycleTimer:
         self._deadline = 0
         self._target = 0
         self._skipped_total = 0
+        self._caught_up_total = 0
         self._errors = 0
         # lazy proxy with bound context: resolved per call, so it follows later structlog.configure()
         self._log = structlog.get_logger(__name__, strategy=self._strategy, period_ns=period_ns)
@@ -172,6 +187,11 @@ class CycleTimer:
     @property
     def skipped_total(self) -> int:
         return self._skipped_total
+
+    @property
+    def caught_up_total(self) -> int:
+        """Cycles run late, after a stall within ``catch_up_ns``, instead of being skipped."""
+        return self._caught_up_total
 
     @property
     def errors(self) -> int:
@@ -313,15 +333,25 @@ class CycleTimer:
         k = self._next_k
         skipped = 0
         if now - d >= period:
-            skipped = (now - d) // period
-            k += skipped
-            d += skipped * period
-            self._skipped_total += skipped
-        self._cycle = k
-        try:
-            self._on_cycle(k, d, now, skipped)
-        except Exception:  # noqa: BLE001 - the cycle must go on; logged and counted
-            self._on_error(k)
+            behind = (now - d) // period
+            absorbed = now - d <= self._catch_up
+            on_stall = self.on_stall
+            if on_stall is not None:
+                on_stall(d, now, behind, absorbed)
+            if absorbed:  # host-stall policy "absorb": the missed cycles run now, late but in order
+                self._caught_up_total += behind
+                for _ in range(behind):
+                    self._run(k, d, now, 0)
+                    if not self._running:
+                        return
+                    k += 1
+                    d += period
+            else:
+                skipped = behind
+                k += skipped
+                d += skipped * period
+                self._skipped_total += skipped
+        self._run(k, d, now, skipped)
         if not self._running:
             return
         self._next_k = k + 1
@@ -329,6 +359,13 @@ class CycleTimer:
         self._deadline = d
         self._target = t = d - self._spin
         self._arm(t)
+
+    def _run(self, k: int, d: int, now: int, skipped: int) -> None:
+        self._cycle = k
+        try:
+            self._on_cycle(k, d, now, skipped)
+        except Exception:  # noqa: BLE001 - the cycle must go on; logged and counted
+            self._on_error(k)
 
     def _on_error(self, cycle: int) -> None:
         self._errors += 1

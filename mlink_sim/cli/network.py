@@ -93,6 +93,29 @@ def _with_common(fn: Any) -> Any:
     return fn
 
 
+def _with_stalls(fn: Any) -> Any:
+    """``--host-stalls`` / ``--stall-bound``: override the config's ``[network]`` policy (docs/timing.md)."""
+    fn = click.option("--stall-bound", help="Longest stall 'absorb' absorbs (default: the config's, 50ms).")(fn)
+    return click.option("--host-stalls", type=click.Choice(["absorb", "strict"]),
+                        help="Host-stall policy (default: the config's, 'absorb'): absorb runs the cycles a stall "
+                             "of mlink-sim's own processes delayed late instead of losing them.")(fn)
+
+
+def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
+    update: dict[str, Any] = {}
+    if policy is not None:
+        update["host_stalls"] = policy
+    ns = _duration(bound, "--stall-bound")
+    if ns is not None:
+        if not 0 < ns <= 1_000_000_000:
+            raise click.BadParameter(f"expected a duration above 0 and at most 1s, got {bound!r}",
+                                     param_hint="--stall-bound")
+        update["stall_bound"] = ns
+    if not update:
+        return config
+    return config.model_copy(update={"network": config.network.model_copy(update=update)})
+
+
 @click.command("up")
 @click.argument("config_path", metavar="CONFIG", type=click.Path(dir_okay=False))
 @click.option("--workers", type=_Workers(), default="auto", show_default=True,
@@ -101,11 +124,12 @@ def _with_common(fn: Any) -> Any:
 @click.option("--state-dir", type=click.Path(file_okay=False), help="EEPROM images of the slaves (survive restarts).")
 @click.option("--run-dir", type=click.Path(file_okay=False), help="Where worker logs go (default: a temp dir).")
 @_with_common
+@_with_stalls
 def up_cmd(config_path, workers, state_dir, run_dir, duration, report, asserts, status, bringup_timeout,
-           include_bringup, log_json, log_level) -> None:  # noqa: ANN001
+           include_bringup, log_json, log_level, host_stalls, stall_bound) -> None:  # noqa: ANN001
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held."""
     configure_logging(json=log_json, level=log_level)
-    config = _load(config_path)
+    config = _stalls(_load(config_path), host_stalls, stall_bound)
     opts = RunOptions(
         config_path=Path(config_path),
         duration_ns=_duration(duration, "--duration"),
@@ -132,11 +156,12 @@ def up_cmd(config_path, workers, state_dir, run_dir, duration, report, asserts, 
 @click.option("--endpoint", "endpoints", multiple=True, metavar="ADDR=HOST:PORT",
               help="Where station ADDR listens (overrides the config's endpoint); repeatable.")
 @_with_common
+@_with_stalls
 def master_cmd(config_path, endpoints, duration, report, asserts, status, bringup_timeout, include_bringup,
-               log_json, log_level) -> None:  # noqa: ANN001
+               log_json, log_level, host_stalls, stall_bound) -> None:  # noqa: ANN001
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
-    config = _load(config_path)
+    config = _stalls(_load(config_path), host_stalls, stall_bound)
     overrides = _parse_endpoints(endpoints)
     resolved: dict[int, tuple[str, int]] = {}
     missing = []

@@ -18,7 +18,7 @@ from ..aio.heap import settle_heap
 from ..aio.slave import HostedStation, SlaveServer
 from ..aio.state import eeprom_path, read_state
 from ..aio.udp import loop_name, new_event_loop
-from ..config import ConfigError, StationConfig, load_config, parse_address, parse_endpoint
+from ..config import ConfigError, StationConfig, load_config, parse_address, parse_duration_ns, parse_endpoint
 from .logs import configure_logging
 
 __all__ = ["slave_cmd", "StationSpec", "build_station", "station_specs_from_config"]
@@ -41,8 +41,12 @@ class StationSpec:
     options: dict[str, Any] | None = None
 
 
-def build_station(spec: StationSpec, state_dir: Path | None, now: int) -> Any:
-    """Create the card core for *spec*, reading its EEPROM image from *state_dir* if there is one."""
+def build_station(spec: StationSpec, state_dir: Path | None, now: int, absorb_ns: int = 0) -> Any:
+    """Create the card core for *spec*, reading its EEPROM image from *state_dir* if there is one.
+
+    *absorb_ns*: the host-stall policy "absorb" (docs/timing.md): the reception-failure timer waits that long
+    beyond a communication cycle before it takes silence for lost commands (``silence_tolerance_ns``, unless the
+    station's options set it); lost commands are still found at once from the cycle numbers (SI-T3 Table 22)."""
     import dataclasses
 
     from ..cards import create_card, settings_for
@@ -60,7 +64,7 @@ def build_station(spec: StationSpec, state_dir: Path | None, now: int) -> Any:
         spec.params,
         load=spec.load,
         link_speed_mbps=link_speed,
-        options=CardOptions(**(spec.options or {})),
+        options=CardOptions(**{**({"silence_tolerance_ns": absorb_ns} if absorb_ns else {}), **(spec.options or {})}),
     )
     eeprom = read_state(eeprom_path(state_dir, spec.card, spec.address)) if state_dir else None
     return create_card(spec.card, settings=settings, now=now, eeprom=eeprom)
@@ -157,11 +161,23 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
 @click.option("--log-json", is_flag=True, help="Log JSON lines on stderr.")
 @click.option("--log-level", default="info", type=click.Choice(["debug", "info", "warning", "error"]))
 @click.option("--ready-json", is_flag=True, help="Print the ready line as JSON (for supervisors).")
+@click.option("--host-stalls", type=click.Choice(["strict", "absorb"]), default="strict", show_default=True,
+              help="strict: judge the master by the wall clock, as the manuals do (test your own master); absorb: "
+                   "a stall of mlink-sim's own processes up to --stall-bound costs no command (docs/timing.md).")
+@click.option("--stall-bound", default="50ms", show_default=True, help="With --host-stalls absorb: the bound.")
 def slave_cmd(card, station_text, listen, frame_size, link, params, config_path, only, endpoints, state_dir,
-              control, log_json, log_level, ready_json) -> None:  # noqa: ANN001
+              control, log_json, log_level, ready_json, host_stalls, stall_bound) -> None:  # noqa: ANN001
     """Serve one station over UDP until SIGINT/SIGTERM (or several stations of a --config)."""
     configure_logging(json=log_json, level=log_level)
     state = Path(state_dir) if state_dir else None
+    try:
+        bound = parse_duration_ns(stall_bound, default_unit="ms")
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--stall-bound") from None
+    if not 0 < bound <= 1_000_000_000:
+        raise click.BadParameter(f"expected a duration above 0 and at most 1s, got {stall_bound!r}",
+                                 param_hint="--stall-bound")
+    absorb_ns = bound if host_stalls == "absorb" else 0
     try:
         if config_path:
             if card or station_text:
@@ -175,7 +191,7 @@ def slave_cmd(card, station_text, listen, frame_size, link, params, config_path,
             specs = [StationSpec(card, parse_address(station_text), host, port,
                                  int(frame_size) if frame_size else None, list(params), link=link)]
         now = time.monotonic_ns()
-        stations = [HostedStation(build_station(s, state, now), s.host, s.port) for s in specs]
+        stations = [HostedStation(build_station(s, state, now, absorb_ns), s.host, s.port) for s in specs]
     except ConfigError as exc:
         click.echo(f"mlink-sim slave: {exc}", err=True)
         sys.exit(2)
@@ -185,7 +201,7 @@ def slave_cmd(card, station_text, listen, frame_size, link, params, config_path,
         click.echo(f"mlink-sim slave: {exc}", err=True)
         sys.exit(2)
     control_addr = None if control == "off" else parse_endpoint(control)
-    server = SlaveServer(stations, state_dir=state, control=control_addr)
+    server = SlaveServer(stations, state_dir=state, control=control_addr, absorb_ns=absorb_ns)
     loop = new_event_loop()
     try:
         loop.run_until_complete(_serve(server, ready_json, log_json))

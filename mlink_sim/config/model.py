@@ -243,6 +243,23 @@ class NetworkConfig(BaseModel):
     master_address: Address = Field(0x01, description="the master's own address (informational)")
     host: str = Field("127.0.0.1", description="address slaves bind by default (loopback)")
     duration: DurationNs | None = Field(None, description="run length when there is no timeline, e.g. '10s'")
+    host_stalls: Literal["absorb", "strict"] = Field(
+        "absorb", description="host-stall policy of up/master/compose: 'absorb' runs the cycles a stall of "
+        "mlink-sim's own processes delayed (up to stall_bound) late instead of losing them; 'strict' judges "
+        "by the wall clock as the manuals do (docs/timing.md, 'Host stalls')")
+    stall_bound: DurationNs = Field(50_000_000, description="longest stall 'absorb' absorbs, e.g. '50ms'")
+
+    @field_validator("stall_bound")
+    @classmethod
+    def _bound(cls, v: int) -> int:
+        if not 0 < v <= 1_000_000_000:
+            raise ValueError("expected a duration above 0 and at most 1s, e.g. '50ms'")
+        return v
+
+    @property
+    def absorb_ns(self) -> int:
+        """The stall bound when the policy is 'absorb', else 0 (nothing absorbed)."""
+        return self.stall_bound if self.host_stalls == "absorb" else 0
 
 
 class Config(BaseModel):

@@ -82,6 +82,8 @@ class _Station:
         self.wdt = 0
         self.rwdt = 0
         self.outstanding: _Sent | None = None
+        #: commands past their next slot still within the answer window, by cycle (oldest first)
+        self.inflight: dict[int, _Sent] = {}
         self.expired: _Sent | None = None
         self.answered: int | None = None
         self.silent = 0
@@ -133,6 +135,7 @@ class MasterCore:
         self.fast_path = True
         self._now = 0
         self._cycle = 0
+        self._window = plan.answer_window_ns
         self._stations: list[_Station] = []
         by_period: Counter[int] = Counter()
         for sp in plan.stations:
@@ -216,6 +219,10 @@ class MasterCore:
         sent = st.outstanding
         if sent is not None and sent.cycle == cycle:
             return sent
+        if st.inflight:
+            sent = st.inflight.get(cycle)
+            if sent is not None:
+                return sent
         sent = st.expired
         if sent is not None and sent.cycle == cycle and not sent.late_seen:
             return sent
@@ -225,8 +232,9 @@ class MasterCore:
         """Count the answer to *sent*: ``Rtt`` when it is the outstanding command, else ``Late``. A late answer
         still tells the truth (the command was executed), so it is processed; handlers check the current state,
         so nothing is done twice."""
-        if sent is st.outstanding:
-            st.outstanding = None
+        if sent is st.outstanding or st.inflight.pop(sent.cycle, None) is sent:
+            if sent is st.outstanding:
+                st.outstanding = None
             st.rtt = rtt = now - sent.at
             self._emit(Rtt(st.address, rtt))
         else:
@@ -358,20 +366,12 @@ class MasterCore:
         prev = st.outstanding
         if prev is not None:
             st.outstanding = None
-            st.expired = prev
-            st.missing += 1
-            st.silent += 1
-            self._emit(Missing(st.address, prev.cycle))
-            for req, q in ((prev.req, st.main_q), (prev.sub_req, st.sub_q)):
-                if req is not None and not req.done:
-                    req.unanswered += 1
-                    if req.unanswered >= self.plan.request_retries:
-                        q.remove(req)
-                        req._finish(error=RequestTimeout(st.address, req.command, req.attempts, req.busy,
-                                                         req.unanswered))
-            if st.silent >= self.plan.offline_after and st.state is not S.OFFLINE:
-                self._fault(st, "silent", now)
-                self._set_state(st, S.OFFLINE)
+            if self._window:
+                st.inflight[prev.cycle] = prev
+            else:
+                self._missing(st, prev, now)
+        if st.inflight:
+            self._age(st, now)
         codec = st.codec
         kind, body, req = self._choose_main(st, cycle)
         code = codec.main_slot.code_of(body)
@@ -393,6 +393,34 @@ class MasterCore:
             return st.frames.command(body, c32, wdt)
         return encode(Frame(st.plan.link, Kind.COMMAND, st.address, c32, self.plan.tcycle_ns,
                             codec.message(body, wdt, sub_body)))
+
+    def _missing(self, st: _Station, prev: _Sent, now: int) -> None:
+        """*prev* went unanswered: Missing, a round of each request it carried, OFFLINE after ``offline_after``."""
+        st.expired = prev
+        st.missing += 1
+        st.silent += 1
+        self._emit(Missing(st.address, prev.cycle))
+        for req, q in ((prev.req, st.main_q), (prev.sub_req, st.sub_q)):
+            if req is not None and not req.done:
+                req.unanswered += 1
+                if req.unanswered >= self.plan.request_retries:
+                    q.remove(req)
+                    req._finish(error=RequestTimeout(st.address, req.command, req.attempts, req.busy,
+                                                     req.unanswered))
+        if st.silent >= self.plan.offline_after and st.state is not S.OFFLINE:
+            self._fault(st, "silent", now)
+            self._set_state(st, S.OFFLINE)
+
+    def _age(self, st: _Station, now: int) -> None:
+        """Commands in flight longer than the answer window (``NetworkPlan.answer_window_ns``) become Missing."""
+        inflight = st.inflight
+        horizon = now - self._window
+        while inflight:
+            cycle, sent = next(iter(inflight.items()))
+            if sent.at >= horizon:
+                return
+            del inflight[cycle]
+            self._missing(st, sent, now)
 
     def _choose_main(self, st: _Station, cycle: int) -> tuple[str, Any, Request | None]:
         codec = st.codec

@@ -162,6 +162,12 @@ class NetworkPlan:
     offline_after: int = 8
     """A station silent for this many consecutive communication cycles becomes OFFLINE."""
 
+    answer_window_ns: int = 0
+    """How long a command may still be answered after its station's next slot before it counts as Missing.
+    0 (strict): Missing as soon as the next slot comes, as a MECHATROLINK master judges. The host-stall policy
+    ``absorb`` (docs/timing.md, "Host stalls") sets it to the stall bound: a slave process that was held up
+    answers every command it was sent, late, and none is counted missing (the RTT shows the delay)."""
+
     clear_attempts: int = 3
     """ALM_CLR + SYNC_SET rounds tried on a communication alarm before falling back to DISCONNECT + CONNECT."""
 
@@ -194,6 +200,8 @@ class NetworkPlan:
                                  f"{self.tcycle_ns} ns transmission cycles")
         if self.offline_after < 2:
             raise ValueError("offline_after must be at least 2 communication cycles")
+        if self.answer_window_ns < 0:
+            raise ValueError("answer_window_ns must be >= 0")
         if self.request_retries < 1:
             raise ValueError("request_retries must be at least 1")
         if self.request_timeout_ns <= 0:

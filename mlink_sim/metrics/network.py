@@ -21,11 +21,12 @@ network-wide RTT histogram is the merge of the stations' histograms, computed wh
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from .histogram import LatencyHistogram
 from .report import SCHEMA_ID
+from .stalls import StallLog
 
 __all__ = ["StationMetrics", "NetworkMetrics", "SLAVE_COUNTERS", "station_key"]
 
@@ -185,6 +186,7 @@ class NetworkMetrics:
         self.stations: dict[int, StationMetrics] = {}
         self.checks: list[dict[str, Any]] = []
         self._cpu: dict[str, list[float]] = {}   # role -> [seconds base, wall base, last seconds, last wall]
+        self.stalls = StallLog()          # host stalls per process (metrics/stalls.py)
 
     # ------------------------------------------------------------------ recording (master side)
     def station(self, station: int) -> StationMetrics:
@@ -207,6 +209,7 @@ class NetworkMetrics:
         out.stations = {a: sm.copy() for a, sm in self.stations.items()}
         out.checks = [dict(c) for c in self.checks]
         out._cpu = {role: list(v) for role, v in self._cpu.items()}
+        out.stalls = self.stalls.copy()
         return out
 
     def reset(self) -> None:
@@ -230,6 +233,19 @@ class NetworkMetrics:
         self.started += 1
         if skipped:
             self.missed += skipped
+
+    def record_stall(self, process: str, at_ns: int, duration_ns: int, cycles: int = 0,
+                     absorbed: bool = False) -> None:
+        """A host stall of *process* (see :mod:`.stalls`); ``CycleTimer.on_stall`` maps onto it for the master."""
+        self.stalls.record(process, at_ns, duration_ns, cycles, absorbed)
+
+    def stall_recorder(self, process: str) -> Callable[[int, int, int, bool], None]:
+        """``CycleTimer``'s ``on_stall(deadline_ns, now_ns, cycles, absorbed)`` recording into :attr:`stalls`."""
+
+        def on_stall(deadline_ns: int, now_ns: int, cycles: int, absorbed: bool) -> None:
+            self.stalls.record(process, deadline_ns, now_ns - deadline_ns, cycles, absorbed)
+
+        return on_stall
 
     def record_sent(self, station: int) -> None:
         self.station(station).sent += 1
@@ -335,6 +351,7 @@ class NetworkMetrics:
                 "slaves": round(sum(v for r, v in by_process.items() if r.startswith(("slave:", "worker:"))), 3),
                 "by_process": by_process,
             },
+            "host": self.stalls.report(),
             "station": stations,
             "checks": list(self.checks),
             "assertions": [],
@@ -352,6 +369,7 @@ class NetworkMetrics:
             "stations": {station_key(a): sm.to_wire(hdr=hdr) for a, sm in self.stations.items()},
             "cpu": {role: list(v) for role, v in self._cpu.items()},
             "checks": list(self.checks),
+            "stalls": self.stalls.to_wire(),
         }
 
     @classmethod
@@ -369,6 +387,8 @@ class NetworkMetrics:
                 raise ValueError(f"bad cpu entry for {role!r}: {v!r}")
             out._cpu[str(role)] = [float(x) for x in v]
         out.checks = [dict(c) for c in data.get("checks", [])]
+        if "stalls" in data:
+            out.stalls = StallLog.from_wire(data["stalls"])
         return out
 
     def merge(self, other: NetworkMetrics) -> None:
@@ -383,6 +403,7 @@ class NetworkMetrics:
             st[0] += sb + s
             st[1] += wb + w
         self.checks.extend(other.checks)
+        self.stalls.merge(other.stalls)
 
 
 def _histogram(data: Any) -> LatencyHistogram:

@@ -66,10 +66,48 @@ REPORT_SCHEMA: dict[str, Any] = {
             "patternProperties": {"^0x[0-9a-f]{2}$": {"$ref": "#/$defs/station"}},
             "additionalProperties": False,
         },
+        "host": {"$ref": "#/$defs/host"},
         "checks": {"type": "array", "items": {"$ref": "#/$defs/check"}},
         "assertions": {"type": "array", "items": {"$ref": "#/$defs/assertion"}},
     },
     "$defs": {
+        "host": {
+            "type": "object",
+            "additionalProperties": False,
+            "required": ["policy", "bound", "stall", "by_process", "stalls"],
+            "description": "host stalls: how late each process's own loop and clock ran (metrics/stalls.py)",
+            "properties": {
+                "policy": {"enum": ["absorb", "strict"], "description": "the host-stall policy (docs/timing.md)"},
+                "bound": {**_TIME, "description": "longest stall the policy absorbs (0 with strict)"},
+                "stall": {"$ref": "#/$defs/stalls", "description": "every process together"},
+                "by_process": {"type": "object", "additionalProperties": {"$ref": "#/$defs/stalls"}},
+                "stalls": {"type": "array", "items": {"$ref": "#/$defs/stall_event"},
+                           "description": "the longest 100 stalls, in time order"},
+            },
+        },
+        "stalls": {
+            "type": "object",
+            "additionalProperties": False,
+            "required": ["count", "total", "max", "cycles", "absorbed", "lost"],
+            "properties": {
+                "count": {**_COUNT, "description": "stalls"},
+                "total": {**_TIME, "description": "their durations added up"},
+                "max": {**_TIME, "description": "the longest"},
+                "cycles": {**_COUNT, "description": "master cycles they delayed"},
+                "absorbed": {**_COUNT, "description": "of those, run late (policy absorb, stall within bound)"},
+                "lost": {**_COUNT, "description": "of those, skipped: the slaves saw them as lost"},
+            },
+        },
+        "stall_event": {
+            "type": "object",
+            "additionalProperties": False,
+            "required": ["process", "at", "duration", "cycles", "absorbed"],
+            "properties": {
+                "process": {"type": "string"},
+                "at": {**_TIME, "description": "when the late wake-up was due, from the measured span's start"},
+                "duration": {**_TIME}, "cycles": {**_COUNT}, "absorbed": {"type": "boolean"},
+            },
+        },
         "meta": {
             "type": "object",
             "required": ["config", "started", "duration_s", "cycle_ns"],

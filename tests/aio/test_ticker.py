@@ -253,3 +253,55 @@ def test_start_without_running_loop_needs_loop():
     with pytest.raises(RuntimeError):
         CycleTimer(MS, lambda *a: None).start()
 
+
+
+# ---------------------------------------------------------------------------------------------- host stalls
+@pytest.mark.parametrize("loop_kind", LOOPS)
+def test_catch_up_runs_the_cycles_a_stall_delayed_in_order(loop_kind):
+    """Host-stall policy "absorb" (docs/timing.md): a stall within catch_up_ns is made good, not skipped."""
+    stalls = []
+
+    def block_once(rec, cycle):
+        if len(rec.calls) == 3:
+            time.sleep(4.5 * MS / 1e9)  # > 3 periods, well within the 50 ms bound
+
+    async def main():
+        rec = Recorder(want=12, action=block_once)
+        start = time.monotonic_ns() + 2 * MS
+        timer = CycleTimer(MS, rec, strategy="auto", start_ns=start, catch_up_ns=50 * MS,
+                           on_stall=lambda *a: stalls.append(a))
+        timer.start()
+        await rec.done.wait()
+        timer.stop()
+        cycles = [c[0] for c in rec.calls]
+        assert cycles == list(range(len(cycles)))  # every cycle, none skipped
+        assert all(c[3] == 0 for c in rec.calls)
+        assert all(c[1] == start + c[0] * MS for c in rec.calls)  # each with its own deadline
+        assert timer.skipped_total == 0 and timer.caught_up_total >= 3
+        deadline, now, behind, absorbed = stalls[0]
+        assert absorbed and behind >= 3 and now - deadline >= 3 * MS
+
+    run_on(loop_kind, main)
+
+
+@pytest.mark.parametrize("loop_kind", LOOPS)
+def test_stall_beyond_the_bound_is_skipped_and_reported(loop_kind):
+    stalls = []
+
+    def block_once(rec, cycle):
+        if len(rec.calls) == 3:
+            time.sleep(6.5 * MS / 1e9)  # beyond the 3 ms bound
+
+    async def main():
+        rec = Recorder(want=8, action=block_once)
+        start = time.monotonic_ns() + 2 * MS
+        timer = CycleTimer(MS, rec, strategy="auto", start_ns=start, catch_up_ns=3 * MS,
+                           on_stall=lambda *a: stalls.append(a))
+        timer.start()
+        await rec.done.wait()
+        timer.stop()
+        assert_schedule(rec.calls, start, MS)
+        assert timer.skipped_total >= 5  # the next deadline was 5.5 periods behind
+        assert any(not absorbed and behind >= 5 for _, _, behind, absorbed in stalls)
+
+    run_on(loop_kind, main)
