@@ -32,6 +32,8 @@ from ..master import (
     Recovered,
     Request,
     Rtt,
+    RunHeld,
+    RunResumed,
     StateChanged,
     StationState,
     StationView,
@@ -371,6 +373,10 @@ class Master:
                 elif t is Recovered:
                     log.info("station_recovered", station=f"{ev.station:02X}H", reason=ev.reason,
                              after_ms=round(ev.ns / 1e6, 3))
+                elif t is RunHeld:
+                    log.info("run_held", station=f"{ev.station:02X}H", until=ev.until)
+                elif t is RunResumed:
+                    log.info("run_resumed", station=f"{ev.station:02X}H", reason=ev.reason)
         if self._waiters:
             for pred, fut in list(self._waiters):
                 if not fut.done() and pred():

@@ -47,9 +47,25 @@ def station_values(st: StationConfig) -> dict[str, int]:
     return values
 
 
+def drive_settings(st: StationConfig) -> DriveSettings:
+    """The station's drive settings as its parameters make them (about a millisecond: not in the cycle)."""
+    return DriveSettings.from_params(Family(CARD_FAMILY[st.card]), station_values(st))
+
+
 def speed_scale(st: StationConfig) -> SpeedScale:
-    family = Family(CARD_FAMILY[st.card])
-    return SpeedScale(DriveSettings.from_params(family, station_values(st)))
+    return SpeedScale(drive_settings(st))
+
+
+def restart_profile(st: StationConfig) -> dict[str, Any]:
+    """The ``StationPlan`` fields of the master's restart rule (docs/master.md): ``speed_search`` (the drive
+    catches a turning motor: A1000 b3-01 = 1, or a speed-search input H1 = 61H/62H, VS-606V7 n05x = 14/15),
+    ``search_input`` (the ``Control.multi_inputs`` bits of that input, switched on with the run command) and
+    ``standstill`` (2 % of E1-04/n011 in the drive's own frequency units)."""
+    settings = drive_settings(st)
+    search_input = settings.inputs.search_ref or settings.inputs.search_max
+    return {"speed_search": settings.search.at_start or bool(search_input),
+            "search_input": 0 if settings.search.at_start else search_input,
+            "standstill": max(1, abs(hz_to_ref(settings, 0.02 * settings.max_freq_hz)))}
 
 
 def speed_scales(config: Config) -> dict[int, SpeedScale]:

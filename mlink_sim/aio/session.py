@@ -43,6 +43,7 @@ class EndpointError(ValueError):
 def build_plans(config: Config) -> dict[Link, Any]:
     """One :class:`~mlink_sim.master.plan.NetworkPlan` per link present in the config."""
     from ..master.plan import NetworkPlan, StationPlan
+    from .scenario import restart_profile
 
     by_link: dict[Link, list[Any]] = {}
     for st in config.station:
@@ -57,6 +58,7 @@ def build_plans(config: Config) -> dict[Link, Any]:
             name=st.name or "",
             card=st.card,
             et3_syncmode_table19=bool(st.options.get("et3_syncmode_table19", False)),
+            **restart_profile(st),
         )
         by_link.setdefault(st.link, []).append(plan)
     return {

@@ -14,6 +14,7 @@ from typing import Any
 
 from ..wire import CmdAlm, CommAlm, DropReason, Frame, Kind, Link, Unknown, WireError, decode, encode
 from ..wire.frame import HEADER_SIZE
+from . import restart
 from .codec import Codec, Reply, compatible
 from .fastpath import CyclicFrames, cycle_of
 from .plan import NetworkPlan, StationPlan
@@ -46,6 +47,7 @@ _CONNECTED = (S.PHASE2, S.SYNCING, S.PHASE3, S.ALARM, S.CONNECTING)
 _MANAGED = frozenset({"CONNECT", "SYNC_SET"})
 #: CONNECT answers meaning "these VER/COM_MOD/COM_TIM do not suit me" (A.94, CMD_ALM 1/9, SI-T3 CyC 33H)
 _PLAN_REFUSED = frozenset({"DATA_SETTING_WARNING", "INVALID_DATA", "INVALID_DATA_WARNING", "CYC"})
+
 
 
 class _Sent:
@@ -92,6 +94,11 @@ class _Station:
         self.disconnect_waiters: list[Request] = []
         self.control = Control()
         self.ctl_body = self.codec.inv_ctl(self.control)
+        #: after a recovery: the run command is held back (until standstill) or sent with the search input
+        self.run_held = False
+        self.searching = False
+        #: MON1 carries U1-05 motor speed (A1000 cards, SEL_MON 1: SI-T3 Table 18, SI-ET3 Table 22)
+        self.sees_motor = plan.card in restart.MOTOR_SPEED_CARDS
         self.reset_first = False
         self.hold_until = -1
         self.clear_rounds = 0
@@ -210,6 +217,8 @@ class MasterCore:
         self._take(st, sent, now)
         st.rwdt, st.status, st.output_freq, st.output_current, st.mon1, st.mon2, st.warning = r
         st.fault = False
+        if st.run_held or st.searching:
+            restart.watch(st, self._emit)
         return True
 
     @staticmethod
@@ -327,7 +336,7 @@ class MasterCore:
         ctl = Control(forward, reverse, speed_ref, torque_ref, fault_reset, ef0, ext_bb, fault_history_clear,
                       multi_inputs, sel_ref, sel_mon, ref1, ref2)
         st.control = ctl
-        st.ctl_body = st.codec.inv_ctl(ctl)
+        st.ctl_body = restart.command(st, self._emit) if st.run_held or st.searching else st.codec.inv_ctl(ctl)
         return ctl
 
     def control(self, station: int) -> Control:
@@ -599,6 +608,8 @@ class MasterCore:
             st.output_current = b.output_current
             st.mon1 = b.mon1
             st.mon2 = b.mon2
+            if st.run_held or st.searching:
+                restart.watch(st, self._emit)
 
     def _alarm_edge(self, st: _Station, code: int, source: str) -> None:
         if code:
@@ -623,6 +634,7 @@ class MasterCore:
             st.recoveries += 1
             self._emit(Recovered(st.address, st.fault_reason, now - st.fault_since))
             st.fault_since = None
+            restart.begin(st, self._emit)
 
     def _set_state(self, st: _Station, new: StationState) -> None:
         old = st.state

@@ -73,6 +73,20 @@ class StationPlan:
     1 = synchronous as the MECHATROLINK-II manuals do; True encodes COM_MOD by Table 19. Either way a
     synchronous station also receives SYNC_SET, so it reaches phase 3 (docs/cards.md, "Ambiguities")."""
 
+    speed_search: bool = False
+    """The drive catches a motor that still turns when it is run (A1000 b3-01 = 1, or a speed-search input,
+    docs/drive-model.md §10). After a recovery the master then runs it again at once; without, it waits for
+    standstill (docs/master.md, "Running again after a recovery")."""
+
+    standstill: int = 120
+    """|U1-05 motor speed| (MON1, in the drive's o1-03 units) at or below which the restart rule takes the motor
+    for stopped: 2 % of the maximum output frequency (E1-04), mlink-sim's choice (docs/master.md); the default
+    is 1.2 Hz at E1-04 = 60 Hz and o1-03 = 0 (0.01 Hz)."""
+
+    search_input: int = 0
+    """``Control.multi_inputs`` bits of a speed-search command terminal (VS-606V7 n052–n056 = 14/15): on with
+    the run command after a recovery until speed agree."""
+
     def __post_init__(self) -> None:
         link = Link(self.link)
         object.__setattr__(self, "link", link)

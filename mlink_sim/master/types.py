@@ -203,7 +203,24 @@ class Recovered:
     ns: int  #: time from the fault being seen to recovery
 
 
-Event = Rtt | Missing | Late | Dropped | StateChanged | AlarmRaised | AlarmCleared | Recovered
+@dataclass(frozen=True, slots=True)
+class RunHeld:
+    """After a recovery the run command is held back: the motor may still coast and the drive has no speed
+    search (docs/master.md, "Running again after a recovery")."""
+
+    station: int
+    until: str  #: "standstill" (the motor speed monitor shows it) or "the next run command"
+
+
+@dataclass(frozen=True, slots=True)
+class RunResumed:
+    """The held (or searching) run command goes out again."""
+
+    station: int
+    reason: str  #: "speed search", "standstill" or "run command"
+
+
+Event = Rtt | Missing | Late | Dropped | StateChanged | AlarmRaised | AlarmCleared | Recovered | RunHeld | RunResumed
 
 
 # --- requests -----------------------------------------------------------------------------------------------------
