@@ -31,7 +31,7 @@ from .ticker import CycleTimer
 from .supervisor import Worker, WorkerError, WorkerSpec, plan_workers
 from .udp import bind_address_for, resolve
 
-__all__ = ["NetworkSession", "NetworkApi", "EndpointError", "build_plans", "build_report", "stall_args"]
+__all__ = ["NetworkSession", "NetworkApi", "EndpointError", "build_plans", "build_report"]
 
 log = structlog.get_logger("mlink_sim.session")
 
@@ -67,11 +67,6 @@ def build_plans(config: Config) -> dict[Link, Any]:
         for link, stations in by_link.items()
     }
 
-
-def stall_args(config: Config) -> list[str]:
-    """The ``mlink-sim slave`` flags that give a worker the network's host-stall policy."""
-    net = config.network
-    return ["--host-stalls", net.host_stalls, "--stall-bound", f"{net.stall_bound}ns"]
 
 
 class NetworkApi:
@@ -206,7 +201,7 @@ class NetworkSession:
         groups = plan_workers([st.address for st in self.config.station], self._n_workers)
         self.worker_list = [
             Worker(WorkerSpec(i, self.config_path, addrs, run_dir, self._state_dir,
-                              extra_args=stall_args(self.config)), on_exit=self._on_worker_exit)
+                              extra_args=self.config.network.slave_flags()), on_exit=self._on_worker_exit)
             for i, addrs in enumerate(groups)
         ]
         self.workers = {a: w for w in self.worker_list for a in w.spec.addresses}

@@ -261,6 +261,11 @@ class NetworkConfig(BaseModel):
         """The stall bound when the policy is 'absorb', else 0 (nothing absorbed)."""
         return self.stall_bound if self.host_stalls == "absorb" else 0
 
+    def slave_flags(self) -> list[str]:
+        """The ``mlink-sim slave`` flags that give a slave this network's host-stall policy (``up``'s workers,
+        the compose testbed's station containers)."""
+        return ["--host-stalls", self.host_stalls, "--stall-bound", f"{self.stall_bound}ns"]
+
 
 class Config(BaseModel):
     """A whole configuration file."""

@@ -84,6 +84,7 @@ class Plan:
     port: int
     master: Node
     stations: tuple[Node, ...]
+    slave_flags: tuple[str, ...] = ()  #: the network's host-stall policy for the slaves (docs/timing.md)
 
     @property
     def nodes(self) -> tuple[Node, ...]:
@@ -111,7 +112,8 @@ class Plan:
     def slave_argv(self, node: Node, config_path: str, python: str = sys.executable, ip: str = "ip") -> list[str]:
         assert node.address is not None
         return [ip, "netns", "exec", node.netns, python, "-m", "mlink_sim", "slave", "--config", config_path,
-                "--only", f"0x{node.address:02X}", "--endpoint", self.endpoint(node), "--ready-json"]  # fmt: skip
+                "--only", f"0x{node.address:02X}", "--endpoint", self.endpoint(node), "--ready-json",
+                *self.slave_flags]  # fmt: skip
 
     def reach_argv(self, python: str = sys.executable, ip: str = "ip") -> list[str]:
         targets = [f"{self.endpoint(n)}/{n.link}/{n.frame_size}" for n in self.stations]
@@ -162,7 +164,7 @@ def make_plan(config: Config, prefix: str, port: int = DEFAULT_PORT) -> Plan:
              st.link.name.lower() if st.link else None, st.frame_size)
         for i, st in enumerate(config.station, start=1)
     )  # fmt: skip
-    return Plan(prefix, f"{prefix}br", port, master, stations)
+    return Plan(prefix, f"{prefix}br", port, master, stations, tuple(config.network.slave_flags()))
 
 
 # -- cleanup (idempotent) -------------------------------------------------------------------------------------

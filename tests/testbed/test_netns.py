@@ -98,7 +98,8 @@ def test_plan_commands():
     slave = plan.slave_argv(plan.stations[0], "/c.toml", python="py")
     assert slave[:4] == ["ip", "netns", "exec", "mls-42-s21"]
     assert slave[4:] == ["py", "-m", "mlink_sim", "slave", "--config", "/c.toml", "--only", "0x21",
-                         "--endpoint", "0x21=198.18.0.2:40000", "--ready-json"]  # fmt: skip
+                         "--endpoint", "0x21=198.18.0.2:40000", "--ready-json",
+                         "--host-stalls", "absorb", "--stall-bound", "50000000ns"]  # fmt: skip
     master = plan.master_argv("/c.toml", report="/r.json", duration="5s", asserts=("missed == 0",), python="py")
     assert master[:4] == ["ip", "netns", "exec", "mls-42-m"]
     assert master[4:9] == ["py", "-m", "mlink_sim", "master", "/c.toml"]
@@ -117,6 +118,7 @@ def test_master_and_slave_commands_parse_with_the_cli():
     slave = plan.slave_argv(plan.stations[0], "/c.toml")
     params = slave_cmd.make_context("slave", slave[slave.index("slave") + 1 :]).params
     assert params["only"] == "0x21" and params["ready_json"] is True
+    assert params["host_stalls"] == "absorb"  # the network's policy reaches every slave (docs/timing.md)
     master = plan.master_argv("/c.toml", report="/r.json", duration="5s", bringup_timeout="10s")
     params = master_cmd.make_context("master", master[master.index("master") + 1 :]).params
     assert params["status"] is False and len(params["endpoints"]) == 2
