@@ -46,6 +46,7 @@ class RunOptions:
     state_dir: Path | None = None  #: EEPROM images of the slaves (up)
     run_dir: Path | None = None  #: worker logs (up); default a temporary directory
     restart_slaves: bool = True  #: restart a worker that died (up)
+    realtime: bool = False  #: SCHED_FIFO, locked memory, the clock on a CPU of its own, where permitted (CLI: on)
 
 
 @dataclasses.dataclass
@@ -95,7 +96,10 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
     try:
         session = await NetworkSession.open(
             config, opts.config_path, endpoints=endpoints, workers=workers, state_dir=opts.state_dir,
-            run_dir=opts.run_dir, restart_slaves=opts.restart_slaves)
+            run_dir=opts.run_dir, restart_slaves=opts.restart_slaves, realtime=opts.realtime)
+        if session.realtime_granted:
+            print("realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items()),
+                  file=sys.stderr, flush=True)
         net = session.net
         assert net is not None
         # -- bring-up ----------------------------------------------------------------------------------------------

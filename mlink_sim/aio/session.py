@@ -151,7 +151,7 @@ class NetworkSession:
 
     def __init__(self, config: Config, config_path: Path, *, workers: int | None = None,
                  state_dir: Path | None = None, run_dir: Path | None = None, restart_slaves: bool = True,
-                 problems: list[str] | None = None) -> None:
+                 problems: list[str] | None = None, realtime: bool = False) -> None:
         from ..metrics import NetworkMetrics
 
         self.config = config
@@ -174,6 +174,8 @@ class NetworkSession:
         self._state_dir = state_dir
         self.run_dir = run_dir
         self._restart = restart_slaves
+        self.realtime = realtime  #: SCHED_FIFO / mlockall / CPUs where permitted (aio/realtime.py)
+        self.realtime_granted: dict[str, str] = {}  #: process -> what it was granted
         self._restart_tasks: set[asyncio.Task[Any]] = set()
         self._stopping = False
         self._closed = False
@@ -201,7 +203,8 @@ class NetworkSession:
         groups = plan_workers([st.address for st in self.config.station], self._n_workers)
         self.worker_list = [
             Worker(WorkerSpec(i, self.config_path, addrs, run_dir, self._state_dir,
-                              extra_args=self.config.network.slave_flags()), on_exit=self._on_worker_exit)
+                              extra_args=self.config.network.slave_flags() + (["--realtime"] if self.realtime else [])),
+                   on_exit=self._on_worker_exit)
             for i, addrs in enumerate(groups)
         ]
         self.workers = {a: w for w in self.worker_list for a in w.spec.addresses}
@@ -209,6 +212,9 @@ class NetworkSession:
         errors = [r for r in results if isinstance(r, BaseException)]
         if errors:
             raise errors[0]
+        for w in self.worker_list:
+            if w.ready and "realtime" in w.ready:
+                self.realtime_granted[f"worker:{w.spec.index}"] = w.ready["realtime"]
         return {
             st["address"]: (_local_target(st["host"]), st["port"])
             for w in self.worker_list for st in (w.ready or {}).get("stations", [])
@@ -249,6 +255,10 @@ class NetworkSession:
         from ..metrics import host_info
 
         host_info()  # its first call reads the interpreter binary (~17 ms): not in the middle of a run
+        if self.realtime:
+            from .realtime import MASTER_PRIORITY, apply, cpu_plan
+
+            self.realtime_granted["master"] = apply(MASTER_PRIORITY, cpu_plan()[0])
         settle_heap()  # before the clock starts: no full collection of the start-up heap mid-cycle
         clock = None
         catch_up = self.config.network.absorb_ns

@@ -94,7 +94,11 @@ def _with_common(fn: Any) -> Any:
 
 
 def _with_stalls(fn: Any) -> Any:
-    """``--host-stalls`` / ``--stall-bound``: override the config's ``[network]`` policy (docs/timing.md)."""
+    """``--host-stalls`` / ``--stall-bound``: override the config's ``[network]`` policy (docs/timing.md);
+    ``--realtime``."""
+    fn = click.option("--realtime/--no-realtime", "rt", default=True, show_default=True,
+                      help="SCHED_FIFO, locked memory, the master's clock on a CPU of its own, where permitted; "
+                           "stderr says what was granted (docs/timing.md).")(fn)
     fn = click.option("--stall-bound", help="Longest stall 'absorb' absorbs (default: the config's, 50ms).")(fn)
     return click.option("--host-stalls", type=click.Choice(["absorb", "strict"]),
                         help="Host-stall policy (default: the config's, 'absorb'): absorb runs the cycles a stall "
@@ -126,7 +130,7 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
 @_with_common
 @_with_stalls
 def up_cmd(config_path, workers, state_dir, run_dir, duration, report, asserts, status, bringup_timeout,
-           include_bringup, log_json, log_level, host_stalls, stall_bound) -> None:  # noqa: ANN001
+           include_bringup, log_json, log_level, host_stalls, stall_bound, rt) -> None:  # noqa: ANN001
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held."""
     configure_logging(json=log_json, level=log_level)
     config = _stalls(_load(config_path), host_stalls, stall_bound)
@@ -141,6 +145,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, duration, report, asserts, 
         workers=workers,
         state_dir=Path(state_dir) if state_dir else None,
         run_dir=Path(run_dir) if run_dir else None,
+        realtime=rt,
     )
     from ..aio.supervisor import WorkerError
 
@@ -158,7 +163,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, duration, report, asserts, 
 @_with_common
 @_with_stalls
 def master_cmd(config_path, endpoints, duration, report, asserts, status, bringup_timeout, include_bringup,
-               log_json, log_level, host_stalls, stall_bound) -> None:  # noqa: ANN001
+               log_json, log_level, host_stalls, stall_bound, rt) -> None:  # noqa: ANN001
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
     config = _stalls(_load(config_path), host_stalls, stall_bound)
@@ -183,6 +188,7 @@ def master_cmd(config_path, endpoints, duration, report, asserts, status, bringu
         status=status,
         include_bringup=include_bringup,
         bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
+        realtime=rt,
     )
     try:
         sys.exit(_run(lambda: run_network(config, resolved, opts)))

@@ -14,6 +14,7 @@ from typing import Any
 import click
 import structlog
 
+from ..aio import realtime
 from ..aio.heap import settle_heap
 from ..aio.slave import HostedStation, SlaveServer
 from ..aio.state import eeprom_path, read_state
@@ -104,7 +105,7 @@ def station_specs_from_config(
     return specs
 
 
-async def _serve(server: SlaveServer, ready_json: bool, log_json: bool) -> None:
+async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool = False) -> None:
     loop = asyncio.get_running_loop()
     stop = asyncio.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -112,6 +113,10 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool) -> None:
     await server.start()
     settle_heap()  # before the first command arrives: no full collection of the start-up heap mid-cycle
     info = server.ready_info()
+    if rt:  # docs/timing.md, "Real-time scheduling": below the master's clock, off its CPU
+        info["realtime"] = realtime.apply(realtime.WORKER_PRIORITY, realtime.cpu_plan()[1])
+        if not ready_json:
+            print(f"mlink-sim slave: realtime: {info['realtime']}", file=sys.stderr, flush=True)
     if ready_json:
         print(json.dumps(info), flush=True)
     else:
@@ -165,8 +170,10 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
               help="strict: judge the master by the wall clock, as the manuals do (test your own master); absorb: "
                    "a stall of mlink-sim's own processes up to --stall-bound costs no command (docs/timing.md).")
 @click.option("--stall-bound", default="50ms", show_default=True, help="With --host-stalls absorb: the bound.")
+@click.option("--realtime", "rt", is_flag=True,
+              help="SCHED_FIFO, locked memory, off the master's CPU, where permitted (docs/timing.md).")
 def slave_cmd(card, station_text, listen, frame_size, link, params, config_path, only, endpoints, state_dir,
-              control, log_json, log_level, ready_json, host_stalls, stall_bound) -> None:  # noqa: ANN001
+              control, log_json, log_level, ready_json, host_stalls, stall_bound, rt) -> None:  # noqa: ANN001
     """Serve one station over UDP until SIGINT/SIGTERM (or several stations of a --config)."""
     configure_logging(json=log_json, level=log_level)
     state = Path(state_dir) if state_dir else None
@@ -204,7 +211,7 @@ def slave_cmd(card, station_text, listen, frame_size, link, params, config_path,
     server = SlaveServer(stations, state_dir=state, control=control_addr, absorb_ns=absorb_ns)
     loop = new_event_loop()
     try:
-        loop.run_until_complete(_serve(server, ready_json, log_json))
+        loop.run_until_complete(_serve(server, ready_json, log_json, rt))
     except OSError as exc:
         click.echo(f"mlink-sim slave: cannot listen: {exc.strerror or exc}", err=True)
         sys.exit(2)
