@@ -7,7 +7,6 @@ import json
 import signal
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +15,7 @@ import structlog
 
 from ..aio.heap import settle_heap
 from ..aio.slave import HostedStation, SlaveServer
-from ..aio.state import eeprom_path, read_state
+from ..aio.stations import StationSpec, build_station, spec_for
 from ..aio.udp import loop_name, new_event_loop
 from ..config import ConfigError, StationConfig, load_config, parse_address, parse_endpoint
 from .logs import configure_logging
@@ -24,52 +23,6 @@ from .logs import configure_logging
 __all__ = ["slave_cmd", "StationSpec", "build_station", "station_specs_from_config"]
 
 log = structlog.get_logger("mlink_sim.slave")
-
-
-@dataclass
-class StationSpec:
-    """Everything needed to power up one station (what the drive's parameters and switches say)."""
-
-    card: str
-    address: int
-    host: str
-    port: int
-    frame_size: int | None
-    params: list[str]
-    load: Any = None
-    link: str | None = None
-    options: dict[str, Any] | None = None
-
-
-def build_station(spec: StationSpec, state_dir: Path | None, now: int) -> Any:
-    """Create the card core for *spec*, reading its EEPROM image from *state_dir* if there is one."""
-    import dataclasses
-
-    from ..cards import create_card, settings_for
-    from ..cards.settings import CardOptions
-
-    known = {f.name for f in dataclasses.fields(CardOptions)}
-    unknown = sorted(set(spec.options or {}) - known)
-    if unknown:
-        raise ValueError(f"unknown card option(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})")
-    link_speed = {"ML1": 4, "ML2": 10}.get((spec.link or "").upper())
-    settings = settings_for(
-        spec.card,
-        spec.address,
-        spec.frame_size,
-        spec.params,
-        load=spec.load,
-        link_speed_mbps=link_speed,
-        options=CardOptions(**(spec.options or {})),
-    )
-    eeprom = read_state(eeprom_path(state_dir, spec.card, spec.address)) if state_dir else None
-    return create_card(spec.card, settings=settings, now=now, eeprom=eeprom)
-
-
-def _load_spec(st: StationConfig) -> Any:
-    from ..drive import LoadSpec
-
-    return LoadSpec.from_config(st.load.model_dump(exclude_none=True))
 
 
 def station_specs_from_config(
@@ -84,19 +37,7 @@ def station_specs_from_config(
         except KeyError:
             raise click.BadParameter(f"{address:#04x} is not a station of {config_path}", param_hint="--only") from None
         host, port = endpoints.get(address) or st.host_port(config.network.host)
-        specs.append(
-            StationSpec(
-                card=st.card,
-                address=st.address,
-                host=host,
-                port=port,
-                frame_size=st.frame_size,
-                params=[f"{k}={v}" for k, v in st.params.items()],
-                load=_load_spec(st),
-                link=st.link.name if st.link else None,
-                options=st.options,
-            )
-        )
+        specs.append(spec_for(st, host, port))
     return specs
 
 
