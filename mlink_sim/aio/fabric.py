@@ -90,10 +90,9 @@ class Fabric:
         self.state_dir = state_dir
         self.nodes: dict[int, _Node] = {}
         self.undeliverable = 0  #: datagrams for no station, or for a station that is down
-        rng = random.Random(seed)
-        base, span = latency_ns - jitter_ns, 2 * jitter_ns + 1
-        rand = rng.random
-        self._delay: Callable[[], int] = (lambda: base + int(rand() * span)) if jitter_ns else (lambda: base)
+        self._base = latency_ns - jitter_ns  # one-way delay: base + int(random() * span), span 0 without jitter
+        self._span = 2 * jitter_ns + 1 if jitter_ns else 0
+        self._random = random.Random(seed).random
 
     # ------------------------------------------------------------------ stations
     def add_station(self, address: int, factory: Callable[[int, bytes | None], Any]) -> Any:
@@ -135,7 +134,9 @@ class Fabric:
             self.undeliverable += 1
             return
         clock = self.clock
-        t = clock.now + self._delay()
+        t = clock.now + self._base
+        if self._span:
+            t += int(self._random() * self._span)
         if t < node.down_free:
             t = node.down_free
         node.down_free = t
@@ -155,7 +156,9 @@ class Fabric:
         if node.armed is None or node.armed > now:
             self._arm(node)
         if response is not None:
-            t = now + self._delay()
+            t = now + self._base
+            if self._span:
+                t += int(self._random() * self._span)
             if t < node.up_free:
                 t = node.up_free
             node.up_free = t

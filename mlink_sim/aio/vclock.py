@@ -20,7 +20,7 @@ import heapq
 import itertools
 import math
 import selectors
-from collections.abc import Callable
+from collections.abc import Callable, Sized
 from typing import Any
 
 __all__ = ["VirtualClock", "VirtualEventLoop", "VirtualTimeStalled", "SLICE_NS"]
@@ -54,16 +54,17 @@ class VirtualClock:
         """When the next callback is due, or None when none is queued."""
         return self._queue[0][0] if self._queue else None
 
-    def run_until(self, limit: int, stop: Callable[[], bool] | None = None) -> bool:
+    def run_until(self, limit: int, stop: Sized = ()) -> bool:
         """Run the callbacks due up to *limit* (inclusive) in order of time, ``now`` following each; ``True`` when
-        *stop()* held after one of them (``now`` is then that callback's time), else ``now = limit``."""
+        *stop* (a container: the loop's ready queue) is not empty after one of them (``now`` is then that
+        callback's time), else ``now = limit``."""
         queue = self._queue
         pop = heapq.heappop
         while queue and queue[0][0] <= limit:
             when, _, fn, arg = pop(queue)
             self.now = when
             fn(arg)
-            if stop is not None and stop():
+            if stop:
                 return True
         if limit > self.now:
             self.now = limit
@@ -76,7 +77,7 @@ class _VirtualSelector(selectors.BaseSelector):
     def __init__(self, clock: VirtualClock) -> None:
         self._clock = clock
         self._real = selectors.DefaultSelector()
-        self.has_work: Callable[[], bool] = lambda: False
+        self.ready: Sized = ()  #: the loop's queue of callbacks to run now: the clock stops once it is not empty
 
     def register(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
         return self._real.register(fileobj, events, data)
@@ -104,7 +105,7 @@ class _VirtualSelector(selectors.BaseSelector):
         limit = now + SLICE_NS
         if timeout is not None:
             limit = min(limit, now + math.ceil(timeout * 1e9))
-        clock.run_until(limit, self.has_work)
+        clock.run_until(limit, self.ready)
         return []
 
 
@@ -115,8 +116,7 @@ class VirtualEventLoop(asyncio.SelectorEventLoop):
         self.clock = clock if clock is not None else VirtualClock()
         selector = _VirtualSelector(self.clock)
         super().__init__(selector)
-        ready = self._ready  # asyncio's queue of callbacks to run now (BaseEventLoop)
-        selector.has_work = lambda: bool(ready)
+        selector.ready = self._ready  # asyncio's queue of callbacks to run now (BaseEventLoop)
 
     def time(self) -> float:
         return self.clock.now / 1e9

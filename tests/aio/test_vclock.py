@@ -30,10 +30,10 @@ def test_clock_stops_after_the_callback_that_made_work_and_never_runs_backwards(
     work = []
     clock.at(50, work.append, "late")  # in the past: runs now, not at 50
     clock.at(200, work.append, "x")
-    assert clock.run_until(1_000, stop=lambda: bool(work)) is True
+    assert clock.run_until(1_000, stop=work) is True
     assert work == ["late"] and clock.now == 100
     work.clear()
-    assert clock.run_until(1_000, stop=lambda: bool(work)) is True
+    assert clock.run_until(1_000, stop=work) is True
     assert clock.now == 200
 
 
