@@ -20,8 +20,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import structlog
-
 from ..config import Config
 from ..master import MasterCore, NetworkPlan
 from .fabric import Fabric, FabricPort, VirtualCycle
@@ -31,8 +29,6 @@ from .stations import build_station, spec_for
 from .vclock import VirtualEventLoop
 
 __all__ = ["VirtualMaster", "VirtualSession", "WALL_META", "without_wall_clock"]
-
-log = structlog.get_logger("mlink_sim.virtual")
 
 #: The report's ``meta`` keys that depend on the wall clock or the machine, not on config and seed.
 WALL_META: tuple[str, ...] = ("started", "host", "wall")

@@ -115,6 +115,9 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, repo
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held."""
     configure_logging(json=log_json, level=log_level)
     config = _load(config_path)
+    if clock == "virtual" and (workers != "auto" or run_dir):
+        click.echo("note: --clock virtual runs every station in this process: --workers and --run-dir are not used",
+                   err=True)
     opts = RunOptions(
         config_path=Path(config_path),
         duration_ns=_duration(duration, "--duration"),

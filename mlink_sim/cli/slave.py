@@ -8,7 +8,6 @@ import signal
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 import click
 import structlog
@@ -17,7 +16,7 @@ from ..aio.heap import settle_heap
 from ..aio.slave import HostedStation, SlaveServer
 from ..aio.stations import StationSpec, build_station, spec_for
 from ..aio.udp import loop_name, new_event_loop
-from ..config import ConfigError, StationConfig, load_config, parse_address, parse_endpoint
+from ..config import ConfigError, load_config, parse_address, parse_endpoint
 from .logs import configure_logging
 
 __all__ = ["slave_cmd", "StationSpec", "build_station", "station_specs_from_config"]
