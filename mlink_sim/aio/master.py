@@ -105,6 +105,11 @@ class Master:
         self._closed = False
         self._log = structlog.get_logger(__name__).bind(component="master", link=core.plan.link.name)
 
+    @staticmethod
+    def _now() -> int:
+        """The time requests are stamped with (a virtual master reads its simulated clock)."""
+        return _mono()
+
     # ------------------------------------------------------------------ life cycle
     @classmethod
     async def start(cls, plan: NetworkPlan, endpoints: dict[int, tuple[str, int]], *,
@@ -157,7 +162,7 @@ class Master:
             return
         self._closed = True
         core = self.core
-        reqs = [core.disconnect(a, timeout_ns=int(timeout * 1e9), now=_mono())
+        reqs = [core.disconnect(a, timeout_ns=int(timeout * 1e9), now=self._now())
                 for a in core.addresses if core.state(a) in _CONNECTED]
         if reqs and self._timer is not None and self._timer.running:
             futs = [self._future(r) for r in reqs]
@@ -215,7 +220,7 @@ class Master:
         """Send *body* (a wire command body) and return the decoded response body; raises
         :class:`~mlink_sim.master.StationAlarmError` or :class:`~mlink_sim.master.RequestTimeout`."""
         req = self.core.request(station, body, sub=sub, timeout_ns=None if timeout is None else int(timeout * 1e9),
-                                now=_mono())
+                                now=self._now())
         return await self._future(req)
 
     def _mod(self, station: int) -> Any:
@@ -259,7 +264,7 @@ class Master:
 
     async def disconnect(self, station: int, *, timeout: float | None = None) -> None:
         """DISCONNECT and keep the station in phase 1 until :meth:`connect`."""
-        req = self.core.disconnect(station, timeout_ns=None if timeout is None else int(timeout * 1e9), now=_mono())
+        req = self.core.disconnect(station, timeout_ns=None if timeout is None else int(timeout * 1e9), now=self._now())
         await self._future(req)
 
     def connect(self, station: int) -> None:

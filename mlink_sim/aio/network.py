@@ -46,6 +46,10 @@ class RunOptions:
     state_dir: Path | None = None  #: EEPROM images of the slaves (up)
     run_dir: Path | None = None  #: worker logs (up); default a temporary directory
     restart_slaves: bool = True  #: restart a worker that died (up)
+    #: "real" (slave processes, UDP, the wall clock) or "virtual" (one process, in-memory network, simulated time;
+    #: the loop must be a ``vclock.VirtualEventLoop``), docs/virtual-time.md
+    clock: str = "real"
+    seed: int = 0  #: virtual clock: seed of the network model's jitter
     realtime: bool = False  #: SCHED_FIFO, locked memory, the clock on a CPU of its own, where permitted (CLI: on)
 
 
@@ -86,7 +90,13 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
     t0 = loop.time()
     session: NetworkSession | None = None
     workers = None
-    if endpoints is None:
+    session_cls: type[NetworkSession] = NetworkSession
+    extra: dict[str, Any] = {}
+    if opts.clock == "virtual":
+        from .virtual import VirtualSession
+
+        session_cls, extra = VirtualSession, {"seed": opts.seed}
+    elif endpoints is None:
         workers = resolve_workers(opts.workers, len(config.station))
         if opts.workers == "auto" and workers is not None:
             print(f"note: {len(config.station)} stations on {os.cpu_count() or 1} CPUs: hosted in {workers} slave "
@@ -94,9 +104,9 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
                   "docs/performance.md)", file=sys.stderr)
     scales = speed_scales(config)  # now, not in the event loop once it keeps time
     try:
-        session = await NetworkSession.open(
+        session = await session_cls.open(
             config, opts.config_path, endpoints=endpoints, workers=workers, state_dir=opts.state_dir,
-            run_dir=opts.run_dir, restart_slaves=opts.restart_slaves, realtime=opts.realtime)
+            run_dir=opts.run_dir, restart_slaves=opts.restart_slaves, realtime=opts.realtime, **extra)
         if session.realtime_granted:
             print("realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items()),
                   file=sys.stderr, flush=True)
@@ -198,6 +208,11 @@ def _print_summary(config: Config, report: dict[str, Any], checks: list[CheckRes
         print(f"  {'ok  ' if r.get('ok') else 'FAIL'} assert {r.get('message') or r.get('text')}", file=out)
     for p in problems:
         print(f"  note {p}", file=out)
+    meta = report["meta"]
+    wall = meta.get("wall")
+    if meta.get("clock") == "virtual" and isinstance(wall, dict):
+        print(f"virtual clock (seed {meta.get('seed')}): {wall['simulated_s']:.1f} s simulated in "
+              f"{wall['elapsed_s']:.2f} s wall, {wall['speedup'] or 0:g}x real time", file=out)
     failed = sum(not c.ok for c in checks) + len(failed_asserts)
     verdict = "all checks held" if not failed else f"{failed} check(s) failed"
     print(f"{verdict}" + (f"; report: {opts.report_path}" if opts.report_path else ""), file=out, flush=True)

@@ -19,7 +19,8 @@ from ..drive.monitors import hz_to_ref, ref_to_hz
 from ..params import FAMILIES
 from ..wire import InvCmdStat, Link, M2Status
 
-__all__ = ["SpeedScale", "CheckResult", "NetworkHandle", "Scenario", "speed_scale", "speed_scales"]
+__all__ = ["SpeedScale", "CheckResult", "NetworkHandle", "Scenario", "StationControls", "speed_scale",
+           "speed_scales"]
 
 log = structlog.get_logger("mlink_sim.scenario")
 
@@ -97,6 +98,35 @@ class NetworkHandle(Protocol):
     async def disconnect(self, station: int) -> Any: ...
     async def reconnect(self, station: int) -> Any: ...
     def kill_slave(self, station: int) -> bool: ...
+
+
+class StationControls:
+    """Run / stop a station in Hz and read its output in Hz, for any class with ``set_control``, ``view``,
+    ``_scales`` (:func:`speed_scales`) and ``_links`` (address -> link): the test harness and the embedding API."""
+
+    _scales: dict[int, SpeedScale]
+    _links: dict[int, Link | None]
+    set_control: Callable[..., None]
+    view: Callable[[int], Any]
+
+    def run(self, station: int, hz: float, direction: str = "forward") -> None:
+        """Run *station* at *hz* (converted with its o1-03 / n035 units) in *direction* (forward / reverse)."""
+        if direction not in ("forward", "reverse"):
+            raise ValueError(f"direction must be 'forward' or 'reverse', got {direction!r}")
+        self.set_control(station, forward=direction == "forward", reverse=direction == "reverse",
+                         speed_ref=self._scales[station].to_raw(hz))
+
+    def stop_station(self, station: int) -> None:
+        """Take the run command away (the drive stops per its stopping method)."""
+        self.set_control(station, forward=False, reverse=False)
+
+    def output_hz(self, station: int) -> float:
+        """Output frequency of *station* in Hz (from the latest INV_CTL response)."""
+        return self._scales[station].to_hz(self.view(station).output_freq)
+
+    def running(self, station: int) -> bool:
+        link = self._links[station]
+        return _running(link if link is not None else Link.ML2, self.view(station).status)
 
 
 def _running(link: Link, status: int) -> bool:

@@ -169,7 +169,7 @@ class NetworkSession:
         self.started_wall = datetime.now(timezone.utc)
         self._cpu0 = time.process_time()
         self._wall0 = time.monotonic()
-        self._span0, self._span_wall, self._measured_from = self._wall0, self.started_wall, "start"
+        self._span0, self._span_wall, self._measured_from = self._clock_s(), self.started_wall, "start"
         self._n_workers = workers
         self._state_dir = state_dir
         self.run_dir = run_dir
@@ -332,6 +332,18 @@ class NetworkSession:
     async def __aexit__(self, *exc: object) -> None:
         await self.close()
 
+    # ------------------------------------------------------------------ time (the virtual session reads its own)
+    def _clock_s(self) -> float:
+        """The clock the run is measured on, in seconds (real: ``time.monotonic``)."""
+        return time.monotonic()
+
+    def _clock_meta(self) -> dict[str, Any]:
+        """What the report's ``meta`` says about the clock (docs/report.md)."""
+        return {"clock": "real"}
+
+    def _record_cpu(self) -> None:
+        self.metrics.record_cpu("master", time.process_time() - self._cpu0, time.monotonic() - self._wall0)
+
     # ------------------------------------------------------------------ figures
     async def refresh_slave_stats(self) -> None:
         """Pull the slaves' counters (reception failures, WDT errors …) and CPU time into :attr:`metrics`."""
@@ -361,7 +373,7 @@ class NetworkSession:
         ``"bring-up done"``; ``cpu`` keeps covering the whole run (docs/report.md)."""
         self.metrics.reset()
         self.metrics.stalls.reset(time.monotonic_ns())
-        self._span0 = time.monotonic()
+        self._span0 = self._clock_s()
         self._span_wall = datetime.now(timezone.utc)
         self._measured_from = "bring-up done"
 
@@ -373,18 +385,18 @@ class NetworkSession:
 
         if slave_stats:
             await self.refresh_slave_stats()
-        wall = time.monotonic() - self._wall0
-        self.metrics.record_cpu("master", time.process_time() - self._cpu0, wall)
+        self._record_cpu()
         meta = {
             "config": str(self.config_path),
             "network": self.config.network.name,
             "started": self._span_wall.isoformat(),
-            "duration_s": round(time.monotonic() - self._span0, 3),
+            "duration_s": round(self._clock_s() - self._span0, 3),
             "measured_from": self._measured_from,
             "cycle_ns": self.config.network.transmission_cycle,
             "generation": ", ".join(sorted(link.label for link in self.masters)),
             "stations": len(self.config.station),
             "host": host_info(),
+            **self._clock_meta(),
             **(extra_meta or {}),
             "problems": list(self.problems),
         }

@@ -63,8 +63,13 @@ def _assertions(texts: tuple[str, ...]) -> list[Any]:
     return out
 
 
-def _run(coro_factory: Any) -> int:
-    loop = new_event_loop()
+def _run(coro_factory: Any, clock: str = "real") -> int:
+    if clock == "virtual":
+        from ..aio.vclock import VirtualEventLoop
+
+        loop: Any = VirtualEventLoop()
+    else:
+        loop = new_event_loop()
     try:
         outcome = loop.run_until_complete(coro_factory())
     finally:
@@ -127,13 +132,20 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
                    "per station up to max(2, CPUs-1) stations, else CPUs-1, so the master keeps a CPU).")
 @click.option("--state-dir", type=click.Path(file_okay=False), help="EEPROM images of the slaves (survive restarts).")
 @click.option("--run-dir", type=click.Path(file_okay=False), help="Where worker logs go (default: a temp dir).")
+@click.option("--clock", type=click.Choice(["real", "virtual"]), default="real", show_default=True,
+              help="real: slave processes over UDP on the wall clock; virtual: one process, in-memory network with "
+                   "[network] latency/jitter, simulated time (faster than real time, deterministic).")
+@click.option("--seed", type=int, default=0, show_default=True, help="--clock virtual: seed of the jitter draws.")
 @_with_common
 @_with_stalls
-def up_cmd(config_path, workers, state_dir, run_dir, duration, report, asserts, status, bringup_timeout,
-           include_bringup, log_json, log_level, host_stalls, stall_bound, rt) -> None:  # noqa: ANN001
+def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, report, asserts, status,
+           bringup_timeout, include_bringup, log_json, log_level, host_stalls, stall_bound, rt) -> None:  # noqa: ANN001
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held."""
     configure_logging(json=log_json, level=log_level)
     config = _stalls(_load(config_path), host_stalls, stall_bound)
+    if clock == "virtual" and (workers != "auto" or run_dir):
+        click.echo("note: --clock virtual runs every station in this process: --workers and --run-dir are not used",
+                   err=True)
     opts = RunOptions(
         config_path=Path(config_path),
         duration_ns=_duration(duration, "--duration"),
@@ -146,14 +158,19 @@ def up_cmd(config_path, workers, state_dir, run_dir, duration, report, asserts, 
         state_dir=Path(state_dir) if state_dir else None,
         run_dir=Path(run_dir) if run_dir else None,
         realtime=rt,
+        clock=clock,
+        seed=seed,
     )
     from ..aio.supervisor import WorkerError
 
     try:
-        sys.exit(_run(lambda: run_up(config, opts)))
+        sys.exit(_run(lambda: run_up(config, opts), clock=clock))
     except WorkerError as exc:
         click.echo(f"mlink-sim up: {exc}", err=True)
         sys.exit(1)
+    except ValueError as exc:  # --clock virtual: a card refused its settings (the slave process says the same)
+        click.echo(f"mlink-sim up: {exc}", err=True)
+        sys.exit(2)
 
 
 @click.command("master")

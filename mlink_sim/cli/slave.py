@@ -7,9 +7,7 @@ import json
 import signal
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import click
 import structlog
@@ -17,64 +15,14 @@ import structlog
 from ..aio import realtime
 from ..aio.heap import settle_heap
 from ..aio.slave import HostedStation, SlaveServer
-from ..aio.state import eeprom_path, read_state
+from ..aio.stations import StationSpec, build_station, spec_for
 from ..aio.udp import loop_name, new_event_loop
-from ..config import ConfigError, StationConfig, load_config, parse_address, parse_duration_ns, parse_endpoint
+from ..config import ConfigError, load_config, parse_address, parse_duration_ns, parse_endpoint
 from .logs import configure_logging
 
 __all__ = ["slave_cmd", "StationSpec", "build_station", "station_specs_from_config"]
 
 log = structlog.get_logger("mlink_sim.slave")
-
-
-@dataclass
-class StationSpec:
-    """Everything needed to power up one station (what the drive's parameters and switches say)."""
-
-    card: str
-    address: int
-    host: str
-    port: int
-    frame_size: int | None
-    params: list[str]
-    load: Any = None
-    link: str | None = None
-    options: dict[str, Any] | None = None
-
-
-def build_station(spec: StationSpec, state_dir: Path | None, now: int, absorb_ns: int = 0) -> Any:
-    """Create the card core for *spec*, reading its EEPROM image from *state_dir* if there is one.
-
-    *absorb_ns*: the host-stall policy "absorb" (docs/timing.md): the reception-failure timer waits that long
-    beyond a communication cycle before it takes silence for lost commands (``silence_tolerance_ns``, unless the
-    station's options set it); lost commands are still found at once from the cycle numbers (SI-T3 Table 22)."""
-    import dataclasses
-
-    from ..cards import create_card, settings_for
-    from ..cards.settings import CardOptions
-
-    known = {f.name for f in dataclasses.fields(CardOptions)}
-    unknown = sorted(set(spec.options or {}) - known)
-    if unknown:
-        raise ValueError(f"unknown card option(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})")
-    link_speed = {"ML1": 4, "ML2": 10}.get((spec.link or "").upper())
-    settings = settings_for(
-        spec.card,
-        spec.address,
-        spec.frame_size,
-        spec.params,
-        load=spec.load,
-        link_speed_mbps=link_speed,
-        options=CardOptions(**{**({"silence_tolerance_ns": absorb_ns} if absorb_ns else {}), **(spec.options or {})}),
-    )
-    eeprom = read_state(eeprom_path(state_dir, spec.card, spec.address)) if state_dir else None
-    return create_card(spec.card, settings=settings, now=now, eeprom=eeprom)
-
-
-def _load_spec(st: StationConfig) -> Any:
-    from ..drive import LoadSpec
-
-    return LoadSpec.from_config(st.load.model_dump(exclude_none=True))
 
 
 def station_specs_from_config(
@@ -89,19 +37,7 @@ def station_specs_from_config(
         except KeyError:
             raise click.BadParameter(f"{address:#04x} is not a station of {config_path}", param_hint="--only") from None
         host, port = endpoints.get(address) or st.host_port(config.network.host)
-        specs.append(
-            StationSpec(
-                card=st.card,
-                address=st.address,
-                host=host,
-                port=port,
-                frame_size=st.frame_size,
-                params=[f"{k}={v}" for k, v in st.params.items()],
-                load=_load_spec(st),
-                link=st.link.name if st.link else None,
-                options=st.options,
-            )
-        )
+        specs.append(spec_for(st, host, port))
     return specs
 
 
@@ -198,7 +134,7 @@ def slave_cmd(card, station_text, listen, frame_size, link, params, config_path,
             specs = [StationSpec(card, parse_address(station_text), host, port,
                                  int(frame_size) if frame_size else None, list(params), link=link)]
         now = time.monotonic_ns()
-        stations = [HostedStation(build_station(s, state, now, absorb_ns), s.host, s.port) for s in specs]
+        stations = [HostedStation(build_station(s, state, now, absorb_ns=absorb_ns), s.host, s.port) for s in specs]
     except ConfigError as exc:
         click.echo(f"mlink-sim slave: {exc}", err=True)
         sys.exit(2)

@@ -243,11 +243,26 @@ class NetworkConfig(BaseModel):
     master_address: Address = Field(0x01, description="the master's own address (informational)")
     host: str = Field("127.0.0.1", description="address slaves bind by default (loopback)")
     duration: DurationNs | None = Field(None, description="run length when there is no timeline, e.g. '10s'")
+    latency: DurationNs = Field(
+        50_000, description="virtual clock (--clock virtual): one-way delay of every datagram, default 50us"
+    )
+    jitter: DurationNs = Field(
+        10_000,
+        description="virtual clock: the one-way delay varies uniformly by up to ± this much (drawn from --seed), "
+        "default 10us; at most the latency",
+    )
+
     host_stalls: Literal["absorb", "strict"] = Field(
         "absorb", description="host-stall policy of up/master/compose: 'absorb' runs the cycles a stall of "
         "mlink-sim's own processes delayed (up to stall_bound) late instead of losing them; 'strict' judges "
         "by the wall clock as the manuals do (docs/timing.md, 'Host stalls')")
     stall_bound: DurationNs = Field(50_000_000, description="longest stall 'absorb' absorbs, e.g. '50ms'")
+
+    @model_validator(mode="after")
+    def _jitter(self) -> NetworkConfig:
+        if self.jitter > self.latency:
+            raise ValueError(f"jitter: at most the latency ({self.latency} ns), got {self.jitter} ns")
+        return self
 
     @field_validator("stall_bound")
     @classmethod

@@ -5,5 +5,7 @@ The plugin is registered through the ``pytest11`` entry point when mlink-sim is 
 
 from .harness import NetworkNotUp, RunningNetwork
 from .metrics import Latency, MetricsView, StationMetricsView
+from .virtual import VirtualRunningNetwork
 
-__all__ = ["RunningNetwork", "NetworkNotUp", "MetricsView", "Latency", "StationMetricsView"]
+__all__ = ["RunningNetwork", "VirtualRunningNetwork", "NetworkNotUp", "MetricsView", "Latency",
+           "StationMetricsView"]

@@ -30,12 +30,11 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
-from ..aio.scenario import CheckResult, speed_scale
+from ..aio.scenario import CheckResult, StationControls, speed_scale
 from ..aio.supervisor import parse_workers
 from ..config import Config, load_config
 from ..master.types import RequestTimeout, StationAlarmError, StationState, StationView
-from ..wire import InvCmdStat, Link, M2Status
-from .metrics import MetricsView
+from .metrics import ReportChecks
 
 __all__ = ["RunningNetwork", "NetworkNotUp", "HostError"]
 
@@ -98,7 +97,7 @@ class _AsyncApi:
         return call
 
 
-class RunningNetwork:
+class RunningNetwork(StationControls, ReportChecks):
     """The network of *config* (a TOML path), up for as long as the ``with`` block (or :meth:`start`/:meth:`stop`).
 
     *workers* is ``up --workers``: a number of slave processes, ``"station"`` (one per station) or ``"auto"``
@@ -286,17 +285,6 @@ class RunningNetwork:
         """Cyclic INV_CTL fields (forward, reverse, speed_ref [raw], fault_reset, ef0, …); others stay as set."""
         self._rpc("set_control", station, **fields)
 
-    def run(self, station: int, hz: float, direction: str = "forward") -> None:
-        """Run *station* at *hz* (converted with its o1-03 / n035 units) in *direction* (forward / reverse)."""
-        if direction not in ("forward", "reverse"):
-            raise ValueError(f"direction must be 'forward' or 'reverse', got {direction!r}")
-        self.set_control(station, forward=direction == "forward", reverse=direction == "reverse",
-                         speed_ref=self._scales[station].to_raw(hz))
-
-    def stop_station(self, station: int) -> None:
-        """Take the run command away (the drive stops per its stopping method)."""
-        self.set_control(station, forward=False, reverse=False)
-
     def kill_slave(self, station: int) -> bool:
         """SIGKILL the worker process hosting *station* (it is restarted and brought up again)."""
         return bool(self._rpc("kill_slave", station))
@@ -312,16 +300,6 @@ class RunningNetwork:
 
     def views(self) -> dict[int, StationView]:
         return {int(a): self._view(v) for a, v in self._rpc("views").items()}
-
-    def output_hz(self, station: int) -> float:
-        """Output frequency of *station* in Hz (from the latest INV_CTL response)."""
-        return self._scales[station].to_hz(self.view(station).output_freq)
-
-    def running(self, station: int) -> bool:
-        status = self.view(station).status
-        if self._links[station] is Link.ML3:
-            return bool(status & (InvCmdStat.FORWARD | InvCmdStat.REVERSE))
-        return bool(status & M2Status.RUNX)
 
     def wait(self, seconds: float) -> None:
         """Let the network cycle for *seconds*."""
@@ -341,11 +319,6 @@ class RunningNetwork:
         return [CheckResult(**c) for c in self._rpc("timeline", rpc_timeout=t + 5, timeout=t)]
 
     # ------------------------------------------------------------------ figures
-    @property
-    def metrics(self) -> MetricsView:
-        """Live figures (a fresh report, slave counters included): ``net.metrics.rtt.p99`` in seconds."""
-        return MetricsView(self.report())
-
     def report(self) -> dict[str, Any]:
         """The report document as of now (docs/report.md); after :meth:`stop`, the final one."""
         if self._proc is None and self.final_report is not None:
@@ -359,18 +332,6 @@ class RunningNetwork:
     def reset_metrics(self) -> None:
         """Start the figures afresh from now."""
         self._rpc("reset_metrics")
-
-    def check(self, *expressions: str) -> list[Any]:
-        """Evaluate ``--assert`` expressions (docs/report.md) on the live figures; ``AssertionError`` naming every
-        broken bound and its measured value. A malformed expression raises ``AssertionSyntaxError``."""
-        from ..metrics import check_all, parse_assertions
-
-        parsed = parse_assertions(expressions, stations=[st.address for st in self.config.station])
-        results = check_all(parsed, self.report())
-        failed = [r for r in results if not r.ok]
-        if failed:
-            raise AssertionError("; ".join(r.message for r in failed))
-        return results
 
     def __repr__(self) -> str:
         state = "running" if self._proc is not None else "stopped"

@@ -8,10 +8,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
-__all__ = ["Latency", "MetricsView", "StationMetricsView"]
+__all__ = ["Latency", "MetricsView", "StationMetricsView", "ReportChecks"]
 
 _LATENCY_KEYS = ("min", "p50", "p90", "p99", "p99_9", "max", "mean")
 
@@ -117,3 +117,27 @@ class MetricsView(_Counters):
     def __repr__(self) -> str:
         return (f"MetricsView(cycles={self._d.get('cycles')}, missed={self._d.get('missed')}, "
                 f"rtt={Latency(self._d.get('rtt', {}))!r})")
+
+
+class ReportChecks:
+    """``metrics`` and ``check`` for a network handle with ``report()`` and ``config`` (both clocks' harnesses)."""
+
+    config: Any
+    report: Callable[[], dict[str, Any]]  #: the handle's own: the live report (the final one once stopped)
+
+    @property
+    def metrics(self) -> MetricsView:
+        """Live figures (a fresh report, slave counters included): ``net.metrics.rtt.p99`` in seconds."""
+        return MetricsView(self.report())
+
+    def check(self, *expressions: str) -> list[Any]:
+        """Evaluate ``--assert`` expressions (docs/report.md) on the live figures; ``AssertionError`` naming every
+        broken bound and its measured value. A malformed expression raises ``AssertionSyntaxError``."""
+        from ..metrics import check_all, parse_assertions
+
+        parsed = parse_assertions(expressions, stations=[st.address for st in self.config.station])
+        results = check_all(parsed, self.report())
+        failed = [r for r in results if not r.ok]
+        if failed:
+            raise AssertionError("; ".join(r.message for r in failed))
+        return results

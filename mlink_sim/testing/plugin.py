@@ -10,7 +10,9 @@ Fixtures:
 
 - ``mlink_network`` — a started :class:`~mlink_sim.testing.RunningNetwork`. Its config comes from the test's
   ``mlink_network`` marker (``@pytest.mark.mlink_network(CONFIG, workers=…, timeline=…, bringup_timeout=…)``),
-  else ``--mlink-config`` / the ``mlink_config`` ini option. Stopped after the test.
+  else ``--mlink-config`` / the ``mlink_config`` ini option. Stopped after the test. With ``clock="virtual"``
+  (and ``seed=N``) it is a :class:`~mlink_sim.testing.virtual.VirtualRunningNetwork`: the same methods, the
+  network in the test's process on simulated time (``wait(2.0)`` returns at once; docs/virtual-time.md).
 - ``mlink_network_factory`` — ``start(CONFIG, **options)`` for tests that need several networks or options
   decided in the test; every network started is stopped after the test.
 
@@ -43,8 +45,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers",
-        "mlink_network(config, *, workers='auto', timeline=False, bringup_timeout=10.0): "
-        "the network the mlink_network fixture brings up for this test",
+        "mlink_network(config, *, clock='real', seed=0, workers='auto', timeline=False, bringup_timeout=10.0): "
+        "the network the mlink_network fixture brings up for this test (clock='virtual': in this process, on "
+        "simulated time)",
     )
 
 
@@ -71,7 +74,16 @@ class _Factory:
 
         pconfig = self.request.config
         options.setdefault("workers", pconfig.getoption("--mlink-workers"))
-        net = RunningNetwork(_resolve(config, pconfig), **options)
+        clock = options.pop("clock", "real")
+        if clock == "virtual":
+            from .virtual import VirtualRunningNetwork
+
+            net: Any = VirtualRunningNetwork(_resolve(config, pconfig), **options)
+        elif clock == "real":
+            options.pop("seed", None)
+            net = RunningNetwork(_resolve(config, pconfig), **options)
+        else:
+            raise pytest.UsageError(f"mlink_network: clock must be 'real' or 'virtual', got {clock!r}")
         net.start()
         self.started.append(net)
         return net

@@ -45,3 +45,25 @@ def test_report_dir_gets_one_report_per_network(pytester, tmp_path):
     (path,) = reports.glob("*.json")
     report = json.loads(path.read_text())
     assert report["meta"]["network"] == "quickstart" and report["cycles"] > 0
+
+
+def test_virtual_clock_marker_and_a_bad_clock(pytester, tmp_path):
+    pytester.makepyfile(f"""
+        import pytest
+
+        @pytest.mark.mlink_network({str(QUICKSTART)!r}, clock="virtual", seed=2)
+        def test_virtual(mlink_network):
+            mlink_network.wait(0.5)
+            assert mlink_network.now > 0.5 and mlink_network.metrics.cycles >= 249
+
+        @pytest.mark.mlink_network({str(QUICKSTART)!r}, clock="sundial")
+        def test_bad_clock(mlink_network):
+            pass
+    """)
+    reports = tmp_path / "reports"
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", f"--mlink-report-dir={reports}")
+    result.assert_outcomes(passed=1, errors=1)
+    result.stdout.fnmatch_lines(["*clock must be 'real' or 'virtual', got 'sundial'*"])
+    (path,) = reports.glob("*virtual*.json")
+    report = json.loads(path.read_text())
+    assert report["meta"]["clock"] == "virtual" and report["meta"]["seed"] == 2
