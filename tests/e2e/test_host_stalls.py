@@ -66,17 +66,24 @@ def run_with_stalls(tmp_path: Path, *flags: str) -> tuple[int, dict, str]:
     config = tmp_path / "stalls.toml"
     config.write_text(CONFIG)
     report = tmp_path / "report.json"
-    proc = subprocess.Popen([*MLINK, "up", str(config), "--no-status", "--include-bringup", "--workers", "1",
+    proc = subprocess.Popen([*MLINK, "up", str(config), "--no-status", "--workers", "1", "--log-level", "info",
                              "--report", str(report), *flags], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                             text=True)
+    lines = []
     try:
-        time.sleep(2.0)
+        assert proc.stdout is not None
+        for line in proc.stdout:  # the stalls go into the measured span: after bring-up
+            lines.append(line)
+            if "network_up" in line:
+                break
+        time.sleep(0.5)
         for _ in range(3):  # the master's process: its clock stops
             _hold(proc.pid)
             time.sleep(0.5)
         for worker in children_of(proc.pid):  # the slave worker: its commands wait on the socket
             _hold(worker)
         out, _ = proc.communicate(timeout=60)
+        out = "".join(lines) + out
     finally:
         if proc.poll() is None:
             proc.kill()
