@@ -131,22 +131,31 @@ def _parse(argv: list[str]) -> tuple[str, int, int, tuple[tuple[str, int], ...],
         raise _Usage("HOST:PORT and --station are required")
     host, sep, port_text = target.rpartition(":")
     host = host.strip("[]")
+    if not sep or not host or not port_text.isdigit() or not 1 <= int(port_text) <= 65535:
+        raise _Usage(f"expected HOST:PORT such as 127.0.0.1:47001, got {target!r}")
     try:
-        port = int(port_text)
         station = _address(opts["--station"])
+    except ValueError:
+        station = -1
+    if not 0 <= station <= 0xFF:
+        raise _Usage(f"expected a station address such as 0x21, got {opts['--station']!r}")
+    try:
         timeout = float(opts.get("--timeout", "2"))
-        size = int(opts["--frame-size"]) if "--frame-size" in opts else None
-    except ValueError as exc:
-        raise _Usage(str(exc)) from None
-    if not sep or not host or not 1 <= port <= 65535 or not 0 <= station <= 0xFF or not timeout > 0:
-        raise _Usage(f"bad target, station or timeout: {target} --station {opts['--station']}")
+    except ValueError:
+        timeout = 0.0
+    if not timeout > 0:
+        raise _Usage(f"--timeout takes a number of seconds above 0, got {opts.get('--timeout')!r}")
+    size_text = opts.get("--frame-size")
+    if size_text is not None and size_text not in ("17", "32", "64"):
+        raise _Usage(f"--frame-size must be 17, 32 or 64, got {size_text!r}")
+    size = int(size_text) if size_text is not None else None
     link = opts.get("--link", "").lower() or None
     if link is not None and link not in LINK_CODES:
         raise _Usage(f"--link must be one of {', '.join(LINK_CODES)}, got {link!r}")
     attempts = tuple((lk, sz) for lk, sz in ATTEMPTS if link in (None, lk) and size in (None, sz))
     if not attempts:
         raise _Usage(f"no {link or 'link'} carries {size}-byte frames")
-    return host, port, station, attempts, timeout
+    return host, int(port_text), station, attempts, timeout
 
 
 def main(argv: list[str] | None = None) -> int:
