@@ -80,7 +80,7 @@ WORKDIR /home/mlink
 ENV MLINK_PROBE_TARGET="" \
     MLINK_PROBE_STATION="" \
     MLINK_PROBE_ARGS=""
-HEALTHCHECK --interval=2s --timeout=5s --start-period=10s --retries=5 \
+HEALTHCHECK --interval=5s --timeout=5s --start-period=30s --retries=3 \
     CMD [ -z "$MLINK_PROBE_TARGET" ] \
         || mlink-health "$MLINK_PROBE_TARGET" --station "$MLINK_PROBE_STATION" --timeout 2 $MLINK_PROBE_ARGS
 

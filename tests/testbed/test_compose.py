@@ -107,7 +107,7 @@ def test_one_service_per_station_plus_master_gated_on_health(path):
 
 
 def _probe_in(test: list[str]) -> list[str]:
-    """The ``mlink-sim probe …`` argv of a CMD healthcheck."""
+    """The ``mlink-health …`` argv of a CMD healthcheck."""
     assert test[0] == "CMD"
     return test[1:]
 
