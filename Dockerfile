@@ -22,13 +22,14 @@ ARG WHEELS=""
 ENV PIP_DISABLE_PIP_VERSION_CHECK=1 \
     PIP_NO_CACHE_DIR=1 \
     PYTHONDONTWRITEBYTECODE=1
-# A COPY needs a source that exists: README.md is copied along and ignored.
-COPY README.md ${WHEELS:+$WHEELS/deps} /tmp/deps/
+# A COPY needs a source that exists: pyproject.toml is copied along and ignored (a change to it may change the
+# dependencies, so it may as well invalidate their layer).
+COPY pyproject.toml ${WHEELS:+$WHEELS/deps} /tmp/deps/
 RUN python3 -m venv /opt/mlink-sim \
  && if [ -n "$WHEELS" ]; then \
       /opt/mlink-sim/bin/pip install --no-index --find-links /tmp/deps -r /tmp/deps/requirements.txt; \
     fi
-COPY README.md ${WHEELS:+$WHEELS/project} /tmp/project/
+COPY pyproject.toml ${WHEELS:+$WHEELS/project} /tmp/project/
 COPY pyproject.toml README.md /tmp/src/
 COPY mlink_sim /tmp/src/mlink_sim
 # mlink-health, the health check: the stdlib-only probe of mlink_sim/testbed/health.py run without site (-IS),
