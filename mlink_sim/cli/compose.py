@@ -36,7 +36,7 @@ def write_atomically(path: Path, text: str) -> None:
 
 
 def _command_line(config_path: str, output: str | None, image: str, report_dir: str, port: int,
-                  duration: str | None, asserts: tuple[str, ...]) -> str:
+                  duration: str | None, asserts: tuple[str, ...], start_interval: bool) -> str:
     """The command as a user would retype it (only non-default options), for the file's header."""
     args = ["mlink-sim", "compose", config_path]
     if output is not None:
@@ -51,6 +51,8 @@ def _command_line(config_path: str, output: str | None, image: str, report_dir: 
         args += ["--duration", duration]
     for expr in asserts:
         args += ["--assert", expr]
+    if start_interval:
+        args.append("--start-interval")
     return shlex.join(args)
 
 
@@ -65,8 +67,11 @@ def _command_line(config_path: str, output: str | None, image: str, report_dir: 
 @click.option("--duration", help="Passed to `mlink-sim master --duration` (default: the config's timeline).")
 @click.option("--assert", "asserts", multiple=True, metavar="EXPR",
               help="Passed to `mlink-sim master --assert`; repeatable, e.g. 'rtt.p99 < 2ms'.")
+@click.option("--start-interval", is_flag=True,
+              help="Probe each station every 1 s while it starts and every 30 s after (healthcheck.start_interval: "
+                   "Compose v2.20.2+ on Docker Engine 25+; docker-compose 1.29 rejects it). Default: every 5 s.")
 def compose_cmd(config_path: str, output: str | None, image: str, report_dir: str, port: int,
-                duration: str | None, asserts: tuple[str, ...]) -> None:
+                duration: str | None, asserts: tuple[str, ...], start_interval: bool) -> None:
     """Write a docker-compose file for the network in CONFIG: one container per slave station, a master that
     starts once every station answers its healthcheck, the config mounted read-only, the report on a volume."""
     try:
@@ -84,8 +89,9 @@ def compose_cmd(config_path: str, output: str | None, image: str, report_dir: st
                                  param_hint="--report-dir")
     text = render_compose(
         config, config_path, output,
-        command=_command_line(config_path, output, image, report_dir, port, duration, asserts),
+        command=_command_line(config_path, output, image, report_dir, port, duration, asserts, start_interval),
         image=image, station_port=port, report_dir=report_dir, duration=duration, asserts=asserts,
+        start_interval=start_interval,
     )  # fmt: skip
     if output is None or output == "-":
         click.echo(text, nl=False)

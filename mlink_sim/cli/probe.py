@@ -11,11 +11,13 @@ import click
 
 from ..aio.udp import bind_address_for, new_event_loop, open_endpoint, resolve
 from ..config import parse_address, parse_endpoint
+from ..testbed.health import ATTEMPTS
 from ..wire import Frame, Kind, Link, WireError, decode, encode, ml2, ml3
 
 __all__ = ["probe_cmd", "probe"]
 
-_ATTEMPTS: list[tuple[Link, int]] = [(Link.ML2, 32), (Link.ML2, 17), (Link.ML3, 64), (Link.ML3, 32), (Link.ML1, 17)]
+#: The (link, size) pairs tried when the station's are not given: the same order as the image's health check.
+_ATTEMPTS: list[tuple[Link, int]] = [(Link[name.upper()], size) for name, size in ATTEMPTS]
 
 
 def _nop(link: Link, size: int, station: int, cycle: int) -> bytes:

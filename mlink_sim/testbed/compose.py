@@ -8,7 +8,8 @@ The layout (docs/testbeds.md):
 
 * ``station-21`` … – ``mlink-sim slave --config /config/network.toml --only 0x21 --endpoint 0x21=0.0.0.0:PORT``,
   every station on the same UDP port in its own container; a healthcheck that sends the station a NOP
-  (``mlink-sim probe 127.0.0.1:PORT --station 0x21 --link ml2 --frame-size 32``) until it first answers.
+  (``mlink-health 127.0.0.1:PORT --station 0x21 --link ml2 --frame-size 32``, the image's stdlib-only probe,
+  :mod:`mlink_sim.testbed.health`).
 * ``master`` – ``mlink-sim master /config/network.toml --endpoint 0x21=station-21:PORT … --report
   /reports/report.json --no-status``, started only once every station is healthy (``depends_on`` with
   ``condition: service_healthy``), never restarted.
@@ -17,6 +18,11 @@ The layout (docs/testbeds.md):
 
 A station's ``endpoint`` in the config is not used: inside its container every station listens on
 ``0.0.0.0:station_port`` and is reached by its service name.
+
+The document is accepted by Compose v2 and by Debian's docker-compose 1.29, whose schema allows no top-level
+``name`` and no ``healthcheck.start_interval`` (tests/testbed/test_compose.py runs ``docker-compose config``):
+the project name comes from ``-p``. ``start_interval=True`` adds the faster start-up probing of Compose v2.20.2+
+on Docker Engine 25+ (:data:`HEALTH_START` against :data:`HEALTH_PORTABLE`).
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ import os
 import posixpath
 import re
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +44,11 @@ __all__ = [
     "render_compose",
     "to_yaml",
     "service_name",
+    "project_name",
     "probe_argv",
+    "HealthTiming",
+    "HEALTH_PORTABLE",
+    "HEALTH_START",
     "config_source_for",
     "DEFAULT_IMAGE",
     "DEFAULT_STATION_PORT",
@@ -54,14 +65,34 @@ CONFIG_IN_CONTAINER = "/config/network.toml"
 NETWORK_NAME = "mlink"
 REPORTS_VOLUME = "reports"
 
-#: Healthcheck timing: the probe itself waits at most PROBE_TIMEOUT_S; a container is unhealthy after
-#: HEALTH_RETRIES failures in a row once HEALTH_START_PERIOD (Python start-up, binding) is over.
-PROBE_TIMEOUT_S = 2
-HEALTH_INTERVAL = "2s"
-HEALTH_TIMEOUT = "5s"
-HEALTH_RETRIES = 5
-HEALTH_START_PERIOD = "10s"
+PROBE_TIMEOUT_S = 2  #: the probe itself waits at most this long for the station's answer
 STOP_GRACE_PERIOD = "5s"
+
+
+@dataclass(frozen=True)
+class HealthTiming:
+    """When Docker runs a station's health probe. Every probe is a process started in the container (the engine's
+    exec: about 30 ms of CPU in dockerd/containerd/runc, plus 15 ms for ``mlink-health``; docs/testbeds.md), so
+    the interval is what the health check costs for the whole run. The master waits for the first success."""
+
+    interval: str  #: between probes (the first one comes one interval after the container starts)
+    start_period: str  #: failures in this time do not count (Python start-up, binding)
+    retries: int  #: failures in a row, after the start period, that make the container unhealthy
+    start_interval: str | None = None  #: between probes during the start period (Compose v2 on Engine 25+ only)
+    timeout: str = "5s"
+
+    def as_compose(self) -> dict[str, Any]:
+        doc: dict[str, Any] = {"interval": self.interval, "timeout": self.timeout, "retries": self.retries,
+                               "start_period": self.start_period}  # fmt: skip
+        if self.start_interval is not None:
+            doc["start_interval"] = self.start_interval
+        return doc
+
+
+#: Every Compose and engine: a probe each 5 s throughout (the station is healthy 5–10 s after it starts).
+HEALTH_PORTABLE = HealthTiming(interval="5s", start_period="30s", retries=3)
+#: Compose v2.20.2+ with Docker Engine 25+: a probe each second while starting, then one each 30 s.
+HEALTH_START = HealthTiming(interval="30s", start_period="30s", retries=3, start_interval="1s")
 
 
 def service_name(address: int) -> str:
@@ -69,7 +100,7 @@ def service_name(address: int) -> str:
     return f"station-{address:02x}"
 
 
-def _project_name(name: str) -> str:
+def project_name(name: str) -> str:
     """A Compose project name (``^[a-z0-9][a-z0-9_-]*$``) derived from the network name."""
     text = re.sub(r"[^a-z0-9_-]+", "-", name.lower()).strip("-_")
     return text if text and text[0].isalnum() else f"mlink-{text}".rstrip("-")
@@ -89,22 +120,16 @@ def _config_mount(config_source: str, target: str) -> dict[str, Any]:
 
 
 def probe_argv(st: StationConfig, port: int) -> list[str]:
-    """``mlink-sim probe 127.0.0.1:PORT --station 0x21 --link ml2 --frame-size 32 --timeout 2`` for *st*."""
+    """``mlink-health 127.0.0.1:PORT --station 0x21 --link ml2 --frame-size 32 --timeout 2`` for *st*."""
     assert st.link is not None and st.frame_size is not None  # filled in by Config validation
-    return ["mlink-sim", "probe", f"127.0.0.1:{port}", "--station", _addr(st.address), "--link", st.link.name.lower(),
+    return ["mlink-health", f"127.0.0.1:{port}", "--station", _addr(st.address), "--link", st.link.name.lower(),
             "--frame-size", str(st.frame_size), "--timeout", str(PROBE_TIMEOUT_S)]  # fmt: skip
 
 
-def _healthcheck(st: StationConfig, port: int) -> dict[str, Any]:
-    # A card answers a NOP from any source with its status, also while a master is connected, without executing
-    # anything (docs/cards.md, "Other sources"), so the probe checks the live station throughout the run.
-    return {
-        "test": ["CMD", *probe_argv(st, port)],
-        "interval": HEALTH_INTERVAL,
-        "timeout": HEALTH_TIMEOUT,
-        "retries": HEALTH_RETRIES,
-        "start_period": HEALTH_START_PERIOD,
-    }
+def _healthcheck(st: StationConfig, port: int, timing: HealthTiming) -> dict[str, Any]:
+    # A card answers a NOP from another source with its status, also while a master is connected, without
+    # executing anything (docs/cards.md, "Other sources"), so the probe checks the live station throughout the run.
+    return {"test": ["CMD", *probe_argv(st, port)], **timing.as_compose()}
 
 
 def compose_document(
@@ -117,17 +142,20 @@ def compose_document(
     report_dir: str = DEFAULT_REPORT_DIR,
     duration: str | None = None,
     asserts: Iterable[str] = (),
+    start_interval: bool = False,
 ) -> dict[str, Any]:
     """The Compose document for *config*.
 
     *config_source* is the config file's path as the compose file sees it (relative paths are relative to the
-    compose file's directory); *duration* and *asserts* are passed to ``mlink-sim master`` unchanged.
+    compose file's directory); *duration* and *asserts* are passed to ``mlink-sim master`` unchanged;
+    *start_interval* chooses :data:`HEALTH_START` over :data:`HEALTH_PORTABLE`.
     """
     if not 1 <= station_port <= 65535:
         raise ValueError(f"station port {station_port} is out of range 1…65535")
     if not report_dir.startswith("/"):
         raise ValueError(f"report directory must be an absolute path inside the container, got {report_dir!r}")
     config_volume = _config_mount(config_source, config_path_in_container)
+    timing = HEALTH_START if start_interval else HEALTH_PORTABLE
     services: dict[str, Any] = {}
     for st in config.station:
         services[service_name(st.address)] = {
@@ -138,7 +166,7 @@ def compose_document(
                         *config.network.slave_flags()],
             "volumes": [dict(config_volume)],
             "networks": [NETWORK_NAME],
-            "healthcheck": _healthcheck(st, station_port),
+            "healthcheck": _healthcheck(st, station_port, timing),
             "stop_grace_period": STOP_GRACE_PERIOD,
         }
     master_cmd = ["master", config_path_in_container]
@@ -161,7 +189,6 @@ def compose_document(
         "stop_grace_period": STOP_GRACE_PERIOD,
     }
     return {
-        "name": _project_name(config.network.name),
         "services": services,
         "networks": {NETWORK_NAME: {"driver": "bridge"}},
         "volumes": {REPORTS_VOLUME: {}},
@@ -202,8 +229,10 @@ def render_compose(
         f"Generated by `{command}` – do not edit; regenerate instead.\n" if command else "Generated by mlink-sim.\n"
     ) + (
         f"Testbed for network {config.network.name!r}: {len(config.station)} station container(s) + 1 master.\n"
-        f"Build the image first (docker build -t {options.get('image', DEFAULT_IMAGE)} .), then:\n"
-        "  docker compose -f THIS_FILE up --abort-on-container-exit --exit-code-from master\n"
+        f"Build the image first (docker build -t {options.get('image', DEFAULT_IMAGE)} . or scripts/docker-build), then:\n"
+        f"  docker compose -p {project_name(config.network.name)} -f THIS_FILE up --abort-on-container-exit "
+        "--exit-code-from master\n"
+        "(docker-compose 1.29 takes the same options) or all in one: scripts/docker-testbed CONFIG. "
         "See docs/testbeds.md."
     )
     return to_yaml(document, header)

@@ -38,6 +38,7 @@ from typing import Any
 import click
 
 from ..config import Config, ConfigError, load_config, parse_duration_ns
+from . import firewall
 
 __all__ = ["Node", "Plan", "make_plan", "check_prefix", "cleanup", "stale_prefixes", "Testbed", "TestbedError",
            "main", "DEFAULT_PORT", "SUBNET"]
@@ -228,7 +229,8 @@ def _stop_pids(pids: list[int], grace: float = 2.0) -> None:
 
 
 def cleanup(prefix: str, ip: str = "ip") -> list[str]:
-    """Remove every namespace (stopping what runs in it), bridge and veth of *prefix*; what was removed.
+    """Remove every namespace (stopping what runs in it), bridge, veth and FORWARD rule of *prefix*; what was
+    removed.
 
     Idempotent: a second call finds nothing and removes nothing.
     """
@@ -245,12 +247,13 @@ def cleanup(prefix: str, ip: str = "ip") -> list[str]:
     for name in list_links(ip):  # veths whose namespace end is gone are gone too; the bridge remains
         if link_re.match(name) and _ip(ip, "link", "del", name).returncode == 0:
             removed.append(name)
-    return removed
+    return removed + firewall.remove_rules(prefix)
 
 
 def leftovers(prefix: str, ip: str = "ip") -> list[str]:
     ns_re, link_re = _ours(prefix)
-    return [n for n in list_netns(ip) if ns_re.match(n)] + [n for n in list_links(ip) if link_re.match(n)]
+    return ([n for n in list_netns(ip) if ns_re.match(n)] + [n for n in list_links(ip) if link_re.match(n)]
+            + [" ".join(rule) for rule in firewall.rules_of(prefix)])
 
 
 # -- running it -----------------------------------------------------------------------------------------------
@@ -311,8 +314,12 @@ class Testbed:
         return "\n".join("    " + line for line in text[-lines:])
 
     def up(self) -> None:
+        """The bridge, the namespaces and their veths; a FORWARD rule for the bridge (a Docker engine sets the
+        chain's policy to DROP: :mod:`~mlink_sim.testbed.firewall`)."""
         for argv in self.plan.setup_commands(self.ip):
             _ip(argv[0], *argv[1:], check=True)
+        if error := firewall.allow_bridge(self.plan.bridge, self.plan.prefix):
+            raise TestbedError(error)
 
     def start_slaves(self, timeout: float = 15.0) -> None:
         """Start every slave in its namespace and wait until each has printed its ready line."""
@@ -354,8 +361,8 @@ class Testbed:
             detail = (result.stdout + result.stderr).strip()
             raise TestbedError(
                 "from the master's namespace:\n    " + detail.replace("\n", "\n    ")
-                + "\n  (over the bridge: if br_netfilter is loaded and the firewall's FORWARD policy is DROP – as "
-                "Docker sets it – bridged frames are dropped; see docs/testbeds.md)"
+                + "\n  (over the bridge: the testbed accepts its bridge's frames in iptables' FORWARD chain, but a "
+                "firewall of another kind – nftables tables of its own, ebtables – may drop them; see docs/testbeds.md)"
             )
 
     def run_master(self, *, report: str | None, duration: str | None, asserts: tuple[str, ...],

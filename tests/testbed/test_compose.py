@@ -5,7 +5,10 @@ volume); the checked-in docker-compose.yml is the generator's output for configs
 from __future__ import annotations
 
 import json
+import os
 import shlex
+import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -14,17 +17,34 @@ from click.testing import CliRunner
 
 from mlink_sim.cli.compose import compose_cmd
 from mlink_sim.config import load_config
+from mlink_sim.testbed import health
 from mlink_sim.testbed.compose import (
     CONFIG_IN_CONTAINER,
+    HEALTH_PORTABLE,
+    HEALTH_START,
     probe_argv,
     compose_document,
     config_source_for,
+    project_name,
     render_compose,
     service_name,
 )
 
 REPO = Path(__file__).resolve().parents[2]
-SCHEMA = REPO.parent / "shared" / "schemas" / "compose-spec.json"
+SCHEMA_IN_SHARED = Path("shared") / "schemas" / "compose-spec.json"
+
+
+def _schema_path() -> Path:
+    """``../shared/schemas/compose-spec.json`` beside the checkout: the checkout as given (a symlinked clone keeps
+    its own parent), as resolved, and the working directory's parent (CI runs from the clone's root)."""
+    unresolved = Path(os.path.abspath(__file__)).parents[2]
+    for base in (unresolved.parent, REPO.parent, Path.cwd().parent):
+        if (base / SCHEMA_IN_SHARED).is_file():
+            return base / SCHEMA_IN_SHARED
+    return REPO.parent / SCHEMA_IN_SHARED
+
+
+SCHEMA = _schema_path()
 CONFIGS = sorted((REPO / "configs").glob("*.toml"))
 QUICKSTART = REPO / "configs" / "quickstart.toml"
 CHECKED_IN = REPO / "docker-compose.yml"
@@ -58,7 +78,7 @@ def test_document_validates_against_compose_spec(validator, path):
     assert _errors(validator, document) == []
     # with every option set too
     full = compose_document(config, image="registry.example/mlink-sim:1.0", station_port=40000, report_dir="/out",
-                            duration="20s", asserts=("rtt.p99 < 2ms", "missed == 0"))
+                            duration="20s", asserts=("rtt.p99 < 2ms", "missed == 0"), start_interval=True)
     assert _errors(validator, full) == []
 
 
@@ -87,7 +107,7 @@ def test_one_service_per_station_plus_master_gated_on_health(path):
 
 
 def _probe_in(test: list[str]) -> list[str]:
-    """The ``mlink-sim probe …`` argv of a CMD healthcheck."""
+    """The ``mlink-health …`` argv of a CMD healthcheck."""
     assert test[0] == "CMD"
     return test[1:]
 
@@ -103,12 +123,13 @@ def test_station_service_listens_on_all_addresses_and_is_probed():
         assert cmd[cmd.index("--host-stalls") + 1] == "absorb"  # the master is ours: docs/timing.md
         probe = _probe_in(svc["healthcheck"]["test"])
         assert probe == probe_argv(st, 47001)
-        assert probe[:3] == ["mlink-sim", "probe", "127.0.0.1:47001"]
+        assert probe[:2] == ["mlink-health", "127.0.0.1:47001"]
         assert probe[probe.index("--station") + 1] == f"0x{st.address:02X}"
         assert probe[probe.index("--link") + 1] == st.link.name.lower()
         assert probe[probe.index("--frame-size") + 1] == str(st.frame_size)
         hc = svc["healthcheck"]
         assert {"interval", "timeout", "retries", "start_period"} <= set(hc)
+        assert "start_interval" not in hc  # docker-compose 1.29 rejects it
     # quickstart: 0x23 is the SI-ET3 on MECHATROLINK-III with 64-byte frames
     probe = _probe_in(doc["services"]["station-23"]["healthcheck"]["test"])
     assert probe[probe.index("--link") + 1 :][:3] == ["ml3", "--frame-size", "64"]
@@ -147,14 +168,25 @@ def test_document_is_deterministic_and_key_order_fixed():
     b = render_compose(load_config(QUICKSTART), QUICKSTART, CHECKED_IN, command=REGENERATE)
     assert a == b
     doc = yaml.safe_load(a)
-    assert list(doc) == ["name", "services", "networks", "volumes"]
-    assert doc["name"] == "quickstart"
+    assert list(doc) == ["services", "networks", "volumes"]  # no top-level name: docker-compose 1.29 rejects it
+    assert "docker compose -p quickstart -f THIS_FILE up" in a
 
 
 def test_project_name_is_a_valid_compose_name(tmp_path):
     text = QUICKSTART.read_text().replace('name = "quickstart"', 'name = "My Test Bench #1"')
     (tmp_path / "n.toml").write_text(text)
-    assert compose_document(load_config(tmp_path / "n.toml"))["name"] == "my-test-bench-1"
+    assert project_name(load_config(tmp_path / "n.toml").network.name) == "my-test-bench-1"
+    assert "-p my-test-bench-1 " in render_compose(load_config(tmp_path / "n.toml"), tmp_path / "n.toml")
+
+
+def test_health_timing_portable_by_default_start_interval_on_request():
+    config = load_config(QUICKSTART)
+    portable = compose_document(config)["services"]["station-21"]["healthcheck"]
+    fast = compose_document(config, start_interval=True)["services"]["station-21"]["healthcheck"]
+    assert {k: v for k, v in portable.items() if k != "test"} == HEALTH_PORTABLE.as_compose()
+    assert {k: v for k, v in fast.items() if k != "test"} == HEALTH_START.as_compose()
+    assert fast["start_interval"] == "1s" and fast["interval"] == "30s"
+    assert fast["test"] == portable["test"]
 
 
 def test_dollar_signs_survive_compose_interpolation():
@@ -216,8 +248,12 @@ def test_service_commands_parse_with_the_cli():
             assert params["config_path"] == CONFIG_IN_CONTAINER
             assert params["only"] == "0x" + name.removeprefix("station-").upper()
             probe = _probe_in(svc["healthcheck"]["test"])
-            assert probe[:2] == ["mlink-sim", "probe"]
-            _parse(probe_cmd, probe[2:])
+            assert probe[0] == "mlink-health"
+            host, port, station, attempts, _ = health._parse(probe[1:])
+            assert (host, port, station) == ("127.0.0.1", 47001, int(params["only"], 16))
+            assert len(attempts) == 1
+            # the same options mean the same to `mlink-sim probe`
+            _parse(probe_cmd, probe[1:])
 
 
 # -- the CLI -----------------------------------------------------------------------------------------------
@@ -281,3 +317,39 @@ def test_cli_unwritable_output_exits_2(tmp_path):
     result = CliRunner().invoke(compose_cmd, [str(QUICKSTART), "-o", str(tmp_path / "missing-dir" / "c.yaml")])
     assert result.exit_code == 2
     assert "cannot write" in result.output
+
+
+# -- the Compose implementations themselves (when installed; `config` needs no engine) ------------------------
+
+
+def _compose_config(argv: list[str], document: dict, tmp_path: Path) -> subprocess.CompletedProcess[str]:
+    (tmp_path / "quickstart.toml").write_bytes(QUICKSTART.read_bytes())
+    path = tmp_path / "compose.yaml"
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    return subprocess.run([*argv, "-p", "mlinktest", "-f", str(path), "config", "-q"], capture_output=True, text=True,
+                          timeout=60, cwd=tmp_path)  # fmt: skip
+
+
+def test_docker_compose_1_29_accepts_the_file_and_rejects_start_interval(tmp_path):
+    """Debian's docker-compose 1.29 validates against its own schema: no top-level name, no start_interval."""
+    if shutil.which("docker-compose") is None:
+        pytest.skip("docker-compose is not installed (apt-get install -y docker-compose)")
+    config = load_config(QUICKSTART)
+    ok = _compose_config(["docker-compose"], compose_document(config, config_source="./quickstart.toml"), tmp_path)
+    assert ok.returncode == 0, ok.stderr
+    fast = compose_document(config, config_source="./quickstart.toml", start_interval=True)
+    rejected = _compose_config(["docker-compose"], fast, tmp_path)
+    assert rejected.returncode != 0 and "start_interval" in rejected.stderr
+    named = {"name": "quickstart", **compose_document(config, config_source="./quickstart.toml")}
+    assert _compose_config(["docker-compose"], named, tmp_path).returncode != 0
+
+
+def test_compose_v2_accepts_both_timings(tmp_path):
+    docker = shutil.which("docker")
+    if docker is None or subprocess.run([docker, "compose", "version"], capture_output=True).returncode != 0:
+        pytest.skip("Compose v2 (the docker compose plugin) is not installed")
+    config = load_config(QUICKSTART)
+    for start_interval in (False, True):
+        doc = compose_document(config, config_source="./quickstart.toml", start_interval=start_interval)
+        result = _compose_config([docker, "compose"], doc, tmp_path)
+        assert result.returncode == 0, result.stderr

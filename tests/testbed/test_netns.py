@@ -19,7 +19,7 @@ import pytest
 from click.testing import CliRunner
 
 from mlink_sim.config import load_config, parse_config
-from mlink_sim.testbed import netns
+from mlink_sim.testbed import firewall, netns
 from mlink_sim.testbed.netns import check_prefix, cleanup, leftovers, make_plan, run_testbed
 
 REPO = Path(__file__).resolve().parents[2]
@@ -229,7 +229,8 @@ def test_cleanup_is_idempotent(ip, tmp_path):
     bed = netns.Testbed(plan, "/nonexistent.toml", tmp_path, ip=ip)
     try:
         bed.up()
-        assert len(leftovers(prefix, ip)) == 3 + 1 + 3  # namespaces, bridge, host-side veths
+        rules = 1 if firewall.iptables() else 0
+        assert len(leftovers(prefix, ip)) == 3 + 1 + 3 + rules  # namespaces, bridge, host-side veths, FORWARD rule
         ping = subprocess.run([ip, "netns", "exec", plan.master.netns, "ping", "-c1", "-W2", plan.stations[1].ip],
                               capture_output=True, timeout=10)  # fmt: skip
         if shutil.which("ping"):
@@ -302,3 +303,61 @@ def test_netns_testbed_runs_the_timeline(ip, tmp_path):
     assert isinstance(json.loads(report.read_text()), dict)
     assert leftovers(prefix, ip) == []
     assert elapsed < 40
+
+
+# -- the host firewall: a Docker engine's FORWARD policy DROP -------------------------------------------------
+
+
+def test_forward_rule_accepts_only_the_testbeds_own_bridge():
+    spec = firewall.rule_spec("mls-42br", "mls-42")
+    assert spec[:4] == ["-i", "mls-42br", "-o", "mls-42br"] and spec[-2:] == ["-j", "ACCEPT"]
+    assert "mlink-sim-netns:mls-42" in spec
+
+
+@pytest.fixture
+def ipt(ip):
+    cmd = firewall.iptables()
+    if cmd is None or subprocess.run([cmd, "-w", "-S", "FORWARD"], capture_output=True).returncode != 0:
+        pytest.skip("no usable iptables")
+    return cmd
+
+
+@pytest.mark.netns
+def test_forward_rules_are_found_by_prefix_and_removed_idempotently(ipt):
+    prefix = _prefix("f")
+    other = _prefix("g")
+    try:
+        assert firewall.allow_bridge(f"{prefix}br", prefix) is None
+        assert firewall.allow_bridge(f"{other}br", other) is None
+        assert firewall.rules_of(prefix) == [["-i", f"{prefix}br", "-o", f"{prefix}br", *firewall.rule_spec(
+            f"{prefix}br", prefix)[4:]]]
+        assert len(firewall.remove_rules(prefix)) == 1
+        assert firewall.rules_of(prefix) == [] and firewall.remove_rules(prefix) == []
+        assert len(firewall.rules_of(other)) == 1  # another testbed's rule is left alone
+    finally:
+        firewall.remove_rules(prefix)
+        firewall.remove_rules(other)
+
+
+@pytest.mark.netns
+def test_netns_testbed_runs_where_the_forward_chain_drops_bridged_frames(ip, ipt, tmp_path):
+    """What a running Docker engine does to the host (FORWARD policy DROP, br_netfilter loaded), done here for the
+    test's own bridge only: a DROP rule at the end of FORWARD. The testbed's ACCEPT rule goes before it, so every
+    station answers the NOP from the master's namespace and the master runs and reports; afterwards no rule of the
+    run is left. Without that rule the bridge carries nothing ("did not answer a NOP", exit 1, no report). The
+    timeline's own verdict is left to test_netns_testbed_runs_the_timeline (it depends on the host's timing)."""
+    config_path = tmp_path / "small.toml"
+    config_path.write_text(SMALL)
+    prefix = _prefix("d")
+    drop = [ipt, "-w", "-A", "FORWARD", "-i", f"{prefix}br", "-j", "DROP"]
+    subprocess.run(drop, check=True, capture_output=True)
+    try:
+        result = subprocess.run([str(SCRIPT), str(config_path), "--prefix", prefix, "--report",
+                                 str(tmp_path / "report.json"), "--log-dir", str(tmp_path / "logs")],
+                                capture_output=True, text=True, timeout=60)  # fmt: skip
+        assert "every station answers" in result.stderr, result.stderr
+        assert result.returncode in (0, 1) and "station" in json.loads((tmp_path / "report.json").read_text())
+        assert firewall.rules_of(prefix) == [] and leftovers(prefix, ip) == []
+    finally:
+        subprocess.run([ipt, "-w", "-D", *drop[3:]], capture_output=True)
+        cleanup(prefix, ip)
