@@ -278,8 +278,8 @@ def test_catch_up_runs_the_cycles_a_stall_delayed_in_order(loop_kind):
         assert all(c[3] == 0 for c in rec.calls)
         assert all(c[1] == start + c[0] * MS for c in rec.calls)  # each with its own deadline
         assert timer.skipped_total == 0 and timer.caught_up_total >= 3
-        deadline, now, behind, absorbed = stalls[0]
-        assert absorbed and behind >= 3 and now - deadline >= 3 * MS
+        assert any(absorbed and behind >= 3 and now - deadline >= 3 * MS  # the busy host may add its own
+                   for deadline, now, behind, absorbed in stalls)
 
     run_on(loop_kind, main)
 
@@ -300,7 +300,11 @@ def test_stall_beyond_the_bound_is_skipped_and_reported(loop_kind):
         timer.start()
         await rec.done.wait()
         timer.stop()
-        assert_schedule(rec.calls, start, MS)
+        expected = 0
+        for cycle, deadline, _now, skipped in rec.calls:  # consecutive up to the skips; a shorter stall (a busy
+            assert cycle == expected + skipped  # host) may have been caught up within the bound meanwhile
+            assert deadline == start + cycle * MS
+            expected = cycle + 1
         assert timer.skipped_total >= 5  # the next deadline was 5.5 periods behind
         assert any(not absorbed and behind >= 5 for _, _, behind, absorbed in stalls)
 
