@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
-__all__ = ["Latency", "MetricsView", "StationMetricsView", "ReportChecks"]
+__all__ = ["Latency", "MetricsView", "StationMetricsView", "ReportChecks", "HostView", "StallsView"]
 
 _LATENCY_KEYS = ("min", "p50", "p90", "p99", "p99_9", "max", "mean")
 
@@ -96,12 +96,51 @@ class _Stations(Mapping[int, StationMetricsView]):
         return len(self._d)
 
 
+class StallsView:
+    """Host stalls (docs/report.md, ``host``): ``count``, ``cycles``, ``absorbed``, ``lost`` as ints; ``total`` and
+    ``max`` in seconds (``total_ns``, ``max_ns`` in ns)."""
+
+    __slots__ = ("_d",)
+
+    def __init__(self, d: Mapping[str, Any]) -> None:
+        self._d = dict(d)
+
+    def __getattr__(self, name: str) -> float | int:
+        if name in ("total", "max"):
+            return int(self._d.get(name, 0)) / 1e9
+        if name in ("total_ns", "max_ns"):
+            return int(self._d.get(name[:-3], 0))
+        if name in ("count", "cycles", "absorbed", "lost"):
+            return int(self._d.get(name, 0))
+        raise AttributeError(f"stalls have no field {name!r} (count, total, max, cycles, absorbed, lost)")
+
+    def __repr__(self) -> str:
+        return f"StallsView(count={self.count}, max={self.max_ns / 1e6:.1f} ms, lost={self.lost})"
+
+
+class HostView:
+    """The report's ``host`` section: ``policy``, ``bound`` (s), ``stall`` and ``by_process[name]``
+    (:class:`StallsView`), ``stalls`` (the events as in the report)."""
+
+    __slots__ = ("_d",)
+
+    def __init__(self, d: Mapping[str, Any]) -> None:
+        self._d = d
+
+    policy = property(lambda self: self._d.get("policy", "strict"))
+    bound = property(lambda self: int(self._d.get("bound", 0)) / 1e9)
+    stall = property(lambda self: StallsView(self._d.get("stall", {})))
+    by_process = property(lambda self: {p: StallsView(v) for p, v in self._d.get("by_process", {}).items()})
+    stalls = property(lambda self: list(self._d.get("stalls", [])))
+
+
 class MetricsView(_Counters):
     """A report snapshot (docs/report.md) for assertions in tests.
 
     ``rtt`` and ``lateness`` are :class:`Latency` (seconds; ``_ns`` for ns); ``cycles``, ``missed``,
     ``missed_rate``, ``sent``, ``answered``, ``late``, ``missing``, ``reception_failures``, ``wdt_errors``,
-    ``dropped``, ``cpu`` as in the report; ``station[0x21]`` one station; ``report`` the whole document."""
+    ``dropped``, ``cpu`` as in the report; ``station[0x21]`` one station; ``host`` the host stalls
+    (:class:`HostView`); ``report`` the whole document."""
 
     def __init__(self, report: Mapping[str, Any]) -> None:
         super().__init__(report)
@@ -113,6 +152,11 @@ class MetricsView(_Counters):
     @property
     def station(self) -> _Stations:
         return _Stations(self._d.get("station", {}))
+
+    @property
+    def host(self) -> HostView:
+        """Host stalls: ``net.metrics.host.stall.max`` in seconds (docs/report.md, ``host``)."""
+        return HostView(self._d.get("host", {}))
 
     def __repr__(self) -> str:
         return (f"MetricsView(cycles={self._d.get('cycles')}, missed={self._d.get('missed')}, "

@@ -44,3 +44,19 @@ def test_unknown_fields_say_what_exists(view):
         view.mised
     with pytest.raises(KeyError, match="0x21"):
         view.station[0x30]
+
+
+def test_host_stalls_in_seconds():
+    from mlink_sim.metrics.stalls import StallLog
+
+    m = NetworkMetrics(2_000_000)
+    m.stalls = StallLog("absorb", 50_000_000)
+    m.stall_recorder("master")(0, 24_000_000, 12, True)
+    view = MetricsView(m.report(meta={"config": "c.toml", "started": "2026-01-01T00:00:00+00:00",
+                                      "duration_s": 1.0}))
+    assert view.host.policy == "absorb" and view.host.bound == pytest.approx(0.05)
+    assert view.host.stall.max == pytest.approx(0.024) and view.host.stall.max_ns == 24_000_000
+    assert (view.host.stall.count, view.host.stall.absorbed, view.host.stall.lost) == (1, 12, 0)
+    assert view.host.by_process["master"].cycles == 12
+    with pytest.raises(AttributeError, match="lost"):
+        view.host.stall.longest
