@@ -65,7 +65,7 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
     log.info("ready", stations=[f"{s['address']:#04x}@{s['host']}:{s['port']}" for s in info["stations"]],
              control=info["control"])
     await stop.wait()
-    log.info("stopping")
+    log.info("stopping", host_stalls=server.stalls.totals("self"))  # this process's own (metrics/stalls.py)
     await server.close()
 
 
