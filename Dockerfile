@@ -68,7 +68,7 @@ RUN groupadd --system --gid 10001 mlink \
 
 COPY --from=build /opt/mlink-sim /opt/mlink-sim
 # The example networks, for `docker run --rm mlink-sim up /usr/local/share/mlink-sim/configs/quickstart.toml`.
-COPY configs /usr/local/share/mlink-sim/configs
+COPY mlink_sim/examples /usr/local/share/mlink-sim/configs
 
 USER mlink
 WORKDIR /home/mlink

@@ -20,14 +20,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import structlog
-
+from .._log import get_logger
 from .state import atomic_write, eeprom_path
 from .vclock import VirtualClock
 
 __all__ = ["Fabric", "FabricPort", "VirtualCycle"]
 
-log = structlog.get_logger("mlink_sim.fabric")
+log = get_logger("mlink_sim.fabric")
 
 _TICK_NS = 1_000_000  # a slave process's housekeeping tick (aio/slave.py): the floor between two polls
 

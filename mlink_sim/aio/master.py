@@ -19,8 +19,8 @@ from collections import Counter
 from collections.abc import Callable, Coroutine
 from typing import Any, Protocol, TypeVar
 
-import structlog
 
+from .._log import get_logger
 from ..master import (
     AlarmCleared,
     AlarmRaised,
@@ -103,7 +103,7 @@ class Master:
         self._waiters: list[tuple[Callable[[], bool], asyncio.Future[None]]] = []
         self._pending_missing: dict[int, int] = {}
         self._closed = False
-        self._log = structlog.get_logger(__name__).bind(component="master", link=core.plan.link.name)
+        self._log = get_logger(__name__).bind(component="master", link=core.plan.link.name)
 
     @staticmethod
     def _now() -> int:

@@ -11,22 +11,23 @@ import dataclasses
 import os
 import signal
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import structlog
 
-from ..config import Config, format_ns
+from .._log import get_logger
+from ..config import Config, TimelineStep, format_ns
 from ..metrics import write_report
 from .scenario import CheckResult, Scenario, speed_scales
 from .session import EndpointError, NetworkApi, NetworkSession, build_plans
-from .status import render_status
+from .status import LiveStatus, StatusInfo, WorstP99, render_lines
 from .supervisor import resolve_workers
 
-__all__ = ["RunOptions", "RunOutcome", "EndpointError", "run_up", "run_network", "build_plans"]
+__all__ = ["RunOptions", "RunOutcome", "Verdict", "SIGNAL_EXIT", "EndpointError", "run_up", "run_network",
+           "build_plans", "cut_by_duration"]
 
-log = structlog.get_logger("mlink_sim.network")
+log = get_logger("mlink_sim.network")
 
 
 @dataclasses.dataclass
@@ -46,6 +47,7 @@ class RunOptions:
     state_dir: Path | None = None  #: EEPROM images of the slaves (up)
     run_dir: Path | None = None  #: worker logs (up); default a temporary directory
     restart_slaves: bool = True  #: restart a worker that died (up)
+    log_json: bool = False  #: notices on stderr as JSON log lines (--log-json)
     #: "real" (slave processes, UDP, the wall clock) or "virtual" (one process, in-memory network, simulated time;
     #: the loop must be a ``vclock.VirtualEventLoop``), docs/virtual-time.md
     clock: str = "real"
@@ -79,14 +81,30 @@ async def run_network(config: Config, endpoints: dict[int, tuple[str, int]], opt
     return await _run(config, opts, endpoints)
 
 
+#: Exit status of a run ended by a signal: 128 + the signal number, as a shell reports a process it killed.
+SIGNAL_EXIT = {signal.SIGINT: 130, signal.SIGTERM: 143}
+
+
 async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str, int]] | None) -> RunOutcome:
     """Bring the stations up, run the timeline with the live status until its end / --duration / a signal, then
-    write the report, evaluate the assertions and print the summary."""
+    DISCONNECT, write the report, evaluate the assertions and print the summary.
+
+    SIGINT / SIGTERM end the run in order (DISCONNECT, workers stopped, report written) with exit 130 / 143 and
+    "interrupted" in the summary and in ``meta.interrupted``; the timeline steps that did not begin are listed as
+    not run (``meta.not_run``)."""
     loop = asyncio.get_running_loop()
     stop = asyncio.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        loop.add_signal_handler(sig, stop.set)
-    checks: list[CheckResult] = []
+    caught: list[signal.Signals] = []
+
+    def on_signal(sig: signal.Signals) -> None:
+        if not caught:
+            caught.append(sig)
+            log.info("signal", signal=sig.name)
+        stop.set()
+
+    for sig in SIGNAL_EXIT:
+        loop.add_signal_handler(sig, on_signal, sig)
+    scenario: Scenario | None = None
     t0 = loop.time()
     session: NetworkSession | None = None
     workers = None
@@ -99,17 +117,22 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
     elif endpoints is None:
         workers = resolve_workers(opts.workers, len(config.station))
         if opts.workers == "auto" and workers is not None:
-            print(f"note: {len(config.station)} stations on {os.cpu_count() or 1} CPUs: hosted in {workers} slave "
-                  f"process(es), so the master's clock keeps a CPU (--workers station: one process per station; "
-                  "docs/performance.md)", file=sys.stderr)
+            _notice(opts, "workers_packed", f"note: {len(config.station)} stations on {os.cpu_count() or 1} CPUs: "
+                    f"hosted in {workers} slave process(es), so the master's clock keeps a CPU (--workers station: "
+                    "one process per station; docs/performance.md)")
+    length = opts.duration_ns if opts.duration_ns is not None else config.run_length_ns
+    cut = cut_by_duration(config, opts.duration_ns)
+    if cut:
+        _notice(opts, "steps_cut", f"warning: --duration {format_ns(opts.duration_ns or 0)} ends the run before "
+                f"{len(cut)} timeline step(s), which will not run: {'; '.join(s.describe for s in cut)}")
     scales = speed_scales(config)  # now, not in the event loop once it keeps time
+    status = LiveStatus() if opts.status else None
     try:
         session = await session_cls.open(
             config, opts.config_path, endpoints=endpoints, workers=workers, state_dir=opts.state_dir,
             run_dir=opts.run_dir, restart_slaves=opts.restart_slaves, realtime=opts.realtime, **extra)
         if session.realtime_granted:
-            print("realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items()),
-                  file=sys.stderr, flush=True)
+            _notice(opts, "realtime", "realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items()))
         net = session.net
         assert net is not None
         # -- bring-up ----------------------------------------------------------------------------------------------
@@ -119,50 +142,51 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
         if bring not in done:
             bring.cancel()
             await asyncio.gather(bring, return_exceptions=True)
-        not_up = session.not_up()
+        scenario = Scenario(config, net, scales)
         if not stop.is_set():
-            log.info("network_up", stations=len(config.station), not_up=len(not_up))
+            session.not_up()
+            log.info("network_up", stations=len(config.station))
             if not opts.include_bringup:
                 session.reset_metrics()  # the report is about the running network, not five processes starting
             # -- timeline + status -----------------------------------------------------------------------------
             t0 = loop.time()
-            scenario = Scenario(config, net, scales)
-            length = opts.duration_ns if opts.duration_ns is not None else config.run_length_ns
             tasks = [loop.create_task(scenario.run(t0, _sleep_until))]
-            if opts.status:
-                tasks.append(loop.create_task(_status_loop(config, net, t0, scenario.scales)))
+            frame = _framer(config, session, scenario, t0, length)
+            if status is not None:
+                status.start()
+                tasks.append(loop.create_task(_status_loop(status, frame)))
             end = loop.create_task(_sleep_until(t0 + length / 1e9)) if length is not None else None
             waiters = {stopper} | ({end} if end else set())
             if end is None and not config.timeline:
-                print("running until Ctrl-C (no timeline, no --duration)", file=sys.stderr)
+                _notice(opts, "no_end", "running until Ctrl-C (no timeline, no --duration)")
             await asyncio.wait(waiters, return_when=asyncio.FIRST_COMPLETED)
             for task in [*tasks, *waiters]:
                 task.cancel()
             await asyncio.gather(*tasks, return_exceptions=True)
-            checks = scenario.results
             session.problems.extend(scenario.action_errors)
-            if opts.status:
-                print(render_status(config, net, loop.time() - t0, scenario.scales), flush=True)
+            if status is not None:
+                status.stop(frame())
         stopper.cancel()
         await session.refresh_slave_stats()
         await session.close_masters()  # DISCONNECT while the slaves still run
-        checks = [_with_stalls(c, session.metrics.stalls, t0) for c in checks]
-        for c in checks:
+        scenario.results[:] = [_with_stalls(c, session.metrics.stalls, t0) for c in scenario.results]
+        for c in scenario.results:
             session.metrics.record_check(c.at_s, c.what, c.ok, c.detail)
-        report = await session.report(assertions=opts.assertions, slave_stats=False)
+        interrupted = caught[0].name if caught else None
+        report = await session.report(assertions=opts.assertions, slave_stats=False, extra_meta={
+            "interrupted": interrupted, "not_run": [s.describe for s in scenario.not_run()]})
     finally:
+        if status is not None:
+            status.stop()
         if session is not None:
             await session.close()
-        for sig in (signal.SIGINT, signal.SIGTERM):
+        for sig in SIGNAL_EXIT:
             loop.remove_signal_handler(sig)
     if opts.report_path is not None:
         write_report(opts.report_path, report)
-    problems = session.problems
-    failed_checks = [c for c in checks if not c.ok]
-    failed_asserts = [r for r in report["assertions"] if not r.get("ok")]
-    _print_summary(config, report, checks, failed_asserts, problems, opts)
-    ok = not failed_checks and not failed_asserts and not [p for p in problems if "did not reach" in p]
-    return RunOutcome(0 if ok else 1, report, checks, problems)
+    verdict = Verdict.of(scenario, report, session.problems, caught[0] if caught else None, cut)
+    _print_summary(config, report, scenario, verdict, session.problems, opts)
+    return RunOutcome(verdict.exit_code, report, scenario.results, session.problems)
 
 
 def _with_stalls(check: CheckResult, stalls: Any, t0: float) -> CheckResult:
@@ -171,22 +195,98 @@ def _with_stalls(check: CheckResult, stalls: Any, t0: float) -> CheckResult:
     return dataclasses.replace(check, detail=f"{check.detail}; {near}") if near else check
 
 
-async def _status_loop(config: Config, net: NetworkApi, t0: float, scales: dict[int, Any]) -> None:
+def _notice(opts: RunOptions, event: str, text: str) -> None:
+    """A message for the user on stderr: plain text, or a JSON log line with ``--log-json`` (stderr then carries
+    JSON lines only)."""
+    if opts.log_json:
+        log.warning(event, message=text)
+    else:
+        print(text, file=sys.stderr, flush=True)
+
+
+def cut_by_duration(config: Config, duration_ns: int | None) -> list[TimelineStep]:
+    """The timeline steps a ``--duration`` of *duration_ns* ends the run before (in order of time)."""
+    if duration_ns is None:
+        return []
+    return [s for s in sorted(config.timeline, key=lambda s: s.at) if s.at >= duration_ns]
+
+
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """The run's outcome in one place, so the summary line and the exit status can never disagree."""
+
+    failed_checks: int
+    failed_asserts: int
+    unreached: int  #: stations that never reached their phase
+    not_run: int  #: timeline steps that never began
+    checks_not_run: int
+    held: int  #: checks and assertions that held
+    signal: signal.Signals | None
+
+    @classmethod
+    def of(cls, scenario: Scenario, report: dict[str, Any], problems: list[str], sig: signal.Signals | None,
+           cut: list[TimelineStep]) -> Verdict:
+        asserts = report.get("assertions", [])
+        not_run = scenario.not_run()
+        return cls(
+            failed_checks=sum(not c.ok for c in scenario.results),
+            failed_asserts=sum(not a.get("ok") for a in asserts),
+            unreached=sum("did not reach" in p for p in problems),
+            not_run=len(not_run),
+            checks_not_run=sum(s.expect is not None for s in not_run),
+            held=sum(c.ok for c in scenario.results) + sum(bool(a.get("ok")) for a in asserts),
+            signal=sig,
+        )
+
+    @property
+    def exit_code(self) -> int:
+        if self.signal is not None:
+            return SIGNAL_EXIT[self.signal]
+        return 1 if self.failed_checks or self.failed_asserts or self.unreached else 0
+
+    def line(self, duration_ns: int | None) -> str:
+        parts = []
+        if self.signal is not None:
+            parts.append(f"interrupted by {self.signal.name}")
+        failed = self.failed_checks + self.failed_asserts
+        if failed:
+            parts.append(f"{failed} check(s) failed")
+        if self.unreached:
+            parts.append(f"{self.unreached} station(s) did not come up")
+        if self.not_run:
+            why = "" if self.signal is not None else f" (--duration {format_ns(duration_ns or 0)} ended the run)"
+            parts.append(f"{self.not_run} timeline step(s) not run{why}")
+        if not parts and self.held:
+            return "all checks held"
+        if not parts:
+            return "run complete (no checks in the timeline, no --assert)"
+        return "; ".join(parts) + (f"; {self.held} check(s) held" if self.held else "")
+
+
+def _framer(config: Config, session: NetworkSession, scenario: Scenario, t0: float,
+            length: int | None) -> Callable[[], list[str]]:
+    """A function drawing the current status frame (docs/timing.md: bounded work per call)."""
     loop = asyncio.get_running_loop()
-    tty = sys.stdout.isatty()
-    interval = 0.5 if tty else 5.0
-    lines_drawn = 0
+    p99 = WorstP99()
+    assert session.net is not None
+
+    def frame() -> list[str]:
+        step = scenario.current
+        return render_lines(StatusInfo(
+            config=config, net=session.net, metrics=session.metrics, scales=scenario.scales,
+            elapsed_s=loop.time() - t0, total_s=None if length is None else length / 1e9,
+            step=step.describe if step else None, p99_ns=p99.step(session.metrics)))
+
+    return frame
+
+
+async def _status_loop(status: LiveStatus, frame: Callable[[], list[str]]) -> None:
     while True:
-        await asyncio.sleep(interval)
-        text = render_status(config, net, loop.time() - t0, scales)
-        if tty and lines_drawn:
-            sys.stdout.write(f"\x1b[{lines_drawn}F\x1b[J")
-        sys.stdout.write(text + "\n")
-        sys.stdout.flush()
-        lines_drawn = text.count("\n") + 1 if tty else 0
+        await asyncio.sleep(status.interval)
+        status.show(frame())
 
 
-def _print_summary(config: Config, report: dict[str, Any], checks: list[CheckResult], failed_asserts: list[Any],
+def _print_summary(config: Config, report: dict[str, Any], scenario: Scenario, verdict: Verdict,
                    problems: list[str], opts: RunOptions) -> None:
     out = sys.stdout
     rtt = report.get("rtt", {})
@@ -202,8 +302,10 @@ def _print_summary(config: Config, report: dict[str, Any], checks: list[CheckRes
         bound = f"absorbs up to {format_ns(host['bound'])}" if host["policy"] == "absorb" else "strict"
         print(f"host stalls {st['count']}, longest {format_ns(st['max'])}, {st['cycles']} cycles delayed: "
               f"{st['absorbed']} run late, {st['lost']} lost (policy {bound})", file=out)
-    for c in checks:
+    for c in scenario.results:
         print(f"  {'ok  ' if c.ok else 'FAIL'} {c.what}: {c.detail}", file=out)
+    for step in scenario.not_run():
+        print(f"  --   {step.describe}: not run", file=out)
     for r in report.get("assertions", []):
         print(f"  {'ok  ' if r.get('ok') else 'FAIL'} assert {r.get('message') or r.get('text')}", file=out)
     for p in problems:
@@ -213,6 +315,5 @@ def _print_summary(config: Config, report: dict[str, Any], checks: list[CheckRes
     if meta.get("clock") == "virtual" and isinstance(wall, dict):
         print(f"virtual clock (seed {meta.get('seed')}): {wall['simulated_s']:.1f} s simulated in "
               f"{wall['elapsed_s']:.2f} s wall, {wall['speedup'] or 0:g}x real time", file=out)
-    failed = sum(not c.ok for c in checks) + len(failed_asserts)
-    verdict = "all checks held" if not failed else f"{failed} check(s) failed"
-    print(f"{verdict}" + (f"; report: {opts.report_path}" if opts.report_path else ""), file=out, flush=True)
+    line = verdict.line(opts.duration_ns)
+    print(line + (f"; report: {opts.report_path}" if opts.report_path else ""), file=out, flush=True)

@@ -11,8 +11,8 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-import structlog
 
+from .._log import get_logger
 from ..config import CARD_FAMILY, Config, StationConfig, TimelineStep
 from ..drive import DriveSettings, Family
 from ..drive.monitors import hz_to_ref, ref_to_hz
@@ -22,7 +22,7 @@ from ..wire import InvCmdStat, Link, M2Status
 __all__ = ["SpeedScale", "CheckResult", "NetworkHandle", "Scenario", "StationControls", "speed_scale",
            "speed_scales"]
 
-log = structlog.get_logger("mlink_sim.scenario")
+log = get_logger("mlink_sim.scenario")
 
 
 class SpeedScale:
@@ -149,14 +149,26 @@ class Scenario:
         self.action_errors: list[str] = []
         self.scales = scales if scales is not None else speed_scales(config)
         self.links = {st.address: st.link for st in config.station}
+        self.steps: list[TimelineStep] = sorted(config.timeline, key=lambda s: s.at)
+        self.started = 0  #: steps begun so far, in order of time (``steps[:started]``)
+
+    @property
+    def current(self) -> TimelineStep | None:
+        """The step begun last (None before the first)."""
+        return self.steps[self.started - 1] if self.started else None
+
+    def not_run(self) -> list[TimelineStep]:
+        """The steps that never began (the run ended first: --duration, a signal)."""
+        return self.steps[self.started:]
 
     def _targets(self, step: TimelineStep) -> list[int]:
         return [st.address for st in self.config.station] if step.station == "all" else [step.station]
 
     async def run(self, t0: float, sleep_until: Callable[[float], Awaitable[None]]) -> None:
         """Execute the steps in order of time; *t0* is the loop time of "0 s"."""
-        for step in sorted(self.config.timeline, key=lambda s: s.at):
+        for step in self.steps:
             await sleep_until(t0 + step.at / 1e9)
+            self.started += 1
             if step.do:
                 await self._act(step)
             else:

@@ -20,8 +20,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-import structlog
 
+from .._log import get_logger
 from ..config import Config
 from ..metrics.stalls import StallLog
 from ..wire import Link
@@ -33,7 +33,7 @@ from .udp import bind_address_for, resolve
 
 __all__ = ["NetworkSession", "NetworkApi", "EndpointError", "build_plans", "build_report"]
 
-log = structlog.get_logger("mlink_sim.session")
+log = get_logger("mlink_sim.session")
 
 
 class EndpointError(ValueError):

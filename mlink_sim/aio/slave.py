@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import structlog
 
+from .._log import get_logger
 from ..jsonable import to_jsonable
 from ..metrics.stalls import WORKER_STALL_NS, StallLog
 from .state import atomic_write, eeprom_path
@@ -30,7 +30,7 @@ from .udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endp
 
 __all__ = ["HostedStation", "SlaveServer", "query_control"]
 
-log = structlog.get_logger("mlink_sim.slave")
+log = get_logger("mlink_sim.slave")
 
 _POLL_INTERVAL_S = 0.001
 _POLL_INTERVAL_NS = 1_000_000

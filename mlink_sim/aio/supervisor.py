@@ -4,6 +4,7 @@ Each worker runs ``python -m mlink_sim slave --config CONFIG --only ADDRS --read
 ``ready`` line on stdout once every station it hosts is listening (ports chosen by the OS on the first start and
 kept on restarts). Its log goes to ``RUN_DIR/worker-N.log``. Children get ``PR_SET_PDEATHSIG`` (Linux), so even a
 ``kill -9`` of the supervisor leaves no orphan; a normal stop sends SIGTERM, then SIGKILL after a grace period.
+Each worker runs in a process group of its own, so a Ctrl-C at the terminal reaches only the supervisor.
 """
 
 from __future__ import annotations
@@ -20,13 +21,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import structlog
+from .._log import get_logger
 
 __all__ = ["WorkerSpec", "Worker", "WorkerError", "plan_workers", "parse_workers", "resolve_workers"]
 
-log = structlog.get_logger("mlink_sim.supervisor")
+log = get_logger("mlink_sim.supervisor")
 
 _PR_SET_PDEATHSIG = 1
+
+
+def _child_setup() -> None:  # runs in the child between fork and exec
+    # A process group of its own: the terminal's Ctrl-C reaches `up` only, which DISCONNECTs the stations first
+    # and then stops the workers (issue 14, item 6). (uvloop's subprocess has no process_group argument.)
+    os.setpgid(0, 0)
+    _die_with_parent()
 
 
 def _die_with_parent() -> None:  # runs in the child between fork and exec
@@ -159,7 +167,7 @@ class Worker:
                 stdin=asyncio.subprocess.DEVNULL,
                 stdout=asyncio.subprocess.PIPE,
                 stderr=logf,
-                preexec_fn=_die_with_parent,
+                preexec_fn=_child_setup,
                 env={**os.environ, "PYTHONUNBUFFERED": "1"},
             )
         finally:

@@ -37,8 +37,7 @@ import threading
 import time
 from collections.abc import Callable
 
-import structlog
-
+from .._log import get_logger
 from ._timerfd import TimerFD, make_abs_sleeper, set_thread_timer_slack, timerfd_supported
 
 __all__ = ["CycleTimer", "available_strategies", "STRATEGIES"]
@@ -152,7 +151,7 @@ class CycleTimer:
         self._caught_up_total = 0
         self._errors = 0
         # lazy proxy with bound context: resolved per call, so it follows later structlog.configure()
-        self._log = structlog.get_logger(__name__, strategy=self._strategy, period_ns=period_ns)
+        self._log = get_logger(__name__, strategy=self._strategy, period_ns=period_ns)
         # per-source resources
         self._handle: asyncio.TimerHandle | asyncio.Handle | None = None
         self._tfd: TimerFD | None = None

@@ -7,12 +7,12 @@ import socket
 from collections.abc import Callable
 from typing import Any
 
-import structlog
+from .._log import get_logger
 
 __all__ = ["new_event_loop", "DatagramEndpoint", "open_endpoint", "BatchEndpoint", "open_batch_endpoint", "loop_name",
-           "resolve", "bind_address_for", "bound_socket", "close_watched"]
+           "resolve", "bind_address_for", "bound_socket", "close_watched", "BindError"]
 
-log = structlog.get_logger("mlink_sim.aio.udp")
+log = get_logger("mlink_sim.aio.udp")
 
 
 def new_event_loop() -> asyncio.AbstractEventLoop:
@@ -78,12 +78,25 @@ def bound_socket(host: str, port: int, rcvbuf: int = 1 << 20) -> socket.socket:
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
             except OSError:  # pragma: no cover - best effort
                 pass
-        sock.bind((host, port))
+        try:
+            sock.bind((host, port))
+        except OSError as exc:
+            raise BindError(exc, host, port) from None
         sock.setblocking(False)
     except BaseException:
         sock.close()
         raise
     return sock
+
+
+class BindError(OSError):
+    """A UDP socket that could not be bound; ``str()`` and :attr:`address` name the address
+    (``Address already in use: 127.0.0.1:47001``)."""
+
+    def __init__(self, cause: OSError, host: str, port: int) -> None:
+        self.address = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+        reason = cause.strerror or str(cause)
+        super().__init__(cause.errno, f"{reason}: {self.address}")
 
 
 def close_watched(loop: asyncio.AbstractEventLoop, sock: socket.socket) -> None:

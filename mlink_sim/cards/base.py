@@ -20,11 +20,11 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, ClassVar
 
-import structlog
 
 from mlink_sim.params import ParamError
 from mlink_sim.wire import DropReason, Kind, Link, WireError, decode, ml2, ml3
 
+from .._log import get_logger
 from .drive_link import DriveCommand, DriveLink, Fault
 from .eeprom import EepromError, EepromImage
 from .monitors import sel_mon_value, sel_ref_item
@@ -36,7 +36,7 @@ from .watchdog import Watchdog
 
 __all__ = ["Station", "StationCounters", "StationSnapshot", "DriveSnapshot", "DEFAULT_TCYCLE_NS", "SLOW"]
 
-_LOG = structlog.get_logger("mlink_sim.cards")
+_LOG = get_logger("mlink_sim.cards")
 
 #: "Operation proceeds with a default transmission cycle of 2 ms" until CONNECT (phase 1, all three manuals).
 DEFAULT_TCYCLE_NS = 2_000_000

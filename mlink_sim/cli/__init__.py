@@ -4,6 +4,7 @@ datagram failed, 2 on a usage or configuration error; bad input never produces a
 from __future__ import annotations
 
 import os
+import signal
 import sys
 
 import click
@@ -38,8 +39,16 @@ def _register_optional() -> None:
     cli.add_command(compose_cmd)
 
 
+def _terminated(signum: int, frame: object) -> None:
+    raise SystemExit(128 + signum)
+
+
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point. SIGTERM, and Ctrl-C outside a run, end the command with 143 / 130 and no
+    traceback; during a run the commands handle both themselves (an orderly stop, docs/master.md)."""
+    # click turns KeyboardInterrupt into "Aborted!" and exit 1: a signal ends the command as SystemExit instead
+    signal.signal(signal.SIGINT, _terminated)
+    signal.signal(signal.SIGTERM, _terminated)
     _register_optional()
     try:
         cli.main(prog_name="mlink-sim", standalone_mode=True)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from ..config import ConfigError, load_config, parse_duration_ns
+from ..config import ConfigError, load_config, parse_duration_ns, resolve_config_path
 from ..testbed.compose import DEFAULT_IMAGE, DEFAULT_REPORT_DIR, DEFAULT_STATION_PORT, render_compose
 
 __all__ = ["compose_cmd", "write_atomically"]
@@ -79,6 +79,7 @@ def compose_cmd(config_path: str, output: str | None, image: str, report_dir: st
     except ConfigError as exc:
         click.echo(f"mlink-sim compose: {exc}", err=True)
         sys.exit(2)
+    config_path = str(resolve_config_path(config_path))  # a shipped example's name: the file it names
     if duration is not None:
         try:
             parse_duration_ns(duration)

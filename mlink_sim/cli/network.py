@@ -10,19 +10,12 @@ import click
 
 from ..aio.network import EndpointError, RunOptions, run_network, run_up
 from ..aio.udp import new_event_loop
-from ..config import Config, ConfigError, format_ns, load_config, parse_duration_ns
+from ..config import Config, format_ns, parse_duration_ns
+from .inputs import InputError, assertions, check_stations, load_checked, report_path
 from .logs import configure_logging
 from .slave import _parse_endpoints
 
 __all__ = ["up_cmd", "master_cmd", "validate_cmd"]
-
-
-def _load(path: str) -> Config:
-    try:
-        return load_config(path)
-    except ConfigError as exc:
-        click.echo(f"mlink-sim: {exc}", err=True)
-        sys.exit(2)
 
 
 class _Workers(click.ParamType):
@@ -48,19 +41,7 @@ def _duration(text: str | None, flag: str) -> int | None:
     try:
         return parse_duration_ns(text, default_unit="s")
     except ValueError as exc:
-        raise click.BadParameter(str(exc), param_hint=flag) from None
-
-
-def _assertions(texts: tuple[str, ...]) -> list[Any]:
-    from ..metrics import AssertionSyntaxError, parse_assertion
-
-    out = []
-    for text in texts:
-        try:
-            out.append(parse_assertion(text))
-        except AssertionSyntaxError as exc:
-            raise click.BadParameter(f"{text!r}: {exc}", param_hint="--assert") from None
-    return out
+        raise InputError(f"{flag} {text!r}: {exc}") from None
 
 
 def _run(coro_factory: Any, clock: str = "real") -> int:
@@ -140,19 +121,23 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
 @_with_stalls
 def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, report, asserts, status,
            bringup_timeout, include_bringup, log_json, log_level, host_stalls, stall_bound, rt) -> None:  # noqa: ANN001
-    """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held."""
+    """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held.
+
+    CONFIG is a TOML file or the name of a shipped example (quickstart, ml2-mixed-2ms, …)."""
     configure_logging(json=log_json, level=log_level)
-    config = _stalls(_load(config_path), host_stalls, stall_bound)
+    config, path = load_checked(config_path)
+    config = _stalls(config, host_stalls, stall_bound)
     if clock == "virtual" and (workers != "auto" or run_dir):
         click.echo("note: --clock virtual runs every station in this process: --workers and --run-dir are not used",
                    err=True)
     opts = RunOptions(
-        config_path=Path(config_path),
+        config_path=path,
         duration_ns=_duration(duration, "--duration"),
-        report_path=Path(report) if report else None,
-        assertions=_assertions(asserts),
+        report_path=report_path(report),
+        assertions=assertions(asserts, [st.address for st in config.station]),
         status=status,
         include_bringup=include_bringup,
+        log_json=log_json,
         bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
         workers=workers,
         state_dir=Path(state_dir) if state_dir else None,
@@ -183,8 +168,10 @@ def master_cmd(config_path, endpoints, duration, report, asserts, status, bringu
                log_json, log_level, host_stalls, stall_bound, rt) -> None:  # noqa: ANN001
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
-    config = _stalls(_load(config_path), host_stalls, stall_bound)
+    config, path = load_checked(config_path)
+    config = _stalls(config, host_stalls, stall_bound)
     overrides = _parse_endpoints(endpoints)
+    check_stations("--endpoint", overrides, config, str(path))
     resolved: dict[int, tuple[str, int]] = {}
     missing = []
     for st in config.station:
@@ -198,12 +185,13 @@ def master_cmd(config_path, endpoints, duration, report, asserts, status, bringu
             "--endpoint ADDR=HOST:PORT"
         )
     opts = RunOptions(
-        config_path=Path(config_path),
+        config_path=path,
         duration_ns=_duration(duration, "--duration"),
-        report_path=Path(report) if report else None,
-        assertions=_assertions(asserts),
+        report_path=report_path(report),
+        assertions=assertions(asserts, [st.address for st in config.station]),
         status=status,
         include_bringup=include_bringup,
+        log_json=log_json,
         bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
         realtime=rt,
     )
@@ -218,7 +206,7 @@ def master_cmd(config_path, endpoints, duration, report, asserts, status, bringu
 @click.argument("config_path", metavar="CONFIG", type=click.Path(dir_okay=False))
 def validate_cmd(config_path: str) -> None:
     """Check CONFIG without starting anything; print a one-screen summary."""
-    config = _load(config_path)
+    config, _ = load_checked(config_path)
     net = config.network
     click.echo(f"{config_path}: network {net.name!r}, {len(config.station)} station(s), "
                f"transmission cycle {format_ns(net.transmission_cycle)}, {len(config.timeline)} timeline step(s)")

@@ -60,7 +60,8 @@ async def probe(host: str, port: int, station: int, attempts: list[tuple[Link, i
 @click.option("--station", "station_text", required=True, help="Station address, e.g. 0x21.")
 @click.option("--link", type=click.Choice(["ml1", "ml2", "ml3"], case_sensitive=False), help="Link (default: try all).")
 @click.option("--frame-size", type=click.Choice(["17", "32", "64"]), help="Data size (default: try all).")
-@click.option("--timeout", default=2.0, show_default=True, help="Seconds to wait in all.")
+@click.option("--timeout", default=2.0, show_default=True, type=click.FloatRange(min=0, min_open=True),
+              help="Seconds to wait in all (> 0).")
 def probe_cmd(target: str, station_text: str, link: str | None, frame_size: str | None, timeout: float) -> None:
     """Send a NOP to the station at TARGET (HOST:PORT); exit 0 only on a valid answer."""
     try:

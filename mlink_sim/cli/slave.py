@@ -10,25 +10,39 @@ import time
 from pathlib import Path
 
 import click
-import structlog
 
+from .._log import get_logger
 from ..aio import realtime
 from ..aio.heap import settle_heap
 from ..aio.slave import HostedStation, SlaveServer
 from ..aio.stations import StationSpec, build_station, spec_for
-from ..aio.udp import loop_name, new_event_loop
+from ..aio.udp import BindError, loop_name, new_event_loop
 from ..config import ConfigError, load_config, parse_address, parse_duration_ns, parse_endpoint
+from .inputs import InputError, check_stations
 from .logs import configure_logging
 
 __all__ = ["slave_cmd", "StationSpec", "build_station", "station_specs_from_config"]
 
-log = structlog.get_logger("mlink_sim.slave")
+log = get_logger("mlink_sim.slave")
+
+
+def _check_link(card: str, link: str | None) -> None:
+    """``--link`` must be one the card speaks (SI-T3 Table 29 / F6-22, V7 switch S1-1: ML-I/II; SI-ET3: ML-III)."""
+    if link is None:
+        return
+    from ..config import CARD_LINKS
+
+    links = CARD_LINKS[card]
+    if link.upper() not in {lk.name for lk in links}:
+        names = " or ".join(lk.name.lower() for lk in links)
+        raise InputError(f"--link {link}: {card} speaks {'/'.join(lk.label for lk in links)}; use --link {names}")
 
 
 def station_specs_from_config(
     config_path: str, only: list[int] | None, endpoints: dict[int, tuple[str, int]]
 ) -> list[StationSpec]:
     config = load_config(config_path)
+    check_stations("--endpoint", endpoints, config, config_path)
     wanted = only or [st.address for st in config.station]
     specs = []
     for address in wanted:
@@ -41,11 +55,18 @@ def station_specs_from_config(
     return specs
 
 
-async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool = False) -> None:
+async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool = False) -> int:
+    """Serve until SIGINT / SIGTERM; the exit status, 128 + the signal's number (130 / 143)."""
     loop = asyncio.get_running_loop()
     stop = asyncio.Event()
+    caught: list[int] = []
+
+    def on_signal(sig: signal.Signals) -> None:
+        caught.append(sig)
+        stop.set()
+
     for sig in (signal.SIGINT, signal.SIGTERM):
-        loop.add_signal_handler(sig, stop.set)
+        loop.add_signal_handler(sig, on_signal, sig)
     await server.start()
     settle_heap()  # before the first command arrives: no full collection of the start-up heap mid-cycle
     info = server.ready_info()
@@ -65,8 +86,10 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
     log.info("ready", stations=[f"{s['address']:#04x}@{s['host']}:{s['port']}" for s in info["stations"]],
              control=info["control"])
     await stop.wait()
-    log.info("stopping", host_stalls=server.stalls.totals("self"))  # this process's own (metrics/stalls.py)
+    log.info("stopping", signal=signal.Signals(caught[0]).name,
+             host_stalls=server.stalls.totals("self"))  # this process's own (metrics/stalls.py)
     await server.close()
+    return 128 + caught[0]
 
 
 def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
@@ -130,6 +153,7 @@ def slave_cmd(card, station_text, listen, frame_size, link, params, config_path,
         else:
             if not card or not station_text:
                 raise click.UsageError("give --card and --station (or --config FILE)")
+            _check_link(card, link)
             host, port = parse_endpoint(listen)
             specs = [StationSpec(card, parse_address(station_text), host, port,
                                  int(frame_size) if frame_size else None, list(params), link=link)]
@@ -147,9 +171,11 @@ def slave_cmd(card, station_text, listen, frame_size, link, params, config_path,
     server = SlaveServer(stations, state_dir=state, control=control_addr, absorb_ns=absorb_ns)
     loop = new_event_loop()
     try:
-        loop.run_until_complete(_serve(server, ready_json, log_json, rt))
+        code = loop.run_until_complete(_serve(server, ready_json, log_json, rt))
     except OSError as exc:
-        click.echo(f"mlink-sim slave: cannot listen: {exc.strerror or exc}", err=True)
+        where = "" if isinstance(exc, BindError) else f" on {', '.join(f'{s.host}:{s.port}' for s in stations)}"
+        click.echo(f"mlink-sim slave: cannot listen{where}: {exc.strerror or exc}", err=True)
         sys.exit(2)
     finally:
         loop.close()
+    sys.exit(code)

@@ -1,6 +1,6 @@
 """Network configuration: the TOML model (pydantic), loading with clear errors, durations with units."""
 
-from .load import ConfigError, load_config, parse_config, station_param_assignments
+from .load import ConfigError, load_config, parse_config, resolve_config_path, station_param_assignments
 from .model import (
     CARD_FAMILY,
     CARD_LINKS,
@@ -24,6 +24,7 @@ __all__ = [
     "ConfigError",
     "load_config",
     "parse_config",
+    "resolve_config_path",
     "station_param_assignments",
     "parse_address",
     "parse_endpoint",

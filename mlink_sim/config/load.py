@@ -10,7 +10,7 @@ from pydantic import ValidationError
 
 from .model import CARD_FAMILY, Config
 
-__all__ = ["ConfigError", "load_config", "parse_config", "station_param_assignments"]
+__all__ = ["ConfigError", "load_config", "parse_config", "resolve_config_path", "station_param_assignments"]
 
 
 class ConfigError(ValueError):
@@ -65,6 +65,18 @@ def _check_params(source: str, config: Config) -> None:
                 table.parse_assignment(text)
             except ParamError as exc:
                 problems.append(f"{source}: station[{i}].params: {exc}")
+    # set-param steps: the name and range of the parameter table of every station the step is for
+    # (docs/parameters.md), so that a typo fails here rather than as a refused PRM_WR in the middle of a run
+    for i, step in enumerate(config.timeline):
+        if step.do != "set-param":
+            continue
+        targets = config.station if step.station == "all" else [config.station_by_address(step.station)]
+        for st in targets:
+            try:
+                FAMILIES[CARD_FAMILY[st.card]].parse_assignment(f"{step.param}={step.value}")
+            except ParamError as exc:
+                problems.append(f"{source}: timeline[{i}].param: {exc} (station {st.address:#04x}, {st.card})")
+                break
     if problems:
         raise ConfigError("\n".join(problems))
 
@@ -85,13 +97,32 @@ def parse_config(text: str, source: str = "<config>") -> Config:
     return config
 
 
-def load_config(path: str | Path) -> Config:
-    """Read and validate the TOML file at *path*."""
+def resolve_config_path(path: str | Path) -> Path:
+    """*path* itself when it exists, else the shipped example of that name (``quickstart`` → the package's
+    ``examples/quickstart.toml``, also ``configs/quickstart.toml`` run outside the source tree), else *path*."""
+    from ..examples import example_path
+
     p = Path(path)
+    if p.exists():
+        return p
+    return example_path(p.name if str(p.parent) == "configs" else str(path)) or p
+
+
+def load_config(path: str | Path) -> Config:
+    """Read and validate the TOML file at *path* (or the shipped example so named, :func:`resolve_config_path`)."""
+    p = resolve_config_path(path)
     try:
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise ConfigError(f"{p}: no such file") from None
+        from ..examples import example_names
+
+        raise ConfigError(f"{p}: no such file (shipped examples, usable by name: {', '.join(example_names())})"
+                          ) from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{p}: not a UTF-8 text file (byte {exc.object[exc.start]:#04x} at offset {exc.start}); "
+                          "save it as UTF-8") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{p}: is a directory, expected a TOML file") from None
     except OSError as exc:
         raise ConfigError(f"{p}: cannot read: {exc.strerror}") from None
     return parse_config(text, str(p))

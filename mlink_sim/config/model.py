@@ -6,6 +6,8 @@ Validation errors are turned into ``CONFIG: field: what was expected`` lines by 
 
 from __future__ import annotations
 
+import difflib
+import json
 import re
 from typing import Annotated, Any, Literal
 
@@ -25,6 +27,8 @@ __all__ = [
     "parse_address",
     "parse_endpoint",
     "check_cycle",
+    "check_card_options",
+    "check_alarm_name",
 ]
 
 #: Which links each card speaks (SI-T3 Table 29 / F6-22; V7 switch S1-1; SI-ET3 Table 28).
@@ -122,6 +126,61 @@ def check_cycle(link: Link, frame_size: int, tcycle_ns: int) -> str | None:
     return None if allowed else f"MECHATROLINK-III needs 250/500/750 µs or 1–8 ms in 0.5 ms steps, got {ms:g} ms"
 
 
+def _card_options_fields() -> dict[str, tuple[Any, Any]]:
+    """Name -> (type, default) of the card options: the fields of ``cards.settings.CardOptions``, read from the
+    dataclass itself so that a new option is accepted (and type-checked) here without a second list."""
+    import dataclasses
+    import typing
+
+    from ..cards.settings import CardOptions
+
+    hints = typing.get_type_hints(CardOptions)
+    return {f.name: (hints[f.name], f.default) for f in dataclasses.fields(CardOptions)}
+
+
+def check_card_options(options: dict[str, Any]) -> dict[str, Any]:
+    """The ``options`` table of a station, each name known and each value of its option's type (strict: a bool
+    takes ``true``/``false``, not 0/1); ValueError names the option and what was expected."""
+    from pydantic import TypeAdapter, ValidationError
+
+    fields = _card_options_fields()
+    for name, value in options.items():
+        if name not in fields:
+            near = difflib.get_close_matches(name, fields, n=1)
+            hint = f"; did you mean {near[0]!r}?" if near else ""
+            raise ValueError(f"unknown card option {name!r}{hint} (known: {', '.join(fields)}; docs/cards.md)")
+        kind, default = fields[name]
+        try:
+            TypeAdapter(kind).validate_python(value, strict=True)
+        except ValidationError:
+            expected = "true or false" if kind is bool else getattr(kind, "__name__", None) or str(kind)
+            raise ValueError(f"card option {name!r} expects {expected} (default {json.dumps(default)}), "
+                             f"got {value!r}") from None
+    return options
+
+
+def _alarm_names() -> dict[str, str]:
+    """Lower-case name -> name of every alarm a station can report (what ``expect = "alarm"`` compares with):
+    the cards' own codes (SI-T3 Tables 23/25, V7 Table 8; SI-ET3 COMM_ALM / CMD_ALM tables) and the drive codes
+    (SI-T3 Tables 26/27, V7 Tables 10/11)."""
+    from ..wire.codes import CmdAlm, CommAlm, M2Alarm
+    from ..wire.drive_codes import SiT3DriveAlarm, SiT3DriveWarning, V7InverterAlarm, V7InverterWarning
+
+    tables = (M2Alarm, CommAlm, CmdAlm, SiT3DriveAlarm, SiT3DriveWarning, V7InverterAlarm, V7InverterWarning)
+    return {m.name.lower(): m.name for t in tables for m in t if m.value}
+
+
+def check_alarm_name(name: str) -> str:
+    """*name* if a station can report it (any case; an unnamed code as ``94H``), else ValueError."""
+    if re.fullmatch(r"[0-9A-Fa-f]{1,2}[hH]", name) or name.lower() in _alarm_names():
+        return name
+    names = _alarm_names()
+    near = difflib.get_close_matches(name.lower(), names, n=3)
+    hint = f"; did you mean {', '.join(repr(names[n]) for n in near)}?" if near else ""
+    raise ValueError(f"expected an alarm name of SI-T3 Tables 23/25–27, V7 Tables 8/10/11 or the SI-ET3 COMM_ALM/"
+                     f"CMD_ALM tables (e.g. 'E5', 'bUS', 'OV') or a code such as '94H', got {name!r}{hint}")
+
+
 class LoadConfig(BaseModel):
     """The mechanical load on the motor of one station (see docs/drive-model.md)."""
 
@@ -161,6 +220,11 @@ class StationConfig(BaseModel):
     load: LoadConfig = Field(default_factory=LoadConfig, description="mechanical load on the motor")
     options: dict[str, Any] = Field(default_factory=dict, description="card options (docs/cards.md)")
 
+    @field_validator("options")
+    @classmethod
+    def _options(cls, v: dict[str, Any]) -> dict[str, Any]:
+        return check_card_options(v)
+
     @field_validator("endpoint")
     @classmethod
     def _endpoint(cls, v: str | None) -> str | None:
@@ -197,6 +261,11 @@ class TimelineStep(BaseModel):
     tolerance_hz: float = Field(0.5, ge=0, description="output-hz: tolerance in Hz")
     phase: int | None = Field(None, ge=1, le=3, description="phase: expected communication phase")
     alarm: str | None = Field(None, description="alarm: expected alarm name, e.g. 'E5' or 'bUS'")
+
+    @field_validator("alarm")
+    @classmethod
+    def _alarm(cls, v: str | None) -> str | None:
+        return None if v is None else check_alarm_name(v)
 
     @model_validator(mode="after")
     def _one_of(self) -> TimelineStep:

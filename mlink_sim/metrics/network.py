@@ -12,7 +12,9 @@ Counting rules (the report's invariants, see docs/report.md):
   if it arrived after its cycle's deadline, ``record_late(station)`` as well (``late ⊆ answered``);
 * a command that will never be answered (the master gave up: next command to the station sent, run over)
   is ``record_missing(station)`` once — not a command whose response is merely late;
-* so ``answered + missing <= sent``; the difference is what was in flight when the figures were taken.
+* so ``answered + missing <= sent``; the difference is what was in flight when the figures were taken;
+* :meth:`NetworkMetrics.reset` (the end of bring-up) keeps the commands in flight in ``sent``, so their
+  answers, counted after the reset, keep the invariant.
 
 Hot path: ``record_sent``/``record_rtt`` are a dict lookup and a few additions; a runner that wants less can
 keep the :class:`StationMetrics` from :meth:`NetworkMetrics.station` and touch its fields directly. The
@@ -88,9 +90,14 @@ class StationMetrics:
         return out
 
     def reset(self) -> None:
-        """Forget what was counted so far (RTT, master counters; slave counters count from their current value)."""
+        """Forget what was counted so far (RTT, master counters; slave counters count from their current value).
+
+        Commands still in flight (sent, neither answered nor given up) stay counted in ``sent``: their answer or
+        their ``missing`` comes after the reset, and counting it without its command broke
+        ``answered + missing <= sent`` by about one command per station after bring-up (issue 14, item 8)."""
         self.rtt.reset()
-        self.sent = self.answered = self.late = self.missing = 0
+        self.sent = max(0, self.sent - self.answered - self.missing)
+        self.answered = self.late = self.missing = 0
         for c in self._slave.values():
             c.reset()
 

@@ -109,6 +109,12 @@ class StallLog:
                         "absorbed": a} for p, (at, d, c, a) in sorted(listed, key=lambda pe: pe[1][0])],
         }
 
+    def brief(self) -> str:
+        """For the live status: ``"0"``, or the count and the longest since the origin, ``"3 (max 23.9ms)"``."""
+        origin = self.origin_ns
+        durations = [d for evs in self._events.values() for at, (d, _, _) in evs.items() if at >= origin]
+        return f"{len(durations)} (max {durations and max(durations) / 1e6:.1f}ms)" if durations else "0"
+
     def _with_totals(self, process: str, summary: dict[str, int]) -> dict[str, int]:
         totals = self._totals.get(process)
         if totals is not None:

@@ -204,8 +204,9 @@ def to_yaml(document: dict[str, Any], header: str = "") -> str:
 
 def config_source_for(config_path: str | Path, output_path: str | Path | None) -> str:
     """The config's path relative to the compose file's directory (cwd for stdout), ``./``-prefixed."""
-    base = Path(output_path).resolve().parent if output_path is not None else Path.cwd()
-    target = Path(config_path).resolve()
+    # abspath, not resolve(): a path through a link (configs/ → mlink_sim/examples/) stays as the user wrote it
+    base = Path(os.path.abspath(output_path)).parent if output_path is not None else Path.cwd()
+    target = Path(os.path.abspath(config_path))
     try:
         rel = os.path.relpath(target, base)
     except ValueError:  # pragma: no cover - different drives (Windows)

@@ -32,7 +32,7 @@ from typing import Any
 
 from ..aio.scenario import CheckResult, StationControls, speed_scale
 from ..aio.supervisor import parse_workers
-from ..config import Config, load_config
+from ..config import Config, load_config, resolve_config_path
 from ..master.types import RequestTimeout, StationAlarmError, StationState, StationView
 from .metrics import ReportChecks
 
@@ -108,7 +108,7 @@ class RunningNetwork(StationControls, ReportChecks):
     def __init__(self, config: str | Path, *, workers: int | str | None = None, bringup_timeout: float = 10.0,
                  timeline: bool = False, reset_after_bringup: bool = True, state_dir: str | Path | None = None,
                  run_dir: str | Path | None = None, log_level: str | None = None) -> None:
-        self.config_path = Path(config)
+        self.config_path = resolve_config_path(config)  # a path, or the name of a shipped example
         self.config: Config = load_config(self.config_path)
         self._args = [str(self.config_path), "--bringup-timeout", str(bringup_timeout),
                       "--log-level", log_level or os.environ.get("MLINK_SIM_LOG_LEVEL", "warning")]

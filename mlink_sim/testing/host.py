@@ -28,8 +28,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import structlog
 
+from .._log import get_logger
 from ..aio.scenario import Scenario, speed_scales
 from ..aio.session import NetworkSession
 from ..aio.supervisor import resolve_workers
@@ -37,7 +37,7 @@ from ..aio.udp import new_event_loop
 from ..config import ConfigError, load_config
 from ..jsonable import to_jsonable
 
-log = structlog.get_logger("mlink_sim.testing.host")
+log = get_logger("mlink_sim.testing.host")
 
 _REQUESTS = frozenset({"prm_rd", "prm_wr", "config", "id_rd", "alm_rd", "alm_clr", "disconnect"})
 

@@ -12,7 +12,7 @@ from typing import Any
 
 from ..aio.embed import BringUpFailed, VirtualNetwork
 from ..aio.scenario import CheckResult
-from ..config import load_config
+from ..config import load_config, resolve_config_path
 from .harness import NetworkNotUp, _AsyncApi
 from .metrics import ReportChecks
 
@@ -33,7 +33,7 @@ class VirtualRunningNetwork(ReportChecks):
     def __init__(self, config: str | Path, *, seed: int = 0, bringup_timeout: float = 10.0, timeline: bool = False,
                  reset_after_bringup: bool = True, state_dir: str | Path | None = None, workers: Any = None,
                  run_dir: Any = None, log_level: Any = None) -> None:
-        self.config_path = Path(config)
+        self.config_path = resolve_config_path(config)  # a path, or the name of a shipped example
         self.config = load_config(self.config_path)
         self._options = {"seed": seed, "bringup_timeout": bringup_timeout,
                          "reset_after_bringup": reset_after_bringup, "state_dir": state_dir}

@@ -97,3 +97,70 @@ def test_units_and_endpoints() -> None:
     assert parse_endpoint("[::1]:5") == ("::1", 5)
     with pytest.raises(ValueError, match="HOST:PORT"):
         parse_endpoint("localhost")
+
+
+# -- issue 14, items 9, 10, 13 -------------------------------------------------------------------------------------
+
+ET3 = BASE.replace('address = 0x21\ncard = "si-t3"', 'address = 0x23\ncard = "si-et3"')
+
+
+def _error(text: str) -> str:
+    with pytest.raises(ConfigError) as exc:
+        parse_config(text, "net.toml")
+    return str(exc.value)
+
+
+def test_card_options_are_typed_and_checked_by_name() -> None:
+    assert parse_config(ET3 + "options = { et3_syncmode_table19 = true }").station[0].options == {
+        "et3_syncmode_table19": True}
+    msg = _error(ET3 + "options = { et3_syncmode_tabel19 = false }")
+    assert msg.startswith("net.toml: station[0].options: unknown card option 'et3_syncmode_tabel19'")
+    assert "did you mean 'et3_syncmode_table19'?" in msg and "\n" not in msg
+    assert "expects true or false (default false), got 1" in _error(ET3 + "options = { et3_syncmode_table19 = 1 }")
+    assert "expects int" in _error(ET3 + "options = { silence_tolerance_ns = 'soon' }")
+
+
+def test_every_card_option_of_the_cards_is_accepted() -> None:
+    import dataclasses
+
+    from mlink_sim.cards.settings import CardOptions
+
+    for f in dataclasses.fields(CardOptions):
+        value = 1_000_000 if f.name == "silence_tolerance_ns" else True
+        parse_config(ET3 + f"options = {{ {f.name} = {str(value).lower()} }}")
+
+
+@pytest.mark.parametrize(("step", "message"), [
+    ('do = "set-param"\nparam = "QQ-12"\nvalue = 1', "net.toml: timeline[0].param: unknown parameter 'QQ-12'"),
+    ('do = "set-param"\nparam = "C1-01"\nvalue = 99999', "net.toml: timeline[0].param: C1-01: 99999.0 s is out of"),
+    ('station = 0x21\ndo = "set-param"\nparam = "n020"\nvalue = 1', "unknown parameter 'n020'"),  # V7 name on SI-T3
+    ('expect = "alarm"\nalarm = "E55"', "net.toml: timeline[0].alarm: expected an alarm name"),
+])
+def test_timeline_names_and_ranges_are_checked_before_the_run(step: str, message: str) -> None:
+    assert message in _error(BASE + f'[[timeline]]\nat = "1s"\n{step}\n')
+
+
+@pytest.mark.parametrize("alarm", ["E5", "bUS", "oL1", "COMM_ERROR", "WDT_ERROR", "94H", "CPF23"])
+def test_alarm_names_a_station_reports_are_accepted(alarm: str) -> None:
+    parse_config(BASE + f'[[timeline]]\nat = "1s"\nexpect = "alarm"\nalarm = "{alarm}"\n')
+
+
+def test_a_config_that_is_not_utf8_is_a_config_error(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.toml"
+    path.write_bytes((BASE + 'name = "caf\xe9"\n').encode("latin-1"))
+    with pytest.raises(ConfigError, match=r"latin1.toml: not a UTF-8 text file \(byte 0xe9"):
+        load_config(path)
+
+
+def test_shipped_examples_load_by_name_and_configs_is_the_package_folder(tmp_path: Path, monkeypatch) -> None:
+    from mlink_sim.examples import EXAMPLES_DIR, example_names
+
+    repo = Path(__file__).resolve().parents[2]
+    assert (repo / "configs").resolve() == EXAMPLES_DIR  # one copy: configs/ links to the package's examples
+    assert "quickstart" in example_names()
+    monkeypatch.chdir(tmp_path)
+    assert load_config("quickstart").network.name == "quickstart"
+    assert load_config("quickstart.toml").network.name == "quickstart"
+    assert load_config("configs/quickstart.toml").network.name == "quickstart"
+    with pytest.raises(ConfigError, match="shipped examples, usable by name: .*quickstart"):
+        load_config("quickstrat")

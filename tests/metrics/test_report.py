@@ -270,3 +270,26 @@ def test_docs_explain_every_field():
         names.update(d.get("properties", {}))
     missing = sorted(n for n in names if f"`{n}`" not in text)
     assert not missing, f"fields not documented in docs/report.md: {missing}"
+
+
+def test_reset_keeps_the_commands_in_flight_so_answered_plus_missing_stays_within_sent():
+    """Issue 14, item 8: the reset at the end of bring-up came between a command and its answer, one per
+    station, so every report had answered + missing = sent + about the station count."""
+    m = NetworkMetrics(cycle_ns=1 * MS)
+    for st in (0x21, 0x22):
+        for _ in range(10):
+            m.record_sent(st)
+        for _ in range(8):
+            m.record_rtt(st, 300 * US)
+        m.record_missing(st)  # one given up, one still in flight
+    m.reset()
+    for st in (0x21, 0x22):
+        m.record_rtt(st, 300 * US)  # the answer to the command sent before the reset
+        m.record_late(st)
+        for _ in range(5):
+            m.record_sent(st)
+            m.record_rtt(st, 300 * US)
+    report = m.report(meta=META)
+    for fig in [report, *report["station"].values()]:
+        assert fig["answered"] + fig["missing"] <= fig["sent"]
+    assert report["station"]["0x21"]["sent"] == 6 and report["station"]["0x21"]["answered"] == 6

@@ -72,3 +72,11 @@ def test_network_report_carries_host_and_the_assertion_reads_it():
     assert not result.ok and result.measured == 24 * MS
     m2 = NetworkMetrics.from_wire(m.to_wire())
     assert m2.report(meta=report["meta"])["host"] == report["host"]
+
+
+def test_brief_for_the_live_status():
+    log = StallLog("absorb", 50 * MS)
+    assert log.brief() == "0"
+    log.record("master", 10 * MS, 23_900_000, 11, True)
+    log.record("worker:0", 20 * MS, 4 * MS)
+    assert log.brief() == "2 (max 23.9ms)"

@@ -16,7 +16,7 @@ pytestmark = pytest.mark.e2e
 C1_01 = 0x0200  # SI-T3 Tables 8/9: C1-01 acceleration time 1 at register 0200H (0.1 s)
 
 
-@pytest.mark.mlink_network("configs/quickstart.toml")
+@pytest.mark.mlink_network("quickstart")     # a shipped example by name, or a path to your own TOML file
 def test_quickstart_runs_and_answers_within_a_cycle(mlink_network):
     net = mlink_network
     assert {v.phase for v in net.views().values()} == {3}

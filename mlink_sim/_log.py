@@ -1,0 +1,56 @@
+"""Loggers of the library: quiet unless the application configures logging (issue 14, item 12).
+
+Used as a library, mlink-sim must not print: structlog's defaults write every event to stdout. The package's
+loggers (:func:`get_logger`) therefore follow structlog's configuration once an application (or the ``mlink-sim``
+command line, ``cli/logs.py``) has called ``structlog.configure``; before that they hand their events to the
+standard library's ``logging`` under the logger's name (``mlink_sim.…``), where the package's
+``logging.NullHandler`` keeps them silent until the application configures ``logging``.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import structlog
+
+__all__ = ["get_logger"]
+
+logging.getLogger("mlink_sim").addHandler(logging.NullHandler())
+
+
+def _stdlib(name: str) -> Any:
+    return structlog.wrap_logger(
+        logging.getLogger(name),
+        processors=[structlog.stdlib.filter_by_level, structlog.processors.KeyValueRenderer(key_order=["event"])],
+        wrapper_class=structlog.stdlib.BoundLogger,
+    )
+
+
+class _Logger:
+    """A structlog-style logger (``info``, ``warning``, ``bind`` …) choosing its output on each call until
+    structlog is configured, then following structlog's lazy proxy (which follows later reconfigurations)."""
+
+    __slots__ = ("_name", "_ctx", "_target")
+
+    def __init__(self, name: str, ctx: dict[str, Any]) -> None:
+        self._name = name
+        self._ctx = ctx
+        self._target: Any = None
+
+    def _resolve(self) -> Any:
+        if structlog.is_configured():
+            self._target = structlog.get_logger(self._name, **self._ctx)
+            return self._target
+        return _stdlib(self._name).bind(**self._ctx)
+
+    def bind(self, **values: Any) -> _Logger:
+        return _Logger(self._name, {**self._ctx, **values})
+
+    def __getattr__(self, method: str) -> Any:
+        return getattr(self._target or self._resolve(), method)
+
+
+def get_logger(name: str, **initial: Any) -> Any:
+    """The package's logger *name* with *initial* context (as ``structlog.get_logger(name, **initial)``)."""
+    return _Logger(name, dict(initial))
