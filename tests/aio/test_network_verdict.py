@@ -83,14 +83,16 @@ def _info(metrics: NetworkMetrics, **kw: object) -> StatusInfo:
     return StatusInfo(**{**base, **kw})  # type: ignore[arg-type]
 
 
-def test_header_shows_elapsed_total_p99_missed_and_the_step() -> None:
+def test_header_shows_elapsed_total_p99_missed_stalls_and_the_step() -> None:
     m = NetworkMetrics(2_000_000)
     m.missed = 7
     lines = render_lines(_info(m))
-    assert lines[0] == "unit  1.2/6.0 s  p99 1.234ms  missed 7  step 1s all stations: expect running"
+    assert lines[0] == "unit  1.2/6.0 s  p99 1.234ms  missed 7  stalls 0  step 1s all stations: expect running"
     assert len(lines) == 3 and lines[1].startswith("  21H si-t3")
-    assert [label for label, _ in STATUS_FIELDS] == ["", "p99", "missed", "step"]
-    assert render_lines(_info(m, total_s=None, p99_ns=None, step=None))[0] == "unit  1.2 s  p99 -  missed 7  step -"
+    assert [label for label, _ in STATUS_FIELDS] == ["", "p99", "missed", "stalls", "step"]
+    m.record_stall("master", 5, 23_900_000, 11, True)  # host stalls as they come (metrics/stalls.py)
+    assert render_lines(_info(m, total_s=None, p99_ns=None, step=None))[0] == (
+        "unit  1.2 s  p99 -  missed 7  stalls 1 (max 23.9ms)  step -")
 
 
 def test_fit_sums_up_what_does_not_fit() -> None:
