@@ -62,6 +62,11 @@ class VirtualMaster(Master):
     def _now(self) -> int:  # type: ignore[override]
         return self._fabric.clock.now
 
+    def read_responses(self, limit: int = 0) -> None:
+        """Nothing waits to be read: the fabric hands every response to the core at its arrival time."""
+
+    read_one = read_responses
+
 
 class _VirtualWorker:
     """What ``NetworkApi.kill_slave`` needs of a worker, for a station on the fabric."""

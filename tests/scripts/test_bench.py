@@ -2,24 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+from .scripts_loader import load_script
 
 
 @pytest.fixture(scope="module")
 def bench():  # noqa: ANN201 - a script, loaded as a module
-    spec = importlib.util.spec_from_file_location("mlink_bench", ROOT / "scripts" / "bench.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["mlink_bench"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    yield module
-    del sys.modules["mlink_bench"]
+    yield from load_script("bench.py", "mlink_bench")
 
 
 def _cells(bench, **per_target):  # noqa: ANN001, ANN202

@@ -1,0 +1,23 @@
+"""Load a script of scripts/ as a module for its tests."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from types import ModuleType
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def load_script(filename: str, module_name: str) -> Iterator[ModuleType]:
+    """Yield scripts/*filename* as module *module_name* (registered in ``sys.modules`` meanwhile: dataclasses look
+    their module up); for a module-scoped fixture."""
+    spec = importlib.util.spec_from_file_location(module_name, ROOT / "scripts" / filename)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[module_name] = module
+    spec.loader.exec_module(module)
+    yield module
+    del sys.modules[module_name]
