@@ -23,6 +23,7 @@ from __future__ import annotations
 import asyncio
 import threading
 from collections.abc import Coroutine, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -32,9 +33,19 @@ from .session import build_report
 from .vclock import VirtualEventLoop
 from .virtual import VirtualSession
 
-__all__ = ["VirtualNetwork", "BringUpFailed"]
+__all__ = ["VirtualNetwork", "NetworkSnapshot", "BringUpFailed"]
 
 T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class NetworkSnapshot:
+    """The whole network at one instant of simulated time: what the masters see and what the stations are."""
+
+    t_s: float  #: simulated time, seconds
+    cycle: int  #: number of the last transmission cycle
+    views: dict[int, Any]  #: address -> the master's :class:`~mlink_sim.master.StationView`
+    stations: dict[int, Any]  #: address -> the card's :class:`~mlink_sim.cards.StationSnapshot` (absent while killed)
 
 
 class BringUpFailed(RuntimeError):
@@ -176,6 +187,11 @@ class VirtualNetwork(StationControls):
         """Every station's :class:`~mlink_sim.cards.StationSnapshot` (the slave side), by address."""
         return {a: node.station.snapshot() for a, node in self.session.fabric.nodes.items()
                 if node.station is not None}
+
+    def snapshot(self) -> NetworkSnapshot:
+        """The master's view and every station's snapshot, now (for a co-simulation step, or a log of states)."""
+        cycle = self.session.cycle
+        return NetworkSnapshot(self.now, cycle.cycle if cycle is not None else -1, self.views(), self.snapshots())
 
     # ------------------------------------------------------------------ timeline and figures
     def start_timeline(self) -> None:

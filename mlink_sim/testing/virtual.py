@@ -21,7 +21,7 @@ __all__ = ["VirtualRunningNetwork"]
 #: What the handle passes straight to the :class:`VirtualNetwork` (the master API, the stations, time).
 _DELEGATED = frozenset({
     "prm_rd", "prm_wr", "send_config", "id_rd", "alm_rd", "alm_clr", "disconnect", "reconnect", "set_control",
-    "run", "stop_station", "kill_slave", "view", "views", "output_hz", "running", "station", "snapshots",
+    "run", "stop_station", "kill_slave", "view", "views", "output_hz", "running", "station", "snapshots", "snapshot",
     "advance", "run_until", "step", "now", "now_ns", "reset_metrics",
 })
 

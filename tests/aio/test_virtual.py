@@ -131,13 +131,18 @@ def test_the_real_time_fast_paths_carry_the_cyclic_traffic(monkeypatch):
     assert counts["card_slow"] < 100  # bring-up and the odd request only
 
 
-def test_step_is_one_transmission_cycle():
+def test_step_is_one_transmission_cycle_and_a_snapshot_shows_both_sides():
     with VirtualNetwork(QUICKSTART) as net:
         before = net.report()["cycles"]
+        first = net.snapshot()
         t0 = net.now_ns
         net.step()
         assert net.now_ns - t0 == 2_000_000
         assert net.report()["cycles"] == before + 1
+        snap = net.snapshot()
+        assert snap.cycle == first.cycle + 1 and snap.t_s == pytest.approx(first.t_s + 0.002)
+        assert set(snap.views) == set(snap.stations) == {0x21, 0x22, 0x23}
+        assert snap.views[0x21].phase == snap.stations[0x21].phase == 3
 
 
 def test_a_killed_station_comes_back_after_half_a_second():
