@@ -6,9 +6,9 @@ A Docker health check runs as a new process every interval, for the whole life o
 cheap. ``mlink-sim probe`` does the same job but starts the whole CLI (click, pydantic, structlog, construct,
 uvloop): 0.22 s of CPU per probe. This file imports only builtin modules (``_socket``, ``struct``, ``binascii``,
 ``time``, ``sys``) and is meant to run with ``python3 -IS`` (no ``site``): one probe costs about 15 ms of CPU, most
-of it the interpreter's own start-up (docs/testbeds.md, "The health check"). The image installs it as
-``/usr/local/bin/mlink-health`` with that shebang (Dockerfile); ``python -m mlink_sim.testbed.health`` runs it
-from a checkout.
+of it the interpreter's own start-up (docs/testbeds.md, "The health check"). The image's ``mlink-health`` is a
+launcher with that shebang that puts this file's directory first on ``sys.path`` and imports it from its compiled
+``.pyc`` (Dockerfile); ``python -m mlink_sim.testbed.health`` runs it from a checkout.
 
 What it sends is the wire contract's NOP command (docs/wire-format.md §1, §4, §5: envelope, all-zero data area
 = main NOP and NOP sub-command, WDT 0, FCS CRC-16/X-25). A card answers a NOP from a source other than its master

@@ -79,12 +79,13 @@ def test_build_context_has_what_the_dockerfile_copies_and_not_the_host_state():
 
 def _mlink_health(bin_dir: Path) -> Path:
     """/opt/mlink-sim/bin/mlink-health as the Dockerfile's RUN writes it: our interpreter with -IS as the shebang,
-    then health.py without its first line."""
+    the directory of health.py first on sys.path (so its .pyc is used), then its main()."""
     [run] = [a for w, a in _instructions() if w == "RUN" and "mlink-health" in a]
-    assert "echo '#!/opt/mlink-sim/bin/python3 -IS'" in run and "tail -n +2 " in run
-    source = (REPO / "mlink_sim" / "testbed" / "health.py").read_text().splitlines(keepends=True)
+    assert "printf '#!/opt/mlink-sim/bin/python3 -IS\\nimport sys\\nsys.path[0] = \"%s\"" in run
+    assert "from health import main\\nsys.exit(main())" in run and "site-packages/mlink_sim/testbed >" in run
     path = bin_dir / "mlink-health"
-    path.write_text(f"#!{sys.executable} -IS\n" + "".join(source[1:]))
+    path.write_text(f"#!{sys.executable} -IS\nimport sys\nsys.path[0] = \"{REPO / 'mlink_sim' / 'testbed'}\"\n"
+                    "from health import main\nsys.exit(main())\n")
     path.chmod(0o755)
     return path
 
