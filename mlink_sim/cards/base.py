@@ -6,10 +6,17 @@ response datagram (or None); :meth:`Station.poll` lets time pass (silence detect
 :meth:`Station.next_deadline` says when ``poll`` is next due. Nothing raises out of ``receive``/``poll``:
 malformed input is a counted drop with a reason (:class:`StationCounters`).
 
-Security: once a master has CONNECTed, commands from any other source are ignored (counted, and logged once
-per source) until DISCONNECT or connection loss – F6-26 consecutive communication alarms, the point where
-the drive declares bUS "After establishing initial communication, the connection was lost" (SI-T3 Table 28).
-After a loss the next valid command binds the connection again (docs/cards.md).
+Ownership (docs/cards.md, "Who may change a station"): no source other than the connected master ever changes a
+parameter, the EEPROM, the run state or the phase. Once a master has CONNECTed, commands from any other source are
+ignored (counted, and logged once per source) until DISCONNECT or connection loss – F6-26 consecutive communication
+alarms, the point where the drive declares bUS "After establishing initial communication, the connection was lost"
+(SI-T3 Table 28). A station released by a connection loss is admitted "as from phase 1": only CONNECT binds it
+to a new master, nothing else that writes is executed. A NOP with no (or a NOP) sub-command is a read-only
+status query from anyone but the connected master, in phase 2/3 and after a loss alike.
+
+EEPROM timing (:class:`~mlink_sim.cards.eeprom.EepromWriteBack`): when the I/O layer persists the images, a CONFIG
+that stores to EEPROM is completed only once :meth:`Station.eeprom_durable` confirms its image; until then the card
+answers with CMDRDY = 0 and executes nothing else.
 """
 
 from __future__ import annotations
@@ -26,7 +33,7 @@ from mlink_sim.wire import DropReason, Kind, Link, WireError, decode, ml2, ml3
 
 from .._log import get_logger
 from .drive_link import DriveCommand, DriveLink, Fault
-from .eeprom import EepromError, EepromImage
+from .eeprom import EepromError, EepromImage, EepromWriteBack
 from .monitors import sel_mon_value, sel_ref_item
 from .paramstore import ParamStore
 from .reception import FailureKind, ReceptionMonitor
@@ -207,7 +214,7 @@ class Station(abc.ABC):
         self._any_rx: int | None = None
         self._cmd_key: tuple[int, int, int] | None = None
         self.refs: dict[str, int] = {}  #: SEL_REF item -> last value (snapshot only)
-        self._eeprom_dirty = False
+        self.eeprom = EepromWriteBack()
         self._seen_fault: Fault | None = None
         self._history = self.drive.history_names()
         self._foreign_logged: set[str] = set()
@@ -304,14 +311,20 @@ class Station(abc.ABC):
     @property
     def eeprom_pending(self) -> bool:
         """An EEPROM image waits for :meth:`take_eeprom`."""
-        return self._eeprom_dirty
+        return self.eeprom.dirty
 
     def take_eeprom(self) -> bytes | None:
-        """The EEPROM image to persist, when CONFIG_MOD = 1 or a fault-history change asks for it."""
-        if not self._eeprom_dirty:
+        """The EEPROM image to persist, when CONFIG_MOD = 1 or a fault-history change asks for it; its generation
+        is ``eeprom.taken`` (for :meth:`eeprom_durable`)."""
+        if not self.eeprom.take():
             return None
-        self._eeprom_dirty = False
         return EepromImage(self.card, self._saved_params, self._history).to_bytes()
+
+    def eeprom_durable(self, generation: int, ok: bool = True) -> None:
+        """The I/O layer's input: the image of *generation* is written, fsync'd and renamed (*ok*), or could not be
+        written (:meth:`EepromWriteBack.durable`)."""
+        if not self.eeprom.durable(generation, ok):
+            self._log.error("eeprom_write_failed", generation=generation)
 
     def snapshot(self) -> StationSnapshot:
         link = self.drive
@@ -342,7 +355,7 @@ class Station(abc.ABC):
         if now > self._now:
             self._now = now
         self._any_rx = now
-        if self.phase > 1:
+        if self._source is not None and self.eeprom.wait is None:  # connected (phase 2/3), no CONFIG in progress
             out = self._fast_receive(datagram, source, now)
             if out is not SLOW:
                 return out  # type: ignore[return-value]
@@ -350,8 +363,8 @@ class Station(abc.ABC):
             frame = decode(datagram, kind=Kind.COMMAND)
         except WireError as exc:
             c.drop(exc.reason.name)
-            if (exc.reason is DropReason.BAD_FCS and self.phase > 1 and datagram[3] == self.address
-                    and (self._source is None or source == self._source)):
+            if (exc.reason is DropReason.BAD_FCS and self._source is not None and source == self._source
+                    and datagram[3] == self.address):
                 self._fcs_error(now)
             return None
         if frame.station != self.address:
@@ -367,7 +380,8 @@ class Station(abc.ABC):
         if msg.size != self.data_size:
             c.drop(DropReason.BAD_SIZE.name)
             return None
-        if self._source is not None and source != self._source and _is_status_query(msg):
+        if self.phase > 1 and source != self._source and _is_status_query(msg):
+            # another source than the connected master, or anyone after a connection loss: read-only
             self.counters.status_queries += 1
             return self._status_reply(frame)
         if not self._accept(frame.cycle, frame.tcycle_ns, msg.wdt, msg.code, source, now):
@@ -381,18 +395,20 @@ class Station(abc.ABC):
         the general path. It must decide before :meth:`_accept` has run."""
         return SLOW
 
+    def _answer_after_loss(self, datagram: bytes, source: Hashable, now: int) -> bytes:
+        """The fast path's command whose gap just lost the connection (:meth:`_accept` released the station): answered
+        by the general path, as from phase 1."""
+        out = self._process(decode(datagram, kind=Kind.COMMAND), source, now)
+        self._sent(now)
+        return out
+
     def _accept(self, cycle: int, tcycle_ns: int, wdt: int, code: int, source: Hashable, now: int) -> bool:
         """A well-formed command for this station: the connection, reception failures, the watchdog."""
         if self._source is not None and source != self._source:
             self._foreign(source)
             return False
         self.drive.advance(now)
-        if self.phase > 1 and self._source is None:  # connection lost earlier: this master takes it again
-            self._source = source
-            self.reception.rebase(cycle, now)  # its cycle numbers say nothing about the old master's
-            self._incident("connection_rebound", source=repr(source))
-            self.watchdog.check(wdt, 1)
-        elif self.phase > 1:  # failures found by poll() are already counted; the gap tells the rest
+        if self._source is not None:  # connected (phase 2/3): failures found by poll() are counted; the gap the rest
             seen = self.reception.on_command(cycle, now)
             if seen is None:
                 self.counters.drop("DUPLICATE")
@@ -405,7 +421,7 @@ class Station(abc.ABC):
             if not self.watchdog.check(wdt, elapsed) and code != 0x0F:  # DISCONNECT carries no WDT (SI-ET3)
                 self._wdt_error(now)
             self._bus_count = 0
-        else:
+        else:  # phase 1, or released by a connection loss: admitted as from phase 1 (_arrival_phase)
             self.watchdog.check(wdt, 1)
         self.counters.rx_ok += 1
         self._rx_at = now
@@ -445,9 +461,10 @@ class Station(abc.ABC):
         if before < limit <= self._bus_count:
             detected = self.drive.trip_bus(now)
             self._incident("bus_error", level="warning", alarms=self._bus_count, limit=limit, drive_fault=detected)
-            if self._source is not None:
+            if self._source is not None:  # released: admitted as from phase 1 until a CONNECT (docs/cards.md)
                 self._incident("connection_lost", level="warning", source=repr(self._source))
                 self._source = None
+                self.reception.stop()  # nobody to count failures for ("Phase 1 never notifies")
 
     def _bus_limit(self) -> int:
         return 1
@@ -491,7 +508,7 @@ class Station(abc.ABC):
         names = self.drive.history_names()
         if names != self._history:
             self._history = names
-            self._eeprom_dirty = True
+            self.eeprom.changed()
             self._log.info("eeprom_dirty", reason="fault history", history=list(names))
 
     # -- phases and connection -----------------------------------------------------------------------
@@ -508,6 +525,11 @@ class Station(abc.ABC):
     def _subcommands_active(self) -> bool:
         return False
 
+    def _arrival_phase(self) -> int:
+        """The phase a command is admitted in: the phase, or 1 for a station released by a connection loss – "as
+        from phase 1", so only CONNECT binds it and nothing that writes is executed (docs/cards.md)."""
+        return self.phase if self._source is not None else 1
+
     def _connect(self, source: Hashable, cycle: int, now: int, *, sync: bool, tcycle_ns: int, com_tim: int,
                  comm_cycle_ns: int, wdt: int) -> None:
         self._source = source
@@ -523,7 +545,11 @@ class Station(abc.ABC):
 
     def _disconnect(self, now: int) -> None:
         """DISCONNECT: "the data for the control command to the Drive is cleared to 0, and a fault reset
-        command is carried out" (SI-T3 / SI-T/V7); back to phase 1 and the 2 ms default cycle."""
+        command is carried out" (SI-T3 / SI-T/V7); back to phase 1 and the 2 ms default cycle. Without a connection
+        (phase 1, or released by a connection loss) there is none to release and nothing changes: only the
+        connected master changes the run state or the phase."""
+        if self._source is None:
+            return
         self._incident("disconnected", source=repr(self._source))
         self._source = None
         self.reception.stop()
@@ -564,15 +590,16 @@ class Station(abc.ABC):
         except (KeyError, ValueError) as exc:  # a combination the model cannot take: keep the old settings
             self._log.warning("drive_reconfigure_failed", reason=str(exc))
 
-    def _config(self, mod: int, now: int) -> Err:
-        """CONFIG (SI-T3 Table 12, SI-ET3 Table 15, SI-T/V7 CONFIG): 0 = RAM, 1 = RAM and EEPROM."""
+    def _config(self, mod: int, now: int, *, sub: bool = False) -> Err:
+        """CONFIG (SI-T3 Table 12, SI-ET3 Table 15, SI-T/V7 CONFIG): 0 = RAM, 1 = RAM and EEPROM. With
+        ``eeprom.enabled`` the EEPROM store is complete only once the image is durable (``EepromWriteBack.hold``)."""
         if mod not in (0, 1):
             return Err.DATA
         if not self.prm_immediate and self.store.apply():
             self._reconfigure(now)
         if mod == 1:
             self._saved_params = self.store.overrides()
-            self._eeprom_dirty = True
+            self.eeprom.changed(config_sub=sub)
             self._log.info("eeprom_dirty", reason="CONFIG_MOD=1", params=len(self._saved_params))
         return Err.OK
 

@@ -23,6 +23,7 @@ from mlink_sim.wire.layout import fast_struct
 from .alarms import Ml2Alarms, ml2_failure_code
 from .base import SLOW, Station
 from .drive_link import DriveCommand, Fault, ml2_status_bits
+from .eeprom import BUSY
 from .idinfo import ML2_ID_AREAS, ml2_id_window
 from .phases import ML2_COMBINATIONS, ML2_MAIN_PHASES, ML2_SUB_PHASES, Admit, combination_ok
 from .reception import FailureKind
@@ -109,9 +110,12 @@ class Ml2Station(Station):
         body = msg.body
         btype = type(body)
         code = body.code if btype is Unknown else _MAIN_CODE[btype]
-        phase, subcmd = self.phase, self._subcmd  # the state the command arrived in rules the sub-command
+        phase, subcmd = self._arrival_phase(), self._subcmd  # the state the command arrived in rules the sub-command
         row = self.main_phases.get(code)
-        if row is None:
+        hold = self.eeprom.hold(False, code)
+        if hold is not None:  # a CONFIG waits for the EEPROM (eeprom.EepromWriteBack)
+            rbody, err = _echo_main(body), (Err.OK if hold is BUSY else hold)
+        elif row is None:
             rbody, err = _echo_main(body), Err.UNSUPPORTED
         else:
             adm = row[phase - 1]
@@ -130,6 +134,8 @@ class Ml2Station(Station):
         else:
             rsub, substatus = self._process_sub(code, sub, phase, subcmd, now)
         alarm, word = self._alarm_status(code == M2Cmd.PRM_RD)
+        if self.eeprom.busy(False):
+            word &= ~_CMDRDY  # "Command ready: 0 Busy" (SI-T3 / SI-T/V7 "STATUS Field")
         resp = ml2.M2Response(rbody, alarm, word, self.watchdog.rwdt(), rsub, substatus)
         self.alarms.reported()
         if self._deferred_cyc:  # the drive learns of the cycle error after the card answered the CONNECT
@@ -142,10 +148,10 @@ class Ml2Station(Station):
         checks): nothing is executed, no warning is consumed, RWDT does not advance (docs/cards.md)."""
         st = self.drive.status
         alarm, alm, warng = self.alarms.report(st.fault, st.minor, st.fault_reset_input)
-        word = ml2_status_bits(st, cmdrdy=True, v7=self.v7) & ~3 | alm | warng << 1
+        word = ml2_status_bits(st, cmdrdy=not self.eeprom.busy(False), v7=self.v7) & ~3 | alm | warng << 1
         sub = frame.message.sub
         resp = ml2.M2Response(ml2.Nop(), alarm, word, self.watchdog.peek(), None if sub is None else ml2.Nop(),
-                              0 if sub is None else _SUBRDY)
+                              0 if sub is None or self.eeprom.busy(True) else _SUBRDY)
         return encode(Frame(self.link, Kind.RESPONSE, self.address, frame.cycle, frame.tcycle_ns, resp))
 
     def _alarm_status(self, prm_rd: bool) -> tuple[int, int]:
@@ -174,6 +180,8 @@ class Ml2Station(Station):
             return SLOW
         if not self._accept(cycle, tcycle, dg[27], M2Cmd.INV_CTL, source, now):
             return None
+        if self._source is None:  # this command's gap lost the connection
+            return self._answer_after_loss(dg, source, now)
         sig, speed, torque, sel_ref, sel_mon, ref1, ref2 = _INV_CTL.unpack_from(dg, 14)
         ofreq, cur, mon1, mon2 = self._inv_ctl(sig, speed, torque, sel_ref, sel_mon, ref1, ref2, now)
         alarm, word = self._alarm_status(False)
@@ -212,7 +220,14 @@ class Ml2Station(Station):
         if not subcmd:  # CONNECT with SUBCMD = 0: the sub-command area is not used
             return _echo_sub(sub), _SUBRDY
         row = self.sub_phases.get(scode)
-        if row is None:
+        hold = self.eeprom.hold(True, scode)
+        if hold is BUSY:  # the SI-T/V7 CONFIG sub-command waits for the EEPROM: "SUBCMDRDY 0 Busy"
+            return _echo_sub(sub), 0
+        if hold is Err.OK:
+            return _echo_sub(sub), _SUBRDY
+        if hold is not None:
+            err = hold
+        elif row is None:
             err = Err.UNSUPPORTED
         elif not combination_ok(self.combinations, main_code, scode):
             err = Err.COMBINATION  # SI-T3 Table 7 "NG (A.95)"
@@ -221,7 +236,7 @@ class Ml2Station(Station):
             if adm is _ALLOWED:
                 rsub, err = self.sub_handlers[scode](self, sub, now)
                 if err is Err.OK:
-                    return rsub, _SUBRDY
+                    return rsub, 0 if self.eeprom.busy(True) else _SUBRDY
             else:
                 err = Err.OK if adm is _IGNORED else Err.PHASE
                 if err is Err.OK:
@@ -446,7 +461,7 @@ def _sub_alm_rd(st: Ml2Station, sub: ml2.AlmRd, now: int) -> tuple[Any, Err]:
 
 
 def _sub_config(st: Ml2Station, sub: ml2.Config, now: int) -> tuple[Any, Err]:
-    return sub, st._config(sub.config_mod, now)
+    return sub, st._config(sub.config_mod, now, sub=True)
 
 
 def _sub_inv_io(st: Ml2Station, sub: ml2.InvIo, now: int) -> tuple[Any, Err]:

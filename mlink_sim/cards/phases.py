@@ -56,8 +56,8 @@ def _freeze(table: dict[int, tuple[Admit, Admit, Admit]]) -> Mapping[int, tuple[
 
 
 #: SI-ET3 Table 9 "Main Command Communication Phases" – (phase 1, phase 2, phase 3).
-#: NOP reads "–" in phase 1 although its section says "can be used in all communication phases";
-#: the table wins, ``CardOptions.et3_nop_in_phase1`` selects the text (docs/cards.md).
+#: NOP reads "–" in phase 1 although its section says "can be used in all communication phases": the card
+#: follows the text by default, ``CardOptions.et3_nop_in_phase1 = False`` this table (docs/cards.md).
 ML3_MAIN_PHASES = _freeze({
     M3Cmd.NOP: (E, A, A),
     M3Cmd.PRM_RD: (E, A, A),

@@ -33,9 +33,9 @@ class CardOptions:
     #: SI-ET3: read COM_MOD SYNCMODE per SI-ET3 Table 19 (0 = synchronous) instead of the MECHATROLINK-II
     #: convention (1 = synchronous, phase 3), which is the default.
     et3_syncmode_table19: bool = False
-    #: SI-ET3: accept NOP in phase 1 as its section text says ("all communication phases") instead of the
-    #: phase error of Table 9 / Table 10.
-    et3_nop_in_phase1: bool = False
+    #: SI-ET3: accept NOP in phase 1 as the NOP section says ("The command can be used in all communication
+    #: phases"; CMD_ALM 0, CMDRDY 1) – the default; False reads Table 9 / Table 10 ("–": CMD_ALM / SUBCMD_ALM CH).
+    et3_nop_in_phase1: bool = True
     #: SI-ET3: place the CONNECT response echo at bytes 5–8 as the printed response table shows, instead of
     #: at the command's bytes 4–7.
     et3_connect_echo_at_byte5: bool = False

@@ -29,6 +29,7 @@ from mlink_sim.wire.layout import fast_struct
 from .alarms import Ml3Alarms, ml3_failure_code
 from .base import SLOW, Station
 from .drive_link import DriveCommand, Fault, ml3_invcmd_stat_bits
+from .eeprom import BUSY
 from .idinfo import ml3_id_data, ml3_id_window
 from .monitors import sel_mon_enabled
 from .phases import ML3_COMBINATIONS, ML3_MAIN_PHASES, ML3_SUB_PHASES, Admit, combination_ok
@@ -126,15 +127,19 @@ class SiEt3(Station):
         msg = frame.message
         alarms = self.alarms
         ctrl = msg.cmd_ctrl
-        if alarms.alm_clr_edge(bool(ctrl & 0x08)):  # CMD_CTRL.ALM_CLR: "same processing as ALM_CLR_MODE = 0"
+        # CMD_CTRL.ALM_CLR: "same processing as ALM_CLR_MODE = 0" – so, like ALM_CLR, only from the connected master
+        if self._source is not None and alarms.alm_clr_edge(bool(ctrl & 0x08)):
             self._alarm_clear(now)
             alarms.alm_clr_cmp = True
         body = msg.body
         btype = type(body)
         code = body.code if btype is Unknown else _MAIN_CODE[btype]
-        phase, subcmd = self.phase, self._subcmd  # the state the command arrived in rules the sub-command
+        phase, subcmd = self._arrival_phase(), self._subcmd  # the state the command arrived in rules the sub-command
         row = ML3_MAIN_PHASES.get(code)
-        if row is None:
+        hold = self.eeprom.hold(False, code)
+        if hold is not None:  # a CONFIG waits for the EEPROM (eeprom.EepromWriteBack)
+            rbody, err = _echo_main(body), (Err.OK if hold is BUSY else hold)
+        elif row is None:
             rbody, err = _echo_main(body), Err.UNSUPPORTED
         else:
             adm = row[phase - 1]
@@ -163,7 +168,8 @@ class SiEt3(Station):
             self.counters.commands_refused += 1
         self._last_cmd_alm = cmd_alm
         st = self.drive.status
-        stat = (st.faulted | st.minor_fault << 1 | 0x04 | alarms.alm_clr_cmp << 3 | (ctrl & 0xC0)
+        ready = 0 if self.eeprom.busy(False) else 0x04  # CMD_STAT.CMDRDY "1: Command reception enabled 0: Other"
+        stat = (st.faulted | st.minor_fault << 1 | ready | alarms.alm_clr_cmp << 3 | (ctrl & 0xC0)
                 | cmd_alm << 8 | alarms.comm_alm << 12)
         resp = ml3.M3Response(rbody, self.watchdog.rwdt(), stat, rsub, sub_stat)
         return encode(Frame(Link.ML3, Kind.RESPONSE, self.address, frame.cycle, frame.tcycle_ns, resp))
@@ -173,7 +179,7 @@ class SiEt3(Station):
         nothing is executed, CMD_ALM is not touched, RWDT does not advance (docs/cards.md)."""
         st = self.drive.status
         alarms = self.alarms
-        stat = st.faulted | st.minor_fault << 1 | 0x04 | alarms.comm_alm << 12
+        stat = st.faulted | st.minor_fault << 1 | (0 if self.eeprom.busy(False) else 0x04) | alarms.comm_alm << 12
         sub = frame.message.sub
         resp = ml3.M3Response(ml3.Nop(), self.watchdog.peek(), stat, None if sub is None else ml3.Nop(),
                               0 if sub is None else 0x04)
@@ -191,6 +197,8 @@ class SiEt3(Station):
             return SLOW
         if not self._accept(cycle, tcycle, dg[13], M3Cmd.INV_CTL, source, now):
             return None
+        if self._source is None:  # this command's gap lost the connection
+            return self._answer_after_loss(dg, source, now)
         alarms = self.alarms
         ctrl = dg[14]
         if alarms.alm_clr_edge(bool(ctrl & 0x08)):

@@ -36,7 +36,8 @@ def test_v7_table_6_alarm_priority() -> None:
     m.tick(2)
     r = m.send(ml2.InvCtl(signals=EF0))  # the gap is a first failure (96) and a consecutive one (E6)
     assert alarm(r) == M2Alarm.COMM_ERROR and _bits(r) == (True, True)
-    r = m.send(ml2.InvCtl(signals=EF0))
+    # the V7 lost the connection at that first communications alarm (bUS, §8.1): a NOP reads the status as it stands
+    r = m.nop()
     assert alarm(r) == M2Alarm.COMM_ERROR and _bits(r) == (False, True)
 
 

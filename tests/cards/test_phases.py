@@ -31,6 +31,9 @@ ML3_BODIES = {
 }
 
 
+TABLE_9 = CardOptions(et3_nop_in_phase1=False)
+
+
 def _et3_in_phase(phase: int, **kw: object) -> Master:
     m = Master(station("si-et3", **kw))  # type: ignore[arg-type]
     if phase >= 2:
@@ -42,8 +45,9 @@ def _et3_in_phase(phase: int, **kw: object) -> Master:
 @pytest.mark.parametrize("code", sorted(ML3_BODIES))
 @pytest.mark.parametrize("phase", [1, 2, 3])
 def test_si_et3_table_9_phase_error_ch(code: int, phase: int) -> None:
-    """Table 9: ○ executed (CMD_ALM 0), △ ignored (CMD_ALM 0, nothing happens), – phase error CMD_ALM CH."""
-    m = _et3_in_phase(phase)
+    """Table 9 read literally (``et3_nop_in_phase1=False``): ○ executed (CMD_ALM 0), △ ignored (CMD_ALM 0, nothing
+    happens), – phase error CMD_ALM CH."""
+    m = _et3_in_phase(phase, options=TABLE_9)
     expected = ML3_MAIN_PHASES[code][phase - 1]
     r = m.send(ML3_BODIES[code])
     assert r is not None and r.message.code == code
@@ -69,13 +73,19 @@ def test_si_et3_table_9_transitions() -> None:
     assert m.st.phase == 3
 
 
-def test_si_et3_table_9_nop_option_follows_the_text() -> None:
-    m = _et3_in_phase(1, options=CardOptions(et3_nop_in_phase1=True))
-    assert cmd_alm(m.nop()) == CmdAlm.NORMAL
+def test_si_et3_nop_in_phase_1_follows_the_nop_text_by_default() -> None:
+    """SI-ET3 NOP: "The command can be used in all communication phases" – the default (CMD_ALM 0, CMDRDY 1, and
+    the NOP sub-command of a 64-byte frame with it); ``et3_nop_in_phase1=False`` keeps Table 9's "–" (CMD_ALM CH)."""
+    m = _et3_in_phase(1)
+    r = m.nop()
+    assert cmd_alm(r) == CmdAlm.NORMAL and r.message.stat.cmdrdy and sub_alm(r) == 0
+    assert m.st.snapshot().led_colors["R/E"] == "green" and m.st.phase == 1
+    strict = _et3_in_phase(1, options=TABLE_9)
+    assert cmd_alm(strict.nop()) == CmdAlm.PHASE_ERROR
 
 
 def test_si_et3_table_10_sub_command_phase_error_ch() -> None:
-    m = _et3_in_phase(1)
+    m = _et3_in_phase(1, options=TABLE_9)
     r = m.nop(ml3.PrmRd(0x0200, 2))
     assert sub_alm(r) == SubCmdAlm.PHASE_ERROR
     r = m.nop(ml3.Nop())

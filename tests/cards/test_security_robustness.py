@@ -32,13 +32,15 @@ def test_foreign_source_ignored_after_connect() -> None:
 
 
 def test_connection_lost_releases_the_lock() -> None:
+    """After bUS a NOP binds nothing (a status query); only CONNECT does (tests/cards/test_ownership.py)."""
     m = Master(station("si-et3", params=A))
     m.bring_up()
     m.st.poll(m.now + 10 * MS)  # F6-26 communication alarms: bUS, "the connection was lost"
     assert m.st.snapshot().connected_source is None
     other = Master(m.st, source=INTRUDER, now=m.now + 10 * MS)
     other.cycle, other.count = m.cycle + 10, m.count + 10
-    assert other.nop() is not None and m.st.snapshot().connected_source == INTRUDER
+    assert other.nop() is not None and m.st.snapshot().connected_source is None
+    assert other.connect() is not None and m.st.snapshot().connected_source == INTRUDER
 
 
 def test_other_station_datagrams_counted() -> None:
