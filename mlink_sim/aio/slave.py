@@ -3,7 +3,9 @@
 The server only moves bytes and keeps time: ``datagram -> station.receive(data, addr, now) -> sendto``. Each
 station's socket is read in batches; a backlog beyond eight commands per source is superseded (``_receiver``).
 A 1 ms housekeeping tick calls ``station.poll(now)`` for stations whose deadline has come (silence detection, drive);
-EEPROM images the cards hand over (``take_eeprom``) are written atomically in a worker thread.
+EEPROM images the cards hand over (``take_eeprom``) are written atomically in a worker thread, and once an image is
+written, fsync'd and renamed the card is told (``station.eeprom_durable``): a CONFIG to EEPROM answers CMDRDY = 0 until
+then (docs/cards.md, "EEPROM"). Temporary files a killed process left are removed at start.
 
 A small JSON-over-UDP *control* endpoint answers ``{"op": "stats"}`` with every station's snapshot, counters and
 the process CPU time (``{"op": "cpu"}``: the CPU time only, small at any station count), so the supervisor
@@ -25,7 +27,7 @@ from typing import Any
 from .._log import get_logger
 from ..jsonable import to_jsonable
 from ..metrics.stalls import WORKER_STALL_NS, StallLog
-from .state import atomic_write, eeprom_path
+from .state import atomic_write, eeprom_path, remove_stale_temps
 from .udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endpoint
 
 __all__ = ["HostedStation", "SlaveServer", "query_control"]
@@ -78,7 +80,7 @@ class SlaveServer:
         self._control_addr = control
         self._control: DatagramEndpoint | None = None
         self._tick: asyncio.TimerHandle | None = None
-        self._pending_writes: dict[Path, bytes] = {}
+        self._pending_writes: dict[Path, tuple[HostedStation, int, bytes]] = {}
         self._writer: asyncio.Task[None] | None = None
         self._write_wakeup = asyncio.Event()
         self._started_wall = time.monotonic()
@@ -88,11 +90,16 @@ class SlaveServer:
         for hs in stations:
             if self.state_dir is not None and hs.eeprom is None:
                 hs.eeprom = eeprom_path(self.state_dir, hs.station.card, hs.station.address)
+            # a CONFIG to EEPROM completes once its image is durable (nothing to wait for without a file)
+            hs.station.eeprom.enabled = hs.eeprom is not None
 
     # -- lifecycle --------------------------------------------------------------------------------------------
 
     async def start(self) -> None:
         loop = asyncio.get_running_loop()
+        for hs in self.stations:
+            if hs.eeprom is not None and (n := remove_stale_temps(hs.eeprom)):
+                log.info("eeprom_stale_temps_removed", path=str(hs.eeprom), count=n)
         try:
             for hs in self.stations:
                 hs.endpoint = await open_batch_endpoint(self._receiver(hs), hs.host, hs.port)
@@ -201,7 +208,7 @@ class SlaveServer:
         image = hs.station.take_eeprom()
         if image is None or hs.eeprom is None:
             return
-        self._pending_writes[hs.eeprom] = image
+        self._pending_writes[hs.eeprom] = (hs, hs.station.eeprom.taken, image)  # a newer image supersedes a queued one
         self._write_wakeup.set()
 
     async def _write_loop(self) -> None:
@@ -210,13 +217,16 @@ class SlaveServer:
             await self._write_wakeup.wait()
             self._write_wakeup.clear()
             while self._pending_writes:
-                path, data = self._pending_writes.popitem()
+                path, (hs, generation, data) = self._pending_writes.popitem()
                 try:
                     await loop.run_in_executor(None, atomic_write, path, data)
-                    log.info("eeprom_saved", path=str(path), bytes=len(data))
                 except OSError as exc:
                     self.write_errors += 1
                     log.error("eeprom_write_failed", path=str(path), error=str(exc))
+                    hs.station.eeprom_durable(generation, ok=False)
+                else:
+                    log.info("eeprom_saved", path=str(path), bytes=len(data), generation=generation)
+                    hs.station.eeprom_durable(generation)  # written, fsync'd, renamed: the CONFIG may complete
             if self._closing:
                 return
 

@@ -6,7 +6,7 @@ import pytest
 from master_fakes import MS, FakeSlave
 
 from mlink_sim.master import AlarmRaised, Late, Missing, Recovered, StateChanged, StationPlan, StationState
-from mlink_sim.wire import Frame, Link, decode, encode, ml2, ml3
+from mlink_sim.wire import Frame, Kind, Link, decode, encode, ml2, ml3
 
 S = StationState
 LINKS = [pytest.param(Link.ML1, 2 * MS, id="ML-I"), pytest.param(Link.ML2, MS, id="ML-II"),
@@ -32,10 +32,11 @@ def of(net, kind):
 @pytest.mark.parametrize(("link", "tcycle"), LINKS)
 def test_lost_cycles_reception_alarm_then_alm_clr_and_sync_set(net_of, link, tcycle):
     """SI-T3 Table 22: a second consecutive reception failure is E6 and the slave drops to phase 2
-    (SI-ET3: COMM_ALM 9); the master clears it and restores phase 3 by itself."""
+    (SI-ET3: COMM_ALM 9); the master clears it and restores phase 3 by itself. Two lost commands: one
+    communications alarm, below F6-26 = 2, so the connection stays."""
     net = up(net_of, link, tcycle)
     slave = net.slaves[0x21]
-    drop_commands(net, 0x21, 3)
+    drop_commands(net, 0x21, 2)
     net.run(4)
     assert slave.phase == 2  # the slave noticed
     net.run_until(lambda: net.core.state(0x21) is S.PHASE3 and slave.phase == 3, limit=20)
@@ -49,6 +50,30 @@ def test_lost_cycles_reception_alarm_then_alm_clr_and_sync_set(net_of, link, tcy
     assert [n for n, _ in slave.log][-10:].count("AlmClr") == 1
     net.run(50)
     assert slave.phase == 3 and net.core.view(0x21).alarm == 0 and net.core.view(0x21).recoveries == 1
+
+
+@pytest.mark.parametrize("slave_factory", ["card"], indirect=True)
+@pytest.mark.parametrize(("link", "tcycle"), LINKS)
+def test_master_gets_its_station_back_after_a_connection_loss_and_a_probe(net_of, link, tcycle):
+    """Issue 14 item 2: the master's commands are lost until the card declares bUS (F6-26 communications alarms,
+    SI-T3 Table 28) and releases the connection; a health-check probe's NOP then binds nothing, and the master's
+    next command is answered as from phase 1, so it CONNECTs and owns the station again (docs/cards.md)."""
+    net = up(net_of, link, tcycle)
+    card = net.slaves[0x21].station
+    drop_commands(net, 0x21, 6)
+    net.run(6)
+    assert card.snapshot().connected_source is None
+    probe = ml3.M3Command(ml3.Nop(), sub=ml3.Nop()) if link is Link.ML3 else ml2.M2Command(ml2.Nop(), sub=ml2.Nop())
+    size = net.core.plan.station(0x21).data_size
+    if link is not Link.ML3 and size == 17 or link is Link.ML3 and size == 32:
+        probe = type(probe)(probe.body)
+    answer = card.receive(encode(Frame(link, Kind.COMMAND, 0x21, 1, 2 * MS, probe)), ("192.0.2.99", 9), net.cycle * tcycle)
+    assert answer is not None and card.snapshot().connected_source is None
+    net.run_until(lambda: net.core.state(0x21) is S.PHASE3 and card.phase == 3, limit=60)
+    assert card.snapshot().connected_source == "master" and card.counters.status_queries == 1
+    served = card.counters.rx_ok
+    net.run(50)
+    assert card.counters.rx_ok == served + 50 and net.core.state(0x21) is S.PHASE3
 
 
 def test_lost_responses_only_are_missing_but_not_fatal(net_of):
