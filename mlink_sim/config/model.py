@@ -19,6 +19,7 @@ from .units import parse_duration_ns
 __all__ = [
     "CARD_LINKS",
     "CARD_FAMILY",
+    "MAX_STATIONS",
     "LoadConfig",
     "StationConfig",
     "TimelineStep",
@@ -44,6 +45,9 @@ ADDRESS_RANGE = {"si-t3": (0x21, 0x3E), "si-t-v7": (0x21, 0x3E), "si-et3": (0x03
 #: Default frame size per card and link: F6-21 = 0 (SI-T3 32-byte, SI-ET3 64-byte); V7 S1-2 follows S1-1.
 DEFAULT_FRAME = {("si-t3", Link.ML2): 32, ("si-t3", Link.ML1): 17, ("si-t-v7", Link.ML2): 32,
                  ("si-t-v7", Link.ML1): 17, ("si-et3", Link.ML3): 64}  # fmt: skip
+#: Stations one link carries: SI-T3 Table 29 "Maximum number of stations 30" (MECHATROLINK-I and -II; SI-T/V7 §9
+#: "Number of connectable stations 30 slaves max."), SI-ET3 Table 28 "Maximum number of stations 62".
+MAX_STATIONS = {Link.ML1: (30, "SI-T3 Table 29"), Link.ML2: (30, "SI-T3 Table 29"), Link.ML3: (62, "SI-ET3 Table 28")}
 #: Default COM_TIM per link: SI-T3 errata (MECHATROLINK-II 1, MECHATROLINK-I 2); SI-ET3 CONNECT 1–255.
 DEFAULT_COM_TIM = {Link.ML1: 2, Link.ML2: 1, Link.ML3: 1}
 
@@ -362,6 +366,11 @@ class Config(BaseModel):
 
     @model_validator(mode="after")
     def _consistency(self) -> Config:
+        links = [st.link or self.network.link or CARD_LINKS[st.card][-1] for st in self.station]
+        for link in sorted(set(links)):
+            n, (limit, source) = links.count(link), MAX_STATIONS[link]
+            if n > limit:
+                raise ValueError(f"station: {n} {link.label} stations, but one link carries at most {limit} ({source})")
         seen: dict[int, int] = {}
         for i, st in enumerate(self.station):
             where = f"station[{i}]"

@@ -31,6 +31,29 @@ def test_largest_networks_named_by_the_manuals() -> None:
     assert len(load_config(root / "ml3-62-max.toml").station) == 62  # SI-ET3 Table 28: 62 stations max
 
 
+def _stations(card: str, first: int, n: int, link: str = "") -> str:
+    extra = f'\nlink = "{link}"' if link else ""
+    return "".join(f'[[station]]\naddress = {first + i}\ncard = "{card}"{extra}\n' for i in range(n))
+
+
+@pytest.mark.parametrize(("stations", "message"), [
+    (_stations("si-et3", 0x03, 63), "station: 63 MECHATROLINK-III stations, but one link carries at most 62 "
+                                    "(SI-ET3 Table 28)"),
+    (_stations("si-t3", 0x21, 30) + _stations("si-t-v7", 0x21, 1), "station: 31 MECHATROLINK-II stations, but one "
+                                                                   "link carries at most 30 (SI-T3 Table 29)"),
+    (_stations("si-t3", 0x21, 29) + _stations("si-t-v7", 0x3E, 1) + _stations("si-et3", 0x40, 62), None),
+])
+def test_stations_per_link_at_most_the_manuals_maximum(stations: str, message: str | None) -> None:
+    """SI-ET3 Table 28 "Maximum number of stations 62", SI-T3 Table 29 "30" (SI-T/V7 §9: 30 slaves max.)."""
+    text = '[network]\ntransmission_cycle = "2ms"\n' + stations
+    if message is None:
+        parse_config(text, "net.toml")
+        return
+    with pytest.raises(ConfigError) as err:
+        parse_config(text, "net.toml")
+    assert str(err.value) == f"net.toml: {message}"
+
+
 def test_defaults_follow_card_and_link() -> None:
     config = parse_config(BASE + '[[station]]\naddress = 0x23\ncard = "si-et3"\n')
     t3, et3 = config.station

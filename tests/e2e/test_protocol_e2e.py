@@ -189,3 +189,17 @@ def test_eeprom_write_acknowledged_only_once_durable_survives_kill_9(card: str, 
         assert not list(state.glob("*.tmp"))
     finally:
         master.close()
+
+
+@pytest.mark.parametrize("command", ["validate", "up"])
+def test_more_stations_than_the_link_allows_exit_2(command: str, tmp_path: Path) -> None:
+    """Item 5: 63 SI-ET3 stations on one MECHATROLINK-III link (SI-ET3 Table 28: 62 max.) – `validate` and `up`
+    exit 2 with one line naming the file and what is expected, before anything starts."""
+    stations = "".join(f'[[station]]\naddress = {0x03 + i}\ncard = "si-et3"\n' for i in range(63))
+    path = tmp_path / "big.toml"
+    path.write_text('[network]\ntransmission_cycle = "1ms"\n' + stations)
+    result = run_cli(command, str(path))
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [
+        f"mlink-sim: {path}: station: 63 MECHATROLINK-III stations, but one link carries at most 62 (SI-ET3 Table 28)"
+    ]
