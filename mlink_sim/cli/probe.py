@@ -1,4 +1,9 @@
-"""``mlink-sim probe HOST:PORT --station 0x21`` – send a NOP, exit 0 only on a valid answer (health checks)."""
+"""``mlink-sim probe HOST:PORT --station 0x21`` – send a NOP, exit 0 only on a valid answer (health checks).
+
+Read-only by construction: the probe sends only main NOPs with no (or a NOP) sub-command, which a card answers as a
+status query when a master owns it or lost it (nothing executed, nothing bound, RWDT not advanced) and as a plain NOP
+in phase 1 (docs/cards.md, "Who may change a station"); tests/e2e/test_protocol_e2e.py checks the station looks the
+same afterwards."""
 
 from __future__ import annotations
 
