@@ -178,3 +178,55 @@ def test_snapshot_fields() -> None:
     assert snap.card == "si-t3" and snap.address == 0x21 and snap.phase == 2 and snap.link == "ML2"
     assert snap.subcommands and snap.tcycle_ns == MS and snap.counters["rx_ok"] == 1
     assert snap.drive.fault is None and snap.alarm_code == 0 and snap.cmd_alm == 0
+
+
+@pytest.mark.parametrize("card", ["si-t3", "si-t-v7", "si-et3"])
+def test_config_to_eeprom_busy_until_durable_then_completed_once(card: str) -> None:
+    """SI-T3 / SI-T/V7 "STATUS Field" CMDRDY "0 Busy" (SUBCMDRDY for the V7 CONFIG sub-command, §7.2), SI-ET3
+    CMD_STAT.CMDRDY: with an I/O layer persisting the images, CONFIG_MOD 1 is answered busy until its image is
+    durable; commands of that slot meanwhile are not executed; the repetition after durable() completes it without
+    storing again (docs/cards.md, "EEPROM")."""
+    from mlink_sim.wire import M2Status
+
+    m = Master(station(card))
+    m.st.eeprom.enabled = True
+    m.connect()
+    sub = card == "si-t-v7"
+    mod = ml3 if m.ml3 else ml2
+    reg = 0x0113 if card == "si-t-v7" else 0x0200
+
+    def ready(r) -> bool:  # noqa: ANN001
+        if m.ml3:
+            return bool(r.message.stat.cmdrdy)
+        return bool(r.message.substatus & 0x04 if sub else r.message.status & M2Status.CMDRDY)
+
+    def config():  # noqa: ANN202
+        return m.send(mod.Nop(), mod.Config(1)) if sub else m.send(mod.Config(1))
+
+    def write(value: int):  # noqa: ANN202
+        body = mod.PrmWr(reg, 2, _word(value))
+        return m.send(mod.Nop(), body) if sub else m.send(body)
+
+    write(55)
+    assert not ready(config()) and not ready(config())
+    generation = m.st.eeprom.generation
+    write(66)  # busy: not executed
+    value = m.st.store.value("n019" if sub else "C1-01")
+    assert value == 55
+    image = m.st.take_eeprom()
+    assert image is not None and not ready(config())  # taken, not yet durable
+    m.st.eeprom_durable(m.st.eeprom.taken)
+    done = config()
+    assert ready(done) and m.st.eeprom.generation == generation  # completed, not stored again
+    assert m.st.take_eeprom() is None
+    assert not ready(config())  # a new CONFIG afterwards is a new store, busy again
+    assert m.st.eeprom.generation == generation + 1
+
+
+def test_config_to_eeprom_completes_at_once_without_persistence() -> None:
+    """A bare core (no I/O layer, ``eeprom.enabled`` False) has nothing to wait for."""
+    from mlink_sim.wire import M2Status
+
+    m = Master(station("si-t3"))
+    m.connect()
+    assert m.send(ml2.Config(1)).message.status & M2Status.CMDRDY

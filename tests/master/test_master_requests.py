@@ -266,3 +266,22 @@ def test_duplicate_response_is_dropped(net_of):
     net.run(1)
     net.core.on_response(copies[-1], net.cycle * MS)
     assert net.core.drops[MasterDrop.DUPLICATE] == 1
+
+
+@pytest.mark.parametrize("slave_factory", ["card"], indirect=True)
+@pytest.mark.parametrize(("link", "mod"), [ML2, ML3])
+def test_config_to_eeprom_completes_only_once_the_card_reports_the_image_durable(net_of, link, mod):
+    """The master repeats a CONFIG the card answers CMDRDY = 0 (SI-T3 "STATUS Field" "0 Busy", SI-ET3 CMD_STAT) and
+    completes it only after the I/O layer reported the EEPROM image durable (docs/cards.md, "EEPROM")."""
+    net = up(net_of, link)
+    card = net.slaves[0x21].station
+    card.eeprom.enabled = True
+    req = net.core.request(0x21, mod.Config(1))
+    net.run(20)
+    assert not req.done and req.busy >= 10
+    assert card.take_eeprom() is not None
+    net.run(5)
+    assert not req.done  # taken by the writer, not yet on disk
+    card.eeprom_durable(card.eeprom.taken)
+    finish(net, req, limit=5)
+    assert req.error is None and net.core.state(0x21) is S.PHASE3
