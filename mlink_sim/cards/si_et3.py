@@ -335,7 +335,7 @@ class SiEt3(Station):
                  or bool(self._last_cmd_alm) or bool(self._last_sub_alm))
         leds = {
             "R/E": "on",
-            "CON": "on" if self.phase > 1 else "off",
+            "CON": "on" if self._source is not None else "off",  # off after a connection loss: "not established"
             "LK1": "on" if self._led_recent(self._any_rx) else "off",
             "LK2": "off",
         }

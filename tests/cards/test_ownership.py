@@ -113,6 +113,13 @@ def test_released_station_takes_a_master_only_through_connect(card: str) -> None
     assert m.st.phase == 3 and m.st.snapshot().connected_source == MASTER
 
 
+def test_si_et3_table_4_con_unlit_after_a_connection_loss() -> None:
+    """Table 4 CON "Unlit: Connection with master device is not established" – also while released after bUS."""
+    m = _running_then_lost("si-et3")
+    assert m.st.snapshot().leds["CON"] == "off" and m.st.phase == 2
+    assert m.connect() is not None and m.st.snapshot().leds["CON"] == "on"
+
+
 def test_connect_on_a_released_station_binds_the_new_master() -> None:
     """The rule's other side: CONNECT is how a released station takes a new master (as from phase 1)."""
     m = _running_then_lost("si-t3")
