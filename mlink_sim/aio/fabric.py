@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from .._log import get_logger
-from .state import atomic_write, eeprom_path
+from .state import atomic_write, eeprom_path, remove_stale_temps
 from .vclock import VirtualClock
 
 __all__ = ["Fabric", "FabricPort", "VirtualCycle"]
@@ -95,8 +95,11 @@ class Fabric:
 
     # ------------------------------------------------------------------ stations
     def add_station(self, address: int, factory: Callable[[int, bytes | None], Any]) -> Any:
-        """Power up the station *address* now: ``factory(now, eeprom_image)`` builds its card core."""
+        """Power up the station *address* now: ``factory(now, eeprom_image)`` builds its card core. Temporary files
+        an interrupted write of its EEPROM image left are removed (as the slave process does)."""
         node = self.nodes[address] = _Node(address, factory(self.clock.now, None), factory)
+        if self.state_dir is not None:
+            remove_stale_temps(eeprom_path(self.state_dir, node.station.card, node.station.address))
         self._arm(node)
         return node.station
 

@@ -126,3 +126,12 @@ def test_the_cycle_is_on_time_every_period_until_stopped():
     cycle.stop()
     clock.run_until(10**9)
     assert len(calls) == 3 and not cycle.running
+
+
+def test_stale_eeprom_temporaries_are_removed_when_a_station_powers_up(tmp_path):
+    """As the slave process does at start (docs/cards.md, "EEPROM"): an interrupted write's temporary file goes."""
+    stale = tmp_path / ".si-t3-21H.eeprom.json.k1ll3d.tmp"
+    stale.write_bytes(b"partial")
+    fabric = Fabric(VirtualClock(), latency_ns=50 * US, jitter_ns=0, seed=0, state_dir=tmp_path)
+    fabric.add_station(0x21, EchoStation)
+    assert not stale.exists()

@@ -97,7 +97,7 @@ def test_flood_then_foreign_writes_and_a_probe_change_nothing_and_the_master_get
         assert flooder.send(flooder.m.Disconnect()) is not None
         snap = snapshot(ctl)
         assert snap["connected_source"] is None and snap["phase"] == 2 and _params_saved(state) == {}
-        assert run_cli("probe", f"127.0.0.1:{port}", "--station", "0x21", "--timeout", "5").returncode == 0
+        assert run_cli("probe", f"127.0.0.1:{port}", "--station", "0x21", "--timeout", "3").returncode == 0
         assert snapshot(ctl)["connected_source"] is None  # the probe bound nothing
 
         master.cycle += 1000
@@ -131,14 +131,14 @@ def test_probe_never_changes_station_state(card: str, slave, tmp_path: Path) -> 
                                   "led_colors", "station_error", "tcycle_ns")} | {"drive": s["drive"]}
 
     before = view()
-    probe = run_cli("probe", f"127.0.0.1:{port}", "--station", "0x21", "--timeout", "5")
+    probe = run_cli("probe", f"127.0.0.1:{port}", "--station", "0x21", "--timeout", "3")
     assert probe.returncode == 0, probe.stderr
     assert view() == before
     master = UdpMaster(port, card)
     try:
         assert master.connect() is not None and master.send(master.m.Nop()) is not None
         before = view()
-        assert run_cli("probe", f"127.0.0.1:{port}", "--station", "0x21", "--timeout", "5").returncode == 0
+        assert run_cli("probe", f"127.0.0.1:{port}", "--station", "0x21", "--timeout", "3").returncode == 0
         assert view() == before
         answer = master.send(master.m.Nop())
         assert answer is not None and not master.refused(answer)
