@@ -128,7 +128,8 @@ def probe_argv(st: StationConfig, port: int) -> list[str]:
 
 def _healthcheck(st: StationConfig, port: int, timing: HealthTiming) -> dict[str, Any]:
     # A card answers a NOP from another source with its status, also while a master is connected, without
-    # executing anything (docs/cards.md, "Other sources"), so the probe checks the live station throughout the run.
+    # executing anything (docs/cards.md, "Who may change a station"), so the probe checks the live station
+    # throughout the run.
     return {"test": ["CMD", *probe_argv(st, port)], **timing.as_compose()}
 
 

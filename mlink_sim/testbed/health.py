@@ -12,10 +12,10 @@ launcher with that shebang that puts this file's directory first on ``sys.path``
 
 What it sends is the wire contract's NOP command (docs/wire-format.md §1, §4, §5: envelope, all-zero data area
 = main NOP and NOP sub-command, WDT 0, FCS CRC-16/X-25). A card answers a NOP from a source other than its master
-as a status query: ALARM/STATUS as they stand, nothing executed, no watchdog count advanced (docs/cards.md,
-"Other sources"). The envelope and the CRC are written out here rather than imported from ``mlink_sim.wire``
-because importing that package loads construct; tests/testbed/test_health.py checks every datagram this module
-builds and accepts against ``mlink_sim.wire.encode``/``decode``.
+as a status query: ALARM/STATUS as they stand, nothing executed, nothing bound, no watchdog count advanced
+(docs/cards.md, "Who may change a station"). The envelope and the CRC are written out here rather than imported from
+``mlink_sim.wire`` because importing that package loads construct; tests/testbed/test_health.py checks every datagram
+this module builds and accepts against ``mlink_sim.wire.encode``/``decode``.
 
 Exit codes: 0 the station answered, 1 no valid answer within the timeout (or the target cannot be reached),
 2 usage error. One line on stdout (answer) or stderr (failure).

@@ -147,7 +147,8 @@ def test_probe_never_changes_station_state(card: str, slave, tmp_path: Path) -> 
 
 
 @pytest.mark.parametrize("card", CARDS)
-def test_eeprom_write_acknowledged_only_once_durable_survives_kill_9(card: str, slave, tmp_path: Path) -> None:  # noqa: ANN001
+def test_eeprom_write_acknowledged_only_once_durable_survives_kill_9(
+        card: str, slave, tmp_path: Path) -> None:  # noqa: ANN001
     """Item 3: CONFIG to EEPROM answers CMDRDY = 0 until the image is written, fsync'd and renamed; kill -9 right
     after the completed answer, restart: the value is there. Stale temporary files are gone after a start."""
     state = tmp_path / "state"
