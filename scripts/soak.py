@@ -9,7 +9,7 @@ could avoid). Then each run's report gives its stalls, missed cycles and failed 
 
     .venv/bin/python scripts/soak.py                      # 100 runs of configs/quickstart.toml
     .venv/bin/python scripts/soak.py --runs 20 --hog      # with a CPU hog pinned to the last CPU
-    .venv/bin/python scripts/soak.py --json soak.json -- --host-stalls strict
+    .venv/bin/python scripts/soak.py configs/quickstart.toml --json soak.json -- --host-stalls strict
 
 Exit 0 when at least ``--target`` percent of the runs passed, 1 otherwise, 2 on bad arguments.
 Everything it starts (runs, the hog) stops by itself: each run has a timeout and the hog a time limit.
@@ -112,8 +112,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--timeout", type=float, default=60.0, help="seconds one run may take")
     ap.add_argument("--target", type=float, default=99.0, help="percent of runs that must pass")
     ap.add_argument("--json", help="write the rows and the summary here")
-    ap.add_argument("extra", nargs="*", help="after --: more arguments for mlink-sim up")
+    ap.add_argument("extra", nargs="*", help="after CONFIG and --: more arguments for mlink-sim up")
     args = ap.parse_args(argv)
+    if args.config.startswith("-"):
+        ap.error("name the CONFIG before '--' (e.g. configs/quickstart.toml -- --no-realtime)")
     if args.runs < 1 or args.timeout <= 0:
         ap.error("--runs must be at least 1 and --timeout positive")
     hog = None

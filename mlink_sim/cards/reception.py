@@ -73,10 +73,6 @@ class ReceptionMonitor:
         self.consecutive = 0
         self._deadline = now + self.comm_cycle_ns + self.tolerance_ns
 
-    def rebase(self, cycle: int, now: int) -> None:
-        """Take *cycle* as the new reference without a verdict (a new master after a connection loss)."""
-        self._good(cycle, now)
-
     def on_command(self, cycle: int, now: int) -> tuple[int, int, int] | None:
         """A valid command with envelope *cycle*: ``(new failures, consecutive failures before them,
         communication cycles elapsed)``, or None for a duplicate (the same cycle number again).
