@@ -1,0 +1,254 @@
+"""Write datagrams to a pcapng file off the hot path (``--capture FILE.pcapng``).
+
+The hot path only appends ``(ts_ns, datagram, src, dst)`` to a deque (:meth:`CaptureWriter.record`, about
+0.2 µs); a writer thread wakes every ``flush_s`` (100 ms), wraps each datagram in an IPv4 (or IPv6) and UDP header
+and hands the batch to dpkt's pcapng ``Writer`` (Enhanced Packet Blocks, LINKTYPE_RAW, microsecond timestamps).
+The thread writes in chunks of :data:`_CHUNK` packets: each file write releases the GIL, so the event loop never
+waits behind the writer for longer than one chunk (~0.2 ms).
+
+Notes (:meth:`CaptureWriter.note`: alarms, phase changes, injected faults) travel in the same deque, so they keep
+their order with the datagrams; each becomes a pcapng ``opt_comment`` on the datagram recorded just before it
+(the one whose processing raised the event), or on the first datagram when none came before.
+
+Timestamps are whatever clock the caller keeps, in ns: the real monotonic clock in ``up``/``master``/``slave``,
+a simulated clock in a virtual-time driver. ``epoch_offset_ns`` turns them into Unix time for the file (by default
+the offset between ``time.time_ns()`` and ``time.monotonic_ns()`` when the writer is created).
+
+The file is bounded: once it holds ``max_bytes``, the last datagram written carries a comment saying so and the
+rest of the run is counted in :attr:`CaptureStats.not_recorded`, never written.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import socket
+import threading
+import time
+from collections import deque
+from pathlib import Path
+from typing import Any, BinaryIO
+
+import dpkt
+import structlog
+from dpkt import pcapng
+
+__all__ = ["CaptureWriter", "CaptureStats", "LINKTYPE_RAW", "ip_packet", "event_text"]
+
+log = structlog.get_logger("mlink_sim.capture")
+
+LINKTYPE_RAW = 101  #: pcapng link type "raw IP" (IPv4 or IPv6 by the version nibble), tcpdump.org/linktypes
+_CHUNK = 128  # packets per file write
+_SNAPLEN = 65535
+
+
+@dataclasses.dataclass
+class CaptureStats:
+    """What a capture holds so far."""
+
+    path: str
+    datagrams: int = 0
+    notes: int = 0
+    bytes: int = 0
+    not_recorded: int = 0  #: datagrams after the size bound was reached
+    max_bytes: int = 0
+
+    def summary(self) -> str:
+        text = f"capture {self.path}: {self.datagrams} datagrams, {self.notes} notes, {self.bytes} bytes"
+        if self.not_recorded:
+            text += f"; {self.not_recorded} datagrams not recorded (--capture-max {self.max_bytes} bytes reached)"
+        return text
+
+
+def _addr(a: Any) -> tuple[str, int]:
+    return str(a[0]), int(a[1])
+
+
+def ip_packet(payload: bytes, src: Any, dst: Any) -> bytes:
+    """*payload* in a UDP datagram from *src* to *dst* ``(host, port)``, in an IPv4 header (IPv6 for ``:``
+    addresses), built with dpkt. The UDP checksum is left 0 ("not computed", RFC 768) on IPv4."""
+    (shost, sport), (dhost, dport) = _addr(src), _addr(dst)
+    udp = dpkt.udp.UDP(sport=sport, dport=dport, data=payload)
+    udp.ulen = len(udp)
+    if ":" in shost or ":" in dhost:
+        ip6 = dpkt.ip6.IP6(src=socket.inet_pton(socket.AF_INET6, _v6(shost)),
+                           dst=socket.inet_pton(socket.AF_INET6, _v6(dhost)), nxt=17, hlim=64, data=udp)
+        ip6.plen = len(udp)
+        return bytes(ip6)
+    udp.sum = 0xFFFF  # a non-zero value keeps dpkt from summing; reset to 0 below
+    ip = dpkt.ip.IP(src=socket.inet_aton(shost), dst=socket.inet_aton(dhost), p=17, ttl=64, df=1, data=udp)
+    raw = bytearray(bytes(ip))
+    raw[26:28] = b"\0\0"
+    return bytes(raw)
+
+
+def _v6(host: str) -> str:
+    if ":" not in host:  # an IPv4 peer of an IPv6 socket
+        return "::ffff:" + host
+    return host.split("%", 1)[0]
+
+
+def event_text(event: Any) -> str:
+    """One line for a note: a string as it is, a dataclass event as ``Name station 21H: field=value …``."""
+    if isinstance(event, str):
+        return event
+    if dataclasses.is_dataclass(event):
+        fields = {f.name: getattr(event, f.name) for f in dataclasses.fields(event)}
+        station = fields.pop("station", None)
+        parts = [f"{k}={getattr(v, 'value', v)}" for k, v in fields.items()]
+        where = f" station {station:02X}H" if isinstance(station, int) else ""
+        return f"{type(event).__name__}{where}: {' '.join(parts)}"
+    return str(event)
+
+
+class CaptureWriter:
+    """A pcapng file being written by a background thread. ``start()``, then :meth:`record`/:meth:`note` from
+    the hot path, ``close()`` at the end (flushes everything recorded before it)."""
+
+    def __init__(self, path: str | Path, *, max_bytes: int = 100_000_000, epoch_offset_ns: int | None = None,
+                 flush_s: float = 0.1) -> None:
+        self.path = Path(path)
+        self.max_bytes = max_bytes
+        self.epoch_offset_ns = (time.time_ns() - time.monotonic_ns()) if epoch_offset_ns is None else epoch_offset_ns
+        self.flush_s = flush_s
+        self.stats = CaptureStats(str(self.path), max_bytes=max_bytes)
+        self._queue: deque[tuple[int, Any, Any, Any]] = deque()
+        append = self._queue.append
+
+        def record(ts_ns: int, data: bytes, src: Any, dst: Any) -> None:
+            append((ts_ns, data, src, dst))
+
+        #: the hot-path hook: ``record(ts_ns, datagram, (src_host, src_port), (dst_host, dst_port))``
+        self.record = record
+        self._file: BinaryIO | None = None
+        self._writer: Any = None
+        self._thread: threading.Thread | None = None
+        self._wake = threading.Event()
+        self._closing = False
+        self._headers: dict[tuple[Any, Any, int], bytes] = {}
+        self._last: list[Any] | None = None  # [ts_s, packet, comments]: written once the next one is known
+        self._orphans: list[str] = []  # notes before the first datagram
+        self._full = False
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self) -> CaptureWriter:
+        """Open the file (OSError when it cannot be created) and start the writer thread."""
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+        shb = pcapng.SectionHeaderBlockLE(opts=[
+            pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_SHB_USERAPPL, data=b"mlink-sim"),
+            pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_ENDOFOPT)])
+        self._writer = pcapng.Writer(self._file, snaplen=_SNAPLEN, linktype=LINKTYPE_RAW, shb=shb)
+        self.stats.bytes = self._file.tell()
+        self._thread = threading.Thread(target=self._run, name="mlink-capture", daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> CaptureStats:
+        """Write what is queued, end the thread, close the file; returns the final :class:`CaptureStats`."""
+        if self._thread is not None:
+            self._closing = True
+            self._wake.set()
+            self._thread.join()
+            self._thread = None
+        if self._file is not None:
+            self._drain()
+            if self._last is not None:
+                self._emit([self._last])
+                self._last = None
+            if self._orphans:
+                log.warning("capture_notes_unwritten", notes=len(self._orphans), reason="no datagram to attach to")
+            self._file.close()
+            self._file = None
+        return self.stats
+
+    def __enter__(self) -> CaptureWriter:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ producers
+    def note(self, ts_ns: int, event: Any) -> None:
+        """A comment (a string, or an event dataclass formatted in the writer thread) on the last datagram."""
+        self._queue.append((ts_ns, event, None, None))
+
+    def wrap(self, sock: socket.socket) -> Any:
+        """*sock* as a :class:`~mlink_sim.capture.tap.TappedSocket` recording into this capture."""
+        from .tap import TappedSocket
+
+        return TappedSocket(sock, self.record)
+
+    # ------------------------------------------------------------------ writer thread
+    def _run(self) -> None:
+        while not self._closing:
+            self._wake.wait(self.flush_s)
+            try:
+                self._drain()
+            except Exception as exc:  # disk full, file gone: stop recording, say so once, keep the run going
+                log.error("capture_write_failed", path=str(self.path), error=f"{type(exc).__name__}: {exc}")
+                self._full = True
+
+    def _drain(self) -> None:
+        queue = self._queue
+        offset = self.epoch_offset_ns
+        ready: list[list[Any]] = []
+        while queue:
+            ts_ns, data, src, dst = queue.popleft()
+            if src is None:  # a note
+                text = event_text(data)
+                self.stats.notes += 1
+                if self._last is None:
+                    self._orphans.append(text)
+                else:
+                    self._last[2].append(text)
+                continue
+            if self._full:
+                self.stats.not_recorded += 1
+                continue
+            key = (src, dst, len(data))
+            header = self._headers.get(key)
+            if header is None:
+                header = self._headers[key] = ip_packet(bytes(len(data)), src, dst)[: -len(data)]
+            if self._last is not None:
+                ready.append(self._last)
+            self._last = [(ts_ns + offset) / 1e9, header + data, self._orphans]
+            if self._orphans:
+                self._orphans = []
+            if len(ready) >= _CHUNK:
+                self._emit(ready)
+                ready = []
+        if ready:
+            self._emit(ready)
+
+    def _emit(self, items: list[list[Any]]) -> None:
+        assert self._file is not None
+        writer = self._writer
+        plain: list[tuple[float, bytes]] = []
+        for i, (ts, packet, comments) in enumerate(items):
+            if not self._full and self.stats.bytes >= self.max_bytes:
+                self._full = True
+                self.stats.not_recorded += len(items) - i - 1
+                comments = [*comments, f"capture limit of {self.max_bytes} bytes reached: later datagrams are "
+                                       "not recorded"]
+                log.warning("capture_limit_reached", path=str(self.path), max_bytes=self.max_bytes)
+            elif self._full:
+                self.stats.not_recorded += len(items) - i
+                break
+            if comments:
+                if plain:
+                    writer.writepkts(plain)
+                    plain = []
+                opts = [pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_COMMENT, text=c) for c in comments]
+                opts.append(pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_ENDOFOPT))
+                writer.writepkt(pcapng.EnhancedPacketBlockLE(pkt_data=packet, caplen=len(packet),
+                                                             pkt_len=len(packet), opts=opts), ts=ts)
+            else:
+                plain.append((ts, packet))
+            self.stats.datagrams += 1
+            self.stats.bytes += 32 + ((len(packet) + 3) & ~3)  # EPB size without options (pcapng §4.3)
+            if self._full:
+                break
+        if plain:
+            writer.writepkts(plain)
+        self._file.flush()
+        self.stats.bytes = self._file.tell()
