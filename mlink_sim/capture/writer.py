@@ -199,6 +199,8 @@ class CaptureWriter:
                 self.stats.notes += 1
                 if self._last is None:
                     self._orphans.append(text)
+                elif self._last[2] is None:
+                    self._last[2] = [text]
                 else:
                     self._last[2].append(text)
                 continue
@@ -211,7 +213,7 @@ class CaptureWriter:
                 header = self._headers[key] = ip_packet(bytes(len(data)), src, dst)[: -len(data)]
             if self._last is not None:
                 ready.append(self._last)
-            self._last = [(ts_ns + offset) / 1e9, header + data, self._orphans]
+            self._last = [(ts_ns + offset) / 1e9, header + data, self._orphans or None]
             if self._orphans:
                 self._orphans = []
             if len(ready) >= _CHUNK:
@@ -228,7 +230,7 @@ class CaptureWriter:
             if not self._full and self.stats.bytes >= self.max_bytes:
                 self._full = True
                 self.stats.not_recorded += len(items) - i - 1
-                comments = [*comments, f"capture limit of {self.max_bytes} bytes reached: later datagrams are "
+                comments = [*(comments or ()), f"capture limit of {self.max_bytes} bytes reached: later datagrams are "
                                        "not recorded"]
                 log.warning("capture_limit_reached", path=str(self.path), max_bytes=self.max_bytes)
             elif self._full:
