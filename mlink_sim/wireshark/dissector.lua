@@ -41,6 +41,8 @@ field("cmd_stat", ProtoField.uint16("mlink.cmd_stat", "CMD_STAT", base.HEX))
 field("sub_ctrl", ProtoField.uint16("mlink.sub_ctrl", "SUB_CTRL", base.HEX))
 field("sub_stat", ProtoField.uint16("mlink.sub_stat", "SUB_STAT", base.HEX))
 field("raw", ProtoField.bytes("mlink.raw", "Body (no layout for this code)"))
+field("main", ProtoField.none("mlink.main", "Main"))
+field("sub", ProtoField.none("mlink.sub", "Sub"))
 field("fcs", ProtoField.uint16("mlink.fcs", "FCS", base.HEX))
 field("fcs_computed", ProtoField.uint16("mlink.fcs.computed", "FCS computed", base.HEX))
 field("fcs_status", ProtoField.uint8("mlink.fcs.status", "FCS status", base.DEC, fcs_status_names))
@@ -87,15 +89,14 @@ for name, spec in pairs(T.body_fields) do
   local f
   if wtype == "bytes" then
     f = ProtoField.bytes(abbr, name)
-  elseif wtype == "int32" then
-    f = ProtoField.int32(abbr, name, base.DEC)
-  else
-    f = ProtoField.uint32(abbr, name, b == "hex" and base.HEX or base.DEC)
+  else  -- uint8 ... int32, as wide as the widest layout using the name
+    f = ProtoField[wtype](abbr, name, b == "hex" and base.HEX or base.DEC)
   end
   BODY[name] = field("body." .. name, f)
 end
+local WIDTH = { uint8 = 8, uint16 = 16, uint32 = 32 }
 for name, bits in pairs(T.body_bits) do
-  BODY_BITS[name] = bit_fields("mlink." .. name, bits, 32)
+  BODY_BITS[name] = bit_fields("mlink." .. name, bits, WIDTH[T.body_fields[name][1]])
 end
 
 mlink.fields = fields
@@ -147,7 +148,8 @@ end
 local function dissect_body(tree, range, gen, slot, code, label)
   local layout = T.bodies[gen][slot][code]
   local names = T.gen_commands[gen]
-  local sub = tree:add(mlink, range, string.format("%s: %s (%02XH)", label, names[code] or "unknown", code))
+  local sub = tree:add(F[string.lower(label)], range)
+  sub:set_text(string.format("%s: %s (%02XH)", label, names[code] or "unknown", code))
   if layout == nil then
     sub:add(F.raw, range)
     sub:add_proto_expert_info(ef_unknown, string.format("%s code %02XH has no layout", label, code))

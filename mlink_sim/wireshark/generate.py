@@ -106,20 +106,24 @@ def _crc_table() -> list[int]:
 
 
 def _body_fields(gens: dict[str, dict[str, Any]]) -> dict[str, tuple[str, str]]:
-    """Every body field name -> (Wireshark type, base): uint32/int32/bytes."""
+    """Every body field name -> (Wireshark field type, base): ``bytes``, or ``uintN``/``intN`` wide enough for
+    every layout that uses the name."""
     kinds: dict[str, set[str]] = {}
+    widths: dict[str, int] = {}
     for slots in gens.values():
         for slot in slots.values():
             for fields in slot.values():
-                for name, _, _, kind in fields:
+                for name, _, size, kind in fields:
                     kinds.setdefault(name, set()).add(kind)
+                    widths[name] = max(widths.get(name, 0), size)
     out = {}
     for name, ks in sorted(kinds.items()):
         if name in _RESERVED:
             raise ValueError(f"body field {name!r} clashes with an envelope field of the dissector")
         if "bytes" in ks and len(ks) > 1:
             raise ValueError(f"body field {name!r} is bytes in one layout and a number in another")
-        wtype = "bytes" if "bytes" in ks else "int32" if any(k.startswith("s") for k in ks) else "uint32"
+        signed = any(k.startswith("s") for k in ks)
+        wtype = "bytes" if "bytes" in ks else f"{'int' if signed else 'uint'}{8 * widths[name]}"
         out[name] = (wtype, "hex" if name in _HEX else "dec")
     return out
 

@@ -453,49 +453,49 @@ local T = {
     },
   },
   body_fields = {
-    alm_clr_mod = {"uint32", "dec"},
+    alm_clr_mod = {"uint16", "dec"},
     alm_data = {"bytes", "dec"},
-    alm_index = {"uint32", "dec"},
-    alm_rd_mod = {"uint32", "dec"},
-    com_mod = {"uint32", "hex"},
-    com_tim = {"uint32", "dec"},
-    config_mod = {"uint32", "dec"},
+    alm_index = {"uint16", "dec"},
+    alm_rd_mod = {"uint16", "dec"},
+    com_mod = {"uint8", "hex"},
+    com_tim = {"uint8", "dec"},
+    config_mod = {"uint8", "dec"},
     data = {"bytes", "dec"},
-    device_code = {"uint32", "hex"},
+    device_code = {"uint8", "hex"},
     id = {"bytes", "dec"},
-    id_code = {"uint32", "dec"},
+    id_code = {"uint8", "dec"},
     invcmd_ctrl = {"uint32", "hex"},
     invcmd_io = {"uint32", "hex"},
     invcmd_stat = {"uint32", "hex"},
-    mon1 = {"uint32", "dec"},
-    mon2 = {"uint32", "dec"},
-    mon3 = {"uint32", "dec"},
-    mon4 = {"uint32", "dec"},
-    mon5 = {"uint32", "dec"},
-    mon6 = {"uint32", "dec"},
-    no = {"uint32", "hex"},
-    offset = {"uint32", "dec"},
-    output_current = {"uint32", "dec"},
-    output_freq = {"uint32", "dec"},
+    mon1 = {"uint16", "dec"},
+    mon2 = {"uint16", "dec"},
+    mon3 = {"uint16", "dec"},
+    mon4 = {"uint16", "dec"},
+    mon5 = {"uint16", "dec"},
+    mon6 = {"uint16", "dec"},
+    no = {"uint16", "hex"},
+    offset = {"uint8", "dec"},
+    output_current = {"uint16", "dec"},
+    output_freq = {"uint16", "dec"},
     parameter = {"bytes", "dec"},
-    profile_type = {"uint32", "hex"},
-    ref1 = {"uint32", "dec"},
-    ref2 = {"uint32", "dec"},
-    ref3 = {"uint32", "dec"},
-    ref4 = {"uint32", "dec"},
-    ref5 = {"uint32", "dec"},
-    ref6 = {"uint32", "dec"},
-    sel_mon = {"uint32", "hex"},
-    sel_mon34 = {"uint32", "hex"},
-    sel_mon56 = {"uint32", "hex"},
-    sel_ref = {"uint32", "hex"},
-    sel_ref34 = {"uint32", "hex"},
-    sel_ref56 = {"uint32", "hex"},
-    signals = {"uint32", "hex"},
-    size = {"uint32", "dec"},
-    speed_ref = {"uint32", "dec"},
-    torque_ref = {"int32", "dec"},
-    ver = {"uint32", "hex"},
+    profile_type = {"uint8", "hex"},
+    ref1 = {"uint16", "dec"},
+    ref2 = {"uint16", "dec"},
+    ref3 = {"uint16", "dec"},
+    ref4 = {"uint16", "dec"},
+    ref5 = {"uint16", "dec"},
+    ref6 = {"uint16", "dec"},
+    sel_mon = {"uint8", "hex"},
+    sel_mon34 = {"uint8", "hex"},
+    sel_mon56 = {"uint8", "hex"},
+    sel_ref = {"uint8", "hex"},
+    sel_ref34 = {"uint8", "hex"},
+    sel_ref56 = {"uint8", "hex"},
+    signals = {"uint16", "hex"},
+    size = {"uint16", "dec"},
+    speed_ref = {"uint16", "dec"},
+    torque_ref = {"int16", "dec"},
+    ver = {"uint8", "hex"},
   },
   body_bits = {
     signals = {
@@ -793,6 +793,8 @@ field("cmd_stat", ProtoField.uint16("mlink.cmd_stat", "CMD_STAT", base.HEX))
 field("sub_ctrl", ProtoField.uint16("mlink.sub_ctrl", "SUB_CTRL", base.HEX))
 field("sub_stat", ProtoField.uint16("mlink.sub_stat", "SUB_STAT", base.HEX))
 field("raw", ProtoField.bytes("mlink.raw", "Body (no layout for this code)"))
+field("main", ProtoField.none("mlink.main", "Main"))
+field("sub", ProtoField.none("mlink.sub", "Sub"))
 field("fcs", ProtoField.uint16("mlink.fcs", "FCS", base.HEX))
 field("fcs_computed", ProtoField.uint16("mlink.fcs.computed", "FCS computed", base.HEX))
 field("fcs_status", ProtoField.uint8("mlink.fcs.status", "FCS status", base.DEC, fcs_status_names))
@@ -839,15 +841,14 @@ for name, spec in pairs(T.body_fields) do
   local f
   if wtype == "bytes" then
     f = ProtoField.bytes(abbr, name)
-  elseif wtype == "int32" then
-    f = ProtoField.int32(abbr, name, base.DEC)
-  else
-    f = ProtoField.uint32(abbr, name, b == "hex" and base.HEX or base.DEC)
+  else  -- uint8 ... int32, as wide as the widest layout using the name
+    f = ProtoField[wtype](abbr, name, b == "hex" and base.HEX or base.DEC)
   end
   BODY[name] = field("body." .. name, f)
 end
+local WIDTH = { uint8 = 8, uint16 = 16, uint32 = 32 }
 for name, bits in pairs(T.body_bits) do
-  BODY_BITS[name] = bit_fields("mlink." .. name, bits, 32)
+  BODY_BITS[name] = bit_fields("mlink." .. name, bits, WIDTH[T.body_fields[name][1]])
 end
 
 mlink.fields = fields
@@ -899,7 +900,8 @@ end
 local function dissect_body(tree, range, gen, slot, code, label)
   local layout = T.bodies[gen][slot][code]
   local names = T.gen_commands[gen]
-  local sub = tree:add(mlink, range, string.format("%s: %s (%02XH)", label, names[code] or "unknown", code))
+  local sub = tree:add(F[string.lower(label)], range)
+  sub:set_text(string.format("%s: %s (%02XH)", label, names[code] or "unknown", code))
   if layout == nil then
     sub:add(F.raw, range)
     sub:add_proto_expert_info(ef_unknown, string.format("%s code %02XH has no layout", label, code))
