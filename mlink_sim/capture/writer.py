@@ -222,20 +222,30 @@ class CaptureWriter:
         if ready:
             self._emit(ready)
 
+    def _limit_text(self) -> str:
+        return f"capture limit of {self.max_bytes} bytes reached: later datagrams are not recorded"
+
     def _emit(self, items: list[list[Any]]) -> None:
+        """Write *items* ``[ts_s, packet, comments or None]``; the last one that fits under ``max_bytes`` (with the
+        limit comment) ends the file."""
         assert self._file is not None
         writer = self._writer
         plain: list[tuple[float, bytes]] = []
+        size = self.stats.bytes
         for i, (ts, packet, comments) in enumerate(items):
-            if not self._full and self.stats.bytes >= self.max_bytes:
-                self._full = True
-                self.stats.not_recorded += len(items) - i - 1
-                comments = [*(comments or ()), f"capture limit of {self.max_bytes} bytes reached: later datagrams are "
-                                       "not recorded"]
-                log.warning("capture_limit_reached", path=str(self.path), max_bytes=self.max_bytes)
-            elif self._full:
+            if self._full:
                 self.stats.not_recorded += len(items) - i
                 break
+            block = _epb_size(packet, comments)
+            # the last one that fits: another datagram of this size would not fit after it with the limit comment
+            if size + 2 * block + _epb_size(b"", [self._limit_text()]) - 32 > self.max_bytes:
+                self._full = True
+                comments = [*(comments or ()), self._limit_text()]
+                log.warning("capture_limit_reached", path=str(self.path), max_bytes=self.max_bytes)
+                block = _epb_size(packet, comments)
+                if size + block > self.max_bytes:  # not even this one fits with its comments
+                    self.stats.not_recorded += len(items) - i
+                    break
             if comments:
                 if plain:
                     writer.writepkts(plain)
@@ -247,10 +257,21 @@ class CaptureWriter:
             else:
                 plain.append((ts, packet))
             self.stats.datagrams += 1
-            self.stats.bytes += 32 + ((len(packet) + 3) & ~3)  # EPB size without options (pcapng §4.3)
-            if self._full:
-                break
+            size += block
         if plain:
             writer.writepkts(plain)
         self._file.flush()
         self.stats.bytes = self._file.tell()
+
+
+def _pad4(n: int) -> int:
+    return (n + 3) & ~3
+
+
+def _epb_size(packet: bytes, comments: list[str] | None) -> int:
+    """Bytes of the Enhanced Packet Block dpkt writes for *packet* (pcapng §4.3: 32 + data padded to 4, then the
+    options: each 4 + value padded, and an end-of-options)."""
+    size = 32 + _pad4(len(packet))
+    if comments:
+        size += sum(4 + _pad4(len(c.encode())) for c in comments) + 4
+    return size

@@ -164,3 +164,6 @@ def test_quickstart_capture_through_tshark_equals_decode(tshark: str, tmp_path: 
         check_envelope(layer, dg.data)
     assert {dg.data[3] for dg in datagrams} == {0x21, 0x22, 0x23}
     assert {dg.data[2] for dg in datagrams} == {1, 2}
+    comments = [c for dg in datagrams for c in dg.comments]
+    for station in ("21H", "22H", "23H"):  # the master's events: bring-up as packet comments
+        assert f"StateChanged station {station}: old=syncing new=phase3" in comments
