@@ -8,8 +8,9 @@ it when ``--capture`` is given; otherwise nothing changes on their hot path.
 A driver that keeps its own time (a virtual clock) calls ``record`` itself with its simulated timestamps and the
 addresses the datagram would carry; the capture does not care where the time comes from.
 
-A socket bound to a wildcard address (``0.0.0.0``, ``::``) has no address of its own: the tap records the address
-the kernel would send from to reach each peer (a route lookup with a connected UDP socket, once per peer).
+A socket bound to a wildcard address (``0.0.0.0``, ``::``) has no address of its own: the writer records the
+address the kernel would send from to reach each peer (a route lookup with a connected UDP socket, once per flow,
+in the writer thread).
 """
 
 from __future__ import annotations
@@ -19,12 +20,15 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["TappedSocket", "Record", "source_address_for"]
+__all__ = ["TappedSocket", "Record", "Sink", "source_address_for", "WILDCARDS"]
 
 #: ``record(ts_ns, datagram, (src_host, src_port), (dst_host, dst_port))``
 Record = Callable[[int, bytes, Any, Any], None]
+#: what a :class:`TappedSocket` feeds: one ``(ts_ns, datagram, src, dst)`` tuple per datagram (``deque.append``)
+Sink = Callable[[tuple[int, bytes, Any, Any]], None]
 
-_WILDCARDS = ("0.0.0.0", "::", "")
+WILDCARDS = ("0.0.0.0", "::", "")
+_mono = time.monotonic_ns
 
 
 def source_address_for(peer: Any, port: int) -> tuple[str, int]:
@@ -41,40 +45,33 @@ def source_address_for(peer: Any, port: int) -> tuple[str, int]:
 
 
 class TappedSocket:
-    """A socket that records every datagram it sends or receives (see the module docstring)."""
+    """A socket that records every datagram it sends or receives (see the module docstring). *sink* gets one
+    ``(ts_ns, datagram, src, dst)`` tuple per datagram; the socket's own address is recorded as bound (a wildcard
+    host is resolved later, off the hot path, by the writer)."""
 
-    __slots__ = ("_sock", "_record", "_local", "_port", "_locals", "fileno", "getsockname", "close", "setsockopt")
+    __slots__ = ("_sendto", "_recvfrom", "_sink", "_local", "fileno", "getsockname", "close", "setsockopt")
 
-    def __init__(self, sock: socket.socket, record: Record) -> None:
-        self._sock = sock
-        self._record = record
+    def __init__(self, sock: socket.socket, sink: Sink) -> None:
+        self._sendto = sock.sendto
+        self._recvfrom = sock.recvfrom
+        self._sink = sink
         self.fileno = sock.fileno
         self.getsockname = sock.getsockname
         self.close = sock.close
         self.setsockopt = sock.setsockopt
-        host, port = sock.getsockname()[:2]
-        self._port = port
-        self._local: tuple[str, int] | None = None if host in _WILDCARDS else (host, port)
-        self._locals: dict[Any, tuple[str, int]] = {}
-
-    def _local_for(self, peer: Any) -> tuple[str, int]:
-        local = self._local
-        if local is not None:
-            return local
-        local = self._locals.get(peer)
-        if local is None:
-            local = self._locals[peer] = source_address_for(peer, self._port)
-        return local
+        self._local = sock.getsockname()[:2]
 
     def sendto(self, data: bytes, addr: Any) -> int:
-        n = self._sock.sendto(data, addr)  # raises OSError when not sent: then nothing is recorded
-        self._record(time.monotonic_ns(), data, self._local_for(addr), addr)
+        n = self._sendto(data, addr)  # raises OSError when not sent: then nothing is recorded
+        self._sink((_mono(), data, self._local, addr))
         return n
 
     def recvfrom(self, bufsize: int) -> tuple[bytes, Any]:
-        data, addr = self._sock.recvfrom(bufsize)
-        self._record(time.monotonic_ns(), data, addr, self._local_for(addr))
+        data, addr = self._recvfrom(bufsize)
+        self._sink((_mono(), data, addr, self._local))
         return data, addr
 
     def recv(self, bufsize: int) -> bytes:
-        return self.recvfrom(bufsize)[0]
+        data, addr = self._recvfrom(bufsize)
+        self._sink((_mono(), data, addr, self._local))
+        return data

@@ -37,8 +37,9 @@ __all__ = ["CaptureWriter", "CaptureStats", "LINKTYPE_RAW", "ip_packet", "event_
 log = structlog.get_logger("mlink_sim.capture")
 
 LINKTYPE_RAW = 101  #: pcapng link type "raw IP" (IPv4 or IPv6 by the version nibble), tcpdump.org/linktypes
-_CHUNK = 128  # packets per file write
+_CHUNK = 256  # datagrams turned into packets between two file writes
 _SNAPLEN = 65535
+_MAX_BLOCK = 32 + 40 + 8 + 80  # the largest EPB of a datagram (78 bytes, padded) over IPv6 and UDP
 
 
 @dataclasses.dataclass
@@ -117,7 +118,9 @@ class CaptureWriter:
         def record(ts_ns: int, data: bytes, src: Any, dst: Any) -> None:
             append((ts_ns, data, src, dst))
 
-        #: the hot-path hook: ``record(ts_ns, datagram, (src_host, src_port), (dst_host, dst_port))``
+        #: the hook for drivers with their own clock (a virtual clock):
+        #: ``record(ts_ns, datagram, (src_host, src_port), (dst_host, dst_port))``. A wildcard host (0.0.0.0, ::)
+        #: is replaced by the address the kernel would send from. Sockets use :meth:`wrap` (one call less).
         self.record = record
         self._file: BinaryIO | None = None
         self._writer: Any = None
@@ -125,9 +128,11 @@ class CaptureWriter:
         self._wake = threading.Event()
         self._closing = False
         self._headers: dict[tuple[Any, Any, int], bytes] = {}
-        self._last: list[Any] | None = None  # [ts_s, packet, comments]: written once the next one is known
-        self._orphans: list[str] = []  # notes before the first datagram
+        #: datagrams read from the queue, not written yet: the last one waits for the notes that may follow it
+        self._pending: list[tuple[float, bytes]] = []
+        self._notes: dict[int, list[str]] = {}  #: index in _pending -> its comments
         self._full = False
+        self._limit_reserve = _epb_size(b"", [self._limit_text()]) - 32
 
     # ------------------------------------------------------------------ life cycle
     def start(self) -> CaptureWriter:
@@ -151,12 +156,10 @@ class CaptureWriter:
             self._thread.join()
             self._thread = None
         if self._file is not None:
-            self._drain()
-            if self._last is not None:
-                self._emit([self._last])
-                self._last = None
-            if self._orphans:
-                log.warning("capture_notes_unwritten", notes=len(self._orphans), reason="no datagram to attach to")
+            self._drain(final=True)
+            if self._notes:
+                log.warning("capture_notes_unwritten", notes=sum(map(len, self._notes.values())),
+                            reason="no datagram to attach to")
             self._file.close()
             self._file = None
         return self.stats
@@ -176,7 +179,7 @@ class CaptureWriter:
         """*sock* as a :class:`~mlink_sim.capture.tap.TappedSocket` recording into this capture."""
         from .tap import TappedSocket
 
-        return TappedSocket(sock, self.record)
+        return TappedSocket(sock, self._queue.append)
 
     # ------------------------------------------------------------------ writer thread
     def _run(self) -> None:
@@ -188,80 +191,106 @@ class CaptureWriter:
                 log.error("capture_write_failed", path=str(self.path), error=f"{type(exc).__name__}: {exc}")
                 self._full = True
 
-    def _drain(self) -> None:
+    def _drain(self, final: bool = False) -> None:
+        """Turn what is queued into packets and write them, :data:`_CHUNK` at a time (each write releases the
+        GIL). The last packet stays pending (unless *final*): a note that comes next is its comment."""
         queue = self._queue
+        popleft = queue.popleft
+        headers = self._headers
         offset = self.epoch_offset_ns
-        ready: list[list[Any]] = []
+        pending = self._pending
+        append = pending.append
         while queue:
-            ts_ns, data, src, dst = queue.popleft()
-            if src is None:  # a note
-                text = event_text(data)
-                self.stats.notes += 1
-                if self._last is None:
-                    self._orphans.append(text)
-                elif self._last[2] is None:
-                    self._last[2] = [text]
-                else:
-                    self._last[2].append(text)
-                continue
-            if self._full:
-                self.stats.not_recorded += 1
-                continue
-            key = (src, dst, len(data))
-            header = self._headers.get(key)
-            if header is None:
-                header = self._headers[key] = ip_packet(bytes(len(data)), src, dst)[: -len(data)]
-            if self._last is not None:
-                ready.append(self._last)
-            self._last = [(ts_ns + offset) / 1e9, header + data, self._orphans or None]
-            if self._orphans:
-                self._orphans = []
-            if len(ready) >= _CHUNK:
-                self._emit(ready)
-                ready = []
-        if ready:
-            self._emit(ready)
+            for _ in range(min(len(queue), _CHUNK)):
+                ts_ns, data, src, dst = popleft()
+                if type(data) is not bytes:  # a note (a str or an event), or a memoryview/bytearray datagram
+                    if src is None:
+                        self.stats.notes += 1
+                        self._notes.setdefault(max(len(pending) - 1, 0), []).append(event_text(data))
+                        continue
+                    data = bytes(data)
+                key = (src, dst, len(data))
+                header = headers.get(key)
+                if header is None:
+                    header = headers[key] = self._header(src, dst, len(data))
+                append(((ts_ns + offset) * 1e-9, header + data))
+            if len(pending) > 1:
+                self._write(len(pending) - 1)
+        if final and pending:
+            self._write(len(pending))
+
+    def _header(self, src: Any, dst: Any, size: int) -> bytes:
+        """IP + UDP header for a *size*-byte datagram; a wildcard source (a socket bound to 0.0.0.0 or ::) is
+        replaced by the address the kernel sends from to reach *dst*."""
+        from .tap import WILDCARDS, source_address_for
+
+        if src[0] in WILDCARDS:
+            src = source_address_for(dst, src[1])
+        elif dst[0] in WILDCARDS:
+            dst = source_address_for(src, dst[1])
+        return ip_packet(bytes(size), src, dst)[:-size] if size else ip_packet(b"", src, dst)
 
     def _limit_text(self) -> str:
         return f"capture limit of {self.max_bytes} bytes reached: later datagrams are not recorded"
 
-    def _emit(self, items: list[list[Any]]) -> None:
-        """Write *items* ``[ts_s, packet, comments or None]``; the last one that fits under ``max_bytes`` (with the
-        limit comment) ends the file."""
+    def _write(self, count: int) -> None:
+        """Write the first *count* pending packets with their notes; keep the size bound."""
+        pending, notes = self._pending, self._notes
+        items = pending[:count]
+        del pending[:count]
+        mine = {i: notes.pop(i) for i in sorted(notes) if i < count}
+        self._notes = {i - count: c for i, c in notes.items()}
+        if self._full:
+            self.stats.not_recorded += count
+            return
+        bound = self.stats.bytes + count * _MAX_BLOCK + sum(_epb_size(b"", c) - 32 for c in mine.values())
+        if bound + self._limit_reserve + _MAX_BLOCK > self.max_bytes:
+            self._write_bounded(items, mine)
+        else:
+            writer = self._writer
+            start = 0
+            for i, comments in mine.items():
+                if start < i:
+                    writer.writepkts(items[start:i])
+                self._write_commented(items[i], comments)
+                start = i + 1
+            if start < count:
+                writer.writepkts(items[start:] if start else items)
+            self.stats.datagrams += count
         assert self._file is not None
-        writer = self._writer
-        plain: list[tuple[float, bytes]] = []
+        self._file.flush()
+        self.stats.bytes = self._file.tell()
+
+    def _write_commented(self, item: tuple[float, bytes], comments: list[str]) -> None:
+        ts, packet = item
+        opts = [pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_COMMENT, text=c) for c in comments]
+        opts.append(pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_ENDOFOPT))
+        self._writer.writepkt(pcapng.EnhancedPacketBlockLE(pkt_data=packet, caplen=len(packet), pkt_len=len(packet),
+                                                           opts=opts), ts=ts)
+
+    def _write_bounded(self, items: list[tuple[float, bytes]], notes: dict[int, list[str]]) -> None:
+        """One packet at a time near ``max_bytes``: the last one that fits carries the limit comment."""
         size = self.stats.bytes
-        for i, (ts, packet, comments) in enumerate(items):
-            if self._full:
-                self.stats.not_recorded += len(items) - i
-                break
-            block = _epb_size(packet, comments)
-            # the last one that fits: another datagram of this size would not fit after it with the limit comment
-            if size + 2 * block + _epb_size(b"", [self._limit_text()]) - 32 > self.max_bytes:
+        for i, item in enumerate(items):
+            comments = notes.get(i)
+            block = _epb_size(item[1], comments)
+            if size + 2 * block + self._limit_reserve > self.max_bytes:  # another one would not fit after it
                 self._full = True
                 comments = [*(comments or ()), self._limit_text()]
                 log.warning("capture_limit_reached", path=str(self.path), max_bytes=self.max_bytes)
-                block = _epb_size(packet, comments)
+                block = _epb_size(item[1], comments)
                 if size + block > self.max_bytes:  # not even this one fits with its comments
                     self.stats.not_recorded += len(items) - i
-                    break
+                    return
             if comments:
-                if plain:
-                    writer.writepkts(plain)
-                    plain = []
-                opts = [pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_COMMENT, text=c) for c in comments]
-                opts.append(pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_ENDOFOPT))
-                writer.writepkt(pcapng.EnhancedPacketBlockLE(pkt_data=packet, caplen=len(packet),
-                                                             pkt_len=len(packet), opts=opts), ts=ts)
+                self._write_commented(item, comments)
             else:
-                plain.append((ts, packet))
+                self._writer.writepkts([item])
             self.stats.datagrams += 1
             size += block
-        if plain:
-            writer.writepkts(plain)
-        self._file.flush()
-        self.stats.bytes = self._file.tell()
+            if self._full:
+                self.stats.not_recorded += len(items) - i - 1
+                return
 
 
 def _pad4(n: int) -> int:

@@ -109,27 +109,41 @@ def test_event_text() -> None:
         "StateChanged station 23H: old=phase2 new=phase3"
 
 
-def test_tapped_socket_records_both_directions_with_real_addresses() -> None:
-    records: list[tuple] = []
+def test_tapped_socket_records_both_directions_with_real_addresses(tmp_path: Path) -> None:
     server = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     server.bind(("127.0.0.1", 0))
     raw = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    raw.bind(("0.0.0.0", 0))  # wildcard: the tap records the address the kernel sends from
-    tapped = TappedSocket(raw, lambda *r: records.append(r))
+    raw.bind(("0.0.0.0", 0))  # wildcard: the writer records the address the kernel sends from
+    port, server_addr = raw.getsockname()[1], server.getsockname()
+    path = tmp_path / "c.pcapng"
+    with CaptureWriter(path) as w:
+        tapped = w.wrap(raw)
+        try:
+            tapped.sendto(b"ping" * 8, server.getsockname())
+            data, peer = server.recvfrom(100)
+            server.sendto(b"pong" * 8, peer)
+            assert tapped.recv(100) == b"pong" * 8
+            assert tapped.fileno() == raw.fileno()
+        finally:
+            tapped.close()
+            server.close()
+    first, second = read_capture(path).datagrams
+    assert (first.data, first.src, first.dst) == (b"ping" * 8, ("127.0.0.1", port), server_addr)
+    assert (second.data, second.src, second.dst) == (b"pong" * 8, server_addr, ("127.0.0.1", port))
+    assert second.ts_ns >= first.ts_ns
+
+
+def test_tapped_socket_feeds_tuples_to_its_sink() -> None:
+    got: list[tuple] = []
+    a = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    a.bind(("127.0.0.1", 0))
+    tapped, here = TappedSocket(a, got.append), a.getsockname()
     try:
-        tapped.sendto(b"ping", server.getsockname())
-        data, peer = server.recvfrom(100)
-        server.sendto(b"pong", peer)
-        assert tapped.recv(100) == b"pong"
-        (t1, d1, s1, r1), (t2, d2, s2, r2) = records
-        port = raw.getsockname()[1]
-        assert (d1, s1, r1) == (b"ping", ("127.0.0.1", port), server.getsockname())
-        assert (d2, s2, r2) == (b"pong", server.getsockname(), ("127.0.0.1", port))
-        assert t2 >= t1
-        assert tapped.fileno() == raw.fileno()
+        tapped.sendto(b"x", here)
+        assert tapped.recvfrom(10) == (b"x", here)
     finally:
         tapped.close()
-        server.close()
+    assert [(d, s, r) for _, d, s, r in got] == [(b"x", here, here)] * 2
 
 
 def test_source_address_for_unreachable_peer_falls_back_to_wildcard() -> None:
