@@ -17,6 +17,7 @@ the committed file equals this script's output, then runs it through tshark with
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -55,57 +56,38 @@ def _codes(*slots: Slot) -> list[int]:
     return sorted(set().union(*(s.by_code for s in slots)))
 
 
+def _pairs(link: Link, station: int, slots: tuple[Slot, Slot], make: tuple[Any, Any], what: str,
+           cycles: Iterator[int]) -> Iterator[tuple[Frame, str]]:
+    """For every code of the command/response *slots*: the command ``make[0](body, cycle)`` and the response
+    ``make[1](body, cycle)`` of the same cycle, where the slot declares that code."""
+    for code in _codes(*slots):
+        c = next(cycles)
+        for kind, slot, build, label in ((Kind.COMMAND, slots[0], make[0], "command"),
+                                         (Kind.RESPONSE, slots[1], make[1], "response")):
+            if code in slot.by_code:
+                yield Frame(link, kind, station, c, TCYCLE, build(_body(slot, code), c)), f"{what} {label}"
+
+
 def frames() -> Iterator[tuple[Frame, str]]:
     """Every frame of the golden capture, with a note saying what it stands for."""
-    cycle = 0
-
-    def nxt() -> int:
-        nonlocal cycle
-        cycle += 1
-        return cycle
-
+    cycles = itertools.count(1)
+    ready = int(M2Status.CMDRDY)
     # MECHATROLINK-I/II: main commands in 17-byte frames on ML1 and ML2, and with each sub-command in 32-byte ones
     for link, station in ((Link.ML1, 0x21), (Link.ML2, 0x22)):
-        for code in _codes(ml2.COMMAND_MAIN, ml2.RESPONSE_MAIN):
-            c = nxt()
-            if code in ml2.COMMAND_MAIN.by_code:
-                yield (Frame(link, Kind.COMMAND, station, c, TCYCLE,
-                             ml2.M2Command(_body(ml2.COMMAND_MAIN, code), wdt=c & 0xFF)), f"{link.name} main command")
-            if code in ml2.RESPONSE_MAIN.by_code:
-                yield (Frame(link, Kind.RESPONSE, station, c, TCYCLE,
-                             ml2.M2Response(_body(ml2.RESPONSE_MAIN, code), status=int(M2Status.CMDRDY),
-                                            rwdt=c & 0xFF)), f"{link.name} main response")
-    station = 0x23
-    for code in _codes(ml2.COMMAND_SUB, ml2.RESPONSE_SUB):
-        c = nxt()
-        if code in ml2.COMMAND_SUB.by_code:
-            yield (Frame(Link.ML2, Kind.COMMAND, station, c, TCYCLE,
-                         ml2.M2Command(ml2.Nop(), wdt=1, sub=_body(ml2.COMMAND_SUB, code))), "ML2 sub-command")
-        if code in ml2.RESPONSE_SUB.by_code:
-            yield (Frame(Link.ML2, Kind.RESPONSE, station, c, TCYCLE,
-                         ml2.M2Response(ml2.Nop(), status=int(M2Status.CMDRDY), rwdt=2,
-                                        sub=_body(ml2.RESPONSE_SUB, code), substatus=4)), "ML2 sub-command response")
+        yield from _pairs(link, station, (ml2.COMMAND_MAIN, ml2.RESPONSE_MAIN), (
+            lambda b, c: ml2.M2Command(b, wdt=c & 0xFF),
+            lambda b, c: ml2.M2Response(b, status=ready, rwdt=c & 0xFF)), f"{link.name} main", cycles)
+    yield from _pairs(Link.ML2, 0x23, (ml2.COMMAND_SUB, ml2.RESPONSE_SUB), (
+        lambda b, c: ml2.M2Command(ml2.Nop(), wdt=1, sub=b),
+        lambda b, c: ml2.M2Response(ml2.Nop(), status=ready, rwdt=2, sub=b, substatus=4)), "ML2 sub", cycles)
     # MECHATROLINK-III: main commands in 32-byte frames, sub-commands in 64-byte ones
-    station = 0x31
-    for code in _codes(ml3.COMMAND_MAIN, ml3.RESPONSE_MAIN):
-        c = nxt()
-        if code in ml3.COMMAND_MAIN.by_code:
-            yield (Frame(Link.ML3, Kind.COMMAND, station, c, TCYCLE,
-                         ml3.M3Command(_body(ml3.COMMAND_MAIN, code), wdt=c & 0xFF, cmd_ctrl=0x48)),
-                   "ML3 main command")
-        if code in ml3.RESPONSE_MAIN.by_code:
-            yield (Frame(Link.ML3, Kind.RESPONSE, station, c, TCYCLE,
-                         ml3.M3Response(_body(ml3.RESPONSE_MAIN, code), rwdt=c & 0xFF, cmd_stat=0x0044)),
-                   "ML3 main response")
-    for code in _codes(ml3.COMMAND_SUB, ml3.RESPONSE_SUB):
-        c = nxt()
-        if code in ml3.COMMAND_SUB.by_code:
-            yield (Frame(Link.ML3, Kind.COMMAND, station, c, TCYCLE,
-                         ml3.M3Command(ml3.Nop(), wdt=3, sub=_body(ml3.COMMAND_SUB, code))), "ML3 sub-command")
-        if code in ml3.RESPONSE_SUB.by_code:
-            yield (Frame(Link.ML3, Kind.RESPONSE, station, c, TCYCLE,
-                         ml3.M3Response(ml3.Nop(), rwdt=4, cmd_stat=4, sub=_body(ml3.RESPONSE_SUB, code),
-                                        sub_stat=4)), "ML3 sub-command response")
+    yield from _pairs(Link.ML3, 0x31, (ml3.COMMAND_MAIN, ml3.RESPONSE_MAIN), (
+        lambda b, c: ml3.M3Command(b, wdt=c & 0xFF, cmd_ctrl=0x48),
+        lambda b, c: ml3.M3Response(b, rwdt=c & 0xFF, cmd_stat=0x0044)), "ML3 main", cycles)
+    yield from _pairs(Link.ML3, 0x31, (ml3.COMMAND_SUB, ml3.RESPONSE_SUB), (
+        lambda b, c: ml3.M3Command(ml3.Nop(), wdt=3, sub=b),
+        lambda b, c: ml3.M3Response(ml3.Nop(), rwdt=4, cmd_stat=4, sub=b, sub_stat=4)), "ML3 sub", cycles)
+    nxt = cycles.__next__
     # alarms: the card's own ALARM codes, a drive alarm (Table 26, ALM) and a minor fault (Table 27, WARNG)
     for code in M2Alarm:
         flag = M2Status.WARNG if code.is_warning else M2Status.ALM

@@ -803,7 +803,8 @@ field("fcs_status", ProtoField.uint8("mlink.fcs.status", "FCS status", base.DEC,
 local function bit_fields(prefix, bits, width)
   local out = {}
   for _, b in ipairs(bits) do
-    out[#out + 1] = { field(prefix .. "." .. lower(b[2]), ProtoField.bool(prefix .. "." .. lower(b[2]), b[2], width, nil, b[1])) }
+    local abbr = prefix .. "." .. lower(b[2])
+    out[#out + 1] = { field(abbr, ProtoField.bool(abbr, b[2], width, nil, b[1])) }
   end
   return out
 end
@@ -1037,7 +1038,8 @@ local function heuristic(tvb, pinfo, tree)
   return true
 end
 
-mlink.prefs.ports = Pref.range("UDP ports", "47001", "UDP ports decoded as MECHATROLINK (the heuristic finds the others)", 65535)
+mlink.prefs.ports = Pref.range("UDP ports", "47001",
+  "UDP ports decoded as MECHATROLINK (the heuristic finds the others)", 65535)
 
 local registered = nil
 local function register_ports()

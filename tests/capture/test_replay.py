@@ -129,25 +129,24 @@ def test_replay_against_a_fresh_slave(tmp_path: Path) -> None:
     comments = [c for d in read_capture(recorded).datagrams for c in d.comments]
     assert "station 21H: phase 1 -> 3" in comments and "station 21H: phase 3 -> 1" in comments
 
-    fresh = _Slave()
-    try:
-        ok = subprocess.run([*MLINK, "replay", str(recorded), "--to", f"127.0.0.1:{fresh.port}"],
-                            capture_output=True, text=True, timeout=60)
-    finally:
-        fresh.stop()
+    ok = _replay_against_fresh_slave(recorded)
     assert ok.returncode == 0, ok.stdout + ok.stderr
     assert "all equal" in ok.stdout
 
     changed = tmp_path / "changed.pcapng"
     _modified(recorded, changed)
-    fresh = _Slave()
-    try:
-        bad = subprocess.run([*MLINK, "replay", str(changed), "--to", f"127.0.0.1:{fresh.port}"],
-                             capture_output=True, text=True, timeout=60)
-    finally:
-        fresh.stop()
+    bad = _replay_against_fresh_slave(changed)
     assert bad.returncode == 1, bad.stdout + bad.stderr
     assert "CONNECT" in bad.stdout and "main.com_tim: recorded 2, live 1" in bad.stdout
+
+
+def _replay_against_fresh_slave(capture: Path) -> subprocess.CompletedProcess[str]:
+    fresh = _Slave()
+    try:
+        return subprocess.run([*MLINK, "replay", str(capture), "--to", f"127.0.0.1:{fresh.port}"],
+                              capture_output=True, text=True, timeout=60)
+    finally:
+        fresh.stop()
 
 
 def test_replay_usage_errors(tmp_path: Path) -> None:
