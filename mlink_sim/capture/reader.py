@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import socket
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,7 @@ import dpkt
 import pcapng
 from pcapng import blocks
 
-__all__ = ["Datagram", "Capture", "CaptureError", "read_capture"]
+__all__ = ["Datagram", "Capture", "CaptureError", "CaptureFile", "read_capture"]
 
 _PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
 _PCAP_MAGICS = (b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d")
@@ -86,49 +87,59 @@ def _comments(block: Any) -> tuple[str, ...]:
     return tuple(str(c) for c in opts.get_all("opt_comment"))
 
 
-def _read_pcapng(f: Any) -> Capture:
-    out = Capture([])
+def _pcapng_frames(f: Any) -> Iterator[tuple[int, bytes, int, tuple[str, ...]]]:
     for block in pcapng.FileScanner(f):
         if isinstance(block, blocks.EnhancedPacket):
             raw = (block.timestamp_high << 32) | block.timestamp_low
-            ts_ns = raw * 1_000_000_000 // int(block.timestamp_resolution and 1 / block.timestamp_resolution or 1e6)
-            d = _datagram(block.interface.link_type, bytes(block.packet_data), ts_ns, _comments(block))
+            per_s = round(1 / block.timestamp_resolution) if block.timestamp_resolution else 1_000_000
+            yield block.interface.link_type, bytes(block.packet_data), raw * 1_000_000_000 // per_s, _comments(block)
         elif isinstance(block, blocks.SimplePacket):  # no time, no comments
-            d = _datagram(block.interface.link_type, bytes(block.packet_data), 0, ())
-        else:
-            continue
-        if d is None:
-            out.skipped += 1
-        else:
-            out.datagrams.append(d)
-    return out
+            yield block.interface.link_type, bytes(block.packet_data), 0, ()
 
 
-def _read_pcap(f: Any) -> Capture:
-    out = Capture([])
+def _pcap_frames(f: Any) -> Iterator[tuple[int, bytes, int, tuple[str, ...]]]:
     reader = dpkt.pcap.Reader(f)
     linktype = reader.datalink()
     for ts, frame in reader:
-        d = _datagram(linktype, frame, round(ts * 1e9), ())
-        if d is None:
-            out.skipped += 1
-        else:
-            out.datagrams.append(d)
-    return out
+        yield linktype, frame, round(ts * 1e9), ()
+
+
+class CaptureFile:
+    """The UDP datagrams of a capture file, read as they are iterated (a 100 MB capture is never held whole);
+    :attr:`skipped` counts the packets that are not UDP over IP. Iterating raises :class:`CaptureError`."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = path
+        self.skipped = 0
+
+    def __iter__(self) -> Iterator[Datagram]:
+        path = self.path
+        try:
+            with open(path, "rb") as f:
+                magic = f.read(4)
+                f.seek(0)
+                if magic == _PCAPNG_MAGIC:
+                    frames = _pcapng_frames(f)
+                elif magic in _PCAP_MAGICS:
+                    frames = _pcap_frames(f)
+                else:
+                    raise CaptureError(f"{path}: not a pcap or pcapng file (magic {magic.hex() or 'empty'})")
+                for linktype, frame, ts_ns, comments in frames:
+                    d = _datagram(linktype, frame, ts_ns, comments)
+                    if d is None:
+                        self.skipped += 1
+                    else:
+                        yield d
+        except CaptureError:
+            raise
+        except OSError as exc:
+            raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
+        except Exception as exc:  # the libraries raise assorted errors on a damaged file
+            raise CaptureError(f"{path}: not a readable capture ({type(exc).__name__}: {exc})") from None
 
 
 def read_capture(path: str | Path) -> Capture:
     """Every UDP datagram of the capture at *path*, in file order. Raises :class:`CaptureError`."""
-    try:
-        with open(path, "rb") as f:
-            magic = f.read(4)
-            f.seek(0)
-            if magic == _PCAPNG_MAGIC:
-                return _read_pcapng(f)
-            if magic in _PCAP_MAGICS:
-                return _read_pcap(f)
-    except OSError as exc:
-        raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
-    except Exception as exc:  # the libraries raise assorted errors on a damaged file
-        raise CaptureError(f"{path}: not a readable capture ({type(exc).__name__}: {exc})") from None
-    raise CaptureError(f"{path}: not a pcap or pcapng file (magic {magic.hex() or 'empty'})")
+    source = CaptureFile(path)
+    datagrams = list(source)
+    return Capture(datagrams, source.skipped)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 from ..wire import Kind, WireError, decode, describe, format_line
@@ -26,11 +26,12 @@ def _direction(data: bytes) -> str:
     return {Kind.COMMAND: "master->slave", Kind.RESPONSE: "slave->master"}.get(kind, "?")  # type: ignore[call-overload]
 
 
-def datagram_records(datagrams: list[Datagram], station: int | None = None) -> Iterator[dict[str, Any]]:
+def datagram_records(datagrams: Iterable[Datagram], station: int | None = None) -> Iterator[dict[str, Any]]:
     """One dict per datagram (of *station* only, when given): relative time, addresses, direction, the decoded
     frame (``describe``) or the reason it was rejected, and the capture's comments."""
-    t0 = datagrams[0].ts_ns if datagrams else 0
+    t0 = None
     for index, d in enumerate(datagrams, 1):
+        t0 = d.ts_ns if t0 is None else t0
         if station is not None and station_of(d.data) != station:
             continue
         rec: dict[str, Any] = {"index": index, "t": round((d.ts_ns - t0) / 1e9, 6), "src": _endpoint(d.src),
@@ -45,11 +46,12 @@ def datagram_records(datagrams: list[Datagram], station: int | None = None) -> I
         yield rec
 
 
-def datagram_lines(datagrams: list[Datagram], station: int | None = None) -> Iterator[tuple[str, bool]]:
+def datagram_lines(datagrams: Iterable[Datagram], station: int | None = None) -> Iterator[tuple[str, bool]]:
     """``(line, ok)`` per datagram: ``t  src -> dst  frame`` (``format_line``), or the rejection reason; comments
-    follow on their own ``#`` lines."""
-    t0 = datagrams[0].ts_ns if datagrams else 0
+    follow on their own ``#`` lines. Times count from the first datagram of the capture."""
+    t0 = None
     for d in datagrams:
+        t0 = d.ts_ns if t0 is None else t0
         if station is not None and station_of(d.data) != station:
             continue
         head = f"{(d.ts_ns - t0) / 1e9:11.6f}  {_endpoint(d.src)} -> {_endpoint(d.dst)}  "

@@ -30,7 +30,7 @@ def parse_hex(text: str) -> bytes:
 
 
 def _decode_pcap(path: str, station: str | None, as_json: bool) -> None:
-    from ..capture import CaptureError, read_capture
+    from ..capture import CaptureError, CaptureFile
     from ..capture.text import datagram_lines, datagram_records
     from ..config import parse_address
 
@@ -38,22 +38,22 @@ def _decode_pcap(path: str, station: str | None, as_json: bool) -> None:
         wanted = parse_address(station) if station else None
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--station") from None
+    capture = CaptureFile(path)
+    rejected = shown = 0
     try:
-        capture = read_capture(path)
+        if as_json:
+            for rec in datagram_records(capture, wanted):
+                shown += 1
+                rejected += "error" in rec
+                click.echo(json.dumps(rec, separators=(",", ":")))
+        else:
+            for line, ok in datagram_lines(capture, wanted):
+                shown += not line.lstrip().startswith("#")
+                rejected += not ok
+                click.echo(line)
     except CaptureError as exc:
         click.echo(f"mlink-sim decode: {exc}", err=True)
         sys.exit(2)
-    rejected = shown = 0
-    if as_json:
-        for rec in datagram_records(capture.datagrams, wanted):
-            shown += 1
-            rejected += "error" in rec
-            click.echo(json.dumps(rec, separators=(",", ":")))
-    else:
-        for line, ok in datagram_lines(capture.datagrams, wanted):
-            shown += not line.lstrip().startswith("#")
-            rejected += not ok
-            click.echo(line)
     if capture.skipped:
         click.echo(f"mlink-sim decode: {capture.skipped} packet(s) of {path} are not UDP over IP (left out)", err=True)
     if rejected:

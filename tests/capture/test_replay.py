@@ -129,7 +129,12 @@ def test_replay_against_a_fresh_slave(tmp_path: Path) -> None:
     comments = [c for d in read_capture(recorded).datagrams for c in d.comments]
     assert "station 21H: phase 1 -> 3" in comments and "station 21H: phase 3 -> 1" in comments
 
-    ok = _replay_against_fresh_slave(recorded)
+    # The slave keeps real time: a replayer held up for two cycles by a busy machine trips its reception-failure
+    # alarm (bUS), which the recording did not have. A fresh slave and a second try tell that from a regression.
+    for _ in range(3):
+        ok = _replay_against_fresh_slave(recorded)
+        if ok.returncode == 0:
+            break
     assert ok.returncode == 0, ok.stdout + ok.stderr
     assert "all equal" in ok.stdout
 
