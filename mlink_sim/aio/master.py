@@ -365,7 +365,7 @@ class Master:
             for ev in self.core.drain_events():
                 t = type(ev)
                 if note is not None and t in _NOTED:
-                    note(_mono(), ev)
+                    note(self._now(), ev)
                 if t is Rtt:
                     metrics.record_rtt(ev.station, ev.ns)
                 elif t is Missing:
