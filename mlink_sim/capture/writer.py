@@ -203,12 +203,10 @@ class CaptureWriter:
         while queue:
             for _ in range(min(len(queue), _CHUNK)):
                 ts_ns, data, src, dst = popleft()
-                if type(data) is not bytes:  # a note (a str or an event), or a memoryview/bytearray datagram
-                    if src is None:
-                        self.stats.notes += 1
-                        self._notes.setdefault(max(len(pending) - 1, 0), []).append(event_text(data))
-                        continue
-                    data = bytes(data)
+                if src is None:  # a note (a str or an event)
+                    self.stats.notes += 1
+                    self._notes.setdefault(max(len(pending) - 1, 0), []).append(event_text(data))
+                    continue
                 key = (src, dst, len(data))
                 header = headers.get(key)
                 if header is None:

@@ -121,11 +121,20 @@ def test_replay_against_a_fresh_slave(tmp_path: Path) -> None:
     slave = _Slave("--capture", str(recorded))
     try:
         run = subprocess.run([*MLINK, "master", str(CONFIG), "--endpoint", f"0x21=127.0.0.1:{slave.port}",
-                              "--duration", "2s", "--no-status"], capture_output=True, text=True, timeout=60)
+                              "--duration", "2s", "--no-status", "--capture", str(tmp_path / "master.pcapng")],
+                             capture_output=True, text=True, timeout=60)
     finally:
         err = slave.stop()
     assert run.returncode == 0, run.stdout + run.stderr
     assert f"capture {recorded}:" in err
+    # both ends of one loopback link: what the master sent, the slave received; what the master received, the
+    # slave sent (its answers to the last commands may come after the master closed its socket)
+    at_slave = read_capture(recorded).datagrams
+    at_master = read_capture(tmp_path / "master.pcapng").datagrams
+    assert [d.data for d in at_master if d.data[2] == 1] == [d.data for d in at_slave if d.data[2] == 1]
+    assert {d.data for d in at_master} <= {d.data for d in at_slave}
+    assert {(d.src, d.dst) for d in at_master} == {(d.src, d.dst) for d in at_slave}
+    assert any("StateChanged station 21H" in c for d in at_master for c in d.comments)
     comments = [c for d in read_capture(recorded).datagrams for c in d.comments]
     assert "station 21H: phase 1 -> 3" in comments and "station 21H: phase 3 -> 1" in comments
 
