@@ -83,7 +83,7 @@ class NullMetrics:
         pass
 
 
-_NOTED = (StateChanged, AlarmRaised, AlarmCleared, Recovered)  # events a capture keeps as comments
+_NOTED = (StateChanged, AlarmRaised, AlarmCleared, Recovered, RunHeld, RunResumed)  # a capture's comments
 _READ_BURST = 512  # datagrams read per wake-up at most, so a flood cannot starve the clock
 
 

@@ -212,9 +212,9 @@ class SlaveServer:
 
     def _note_phases(self, now: int) -> None:
         for hs in self.stations:
-            phase = hs.station.phase
-            if self._phases[id(hs)] != phase:
-                self._capture.note(now, f"station {hs.station.address:02X}H: phase {self._phases[id(hs)]} -> {phase}")
+            phase, old = hs.station.phase, self._phases[id(hs)]
+            if old != phase:
+                self._capture.note(now, f"station {hs.station.address:02X}H: phase {old} -> {phase}")
                 self._phases[id(hs)] = phase
 
     # -- EEPROM -----------------------------------------------------------------------------------------------
