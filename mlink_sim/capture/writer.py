@@ -1,7 +1,8 @@
 """Write datagrams to a pcapng file off the hot path (``--capture FILE.pcapng``).
 
-The hot path only appends ``(ts_ns, datagram, src, dst)`` to a deque (:meth:`CaptureWriter.record`, about
-0.2 µs); a writer thread wakes every ``flush_s`` (100 ms), wraps each datagram in an IPv4 (or IPv6) and UDP header
+The hot path only appends ``(ts_ns, datagram, src, dst)`` to a deque (:meth:`wrap`'s tapped socket: +0.4 µs per
+send, +1.4 µs per receive, which reads with ``recvfrom`` for the source address; docs/performance.md, "Capture");
+a writer thread wakes every ``flush_s`` (250 ms), wraps each datagram in an IPv4 (or IPv6) and UDP header
 and hands the batch to dpkt's pcapng ``Writer`` (Enhanced Packet Blocks, LINKTYPE_RAW, microsecond timestamps).
 The thread writes in chunks of :data:`_CHUNK` packets: each file write releases the GIL, so the event loop never
 waits behind the writer for longer than one chunk (~0.2 ms).
