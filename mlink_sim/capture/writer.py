@@ -30,12 +30,13 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 import dpkt
-import structlog
 from dpkt import pcapng
+
+from .._log import get_logger
 
 __all__ = ["CaptureWriter", "CaptureStats", "LINKTYPE_RAW", "ip_packet", "event_text"]
 
-log = structlog.get_logger("mlink_sim.capture")
+log = get_logger("mlink_sim.capture")
 
 LINKTYPE_RAW = 101  #: pcapng link type "raw IP" (IPv4 or IPv6 by the version nibble), tcpdump.org/linktypes
 _CHUNK = 64  # datagrams turned into packets between two file writes (a GIL hold of ~0.2 ms)

@@ -3,7 +3,6 @@ of the three manuals, bad FCS, alarms) and of a real quickstart run decodes as `
 
 from __future__ import annotations
 
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -19,12 +18,6 @@ from .conftest import ROOT, run_tshark, tshark_packets
 GOLDEN = Path(__file__).with_name("golden.pcapng")
 
 
-def _golden_script() -> Any:
-    spec = importlib.util.spec_from_file_location("mlink_golden_capture", ROOT / "scripts" / "golden_capture.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _int(text: str) -> int:
@@ -93,12 +86,6 @@ def check_fields(layer: dict[str, Any], d: dict[str, Any]) -> None:
     if "sub_stat" in d:
         tree = layer["mlink.sub_stat_tree"]
         assert _int(tree["mlink.sub_stat.subcmd_alm"]) == d["sub_stat"]["subcmd_alm"]
-
-
-def test_golden_capture_is_the_scripts_output(tmp_path: Path) -> None:
-    out = tmp_path / "golden.pcapng"
-    _golden_script().write(out)
-    assert out.read_bytes() == GOLDEN.read_bytes(), "run: python scripts/golden_capture.py"
 
 
 def test_golden_capture_covers_every_command_of_the_manuals() -> None:
