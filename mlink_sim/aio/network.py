@@ -146,6 +146,8 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
             bring.cancel()
             await asyncio.gather(bring, return_exceptions=True)
         scenario = Scenario(config, net, scales)
+        if capture is not None:  # the timeline's actions (runs, writes, injected faults) as capture comments
+            scenario.note = lambda text: capture.note(int(loop.time() * 1e9), text)
         if not stop.is_set():
             session.not_up()
             log.info("network_up", stations=len(config.station))

@@ -139,6 +139,8 @@ class VirtualSession(NetworkSession):
         if self.fabric.kill(address, RESTART_AFTER_NS if self._restart else None):
             self.problems.append(f"station {address:02X}H was killed (kill-slave)"
                                  + ("; powered up again after 0.5 s" if self._restart else ""))
+            if self.capture is not None:
+                self.capture.note(self.clock.now, f"station {address:02X}H killed (kill-slave)")
 
     # ------------------------------------------------------------------ figures
     async def refresh_slave_stats(self) -> None:

@@ -33,3 +33,4 @@ def test_virtual_clock_capture_is_the_same_for_the_same_seed(tmp_path: Path) -> 
     assert {dst for _, _, dst in commands} == {("192.0.2.33", 47001), ("192.0.2.34", 47001), ("192.0.2.35", 47001)}
     comments = [c for *_, cs in first for c in cs]
     assert "StateChanged station 23H: old=syncing new=phase3" in comments
+    assert "timeline: 0.2s all stations: do run forward 30 Hz" in comments  # the quickstart's first action
