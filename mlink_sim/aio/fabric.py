@@ -24,7 +24,7 @@ from .._log import get_logger
 from .state import atomic_write, eeprom_path, remove_stale_temps
 from .vclock import VirtualClock
 
-__all__ = ["Fabric", "FabricPort", "VirtualCycle"]
+__all__ = ["Fabric", "FabricPort", "VirtualCycle", "virtual_address"]
 
 log = get_logger("mlink_sim.fabric")
 
@@ -75,11 +75,21 @@ class FabricPort:
         self.closed = True
 
 
+def virtual_address(end: int | str) -> tuple[str, int]:
+    """The IPv4 address a capture shows for an end of the fabric (documentation range 192.0.2.0/24, RFC 5737):
+    station *n* is 192.0.2.*n*:47001, the master of link ``ML2``/``ML3`` (a port named ``master:ML2``) is
+    192.0.2.1:4000x, x the link number (station addresses start at 03H, so .1 is never a station)."""
+    if isinstance(end, int):
+        return f"192.0.2.{end}", 47001
+    link = end.rsplit("ML", 1)[-1]
+    return "192.0.2.1", 40000 + (int(link) if link.isdigit() else 0)
+
+
 class Fabric:
     """Stations and master ports on one :class:`VirtualClock` (see the module docstring)."""
 
     def __init__(self, clock: VirtualClock, *, latency_ns: int, jitter_ns: int, seed: int,
-                 state_dir: Path | None = None) -> None:
+                 state_dir: Path | None = None, capture: Any = None) -> None:
         if not 0 <= jitter_ns <= latency_ns:
             raise ValueError(f"jitter ({jitter_ns} ns) must be between 0 and the latency ({latency_ns} ns)")
         self.clock = clock
@@ -92,6 +102,10 @@ class Fabric:
         self._base = latency_ns - jitter_ns  # one-way delay: base + int(random() * span), span 0 without jitter
         self._span = 2 * jitter_ns + 1 if jitter_ns else 0
         self._random = random.Random(seed).random
+        #: a CaptureWriter's ``record(ts_ns, datagram, src, dst)``: the master's view, as ``up --capture`` records
+        #: it – commands as they leave, answers as they arrive – on simulated time and the addresses of
+        #: :func:`virtual_address`
+        self._record = None if capture is None else capture.record
 
     # ------------------------------------------------------------------ stations
     def add_station(self, address: int, factory: Callable[[int, bytes | None], Any]) -> Any:
@@ -131,6 +145,8 @@ class Fabric:
     # ------------------------------------------------------------------ datagrams
     def send(self, port: FabricPort, address: int, data: bytes) -> None:
         """A command from *port* to station *address*, leaving now."""
+        if self._record is not None:
+            self._record(self.clock.now, data, virtual_address(port.name), virtual_address(address))
         node = self.nodes.get(address)
         if node is None or node.station is None:
             self.undeliverable += 1
@@ -171,6 +187,8 @@ class Fabric:
         if port.closed:
             self.undeliverable += 1
             return
+        if self._record is not None:
+            self._record(self.clock.now, data, virtual_address(data[3]), virtual_address(port.name))
         port.on_datagram(data, self.clock.now)
 
     # ------------------------------------------------------------------ polls

@@ -83,6 +83,7 @@ class NullMetrics:
         pass
 
 
+_NOTED = (StateChanged, AlarmRaised, AlarmCleared, Recovered, RunHeld, RunResumed)  # a capture's comments
 _READ_BURST = 512  # datagrams read per wake-up at most, so a flood cannot starve the clock
 
 
@@ -102,6 +103,7 @@ class Master:
         self.record_lateness = True  #: False for the 2nd+ master on a shared clock (counted once)
         self._waiters: list[tuple[Callable[[], bool], asyncio.Future[None]]] = []
         self._pending_missing: dict[int, int] = {}
+        self._note: Callable[[int, Any], None] | None = None  #: a capture's note hook (``capture=``)
         self._closed = False
         self._log = get_logger(__name__).bind(component="master", link=core.plan.link.name)
 
@@ -115,7 +117,8 @@ class Master:
     async def start(cls, plan: NetworkPlan, endpoints: dict[int, tuple[str, int]], *,
                     local: tuple[str, int] = ("127.0.0.1", 0), metrics: MetricsSink | None = None,
                     loop: asyncio.AbstractEventLoop | None = None, strategy: str = "auto",
-                    rcvbuf: int = 1 << 20, clock: CycleTimer | None = None, catch_up_ns: int = 0) -> Master:
+                    rcvbuf: int = 1 << 20, clock: CycleTimer | None = None, catch_up_ns: int = 0,
+                    capture: Any = None) -> Master:
         """Open one UDP socket on *local*, start cycling at ``plan.tcycle_ns``; *endpoints* maps every station
         address of the plan to the ``(host, port)`` of its slave.
 
@@ -124,7 +127,10 @@ class Master:
         timers in one loop delay each other, so ``mlink-sim up`` drives every link from one clock.
 
         *catch_up_ns*: the host-stall policy of its own clock (``CycleTimer``'s ``catch_up_ns``; 0 = strict);
-        stalls are recorded through the metrics' ``stall_recorder`` when it has one."""
+        stalls are recorded through the metrics' ``stall_recorder`` when it has one.
+
+        *capture*: a :class:`~mlink_sim.capture.CaptureWriter`; every datagram on the socket is recorded and the
+        core's state, alarm and recovery events become notes in it."""
         missing = [f"{sp.address:02X}H" for sp in plan.stations if sp.address not in endpoints]
         if missing:
             raise ValueError(f"no UDP endpoint for station(s) {', '.join(missing)}")
@@ -134,6 +140,8 @@ class Master:
         if callable(add_stations):
             add_stations(self.core.addresses)
         sock = self._sock = bound_socket(local[0], local[1], rcvbuf)
+        if capture is not None:
+            self._sock, self._note = capture.wrap(sock), capture.note
         loop.add_reader(sock.fileno(), self.read_responses)
         if clock is None:
             recorder = getattr(self.metrics, "stall_recorder", None)
@@ -353,8 +361,11 @@ class Master:
             metrics = self.metrics
             pending = self._pending_missing
             log = self._log
+            note = self._note
             for ev in self.core.drain_events():
                 t = type(ev)
+                if note is not None and t in _NOTED:
+                    note(self._now(), ev)
                 if t is Rtt:
                     metrics.record_rtt(ev.station, ev.ns)
                 elif t is Missing:

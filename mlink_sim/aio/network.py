@@ -53,6 +53,7 @@ class RunOptions:
     clock: str = "real"
     seed: int = 0  #: virtual clock: seed of the network model's jitter
     realtime: bool = False  #: SCHED_FIFO, locked memory, the clock on a CPU of its own, where permitted (CLI: on)
+    capture: Any = None  #: a started CaptureWriter recording every datagram of the masters (``--capture``)
 
 
 @dataclasses.dataclass
@@ -127,10 +128,12 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
                 f"{len(cut)} timeline step(s), which will not run: {'; '.join(s.describe for s in cut)}")
     scales = speed_scales(config)  # now, not in the event loop once it keeps time
     status = LiveStatus() if opts.status else None
+    capture = opts.capture
     try:
         session = await session_cls.open(
             config, opts.config_path, endpoints=endpoints, workers=workers, state_dir=opts.state_dir,
-            run_dir=opts.run_dir, restart_slaves=opts.restart_slaves, realtime=opts.realtime, **extra)
+            run_dir=opts.run_dir, restart_slaves=opts.restart_slaves, realtime=opts.realtime, capture=capture,
+            **extra)
         if session.realtime_granted:
             _notice(opts, "realtime", "realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items()))
         net = session.net
@@ -143,6 +146,8 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
             bring.cancel()
             await asyncio.gather(bring, return_exceptions=True)
         scenario = Scenario(config, net, scales)
+        if capture is not None:  # the timeline's actions (runs, writes, injected faults) as capture comments
+            scenario.note = lambda text: capture.note(int(loop.time() * 1e9), text)
         if not stop.is_set():
             session.not_up()
             log.info("network_up", stations=len(config.station))
@@ -180,6 +185,8 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
             status.stop()
         if session is not None:
             await session.close()
+        if capture is not None:
+            print(await loop.run_in_executor(None, lambda: capture.close().summary()), file=sys.stderr)
         for sig in SIGNAL_EXIT:
             loop.remove_signal_handler(sig)
     if opts.report_path is not None:

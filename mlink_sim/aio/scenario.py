@@ -151,6 +151,8 @@ class Scenario:
         self.links = {st.address: st.link for st in config.station}
         self.steps: list[TimelineStep] = sorted(config.timeline, key=lambda s: s.at)
         self.started = 0  #: steps begun so far, in order of time (``steps[:started]``)
+        #: called with each action step's description as it begins (a capture's comments: ``--capture``)
+        self.note: Callable[[str], None] | None = None
 
     @property
     def current(self) -> TimelineStep | None:
@@ -179,6 +181,8 @@ class Scenario:
 
     async def _act(self, step: TimelineStep) -> None:
         log.info("timeline_action", step=step.describe)
+        if self.note is not None:
+            self.note(f"timeline: {step.describe}")
         coros = []
         for address in self._targets(step):
             coros.append(self._act_one(step, address))

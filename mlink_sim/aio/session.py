@@ -151,9 +151,10 @@ class NetworkSession:
 
     def __init__(self, config: Config, config_path: Path, *, workers: int | None = None,
                  state_dir: Path | None = None, run_dir: Path | None = None, restart_slaves: bool = True,
-                 problems: list[str] | None = None, realtime: bool = False) -> None:
+                 problems: list[str] | None = None, realtime: bool = False, capture: Any = None) -> None:
         from ..metrics import NetworkMetrics
 
+        self.capture = capture  #: a CaptureWriter recording every master socket (``--capture``), or None
         self.config = config
         self.config_path = Path(config_path)
         self.metrics = NetworkMetrics(config.network.transmission_cycle)
@@ -224,6 +225,9 @@ class NetworkSession:
         names = ",".join(f"{a:02X}H" for a in worker.spec.addresses)
         self.problems.append(f"slave worker {worker.spec.index} (station {names}) exited with code {code}")
         log.warning("slave_exited", worker=worker.spec.index, stations=names, code=code)
+        if self.capture is not None:
+            self.capture.note(time.monotonic_ns(), f"slave worker {worker.spec.index} (station {names}) exited "
+                                                   f"with code {code}")
         if not self._restart or self._stopping:
             return
 
@@ -269,7 +273,7 @@ class NetworkSession:
         for link, plan in plans.items():
             eps = {sp.address: resolved[sp.address] for sp in plan.stations}
             master = await Master.start(plan, eps, metrics=self.metrics, local=local, clock=clock,
-                                        catch_up_ns=catch_up)
+                                        catch_up_ns=catch_up, capture=self.capture)
             master.record_lateness = not self.masters
             self.masters[link] = master
         self._cycle_callbacks = [m.on_cycle for m in self.masters.values()]

@@ -68,7 +68,10 @@ class SlaveServer:
         state_dir: str | Path | None = None,
         control: tuple[str, int] | None = ("127.0.0.1", 0),
         absorb_ns: int = 0,
+        capture: Any = None,
     ) -> None:
+        """*capture*: a :class:`~mlink_sim.capture.CaptureWriter`: every station socket is tapped, and each
+        station's phase changes (seen by the 1 ms tick) become notes."""
         self.stations = stations
         #: host-stall policy (docs/timing.md): 0 = strict, else the stall bound. With "absorb" a backlog that a
         #: stall of this worker of up to the bound left on a socket is answered in full (late, not superseded).
@@ -87,6 +90,8 @@ class SlaveServer:
         self._started_cpu = _cpu_seconds()
         self.write_errors = 0
         self._closing = False
+        self._capture = capture
+        self._phases = {id(hs): hs.station.phase for hs in stations}
         for hs in stations:
             if self.state_dir is not None and hs.eeprom is None:
                 hs.eeprom = eeprom_path(self.state_dir, hs.station.card, hs.station.address)
@@ -102,7 +107,8 @@ class SlaveServer:
                 log.info("eeprom_stale_temps_removed", path=str(hs.eeprom), count=n)
         try:
             for hs in self.stations:
-                hs.endpoint = await open_batch_endpoint(self._receiver(hs), hs.host, hs.port)
+                hs.endpoint = await open_batch_endpoint(self._receiver(hs), hs.host, hs.port,
+                                                        wrap=None if self._capture is None else self._capture.wrap)
                 hs.port = hs.endpoint.local_address[1]
             if self._control_addr is not None:
                 self._control = await open_endpoint(self._on_control, *self._control_addr)
@@ -198,9 +204,18 @@ class SlaveServer:
                     hs.endpoint.read_pending()
                 st.poll(now)
                 self._collect_eeprom(hs)
+        if self._capture is not None:
+            self._note_phases(now)
         if not self._closing:
             self._tick_due = time.monotonic_ns() + _POLL_INTERVAL_NS
             self._tick = asyncio.get_running_loop().call_later(_POLL_INTERVAL_S, self._on_tick)
+
+    def _note_phases(self, now: int) -> None:
+        for hs in self.stations:
+            phase, old = hs.station.phase, self._phases[id(hs)]
+            if old != phase:
+                self._capture.note(now, f"station {hs.station.address:02X}H: phase {old} -> {phase}")
+                self._phases[id(hs)] = phase
 
     # -- EEPROM -----------------------------------------------------------------------------------------------
 

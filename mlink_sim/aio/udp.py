@@ -175,9 +175,13 @@ class BatchEndpoint:
 
 
 async def open_batch_endpoint(on_batch: Callable[[list[tuple[bytes, Any]]], None], host: str = "127.0.0.1",
-                              port: int = 0, *, rcvbuf: int = 1 << 20, burst: int = 64) -> BatchEndpoint:
-    """Bind a UDP socket on *host*:*port* (0 = any free port) and read it in batches (:class:`BatchEndpoint`)."""
+                              port: int = 0, *, rcvbuf: int = 1 << 20, burst: int = 64,
+                              wrap: Callable[[socket.socket], Any] | None = None) -> BatchEndpoint:
+    """Bind a UDP socket on *host*:*port* (0 = any free port) and read it in batches (:class:`BatchEndpoint`).
+    *wrap*: wraps the socket (a capture's tap, ``CaptureWriter.wrap``)."""
     sock = bound_socket(host, port, rcvbuf)
+    if wrap is not None:
+        sock = wrap(sock)
     try:
         return BatchEndpoint(sock, on_batch, burst)
     except BaseException:

@@ -86,7 +86,8 @@ class VirtualSession(NetworkSession):
     ``await VirtualSession.open(config, path, seed=…)`` inside a :class:`VirtualEventLoop`."""
 
     def __init__(self, config: Config, config_path: Path, *, seed: int = 0, state_dir: Path | None = None,
-                 restart_slaves: bool = True, problems: list[str] | None = None, **_ignored: Any) -> None:
+                 restart_slaves: bool = True, problems: list[str] | None = None, capture: Any = None,
+                 **_ignored: Any) -> None:
         loop = asyncio.get_running_loop()
         if not isinstance(loop, VirtualEventLoop):
             raise RuntimeError("a VirtualSession runs on a VirtualEventLoop")
@@ -95,10 +96,13 @@ class VirtualSession(NetworkSession):
         self._wall_start = time.perf_counter()
         self._sim_start = self.clock.now
         super().__init__(config, config_path, state_dir=state_dir, restart_slaves=restart_slaves,
-                         problems=problems)
+                         problems=problems, capture=capture)
+        if capture is not None:  # simulated time, shown from the wall-clock second the run starts (a whole
+            # second, so that the file's microseconds round the same in every run with the same seed)
+            capture.epoch_offset_ns = time.time_ns() // 1_000_000_000 * 1_000_000_000 - self.clock.now
         net = config.network
         self.fabric = Fabric(self.clock, latency_ns=net.latency, jitter_ns=net.jitter, seed=seed,
-                             state_dir=state_dir)
+                             state_dir=state_dir, capture=capture)
         self.cycle: VirtualCycle | None = None
 
     # ------------------------------------------------------------------ life cycle
@@ -120,6 +124,8 @@ class VirtualSession(NetworkSession):
         self._clock = cycle  # type: ignore[assignment]  # stopped by close_masters
         for link, plan in build_plans(self.config).items():
             master = VirtualMaster.attach(plan, self.fabric, cycle, metrics=self.metrics, loop=loop)
+            if self.capture is not None:
+                master._note = self.capture.note  # noqa: SLF001 - the master's events as the capture's comments
             master.record_lateness = not self.masters
             self.masters[link] = master
         self._cycle_callbacks = [m.on_cycle for m in self.masters.values()]
@@ -133,6 +139,8 @@ class VirtualSession(NetworkSession):
         if self.fabric.kill(address, RESTART_AFTER_NS if self._restart else None):
             self.problems.append(f"station {address:02X}H was killed (kill-slave)"
                                  + ("; powered up again after 0.5 s" if self._restart else ""))
+            if self.capture is not None:
+                self.capture.note(self.clock.now, f"station {address:02X}H killed (kill-slave)")
 
     # ------------------------------------------------------------------ figures
     async def refresh_slave_stats(self) -> None:

@@ -36,7 +36,8 @@ def write_atomically(path: Path, text: str) -> None:
 
 
 def _command_line(config_path: str, output: str | None, image: str, report_dir: str, port: int,
-                  duration: str | None, asserts: tuple[str, ...], start_interval: bool) -> str:
+                  duration: str | None, asserts: tuple[str, ...], start_interval: bool,
+                  realtime_budget: int | None) -> str:
     """The command as a user would retype it (only non-default options), for the file's header."""
     args = ["mlink-sim", "compose", config_path]
     if output is not None:
@@ -53,6 +54,8 @@ def _command_line(config_path: str, output: str | None, image: str, report_dir: 
         args += ["--assert", expr]
     if start_interval:
         args.append("--start-interval")
+    if realtime_budget is not None:
+        args += ["--realtime-master", str(realtime_budget)]
     return shlex.join(args)
 
 
@@ -70,8 +73,13 @@ def _command_line(config_path: str, output: str | None, image: str, report_dir: 
 @click.option("--start-interval", is_flag=True,
               help="Probe each station every 1 s while it starts and every 30 s after (healthcheck.start_interval: "
                    "Compose v2.20.2+ on Docker Engine 25+; docker-compose 1.29 rejects it). Default: every 5 s.")
+@click.option("--realtime-master", "realtime_budget", type=click.IntRange(0, 1_000_000), metavar="BUDGET_US",
+              help="Let the master's container use SCHED_FIFO: root in the container with SYS_NICE and IPC_LOCK, and "
+                   "BUDGET_US µs per second of real-time budget (cpu_rt_runtime; 0 = none, for hosts without RT "
+                   "group scheduling). The engine must grant it (docs/testbeds.md).")
 def compose_cmd(config_path: str, output: str | None, image: str, report_dir: str, port: int,
-                duration: str | None, asserts: tuple[str, ...], start_interval: bool) -> None:
+                duration: str | None, asserts: tuple[str, ...], start_interval: bool,
+                realtime_budget: int | None) -> None:
     """Write a docker-compose file for the network in CONFIG: one container per slave station, a master that
     starts once every station answers its healthcheck, the config mounted read-only, the report on a volume."""
     try:
@@ -90,9 +98,10 @@ def compose_cmd(config_path: str, output: str | None, image: str, report_dir: st
                                  param_hint="--report-dir")
     text = render_compose(
         config, config_path, output,
-        command=_command_line(config_path, output, image, report_dir, port, duration, asserts, start_interval),
+        command=_command_line(config_path, output, image, report_dir, port, duration, asserts, start_interval,
+                              realtime_budget),
         image=image, station_port=port, report_dir=report_dir, duration=duration, asserts=asserts,
-        start_interval=start_interval,
+        start_interval=start_interval, realtime_budget_us=realtime_budget,
     )  # fmt: skip
     if output is None or output == "-":
         click.echo(text, nl=False)

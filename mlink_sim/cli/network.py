@@ -11,6 +11,7 @@ import click
 from ..aio.network import EndpointError, RunOptions, run_network, run_up
 from ..aio.udp import new_event_loop
 from ..config import Config, format_ns, parse_duration_ns
+from .capture_opts import capture_options, open_capture_or_exit
 from .inputs import InputError, assertions, check_stations, load_checked, report_path
 from .logs import configure_logging
 from .slave import _parse_endpoints
@@ -76,7 +77,7 @@ _common = [
 def _with_common(fn: Any) -> Any:
     for option in reversed(_common):
         fn = option(fn)
-    return fn
+    return capture_options(fn)
 
 
 def _with_stalls(fn: Any) -> Any:
@@ -120,7 +121,8 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
 @_with_common
 @_with_stalls
 def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, report, asserts, status,
-           bringup_timeout, include_bringup, log_json, log_level, host_stalls, stall_bound, rt) -> None:  # noqa: ANN001
+           bringup_timeout, include_bringup, log_json, log_level, host_stalls, stall_bound, rt, capture_path,
+           capture_max) -> None:  # noqa: ANN001
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held.
 
     CONFIG is a TOML file or the name of a shipped example (quickstart, ml2-mixed-2ms, …)."""
@@ -145,6 +147,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, repo
         realtime=rt,
         clock=clock,
         seed=seed,
+        capture=open_capture_or_exit("up", capture_path, capture_max),
     )
     from ..aio.supervisor import WorkerError
 
@@ -165,7 +168,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, repo
 @_with_common
 @_with_stalls
 def master_cmd(config_path, endpoints, duration, report, asserts, status, bringup_timeout, include_bringup,
-               log_json, log_level, host_stalls, stall_bound, rt) -> None:  # noqa: ANN001
+               log_json, log_level, host_stalls, stall_bound, rt, capture_path, capture_max) -> None:  # noqa: ANN001
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
     config, path = load_checked(config_path)
@@ -194,6 +197,7 @@ def master_cmd(config_path, endpoints, duration, report, asserts, status, bringu
         log_json=log_json,
         bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
         realtime=rt,
+        capture=open_capture_or_exit("master", capture_path, capture_max),
     )
     try:
         sys.exit(_run(lambda: run_network(config, resolved, opts)))

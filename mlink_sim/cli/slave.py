@@ -18,6 +18,7 @@ from ..aio.slave import HostedStation, SlaveServer
 from ..aio.stations import StationSpec, build_station, spec_for
 from ..aio.udp import BindError, loop_name, new_event_loop
 from ..config import ConfigError, load_config, parse_address, parse_duration_ns, parse_endpoint
+from .capture_opts import capture_options, open_capture_or_exit
 from .inputs import InputError, check_stations
 from .logs import configure_logging
 
@@ -131,8 +132,10 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
 @click.option("--stall-bound", default="50ms", show_default=True, help="With --host-stalls absorb: the bound.")
 @click.option("--realtime", "rt", is_flag=True,
               help="SCHED_FIFO, locked memory, off the master's CPU, where permitted (docs/timing.md).")
+@capture_options
 def slave_cmd(card, station_text, listen, frame_size, link, params, config_path, only, endpoints, state_dir,
-              control, log_json, log_level, ready_json, host_stalls, stall_bound, rt) -> None:  # noqa: ANN001
+              control, log_json, log_level, ready_json, host_stalls, stall_bound, rt, capture_path,
+              capture_max) -> None:  # noqa: ANN001
     """Serve one station over UDP until SIGINT/SIGTERM (or several stations of a --config)."""
     configure_logging(json=log_json, level=log_level)
     state = Path(state_dir) if state_dir else None
@@ -168,7 +171,8 @@ def slave_cmd(card, station_text, listen, frame_size, link, params, config_path,
         click.echo(f"mlink-sim slave: {exc}", err=True)
         sys.exit(2)
     control_addr = None if control == "off" else parse_endpoint(control)
-    server = SlaveServer(stations, state_dir=state, control=control_addr, absorb_ns=absorb_ns)
+    capture = open_capture_or_exit("slave", capture_path, capture_max)
+    server = SlaveServer(stations, state_dir=state, control=control_addr, absorb_ns=absorb_ns, capture=capture)
     loop = new_event_loop()
     try:
         code = loop.run_until_complete(_serve(server, ready_json, log_json, rt))
@@ -178,4 +182,6 @@ def slave_cmd(card, station_text, listen, frame_size, link, params, config_path,
         sys.exit(2)
     finally:
         loop.close()
+        if capture is not None:
+            click.echo(capture.close().summary(), err=True)
     sys.exit(code)

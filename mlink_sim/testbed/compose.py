@@ -144,12 +144,14 @@ def compose_document(
     duration: str | None = None,
     asserts: Iterable[str] = (),
     start_interval: bool = False,
+    realtime_budget_us: int | None = None,
 ) -> dict[str, Any]:
     """The Compose document for *config*.
 
     *config_source* is the config file's path as the compose file sees it (relative paths are relative to the
     compose file's directory); *duration* and *asserts* are passed to ``mlink-sim master`` unchanged;
-    *start_interval* chooses :data:`HEALTH_START` over :data:`HEALTH_PORTABLE`.
+    *start_interval* chooses :data:`HEALTH_START` over :data:`HEALTH_PORTABLE`; *realtime_budget_us* set, the
+    master's container may use SCHED_FIFO (:func:`_realtime_master`).
     """
     if not 1 <= station_port <= 65535:
         raise ValueError(f"station port {station_port} is out of range 1…65535")
@@ -188,12 +190,26 @@ def compose_document(
         "healthcheck": {"disable": True},
         "restart": "no",
         "stop_grace_period": STOP_GRACE_PERIOD,
+        **(_realtime_master(realtime_budget_us) if realtime_budget_us is not None else {}),
     }
     return {
         "services": services,
         "networks": {NETWORK_NAME: {"driver": "bridge"}},
         "volumes": {REPORTS_VOLUME: {}},
     }
+
+
+def _realtime_master(budget_us: int) -> dict[str, Any]:
+    """What lets ``mlink-sim master --realtime`` (the default) be granted SCHED_FIFO and locked memory in its
+    container (docs/testbeds.md, "Real time in the containers"): root in the container with CAP_SYS_NICE and
+    CAP_IPC_LOCK (the image's non-root user would need RLIMIT_RTPRIO, which not every engine can raise), and on a
+    host with cgroup v1 and RT group scheduling a real-time budget of *budget_us* µs per second (0: none asked)."""
+    if budget_us < 0:
+        raise ValueError(f"the real-time budget is µs per second, at least 0, got {budget_us}")
+    extra: dict[str, Any] = {"user": "0:0", "cap_add": ["SYS_NICE", "IPC_LOCK"]}
+    if budget_us:
+        extra["cpu_rt_runtime"] = budget_us
+    return extra
 
 
 def to_yaml(document: dict[str, Any], header: str = "") -> str:

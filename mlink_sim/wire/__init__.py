@@ -26,7 +26,7 @@ from .codes import (
     PROFILE_TYPE_INVERTER,
     SubCmdAlm,
 )
-from .describe import describe, format_frame
+from .describe import describe, format_frame, format_line
 from .fcs import crc16_x25
 from .frame import FCS_SIZE, HEADER_SIZE, MAGIC, DropReason, Frame, Message, WireError, datagram_size, decode, encode
 from .layout import Unknown
@@ -41,6 +41,7 @@ __all__ = [
     "decode",
     "describe",
     "format_frame",
+    "format_line",
     "datagram_size",
     "crc16_x25",
     "WireError",

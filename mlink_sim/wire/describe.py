@@ -12,7 +12,7 @@ from .drive_codes import SiT3DriveAlarm, SiT3DriveWarning
 from .frame import Frame
 from .layout import Unknown
 
-__all__ = ["describe", "format_frame"]
+__all__ = ["describe", "format_frame", "format_line"]
 
 
 def _flag_names(flag_type: type[enum.IntFlag], value: int) -> list[str]:
@@ -139,3 +139,35 @@ def format_frame(frame: Frame) -> str:
     if "sub_stat" in d:
         lines.append(f"  SUB_STAT: {d['sub_stat']}")
     return "\n".join(lines)
+
+
+def format_line(frame: Frame) -> str:
+    """*frame* on one line (``mlink-sim decode --pcap``): link, kind, station, cycle, main [+ sub] command with their
+    fields, WDT/RWDT and the status/alarm fields that are set."""
+    d = describe(frame)
+    kind = "cmd" if frame.kind == 1 else "rsp"
+    parts = [f"{d['link']} {kind} {frame.station:02X}H cycle {frame.cycle}", _fmt_body(d["main"])]
+    if "sub" in d:
+        parts.append("sub " + _fmt_body(d["sub"]))
+    if "wdt" in d:
+        parts.append(f"WDT {d['wdt']:02X}H")
+    if "rwdt" in d:
+        parts.append(f"RWDT {d['rwdt']:02X}H")
+    if d.get("alarm"):
+        parts.append(f"ALARM {d['alarm']:02X}H {d['alarm_name']}")
+    if "status_bits" in d:
+        parts.append("STATUS " + ("|".join(d["status_bits"]) or "0"))
+    if "cmd_ctrl" in d and (d["cmd_ctrl"]["alm_clr"] or d["cmd_ctrl"]["cmd_id"]):
+        parts.append(f"CMD_CTRL {d['cmd_ctrl']}")
+    stat = d.get("cmd_stat")
+    if stat is not None:
+        flags = [k.upper() for k in ("d_alm", "d_war", "cmdrdy", "alm_clr_cmp") if stat[k]]
+        if stat["cmd_alm"]:
+            flags.append(f"CMD_ALM {stat['cmd_alm_name']}")
+        if stat["comm_alm"]:
+            flags.append(f"COMM_ALM {stat['comm_alm_name']}")
+        parts.append("CMD_STAT " + ("|".join(flags) or "0"))
+    sub_stat = d.get("sub_stat")
+    if sub_stat is not None and sub_stat["subcmd_alm"]:
+        parts.append(f"SUBCMD_ALM {sub_stat['subcmd_alm_name']}")
+    return "  ".join(parts)

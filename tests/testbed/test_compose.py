@@ -179,6 +179,23 @@ def test_project_name_is_a_valid_compose_name(tmp_path):
     assert "-p my-test-bench-1 " in render_compose(load_config(tmp_path / "n.toml"), tmp_path / "n.toml")
 
 
+def test_realtime_master_is_root_with_sys_nice_and_a_budget_only_on_request(validator):
+    config = load_config(QUICKSTART)
+    plain = compose_document(config)
+    assert not {"user", "cap_add", "cpu_rt_runtime"} & set(plain["services"]["master"])
+    rt = compose_document(config, realtime_budget_us=400000)
+    master = rt["services"]["master"]
+    assert master["user"] == "0:0" and master["cap_add"] == ["SYS_NICE", "IPC_LOCK"]
+    assert master["cpu_rt_runtime"] == 400000
+    for name, svc in rt["services"].items():  # the stations keep the image's non-root user
+        if name != "master":
+            assert "user" not in svc and "cap_add" not in svc
+    assert "cpu_rt_runtime" not in compose_document(config, realtime_budget_us=0)["services"]["master"]
+    assert _errors(validator, rt) == []
+    with pytest.raises(ValueError, match="budget"):
+        compose_document(config, realtime_budget_us=-1)
+
+
 def test_health_timing_portable_by_default_start_interval_on_request():
     config = load_config(QUICKSTART)
     portable = compose_document(config)["services"]["station-21"]["healthcheck"]
@@ -281,7 +298,8 @@ def test_cli_writes_file_atomically_with_options(tmp_path):
     out = tmp_path / "sub" / "compose.yaml"
     out.parent.mkdir()
     result = CliRunner().invoke(compose_cmd, [str(QUICKSTART), "-o", str(out), "--image", "example/mlink:2",
-                                              "--port", "40001", "--duration", "5s", "--assert", "missed == 0"])
+                                              "--port", "40001", "--duration", "5s", "--assert", "missed == 0",
+                                              "--realtime-master", "300000"])
     assert result.exit_code == 0, result.output
     assert sorted(p.name for p in out.parent.iterdir()) == ["compose.yaml"]  # no temp file left behind
     doc = yaml.safe_load(out.read_text())
@@ -290,6 +308,8 @@ def test_cli_writes_file_atomically_with_options(tmp_path):
     source = doc["services"]["station-21"]["volumes"][0]["source"]
     assert (out.parent / source).resolve() == QUICKSTART.resolve()
     assert "--port 40001" in out.read_text().splitlines()[0]
+    assert "--realtime-master 300000" in out.read_text().splitlines()[0]
+    assert doc["services"]["master"]["cpu_rt_runtime"] == 300000
 
 
 def test_cli_bad_config_exits_2_with_the_config_error(tmp_path):
@@ -342,6 +362,9 @@ def test_docker_compose_1_29_accepts_the_file_and_rejects_start_interval(tmp_pat
     assert rejected.returncode != 0 and "start_interval" in rejected.stderr
     named = {"name": "quickstart", **compose_document(config, config_source="./quickstart.toml")}
     assert _compose_config(["docker-compose"], named, tmp_path).returncode != 0
+    realtime = compose_document(config, config_source="./quickstart.toml", realtime_budget_us=400000)
+    accepted = _compose_config(["docker-compose"], realtime, tmp_path)
+    assert accepted.returncode == 0, accepted.stderr
 
 
 def test_compose_v2_accepts_both_timings(tmp_path):

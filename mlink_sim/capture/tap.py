@@ -1,0 +1,77 @@
+"""The tap between a UDP socket and a capture: the one place the I/O layer touches capturing.
+
+:class:`TappedSocket` stands in for a non-blocking ``socket.socket`` (``sendto``, ``recv``, ``recvfrom``,
+``fileno``, ``getsockname``, ``close``) and calls ``record(ts_ns, datagram, src, dst)`` for every datagram it moves,
+stamped with ``time.monotonic_ns()`` as it is sent or read. The master and the slave server wrap their sockets in
+it when ``--capture`` is given; otherwise nothing changes on their hot path.
+
+A driver that keeps its own time (a virtual clock) calls ``record`` itself with its simulated timestamps and the
+addresses the datagram would carry; the capture does not care where the time comes from.
+
+A socket bound to a wildcard address (``0.0.0.0``, ``::``) has no address of its own: the writer records the
+address the kernel would send from to reach each peer (a route lookup with a connected UDP socket, once per flow,
+in the writer thread).
+"""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections.abc import Callable
+from typing import Any
+
+__all__ = ["TappedSocket", "Record", "Sink", "source_address_for", "WILDCARDS"]
+
+#: ``record(ts_ns, datagram, (src_host, src_port), (dst_host, dst_port))``
+Record = Callable[[int, bytes, Any, Any], None]
+#: what a :class:`TappedSocket` feeds: one ``(ts_ns, datagram, src, dst)`` tuple per datagram (``deque.append``)
+Sink = Callable[[tuple[int, bytes, Any, Any]], None]
+
+WILDCARDS = ("0.0.0.0", "::", "")
+_mono = time.monotonic_ns
+
+
+def source_address_for(peer: Any, port: int) -> tuple[str, int]:
+    """``(host, port)`` this machine sends from to reach *peer*: the kernel's route choice, with *port*."""
+    family = socket.AF_INET6 if ":" in str(peer[0]) else socket.AF_INET
+    probe = socket.socket(family, socket.SOCK_DGRAM)
+    try:
+        probe.connect((peer[0], peer[1] or 9))
+        return probe.getsockname()[0], port
+    except OSError:
+        return ("::" if family == socket.AF_INET6 else "0.0.0.0"), port
+    finally:
+        probe.close()
+
+
+class TappedSocket:
+    """A socket that records every datagram it sends or receives (see the module docstring). *sink* gets one
+    ``(ts_ns, datagram, src, dst)`` tuple per datagram; the socket's own address is recorded as bound (a wildcard
+    host is resolved later, off the hot path, by the writer)."""
+
+    __slots__ = ("_sendto", "_recvfrom", "_sink", "_local", "fileno", "getsockname", "close", "setsockopt")
+
+    def __init__(self, sock: socket.socket, sink: Sink) -> None:
+        self._sendto = sock.sendto
+        self._recvfrom = sock.recvfrom
+        self._sink = sink
+        self.fileno = sock.fileno
+        self.getsockname = sock.getsockname
+        self.close = sock.close
+        self.setsockopt = sock.setsockopt
+        self._local = sock.getsockname()[:2]
+
+    def sendto(self, data: bytes, addr: Any) -> int:
+        n = self._sendto(data, addr)  # raises OSError when not sent: then nothing is recorded
+        self._sink((_mono(), data, self._local, addr))
+        return n
+
+    def recvfrom(self, bufsize: int) -> tuple[bytes, Any]:
+        data, addr = self._recvfrom(bufsize)
+        self._sink((_mono(), data, addr, self._local))
+        return data, addr
+
+    def recv(self, bufsize: int) -> bytes:
+        data, addr = self._recvfrom(bufsize)
+        self._sink((_mono(), data, addr, self._local))
+        return data

@@ -1,0 +1,59 @@
+"""``--capture FILE.pcapng`` and ``--capture-max SIZE``, shared by ``up``, ``master`` and ``slave``."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import click
+
+__all__ = ["capture_options", "parse_size", "open_capture_or_exit"]
+
+_UNITS = {"": 1, "b": 1, "k": 10**3, "kb": 10**3, "m": 10**6, "mb": 10**6, "g": 10**9, "gb": 10**9,
+          "kib": 2**10, "mib": 2**20, "gib": 2**30}
+
+
+def parse_size(text: str) -> int:
+    """``100MB`` -> 100 000 000 (k/M/G are powers of 10, KiB/MiB/GiB of 2); ValueError says what is expected."""
+    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*([a-zA-Z]*)\s*", text)
+    unit = m.group(2).lower() if m else ""
+    if not m or unit not in _UNITS:
+        raise ValueError(f"expected a size such as 100MB, 512KiB or 2000000, got {text!r}")
+    value = int(float(m.group(1)) * _UNITS[unit])
+    if value < 4096:
+        raise ValueError(f"a capture needs at least 4096 bytes, got {text!r}")
+    return value
+
+
+class _Size(click.ParamType):
+    name = "size"
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> int:
+        if isinstance(value, int):
+            return value
+        try:
+            return parse_size(value)
+        except ValueError as exc:
+            self.fail(str(exc), param, ctx)
+
+
+def capture_options(fn: Any) -> Any:
+    fn = click.option("--capture-max", "capture_max", type=_Size(), default="100MB", show_default=True,
+                      help="The capture stops growing at this size (the rest is counted, not written).")(fn)
+    return click.option("--capture", "capture_path", type=click.Path(dir_okay=False, path_type=Path),
+                        help="Record every datagram sent and received to this pcapng file (Wireshark: "
+                             "'mlink-sim wireshark --install').")(fn)
+
+
+def open_capture_or_exit(command: str, path: Path | None, max_bytes: int) -> Any:
+    """A started CaptureWriter (None without --capture); exit 2 with one line when the file cannot be created."""
+    if path is None:
+        return None
+    from ..capture import CaptureWriter
+
+    try:
+        return CaptureWriter(path, max_bytes=max_bytes).start()
+    except OSError as exc:
+        click.echo(f"mlink-sim {command}: cannot write the capture {path}: {exc.strerror or exc}", err=True)
+        raise SystemExit(2) from None

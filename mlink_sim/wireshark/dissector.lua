@@ -1,0 +1,305 @@
+-- The dissector code. `T` (above, generated) holds every table; nothing below names a code or a bit of its own.
+-- Wireshark 4.0 runs Lua 5.2 (bit32); later versions keep Wireshark's own `bit` module.
+
+local bitops = bit32 or bit
+local band, bxor, rshift = bitops.band, bitops.bxor, bitops.rshift
+
+local mlink = Proto("mlink", "MECHATROLINK over UDP (mlink-sim)")
+
+local F = {}
+local fields = {}
+local function field(key, f)
+  F[key] = f
+  fields[#fields + 1] = f
+  return f
+end
+
+local function lower(s) return string.lower(s) end
+
+-- value strings: Lua tables keyed by the code
+local fcs_status_names = { [0] = "Bad", [1] = "Good" }
+
+field("magic", ProtoField.uint8("mlink.magic", "Magic", base.HEX))
+field("link", ProtoField.uint8("mlink.link", "Link", base.HEX, T.links))
+field("kind", ProtoField.uint8("mlink.kind", "Kind", base.HEX, T.kinds))
+field("station", ProtoField.uint8("mlink.station", "Station", base.HEX))
+field("cycle", ProtoField.uint32("mlink.cycle", "Cycle", base.DEC))
+field("tcycle_ns", ProtoField.uint32("mlink.tcycle_ns", "Transmission cycle (ns)", base.DEC))
+field("data_size", ProtoField.uint8("mlink.data_size", "Data size", base.DEC))
+field("code", ProtoField.uint8("mlink.cmd", "Command", base.HEX, T.commands))
+field("cmd_name", ProtoField.string("mlink.cmd.name", "Command name"))
+field("subcode", ProtoField.uint8("mlink.subcmd", "Sub-command", base.HEX, T.commands))
+field("subcmd_name", ProtoField.string("mlink.subcmd.name", "Sub-command name"))
+field("wdt", ProtoField.uint8("mlink.wdt", "WDT", base.HEX))
+field("rwdt", ProtoField.uint8("mlink.rwdt", "RWDT", base.HEX))
+field("alarm", ProtoField.uint8("mlink.alarm", "ALARM", base.HEX))
+field("alarm_name", ProtoField.string("mlink.alarm.name", "Alarm name"))
+field("status", ProtoField.uint16("mlink.status", "STATUS", base.HEX))
+field("substatus", ProtoField.uint8("mlink.substatus", "SUBSTATUS", base.HEX))
+field("cmd_ctrl", ProtoField.uint16("mlink.cmd_ctrl", "CMD_CTRL", base.HEX))
+field("cmd_stat", ProtoField.uint16("mlink.cmd_stat", "CMD_STAT", base.HEX))
+field("sub_ctrl", ProtoField.uint16("mlink.sub_ctrl", "SUB_CTRL", base.HEX))
+field("sub_stat", ProtoField.uint16("mlink.sub_stat", "SUB_STAT", base.HEX))
+field("raw", ProtoField.bytes("mlink.raw", "Body (no layout for this code)"))
+field("main", ProtoField.none("mlink.main", "Main"))
+field("sub", ProtoField.none("mlink.sub", "Sub"))
+field("fcs", ProtoField.uint16("mlink.fcs", "FCS", base.HEX))
+field("fcs_computed", ProtoField.uint16("mlink.fcs.computed", "FCS computed", base.HEX))
+field("fcs_status", ProtoField.uint8("mlink.fcs.status", "FCS status", base.DEC, fcs_status_names))
+
+-- bit fields: { {mask, name}, ... } under a parent of `width` bits
+local function bit_fields(prefix, bits, width)
+  local out = {}
+  for _, b in ipairs(bits) do
+    local abbr = prefix .. "." .. lower(b[2])
+    out[#out + 1] = { field(abbr, ProtoField.bool(abbr, b[2], width, nil, b[1])) }
+  end
+  return out
+end
+
+-- packed fields (CMD_CTRL, CMD_STAT, SUB_STAT): {name, mask}; a single bit is a bool, a wider one a number
+local packed_names = { cmd_alm = T.cmd_alm, comm_alm = T.comm_alm, subcmd_alm = T.subcmd_alm }
+local function packed_fields(prefix, spec, width)
+  local out = {}
+  for _, p in ipairs(spec) do
+    local name, mask = p[1], p[2]
+    local abbr = prefix .. "." .. name
+    local f
+    if band(mask, mask - 1) == 0 then
+      f = ProtoField.bool(abbr, string.upper(name), width, nil, mask)
+    else
+      f = ProtoField.uint16(abbr, string.upper(name), base.HEX, packed_names[name], mask)
+    end
+    out[#out + 1] = { field(abbr, f) }
+  end
+  return out
+end
+
+local STATUS_BITS = bit_fields("mlink.status", T.status_bits, 16)
+local SUBSTATUS_BITS = bit_fields("mlink.substatus", T.substatus_bits, 8)
+local CMD_CTRL_FIELDS = packed_fields("mlink.cmd_ctrl", T.cmd_ctrl, 16)
+local CMD_STAT_FIELDS = packed_fields("mlink.cmd_stat", T.cmd_stat, 16)
+local SUB_STAT_FIELDS = packed_fields("mlink.sub_stat", T.sub_stat, 16)
+
+-- body fields: one display-filter field per name (mlink.no, mlink.speed_ref ...)
+local BODY = {}
+local BODY_BITS = {}
+for name, spec in pairs(T.body_fields) do
+  local wtype, b = spec[1], spec[2]
+  local abbr = "mlink." .. name
+  local f
+  if wtype == "bytes" then
+    f = ProtoField.bytes(abbr, name)
+  else  -- uint8 ... int32, as wide as the widest layout using the name
+    f = ProtoField[wtype](abbr, name, b == "hex" and base.HEX or base.DEC)
+  end
+  BODY[name] = field("body." .. name, f)
+end
+local WIDTH = { uint8 = 8, uint16 = 16, uint32 = 32 }
+for name, bits in pairs(T.body_bits) do
+  BODY_BITS[name] = bit_fields("mlink." .. name, bits, WIDTH[T.body_fields[name][1]])
+end
+
+mlink.fields = fields
+
+local ef_bad_fcs = ProtoExpert.new("mlink.fcs.bad", "Bad FCS", expert.group.CHECKSUM, expert.severity.ERROR)
+local ef_size = ProtoExpert.new("mlink.size.bad", "Datagram size not allowed on this link", expert.group.MALFORMED,
+  expert.severity.ERROR)
+local ef_header = ProtoExpert.new("mlink.header.bad", "Unknown link or kind", expert.group.MALFORMED,
+  expert.severity.ERROR)
+local ef_alarm = ProtoExpert.new("mlink.alarm.raised", "Alarm or warning reported", expert.group.RESPONSE_CODE,
+  expert.severity.WARN)
+local ef_unknown = ProtoExpert.new("mlink.unknown", "Command code without a layout", expert.group.UNDECODED,
+  expert.severity.NOTE)
+mlink.experts = { ef_bad_fcs, ef_size, ef_header, ef_alarm, ef_unknown }
+
+local function crc16_x25(tvb, n)
+  local crc = 0xFFFF
+  local bytes = tvb:bytes(0, n)
+  for i = 0, n - 1 do
+    crc = bxor(rshift(crc, 8), T.crc_table[band(bxor(crc, bytes:get_index(i)), 0xFF) + 1])
+  end
+  return bxor(crc, 0xFFFF)
+end
+
+local function contains(list, value)
+  for _, v in ipairs(list) do
+    if v == value then return true end
+  end
+  return false
+end
+
+local function add_bits(item, range, bits)
+  for _, b in ipairs(bits) do item:add_le(b[1], range) end
+end
+
+-- name of an ALARM byte: the card's own codes (SI-T3 Tables 23/25), then the drive table the STATUS bits
+-- point at (Table 26 with ALM, Table 27 with WARNG only), as mlink_sim.wire.describe does
+local function alarm_name(code, status)
+  local name = T.m2_alarm[code]
+  if name then return name end
+  if band(status, T.status_alm_bit) ~= 0 then
+    name = T.drive_alarm[code]
+  elseif band(status, T.status_warng_bit) ~= 0 then
+    name = T.drive_warning[code]
+  end
+  return name or string.format("0x%02x", code)
+end
+
+local function dissect_body(tree, range, gen, slot, code, label)
+  local layout = T.bodies[gen][slot][code]
+  local names = T.gen_commands[gen]
+  local sub = tree:add(F[string.lower(label)], range)
+  sub:set_text(string.format("%s: %s (%02XH)", label, names[code] or "unknown", code))
+  if layout == nil then
+    sub:add(F.raw, range)
+    sub:add_proto_expert_info(ef_unknown, string.format("%s code %02XH has no layout", label, code))
+    return
+  end
+  for _, f in ipairs(layout) do
+    local name, off, size = f[1], f[2], f[3]
+    local item = sub:add_le(BODY[name], range(off, size))
+    if BODY_BITS[name] then add_bits(item, range(off, size), BODY_BITS[name]) end
+  end
+end
+
+local function dissect(tvb, pinfo, tree)
+  local len = tvb:len()
+  pinfo.cols.protocol = "MLINK"
+  local root = tree:add(mlink, tvb(), "MECHATROLINK (mlink-sim)")
+  local shortest = T.header_size + 17 + T.fcs_size
+  local longest = T.header_size + 64 + T.fcs_size
+  if len < shortest or len > longest then
+    root:add_proto_expert_info(ef_size, string.format("%d bytes: a datagram is %d to %d bytes", len, shortest, longest))
+    return len
+  end
+  for _, f in ipairs(T.envelope) do
+    root:add_le(F[f[1]], tvb(f[2], f[3]))
+  end
+  local n = len - T.header_size - T.fcs_size
+  local size_item = root:add(F.data_size, tvb(T.header_size, n), n)
+  size_item:set_generated()
+  local fcs_range = tvb(len - T.fcs_size, T.fcs_size)
+  local fcs_rx = fcs_range:le_uint()
+  local fcs_calc = crc16_x25(tvb, len - T.fcs_size)
+  local fcs_item = root:add_le(F.fcs, fcs_range)
+  root:add(F.fcs_computed, fcs_range, fcs_calc):set_generated()
+  local good = fcs_rx == fcs_calc
+  root:add(F.fcs_status, fcs_range, good and 1 or 0):set_generated()
+  local station = tvb(3, 1):uint()
+  local link, kind = tvb(1, 1):uint(), tvb(2, 1):uint()
+  local info = string.format("%02XH", station)
+  if not good then
+    fcs_item:add_proto_expert_info(ef_bad_fcs, string.format("Bad FCS: 0x%04x, computed 0x%04x", fcs_rx, fcs_calc))
+    info = info .. " [BAD FCS]"
+  end
+  local gen = T.link_gen[link]
+  if gen == nil or T.kinds[kind] == nil then
+    root:add_proto_expert_info(ef_header, string.format("link %02XH, kind %02XH", link, kind))
+    pinfo.cols.info = info .. " unknown link or kind"
+    return len
+  end
+  if not contains(T.data_sizes[link], n) then
+    size_item:add_proto_expert_info(ef_size, string.format("%d data bytes on %s", n, T.links[link]))
+    pinfo.cols.info = info .. string.format(" %d data bytes on %s", n, T.links[link])
+    return len
+  end
+  local is_cmd = kind == 1
+  local frame = T.frames[gen][is_cmd and "cmd" or "rsp"][n]
+  local data = tvb(T.header_size, n)
+  local names = T.gen_commands[gen]
+  local code, subcode, status, alarm
+  local notes = {}
+  for _, f in ipairs(frame) do
+    local name, off, size = f[1], f[2], f[3]
+    local range = data(off, size)
+    if name == "code" then
+      code = range:uint()
+      root:add(F.code, range)
+      root:add(F.cmd_name, range, names[code] or string.format("0x%02x", code)):set_generated()
+    elseif name == "subcode" then
+      subcode = range:uint()
+      root:add(F.subcode, range)
+      root:add(F.subcmd_name, range, names[subcode] or string.format("0x%02x", subcode)):set_generated()
+    elseif name == "main" then
+      dissect_body(root, range, gen, is_cmd and "cmd_main" or "rsp_main", code, "Main")
+    elseif name == "sub" then
+      dissect_body(root, range, gen, is_cmd and "cmd_sub" or "rsp_sub", subcode, "Sub")
+    elseif name == "status" then
+      status = range:le_uint()
+      add_bits(root:add_le(F.status, range), range, STATUS_BITS)
+    elseif name == "substatus" then
+      add_bits(root:add_le(F.substatus, range), range, SUBSTATUS_BITS)
+    elseif name == "alarm" then
+      alarm = range:uint()
+      root:add(F.alarm, range)
+    elseif name == "cmd_ctrl" then
+      add_bits(root:add_le(F.cmd_ctrl, range), range, CMD_CTRL_FIELDS)
+    elseif name == "cmd_stat" then
+      local v = range:le_uint()
+      add_bits(root:add_le(F.cmd_stat, range), range, CMD_STAT_FIELDS)
+      local cmd_alm, comm_alm = band(rshift(v, 8), 0xF), band(rshift(v, 12), 0xF)
+      if cmd_alm ~= 0 then notes[#notes + 1] = "CMD_ALM " .. (T.cmd_alm[cmd_alm] or cmd_alm) end
+      if comm_alm ~= 0 then notes[#notes + 1] = "COMM_ALM " .. (T.comm_alm[comm_alm] or comm_alm) end
+    elseif name == "sub_ctrl" then
+      root:add_le(F.sub_ctrl, range)
+    elseif name == "sub_stat" then
+      local v = range:le_uint()
+      add_bits(root:add_le(F.sub_stat, range), range, SUB_STAT_FIELDS)
+      local subcmd_alm = band(rshift(v, 8), 0xF)
+      if subcmd_alm ~= 0 then notes[#notes + 1] = "SUBCMD_ALM " .. (T.subcmd_alm[subcmd_alm] or subcmd_alm) end
+    elseif F[name] then
+      root:add(F[name], range)
+    end
+  end
+  if alarm ~= nil and alarm ~= 0 then
+    local aname = alarm_name(alarm, status or 0)
+    root:add(F.alarm_name, data(1, 1), aname):set_generated()
+    notes[#notes + 1] = string.format("ALARM %02XH %s", alarm, aname)
+  end
+  if #notes > 0 then
+    root:add_proto_expert_info(ef_alarm, table.concat(notes, ", "))
+  end
+  root:append_text(string.format(", %s %s, station %02XH, %s", T.links[link], T.kinds[kind], station,
+    names[code] or string.format("0x%02x", code)))
+  info = string.format("%s %s %s", info, is_cmd and "cmd" or "rsp", names[code] or string.format("0x%02x", code))
+  if subcode ~= nil then info = info .. " / " .. (names[subcode] or string.format("0x%02x", subcode)) end
+  info = info .. string.format(" cycle %d", tvb(4, 4):le_uint())
+  if #notes > 0 then info = info .. " [" .. table.concat(notes, ", ") .. "]" end
+  pinfo.cols.info = info
+  return len
+end
+
+function mlink.dissector(tvb, pinfo, tree)
+  return dissect(tvb, pinfo, tree)
+end
+
+-- heuristic: the magic byte, a known link and kind, and a data size that link allows
+local function heuristic(tvb, pinfo, tree)
+  local len = tvb:len()
+  if len < T.header_size + 17 + T.fcs_size or len > T.header_size + 64 + T.fcs_size then return false end
+  if tvb(0, 1):uint() ~= T.magic then return false end
+  local link, kind = tvb(1, 1):uint(), tvb(2, 1):uint()
+  if T.link_gen[link] == nil or T.kinds[kind] == nil then return false end
+  if not contains(T.data_sizes[link], len - T.header_size - T.fcs_size) then return false end
+  dissect(tvb, pinfo, tree)
+  return true
+end
+
+mlink.prefs.ports = Pref.range("UDP ports", "47001",
+  "UDP ports decoded as MECHATROLINK (the heuristic finds the others)", 65535)
+
+local registered = nil
+local function register_ports()
+  local udp = DissectorTable.get("udp.port")
+  if registered ~= nil then udp:remove(registered, mlink) end
+  registered = mlink.prefs.ports
+  udp:add(registered, mlink)
+end
+
+function mlink.prefs_changed()
+  register_ports()
+end
+
+register_ports()
+mlink:register_heuristic("udp", heuristic)

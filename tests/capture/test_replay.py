@@ -1,0 +1,176 @@
+"""Replay: the comparison rules (pure) and a real slave process on loopback (recorded -> 0, modified -> 1)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from mlink_sim.capture import CaptureWriter, Datagram, read_capture
+from mlink_sim.capture.replay import compare, plan_replay
+from mlink_sim.wire import Frame, Kind, Link, M2Alarm, M2Status, decode, encode, ml2, ml3
+
+HERE = Path(__file__).parent
+CONFIG = HERE / "one_station.toml"
+MLINK = [sys.executable, "-m", "mlink_sim"]
+
+
+def _rsp(body: object, *, status: int = int(M2Status.CMDRDY), alarm: int = 0, rwdt: int = 1, cycle: int = 5) -> bytes:
+    return encode(Frame(Link.ML2, Kind.RESPONSE, 0x21, cycle, 2_000_000,
+                        ml2.M2Response(body, alarm=alarm, status=status, rwdt=rwdt)))
+
+
+def test_equal_answers_and_rwdt_left_out() -> None:
+    assert compare(_rsp(ml2.Nop()), _rsp(ml2.Nop())) == []
+    assert compare(_rsp(ml2.Nop(), rwdt=1), _rsp(ml2.Nop(), rwdt=9)) == []
+
+
+def test_a_changed_field_is_reported_by_name() -> None:
+    diffs = compare(_rsp(ml2.PrmRdResponse(0x200, 2, b"\x64" + bytes(7))),
+                    _rsp(ml2.PrmRdResponse(0x200, 2, b"\x65" + bytes(7))))
+    assert diffs == ["main.parameter: recorded '6400000000000000', live '6500000000000000'"]
+
+
+def test_monitors_left_out_while_moving_only() -> None:
+    moving = int(M2Status.CMDRDY | M2Status.RUNX)
+    a = _rsp(ml2.InvCtlResponse(output_freq=300, mon1=5), status=moving)
+    b = _rsp(ml2.InvCtlResponse(output_freq=290, mon1=7), status=moving | int(M2Status.AGREE))
+    assert compare(a, b) == []
+    rest = int(M2Status.CMDRDY | M2Status.ZSP)
+    diffs = compare(_rsp(ml2.InvCtlResponse(mon1=5), status=rest), _rsp(ml2.InvCtlResponse(mon1=7), status=rest))
+    assert diffs == ["main.mon1: recorded 5, live 7"]
+    assert compare(_rsp(ml2.InvCtlResponse(mon1=5), status=rest), _rsp(ml2.InvCtlResponse(mon1=7), status=rest),
+                   moving=True) == []  # settling right after a stop
+
+
+def test_reception_timing_warning_left_out_but_alarms_kept() -> None:
+    warn = int(M2Status.CMDRDY | M2Status.WARNG)
+    assert compare(_rsp(ml2.Nop()), _rsp(ml2.Nop(), alarm=M2Alarm.COMM_WARNING, status=warn)) == []
+    diffs = compare(_rsp(ml2.Nop()), _rsp(ml2.Nop(), alarm=M2Alarm.COMM_ERROR, status=int(M2Status.ALM)))
+    assert any(d.startswith("alarm:") for d in diffs)
+
+
+def test_ml3_comm_alm_warning_left_out() -> None:
+    def rsp(stat: ml3.CmdStat) -> bytes:
+        return encode(Frame(Link.ML3, Kind.RESPONSE, 0x23, 1, 2_000_000, ml3.M3Response(ml3.Nop(),
+                                                                                       cmd_stat=stat.to_int())))
+
+    assert compare(rsp(ml3.CmdStat()), rsp(ml3.CmdStat(d_war=True, comm_alm=2))) == []
+    assert compare(rsp(ml3.CmdStat()), rsp(ml3.CmdStat(d_alm=True, comm_alm=9)))
+
+
+def test_rejected_answers_compare_by_reason() -> None:
+    good = _rsp(ml2.Nop())
+    bad = good[:-1] + bytes([good[-1] ^ 1])
+    assert compare(bad, bad) == []
+    assert compare(good, bad)[0].startswith("frame: recorded valid, live rejected (bad FCS")
+
+
+def test_plan_picks_the_master_frames_of_a_station() -> None:
+    cmd = encode(Frame(Link.ML2, Kind.COMMAND, 0x21, 5, 2_000_000, ml2.M2Command(ml2.Nop())))
+    other = encode(Frame(Link.ML2, Kind.COMMAND, 0x22, 5, 2_000_000, ml2.M2Command(ml2.Nop())))
+    a, b = ("127.0.0.1", 1), ("127.0.0.1", 2)
+    dgs = [Datagram(1000, a, b, cmd), Datagram(2000, b, a, _rsp(ml2.Nop())), Datagram(3000, a, b, other),
+           Datagram(4000, a, b, b"junk")]
+    plan = plan_replay(dgs, [0x21])
+    assert plan.commands == [(0, 0x21, 5, cmd)] and plan.recorded == {(0x21, 5): _rsp(ml2.Nop())}
+    assert plan_replay(dgs).stations == [0x21, 0x22]
+    with pytest.raises(ValueError, match="no master frames of station"):
+        plan_replay(dgs, [0x30])
+
+
+class _Slave:
+    def __init__(self, *extra: str) -> None:
+        # --host-stalls absorb, as up/master/compose run their slaves (docs/timing.md): a stall of this busy
+        # machine up to 50 ms is not taken for the master's silence (bUS) on either side of the comparison
+        self.proc = subprocess.Popen([*MLINK, "slave", "--config", str(CONFIG), "--endpoint", "0x21=127.0.0.1:0",
+                                      "--ready-json", "--control", "off", "--host-stalls", "absorb", *extra],
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        assert self.proc.stdout is not None
+        line = self.proc.stdout.readline()
+        assert line, self.proc.stderr.read() if self.proc.stderr else ""
+        self.port = json.loads(line)["stations"][0]["port"]
+
+    def stop(self) -> str:
+        self.proc.send_signal(signal.SIGTERM)
+        _, err = self.proc.communicate(timeout=20)
+        return err
+
+
+def _modified(src: Path, dst: Path) -> None:
+    """*src* with the first CONNECT answer's COM_TIM changed (FCS recomputed)."""
+    done = False
+    with CaptureWriter(dst, epoch_offset_ns=0) as w:
+        for d in read_capture(src).datagrams:
+            data = d.data
+            if not done and data[2] == Kind.RESPONSE and data[12] == ml2.M2Cmd.CONNECT:
+                f = decode(data)
+                body = dataclasses.replace(f.message.body, com_tim=f.message.body.com_tim + 1)
+                data = encode(dataclasses.replace(f, message=dataclasses.replace(f.message, body=body)))
+                done = True
+            w.record(d.ts_ns, data, d.src, d.dst)
+    assert done
+
+
+@pytest.mark.e2e
+def test_replay_against_a_fresh_slave(tmp_path: Path) -> None:
+    recorded = tmp_path / "slave.pcapng"
+    slave = _Slave("--capture", str(recorded))
+    try:
+        run = subprocess.run([*MLINK, "master", str(CONFIG), "--endpoint", f"0x21=127.0.0.1:{slave.port}",
+                              "--duration", "2s", "--no-status", "--capture", str(tmp_path / "master.pcapng")],
+                             capture_output=True, text=True, timeout=60)
+    finally:
+        err = slave.stop()
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert f"capture {recorded}:" in err
+    # both ends of one loopback link: what the master sent, the slave received; what the master received, the
+    # slave sent (its answers to the last commands may come after the master closed its socket)
+    at_slave = read_capture(recorded).datagrams
+    at_master = read_capture(tmp_path / "master.pcapng").datagrams
+    assert [d.data for d in at_master if d.data[2] == 1] == [d.data for d in at_slave if d.data[2] == 1]
+    assert {d.data for d in at_master} <= {d.data for d in at_slave}
+    assert {(d.src, d.dst) for d in at_master} == {(d.src, d.dst) for d in at_slave}
+    assert any("StateChanged station 21H" in c for d in at_master for c in d.comments)
+    comments = [c for d in read_capture(recorded).datagrams for c in d.comments]
+    assert "station 21H: phase 1 -> 3" in comments and "station 21H: phase 3 -> 1" in comments
+
+    ok = _replay_against_fresh_slave(recorded)
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    assert "all equal" in ok.stdout
+
+    changed = tmp_path / "changed.pcapng"
+    _modified(recorded, changed)
+    bad = _replay_against_fresh_slave(changed)
+    assert bad.returncode == 1, bad.stdout + bad.stderr
+    assert "CONNECT" in bad.stdout and "main.com_tim: recorded 2, live 1" in bad.stdout
+
+
+def _replay_against_fresh_slave(capture: Path) -> subprocess.CompletedProcess[str]:
+    fresh = _Slave()
+    try:
+        return subprocess.run([*MLINK, "replay", str(capture), "--to", f"127.0.0.1:{fresh.port}"],
+                              capture_output=True, text=True, timeout=60)
+    finally:
+        fresh.stop()
+
+
+def test_replay_usage_errors(tmp_path: Path) -> None:
+    from click.testing import CliRunner
+
+    from mlink_sim.cli.replay import replay_cmd
+
+    assert CliRunner().invoke(replay_cmd, [str(tmp_path / "none.pcapng"), "--to", "127.0.0.1:1"]).exit_code == 2
+    two = tmp_path / "two.pcapng"
+    with CaptureWriter(two) as w:
+        for station in (0x21, 0x22):
+            w.record(0, encode(Frame(Link.ML2, Kind.COMMAND, station, 1, 2_000_000, ml2.M2Command(ml2.Nop()))),
+                     ("127.0.0.1", 1), ("127.0.0.1", 2))
+    result = CliRunner().invoke(replay_cmd, [str(two), "--to", "127.0.0.1:9"])
+    assert result.exit_code == 2 and "pick it with --station" in result.output
+    assert CliRunner().invoke(replay_cmd, [str(two), "--to", "nonsense"]).exit_code == 2
