@@ -86,7 +86,7 @@ def _with_stalls(fn: Any) -> Any:
     fn = click.option("--realtime/--no-realtime", "rt", default=True, show_default=True,
                       help="SCHED_FIFO, locked memory, the master's clock on a CPU of its own, where permitted; "
                            "stderr says what was granted (docs/timing.md).")(fn)
-    fn = click.option("--stall-bound", help="Longest stall 'absorb' absorbs (default: the config's, 50ms).")(fn)
+    fn = click.option("--stall-bound", help="Longest stall 'absorb' absorbs (default: the config's, 100ms).")(fn)
     return click.option("--host-stalls", type=click.Choice(["absorb", "strict"]),
                         help="Host-stall policy (default: the config's, 'absorb'): absorb runs the cycles a stall "
                              "of mlink-sim's own processes delayed late instead of losing them.")(fn)

@@ -129,7 +129,7 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
 @click.option("--host-stalls", type=click.Choice(["strict", "absorb"]), default="strict", show_default=True,
               help="strict: judge the master by the wall clock, as the manuals do (test your own master); absorb: "
                    "a stall of mlink-sim's own processes up to --stall-bound costs no command (docs/timing.md).")
-@click.option("--stall-bound", default="50ms", show_default=True, help="With --host-stalls absorb: the bound.")
+@click.option("--stall-bound", default="100ms", show_default=True, help="With --host-stalls absorb: the bound.")
 @click.option("--realtime", "rt", is_flag=True,
               help="SCHED_FIFO, locked memory, off the master's CPU, where permitted (docs/timing.md).")
 @capture_options

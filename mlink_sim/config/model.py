@@ -329,7 +329,7 @@ class NetworkConfig(BaseModel):
         "absorb", description="host-stall policy of up/master/compose: 'absorb' runs the cycles a stall of "
         "mlink-sim's own processes delayed (up to stall_bound) late instead of losing them; 'strict' judges "
         "by the wall clock as the manuals do (docs/timing.md, 'Host stalls')")
-    stall_bound: DurationNs = Field(50_000_000, description="longest stall 'absorb' absorbs, e.g. '50ms'")
+    stall_bound: DurationNs = Field(100_000_000, description="longest stall 'absorb' absorbs, e.g. '100ms'")
 
     @model_validator(mode="after")
     def _jitter(self) -> NetworkConfig:

@@ -263,7 +263,7 @@ def test_catch_up_runs_the_cycles_a_stall_delayed_in_order(loop_kind):
 
     def block_once(rec, cycle):
         if len(rec.calls) == 3:
-            time.sleep(4.5 * MS / 1e9)  # > 3 periods, well within the 50 ms bound
+            time.sleep(4.5 * MS / 1e9)  # > 3 periods, well within the 50 ms bound of this test
 
     async def main():
         rec = Recorder(want=12, action=block_once)
