@@ -6,11 +6,14 @@ datagrams over one UDP socket, paced by the capture's own timestamps.
 
 Answers are matched to commands by station and cycle number (a response echoes the cycle of the command it
 answers, docs/wire-format.md §1). Fields that change by nature are left out of the comparison
-(:data:`VOLATILE`, docs/wire-format.md §10): the RWDT always (it follows the slave's own counter); the reception-timing
-warnings (ML-II A.96, ML-III COMM_ALM 1–3), which depend on when each datagram arrives and so on the load of the
-machine that replays; and while the drive moves (either answer shows output frequency, a run status or ZSP
-clear, or did so less than :data:`SETTLE_NS` before) the monitors – output frequency and current, MON1…MON6 –
-and the speed-derived status bits ZSP and AGREE, which follow the drive model's clock, not the commands.
+(:data:`VOLATILE`, :data:`MONITORS`, docs/wire-format.md §10): the RWDT (it follows the slave's own counter);
+the reception-timing warnings (ML-II A.96, ML-III COMM_ALM 1–3), which depend on when each datagram arrives and so
+on the load of the machine that replays, and which of the ML-III reception alarms 9H/AH/BH is raised; the monitors – output frequency and current, MON1…MON6 – which sample
+the drive model at the instant each command arrives (after a stop the motor still coasts: a speed monitor of -33
+against -31); and while the drive moves (either answer shows output frequency, a run status or ZSP clear, or did
+so less than :data:`SETTLE_NS` before) the drive-state bits that change when a ramp reaches a speed (ML-II
+BB_OFF, RUNX, ZSP, REV, AGREE; ML-III forward/reverse in progress, BB released, ZSP, AGREE), which follow the
+drive model's clock, not the commands.
 """
 
 from __future__ import annotations
@@ -25,18 +28,23 @@ from ..wire import WireError, decode, describe
 from ..wire.frame import HEADER
 from .reader import Datagram
 
-__all__ = ["ReplayPlan", "ReplayResult", "VOLATILE", "MOVING_VOLATILE", "SETTLE_NS", "plan_replay", "compare",
-           "answer_moving", "run_replay"]
+__all__ = ["ReplayPlan", "ReplayResult", "VOLATILE", "MONITORS", "SETTLE_NS",
+           "plan_replay", "compare", "answer_moving", "run_replay"]
 
 #: left out of every comparison
 VOLATILE = ("rwdt",)
-#: left out while the drive moves: body fields of INV_CTL / INV_I/O responses, and status bits
-MOVING_VOLATILE = ("output_freq", "output_current", "mon1", "mon2", "mon3", "mon4", "mon5", "mon6")
-_MOVING_BITS = {"status": (1 << 6) | (1 << 9),  # ML-II STATUS ZSP, AGREE (SI-T3 "STATUS Field")
-                "invcmd_stat": (1 << 4) | (1 << 5)}  # ML-III INVCMD_STAT ZSP, AGREE (SI-ET3 "INVCMD_STAT")
+#: left out of every comparison too: the monitors of INV_CTL / INV_I/O answers
+MONITORS = ("output_freq", "output_current", "mon1", "mon2", "mon3", "mon4", "mon5", "mon6")
+#: the drive-state bits that change when a ramp reaches a speed – ML-II STATUS BB_OFF, RUNX, ZSP, REV, AGREE
+#: (SI-T3 "STATUS Field"); ML-III INVCMD_STAT forward/reverse in progress, BB released, ZSP, AGREE (SI-ET3
+#: "INVCMD_STAT")
+_MOVING_BITS = {"status": (1 << 3) | (1 << 5) | (1 << 6) | (1 << 7) | (1 << 9),
+                "invcmd_stat": (1 << 0) | (1 << 1) | (1 << 2) | (1 << 4) | (1 << 5)}
 _RUN_BITS = {"status": 1 << 5,  # RUNX
              "invcmd_stat": (1 << 0) | (1 << 1)}  # FORWARD / REVERSE in progress
 _COMM_WARNING, _WARNG = 0x96, 1 << 1  # ML-II ALARM A.96 (SI-T3 Table 23), STATUS WARNG
+#: ML-III COMM_ALM command / sync frame not received, sync interval error (SI-ET3 "COMM_ALM")
+_RECEPTION_ALARMS = (0x9, 0xA, 0xB)
 #: after the drive was last seen turning, its monitors keep settling (current, torque) for this long
 SETTLE_NS = 1_000_000_000
 
@@ -46,6 +54,7 @@ class ReplayPlan:
     commands: list[tuple[int, int, int, bytes]]  #: (offset ns from the first command, station, cycle, datagram)
     recorded: dict[tuple[int, int], bytes]  #: (station, cycle) -> the recorded answer
     stations: list[int]
+    end_ns: int = 0  #: offset of the capture's last datagram of these stations
 
 
 @dataclasses.dataclass
@@ -75,6 +84,7 @@ def plan_replay(datagrams: list[Datagram], stations: list[int] | None = None) ->
     commands: list[tuple[int, int, int, bytes]] = []
     recorded: dict[tuple[int, int], bytes] = {}
     present: set[int] = set()
+    last = 0
     for d in datagrams:
         key = _key(d.data)
         if key is None:
@@ -83,6 +93,7 @@ def plan_replay(datagrams: list[Datagram], stations: list[int] | None = None) ->
         present.add(station)
         if stations is not None and station not in stations:
             continue
+        last = max(last, d.ts_ns)
         if kind == 1:
             commands.append((d.ts_ns, station, cycle, d.data))
         elif kind == 2:
@@ -93,7 +104,7 @@ def plan_replay(datagrams: list[Datagram], stations: list[int] | None = None) ->
                          f"{', '.join(f'{s:02X}H' for s in sorted(present)) or 'none'})")
     t0 = commands[0][0]
     return ReplayPlan([(ts - t0, st, cy, data) for ts, st, cy, data in commands], recorded,
-                      sorted({st for _, st, _, _ in commands}))
+                      sorted({st for _, st, _, _ in commands}), last - t0)
 
 
 def _flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -122,14 +133,17 @@ def _moving(fields: dict[str, Any]) -> bool:
 
 
 def _without_timing_warning(fields: dict[str, Any]) -> dict[str, Any]:
-    """*fields* with a reception-timing warning removed: ML-II ALARM 96H (first reception failure, SI-T3 Tables
-    22/23) and its WARNG bit; ML-III COMM_ALM 1–3 (warnings, SI-ET3 "COMM_ALM") and its D_WAR bit."""
+    """*fields* with a reception-timing warning removed – ML-II ALARM 96H (first reception failure, SI-T3 Tables
+    22/23) and its WARNG bit; ML-III COMM_ALM 1–3 (warnings, SI-ET3 "COMM_ALM") and its D_WAR bit – and the
+    ML-III reception alarms 9H, AH, BH made one (the alarm is compared, not which of the three)."""
     out = dict(fields)
     if out.get("alarm") == _COMM_WARNING:
         out["alarm"], out["alarm_name"] = 0, None
         out["status"] = out.get("status", 0) & ~_WARNG
     if out.get("cmd_stat.comm_alm") in (1, 2, 3):
         out["cmd_stat.comm_alm"], out["cmd_stat.comm_alm_name"], out["cmd_stat.d_war"] = 0, "NORMAL", False
+    elif out.get("cmd_stat.comm_alm") in _RECEPTION_ALARMS:  # which one depends on the instant a datagram was due
+        out["cmd_stat.comm_alm"], out["cmd_stat.comm_alm_name"] = 9, "a reception alarm (9H-BH)"
     return out
 
 
@@ -147,9 +161,9 @@ def answer_moving(data: bytes) -> bool:
 
 
 def compare(recorded: bytes, live: bytes, *, moving: bool = False) -> list[str]:
-    """The differences between two answers, as ``field: recorded X, live Y``. Left out: :data:`VOLATILE`, the
-    reception-timing warnings, and, when either answer shows the drive turning or *moving* says it turned a
-    moment ago, :data:`MOVING_VOLATILE` and the ZSP/AGREE bits."""
+    """The differences between two answers, as ``field: recorded X, live Y``. Left out: :data:`VOLATILE`,
+    :data:`MONITORS`, the reception-timing warnings, and, when either answer shows the drive turning or *moving*
+    says it turned a moment ago, the speed-derived status bits."""
     if recorded == live:
         return []
     a, b = _view(recorded), _view(live)
@@ -158,18 +172,14 @@ def compare(recorded: bytes, live: bytes, *, moving: bool = False) -> list[str]:
                                   f"live {b if isinstance(b, str) else 'valid'}"]
     a, b = _without_timing_warning(a), _without_timing_warning(b)
     moving = moving or _moving(a) or _moving(b)
-    skip = set(VOLATILE)
-    if moving:
-        skip.update(f"main.{n}" for n in MOVING_VOLATILE)
-        skip.update(f"sub.{n}" for n in MOVING_VOLATILE)
+    skip = set(VOLATILE) | {f"{region}.{n}" for region in ("main", "sub") for n in MONITORS}
     out = []
     for key in sorted(set(a) | set(b)):
         if key in skip or key.endswith("_bits"):  # *_bits are names of the masked integers compared below
             continue
         va, vb = a.get(key), b.get(key)
         if moving:
-            base = key.removeprefix("main.")
-            mask = _MOVING_BITS.get(base)
+            mask = _MOVING_BITS.get(key.split(".", 1)[-1])
             if mask is not None and isinstance(va, int) and isinstance(vb, int):
                 va, vb = va & ~mask, vb & ~mask
         if va != vb:
@@ -186,10 +196,14 @@ def _describe_cmd(data: bytes) -> str:
         return f"rejected command ({exc.reason.name})"
 
 
-def run_replay(plan: ReplayPlan, target: tuple[str, int], *, grace_s: float = 0.3, max_differences: int = 10,
-               spin_ns: int = 200_000) -> ReplayResult:
-    """Send every planned command to *target* at its original offset, collect the answers, compare."""
-    family, _, _, _, target = socket.getaddrinfo(target[0], target[1], type=socket.SOCK_DGRAM)[0]
+def run_replay(plan: ReplayPlan, targets: dict[int, tuple[str, int]], *, grace_s: float = 0.3,
+               max_differences: int = 10, spin_ns: int = 200_000) -> ReplayResult:
+    """Send every planned command to its station's slave (*targets*: station -> ``(host, port)``) at its original
+    offset, collect the answers, compare. OSError when a host does not resolve."""
+    resolved: dict[int, Any] = {}
+    family = socket.AF_INET
+    for station, (host, port) in targets.items():
+        family, _, _, _, resolved[station] = socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)[0]
     sock = socket.socket(family, socket.SOCK_DGRAM)
     sock.bind(("::" if family == socket.AF_INET6 else "0.0.0.0", 0))
     sock.setblocking(False)
@@ -211,7 +225,7 @@ def run_replay(plan: ReplayPlan, target: tuple[str, int], *, grace_s: float = 0.
 
     try:
         t0 = time.monotonic_ns()
-        for offset, _, _, data in plan.commands:
+        for offset, station, _, data in plan.commands:
             due = t0 + offset
             while True:
                 drain()
@@ -221,7 +235,7 @@ def run_replay(plan: ReplayPlan, target: tuple[str, int], *, grace_s: float = 0.
                 if left > spin_ns:
                     select.select([sock], [], [], (left - spin_ns) / 1e9)
             try:
-                sock.sendto(data, target)
+                sock.sendto(data, resolved[station])
                 result.sent += 1
             except OSError:
                 result.transport_errors += 1
@@ -241,6 +255,8 @@ def run_replay(plan: ReplayPlan, target: tuple[str, int], *, grace_s: float = 0.
         where = f"cycle {cycle} station {station:02X}H {_describe_cmd(data)}"
         if recorded is None and live is None:
             continue
+        if recorded is None and plan.end_ns - offset < HEADER.unpack_from(data)[5]:
+            continue  # the capture ended within a cycle of this command: its answer could not be in it
         if recorded is None:
             diffs = ["answered now, not answered in the capture"]
         elif live is None:

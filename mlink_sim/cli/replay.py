@@ -9,49 +9,75 @@ import click
 __all__ = ["replay_cmd"]
 
 
+def _targets(texts: tuple[str, ...]) -> tuple[tuple[str, int] | None, dict[int, tuple[str, int]]]:
+    """``--to`` values: the one without a station (or None), and the per-station ones."""
+    from ..config import parse_address, parse_endpoint
+
+    default: tuple[str, int] | None = None
+    per_station: dict[int, tuple[str, int]] = {}
+    for text in texts:
+        station, sep, where = text.rpartition("=")
+        try:
+            endpoint = parse_endpoint(where)
+            if endpoint[1] == 0:
+                raise ValueError(f"the slave's port cannot be 0 in {text!r}")
+            if sep:
+                per_station[parse_address(station)] = endpoint
+            elif default is not None:
+                raise ValueError("one --to without a station; give the others as ADDR=HOST:PORT")
+            else:
+                default = endpoint
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="--to") from None
+    return default, per_station
+
+
 @click.command("replay")
 @click.argument("capture_path", metavar="FILE", type=click.Path(dir_okay=False))
-@click.option("--to", "target", required=True, metavar="HOST:PORT", help="The live slave to send the frames to.")
+@click.option("--to", "targets", required=True, multiple=True, metavar="[ADDR=]HOST:PORT",
+              help="The live slave to send the frames to; ADDR=HOST:PORT per station for a capture of several "
+                   "(repeatable).")
 @click.option("--station", "stations", multiple=True, metavar="ADDR",
-              help="Replay only this station's frames (repeatable); needed when the capture holds several.")
+              help="Replay only this station's frames (repeatable).")
 @click.option("--grace", default=0.3, show_default=True, type=click.FloatRange(0.0, 60.0),
               help="Seconds to wait for the last answers.")
 @click.option("--max-differences", default=10, show_default=True, type=click.IntRange(1, 10_000),
               help="How many differences to print before stopping the comparison.")
-def replay_cmd(capture_path: str, target: str, stations: tuple[str, ...], grace: float, max_differences: int) -> None:
-    """Send the master's frames of FILE on their original timing to the slave at HOST:PORT and compare its answers
-    with the recorded ones (RWDT and the monitors of a moving drive left out; docs/wire-format.md §10).
+def replay_cmd(capture_path: str, targets: tuple[str, ...], stations: tuple[str, ...], grace: float,
+               max_differences: int) -> None:
+    """Send the master's frames of FILE on their original timing to the slaves (--to) and compare their answers
+    with the recorded ones (RWDT, monitors and what a moving drive changes left out; docs/wire-format.md §10).
     Exit 0 when every answer is equal, 1 with the first differences."""
     from ..capture import CaptureError, read_capture
-    from ..capture.replay import MOVING_VOLATILE, VOLATILE, plan_replay, run_replay
-    from ..config import parse_address, parse_endpoint
+    from ..capture.replay import MONITORS, VOLATILE, plan_replay, run_replay
+    from ..config import parse_address
 
+    default, per_station = _targets(targets)
     try:
-        host, port = parse_endpoint(target)
         wanted = [parse_address(s) for s in stations] or None
     except ValueError as exc:
-        raise click.BadParameter(str(exc)) from None
-    if port == 0:
-        raise click.BadParameter("the slave's port cannot be 0", param_hint="--to")
+        raise click.BadParameter(str(exc), param_hint="--station") from None
     try:
         plan = plan_replay(read_capture(capture_path).datagrams, wanted)
     except (CaptureError, ValueError) as exc:
         click.echo(f"mlink-sim replay: {exc}", err=True)
         sys.exit(2)
-    if len(plan.stations) > 1:
-        names = ", ".join(f"{s:02X}H" for s in plan.stations)
-        click.echo(f"mlink-sim replay: {capture_path} holds stations {names}; one slave answers one station: pick "
-                   "it with --station", err=True)
+    unmapped = [s for s in plan.stations if s not in per_station]
+    if len(unmapped) > 1 or (unmapped and default is None):
+        names = ", ".join(f"{s:02X}H" for s in unmapped)
+        click.echo(f"mlink-sim replay: no slave for station(s) {names} of {capture_path}: one slave answers one "
+                   "station; give --to ADDR=HOST:PORT for each, or pick one with --station", err=True)
         sys.exit(2)
+    where = {s: per_station.get(s) or default for s in plan.stations}
     span = plan.commands[-1][0] / 1e9
-    click.echo(f"replaying {len(plan.commands)} frames of station {plan.stations[0]:02X}H ({span:.1f} s) to "
-               f"{host}:{port}", err=True)
+    names = ", ".join(f"{s:02X}H to {h}:{p}" for s, (h, p) in where.items())  # type: ignore[misc]
+    click.echo(f"replaying {len(plan.commands)} frames ({span:.1f} s): {names}", err=True)
     try:
-        result = run_replay(plan, (host, port), grace_s=grace, max_differences=max_differences)
+        result = run_replay(plan, where, grace_s=grace, max_differences=max_differences)  # type: ignore[arg-type]
     except OSError as exc:
         click.echo(f"mlink-sim replay: {exc.strerror or exc}", err=True)
         sys.exit(2)
-    ignored = ", ".join(VOLATILE) + "; while moving: " + ", ".join(MOVING_VOLATILE) + ", ZSP, AGREE"
+    ignored = (", ".join((*VOLATILE, *MONITORS)) + ", reception-timing warnings; while moving: the ramp's status bits")
     if result.ok:
         click.echo(f"{result.sent} frames sent, {result.compared} answers compared, all equal (left out: {ignored})")
         return

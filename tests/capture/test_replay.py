@@ -36,16 +36,19 @@ def test_a_changed_field_is_reported_by_name() -> None:
     assert diffs == ["main.parameter: recorded '6400000000000000', live '6500000000000000'"]
 
 
-def test_monitors_left_out_while_moving_only() -> None:
+def test_monitors_left_out_and_speed_bits_while_moving_only() -> None:
     moving = int(M2Status.CMDRDY | M2Status.RUNX)
     a = _rsp(ml2.InvCtlResponse(output_freq=300, mon1=5), status=moving)
     b = _rsp(ml2.InvCtlResponse(output_freq=290, mon1=7), status=moving | int(M2Status.AGREE))
     assert compare(a, b) == []
     rest = int(M2Status.CMDRDY | M2Status.ZSP)
-    diffs = compare(_rsp(ml2.InvCtlResponse(mon1=5), status=rest), _rsp(ml2.InvCtlResponse(mon1=7), status=rest))
-    assert diffs == ["main.mon1: recorded 5, live 7"]
-    assert compare(_rsp(ml2.InvCtlResponse(mon1=5), status=rest), _rsp(ml2.InvCtlResponse(mon1=7), status=rest),
-                   moving=True) == []  # settling right after a stop
+    assert compare(_rsp(ml2.InvCtlResponse(mon1=65503), status=rest),
+                   _rsp(ml2.InvCtlResponse(mon1=65505), status=rest)) == []  # a coasting motor after a stop
+    agree = int(M2Status.AGREE)
+    diffs = compare(_rsp(ml2.InvCtlResponse(), status=rest), _rsp(ml2.InvCtlResponse(), status=rest | agree))
+    assert diffs == ["status: recorded 68, live 580"]  # AGREE at rest is compared
+    assert compare(_rsp(ml2.InvCtlResponse(), status=rest), _rsp(ml2.InvCtlResponse(), status=rest | agree),
+                   moving=True) == []  # right after a stop it is not
 
 
 def test_reception_timing_warning_left_out_but_alarms_kept() -> None:
@@ -62,6 +65,8 @@ def test_ml3_comm_alm_warning_left_out() -> None:
 
     assert compare(rsp(ml3.CmdStat()), rsp(ml3.CmdStat(d_war=True, comm_alm=2))) == []
     assert compare(rsp(ml3.CmdStat()), rsp(ml3.CmdStat(d_alm=True, comm_alm=9)))
+    assert compare(rsp(ml3.CmdStat(d_alm=True, comm_alm=9)), rsp(ml3.CmdStat(d_alm=True, comm_alm=0xA))) == []
+    assert compare(rsp(ml3.CmdStat(d_alm=True, comm_alm=9)), rsp(ml3.CmdStat(d_alm=True, comm_alm=0xC)))  # WDT
 
 
 def test_rejected_answers_compare_by_reason() -> None:
@@ -79,17 +84,19 @@ def test_plan_picks_the_master_frames_of_a_station() -> None:
            Datagram(4000, a, b, b"junk")]
     plan = plan_replay(dgs, [0x21])
     assert plan.commands == [(0, 0x21, 5, cmd)] and plan.recorded == {(0x21, 5): _rsp(ml2.Nop())}
+    assert plan.end_ns == 1000  # the last datagram of station 21H, from its first command
     assert plan_replay(dgs).stations == [0x21, 0x22]
     with pytest.raises(ValueError, match="no master frames of station"):
         plan_replay(dgs, [0x30])
 
 
 class _Slave:
-    def __init__(self, *extra: str) -> None:
+    def __init__(self, *extra: str, config: Path = CONFIG, station: int = 0x21) -> None:
         # --host-stalls absorb, as up/master/compose run their slaves (docs/timing.md): a stall of this busy
         # machine up to 50 ms is not taken for the master's silence (bUS) on either side of the comparison
-        self.proc = subprocess.Popen([*MLINK, "slave", "--config", str(CONFIG), "--endpoint", "0x21=127.0.0.1:0",
-                                      "--ready-json", "--control", "off", "--host-stalls", "absorb", *extra],
+        self.proc = subprocess.Popen([*MLINK, "slave", "--config", str(config), "--only", f"0x{station:02X}",
+                                      "--endpoint", f"0x{station:02X}=127.0.0.1:0", "--ready-json", "--control",
+                                      "off", "--host-stalls", "absorb", *extra],
                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         assert self.proc.stdout is not None
         line = self.proc.stdout.readline()
@@ -172,5 +179,29 @@ def test_replay_usage_errors(tmp_path: Path) -> None:
             w.record(0, encode(Frame(Link.ML2, Kind.COMMAND, station, 1, 2_000_000, ml2.M2Command(ml2.Nop()))),
                      ("127.0.0.1", 1), ("127.0.0.1", 2))
     result = CliRunner().invoke(replay_cmd, [str(two), "--to", "127.0.0.1:9"])
-    assert result.exit_code == 2 and "pick it with --station" in result.output
+    assert result.exit_code == 2 and "no slave for station(s) 21H, 22H" in result.output
     assert CliRunner().invoke(replay_cmd, [str(two), "--to", "nonsense"]).exit_code == 2
+    both = CliRunner().invoke(replay_cmd, [str(two), "--to", "127.0.0.1:9", "--to", "127.0.0.1:10"])
+    assert both.exit_code == 2 and "one --to without a station" in both.output
+    one = CliRunner().invoke(replay_cmd, [str(two), "--to", "127.0.0.1:9", "--to", "0x22=127.0.0.1:0"])
+    assert one.exit_code == 2 and "port cannot be 0" in one.output
+
+
+@pytest.mark.e2e
+def test_replay_of_an_up_capture_against_three_cards(tmp_path: Path) -> None:
+    """The quickstart (SI-T3, SI-T/V7, SI-ET3) recorded by ``up``, replayed station by station to fresh slaves."""
+    quickstart = HERE.parents[1] / "configs" / "quickstart.toml"
+    recorded = tmp_path / "up.pcapng"
+    run = subprocess.run([*MLINK, "up", str(quickstart), "--duration", "2s", "--no-status", "--capture", str(recorded)],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stdout + run.stderr
+    slaves = [_Slave(config=quickstart, station=s) for s in (0x21, 0x22, 0x23)]
+    try:
+        result = subprocess.run([*MLINK, "replay", str(recorded),
+                                 *(f"--to=0x{s:02X}=127.0.0.1:{sl.port}" for s, sl in zip((0x21, 0x22, 0x23), slaves))],
+                                capture_output=True, text=True, timeout=120)
+    finally:
+        for slave in slaves:
+            slave.stop()
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "all equal" in result.stdout
