@@ -162,9 +162,9 @@ class SlaveServer:
         """The batch handler of one station's socket. More than ``_KEEP_BEHIND`` datagrams from one source waiting
         means the worker fell that many cycles behind: the oldest are counted as ``SUPERSEDED`` drops and only the
         newest ``_KEEP_BEHIND`` are processed (with the host-stall policy "absorb", as many as a stall of the
-        bound leaves at the shortest cycle: a stall of this process within the bound costs no command). On a bus their slots have passed; answering every one would queue
-        latency up (a 1 MiB receive buffer holds about a second of commands) and keep an overloaded worker behind
-        for good. A hiccup of up to ``_KEEP_BEHIND`` cycles is still answered in full (late, not lost): with 2,
+        bound leaves at the shortest cycle: a stall of this process within the bound costs no command). On a bus
+        their slots have passed; answering every one would queue latency up (a 1 MiB receive buffer holds about a
+        second of commands) and keep an overloaded worker behind for good. A hiccup of up to ``_KEEP_BEHIND`` cycles is still answered in full (late, not lost): with 2,
         a 3-cycle hiccup of a worker on a busy machine became lost commands, reception failures and a bUS trip
         in the quickstart (3 of 6 runs failed; with 8, 0 of 6)."""
         station = hs.station

@@ -69,8 +69,13 @@ def build_station(spec: StationSpec, state_dir: Path | None, now: int, *, eeprom
         spec.params,
         load=spec.load,
         link_speed_mbps=link_speed,
-        options=CardOptions(**{**({"silence_tolerance_ns": absorb_ns} if absorb_ns else {}), **(spec.options or {})}),
+        options=CardOptions(**{**_absorbing(absorb_ns), **(spec.options or {})}),
     )
     if eeprom is None and state_dir:
         eeprom = read_state(eeprom_path(state_dir, spec.card, spec.address))
     return create_card(spec.card, settings=settings, now=now, eeprom=eeprom)
+
+
+def _absorbing(absorb_ns: int) -> dict[str, Any]:
+    """The card option of the host-stall policy "absorb": silence counts only after the bound."""
+    return {"silence_tolerance_ns": absorb_ns} if absorb_ns else {}
