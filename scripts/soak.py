@@ -112,10 +112,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--timeout", type=float, default=60.0, help="seconds one run may take")
     ap.add_argument("--target", type=float, default=99.0, help="percent of runs that must pass")
     ap.add_argument("--json", help="write the rows and the summary here")
-    ap.add_argument("extra", nargs="*", help="after CONFIG and --: more arguments for mlink-sim up")
-    args = ap.parse_args(argv)
-    if args.config.startswith("-"):
-        ap.error("name the CONFIG before '--' (e.g. configs/quickstart.toml -- --no-realtime)")
+    ap.epilog = "Arguments after '--' go to mlink-sim up, e.g. -- --no-realtime."
+    argv = list(sys.argv[1:] if argv is None else argv)
+    cut = argv.index("--") if "--" in argv else len(argv)
+    args = ap.parse_args(argv[:cut])
+    args.extra = argv[cut + 1:]
     if args.runs < 1 or args.timeout <= 0:
         ap.error("--runs must be at least 1 and --timeout positive")
     hog = None
