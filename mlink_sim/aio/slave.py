@@ -256,11 +256,10 @@ class SlaveServer:
 
     def stats(self, since: int = 0) -> dict[str, Any]:
         """Snapshot of every hosted station plus this process's CPU use and its stalls since *since* (monotonic
-        ns): the most recent events and the totals."""
-        self.stalls.reset(since)
+        ns): the most recent events and the totals. Reading changes nothing."""
         return {**self.cpu(),
                 "stalls": self.stalls.events("self", last=_STALLS_REPORTED, since=since),
-                "stall_totals": self.stalls.totals("self"),
+                "stall_totals": self.stalls.totals("self", since),
                 "stations": {f"{hs.station.address:#04x}": to_jsonable(hs.station.snapshot())
                              for hs in self.stations}}
 

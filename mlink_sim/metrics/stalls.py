@@ -62,9 +62,11 @@ class StallLog:
         the report takes whichever says more, these or the events kept here."""
         self._totals[process] = {k: int(totals.get(k, 0)) for k in ("count", "total", "max")}
 
-    def totals(self, process: str) -> dict[str, int]:
-        """``count``/``total``/``max`` of *process*'s stalls since the origin (for :meth:`set_totals`)."""
-        return {k: v for k, v in self._summary(self._since(process)).items() if k in ("count", "total", "max")}
+    def totals(self, process: str, since: int | None = None) -> dict[str, int]:
+        """``count``/``total``/``max`` of *process*'s stalls since *since* (default: the origin), for
+        :meth:`set_totals`."""
+        summary = self._summary(self._since(process, since))
+        return {k: v for k, v in summary.items() if k in ("count", "total", "max")}
 
     def events(self, process: str, last: int | None = None, since: int = 0) -> list[list[Any]]:
         """*process*'s events, oldest first (the *last* ones only), JSON-safe."""
@@ -78,8 +80,8 @@ class StallLog:
         self.origin_ns = int(origin_ns)
 
     # ------------------------------------------------------------------ figures
-    def _since(self, process: str) -> list[Stall]:
-        origin = self.origin_ns
+    def _since(self, process: str, since: int | None = None) -> list[Stall]:
+        origin = self.origin_ns if since is None else since
         return [(at, d, c, a) for at, (d, c, a) in sorted(self._events.get(process, {}).items()) if at >= origin]
 
     @staticmethod

@@ -80,3 +80,11 @@ def test_brief_for_the_live_status():
     log.record("master", 10 * MS, 23_900_000, 11, True)
     log.record("worker:0", 20 * MS, 4 * MS)
     assert log.brief() == "2 (max 23.9ms)"
+
+
+def test_totals_since_a_time_leave_the_origin_alone():
+    log = StallLog()
+    log.record("self", 10 * MS, 4 * MS)
+    log.record("self", 30 * MS, 6 * MS)
+    assert log.totals("self", since=20 * MS) == {"count": 1, "total": 6 * MS, "max": 6 * MS}
+    assert log.origin_ns == 0 and log.totals("self")["count"] == 2
