@@ -174,6 +174,22 @@ class VirtualNetwork(StationControls):
 
         self.call(again())
 
+    def impair(self, station: int | str | None = "all", spec: Any = None, **fields: Any) -> Any:
+        """Start a network impairment on *station* (``"all"``: every station), replacing the one there:
+        *spec* is an :class:`~mlink_sim.impair.Impairment` or its text (``"loss=5%,delay=200us"``), or give its
+        fields (``loss=0.1, for_=2.0``; durations in seconds). Returns the Impairment (docs/faults.md)."""
+        from ..impair import as_impairment, target_station
+
+        impairment = as_impairment(spec, fields)
+        self.session.impair(target_station(station), impairment)
+        return impairment
+
+    def heal(self, station: int | str | None = "all") -> int:
+        """End the network impairments of *station* (``"all"``: of every station); how many ended."""
+        from ..impair import target_station
+
+        return self.session.heal(target_station(station))
+
     def kill_slave(self, station: int) -> bool:
         """The station stops answering, as a killed slave process; powered up again 0.5 s later."""
         return self.net.kill_slave(station)

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from .._log import get_logger
+from ..impair import Direction, ImpairmentLayer
 from .state import atomic_write, eeprom_path, remove_stale_temps
 from .vclock import VirtualClock
 
@@ -106,6 +107,9 @@ class Fabric:
         #: it – commands as they leave, answers as they arrive – on simulated time and the addresses of
         #: :func:`virtual_address`
         self._record = None if capture is None else capture.record
+        #: the impairment layer (docs/faults.md): while it is active, every datagram goes through it after the
+        #: network model (its delays add to the model's ordered delivery time, and may reorder)
+        self.impair: ImpairmentLayer | None = None
 
     # ------------------------------------------------------------------ stations
     def add_station(self, address: int, factory: Callable[[int, bytes | None], Any]) -> Any:
@@ -158,6 +162,11 @@ class Fabric:
         if t < node.down_free:
             t = node.down_free
         node.down_free = t
+        impair = self.impair
+        if impair is not None and impair.active:
+            for extra, out in impair.process(data, Direction.TO_STATION, address, clock.now):
+                clock.at(t + extra, self._to_station, (node, node.epoch, port, out))
+            return
         clock.at(t, self._to_station, (node, node.epoch, port, data))
 
     def _to_station(self, arg: tuple[_Node, int, FabricPort, bytes]) -> None:
@@ -180,6 +189,11 @@ class Fabric:
             if t < node.up_free:
                 t = node.up_free
             node.up_free = t
+            impair = self.impair
+            if impair is not None and impair.active:
+                for extra, out in impair.process(response, Direction.TO_MASTER, node.address, now):
+                    clock.at(t + extra, self._to_master, (port, out))
+                return
             clock.at(t, self._to_master, (port, response))
 
     def _to_master(self, arg: tuple[FabricPort, bytes]) -> None:

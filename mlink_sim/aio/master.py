@@ -63,6 +63,8 @@ class MetricsSink(Protocol):
 
     def record_cycle_lateness(self, ns: int, skipped: int = 0) -> None: ...
 
+    def record_alarm(self, station: int) -> None: ...
+
 
 class NullMetrics:
     """A :class:`MetricsSink` that records nothing."""
@@ -80,6 +82,9 @@ class NullMetrics:
         pass
 
     def record_cycle_lateness(self, ns: int, skipped: int = 0) -> None:
+        pass
+
+    def record_alarm(self, station: int) -> None:
         pass
 
 
@@ -104,6 +109,8 @@ class Master:
         self._waiters: list[tuple[Callable[[], bool], asyncio.Future[None]]] = []
         self._pending_missing: dict[int, int] = {}
         self._note: Callable[[int, Any], None] | None = None  #: a capture's note hook (``capture=``)
+        #: every alarm each station raised (AlarmRaised), by name: what ``expect = "alarm-seen"`` reads
+        self.alarms_seen: dict[int, Counter[str]] = {}
         self._closed = False
         self._log = get_logger(__name__).bind(component="master", link=core.plan.link.name)
 
@@ -343,6 +350,24 @@ class Master:
                 continue
             on_response(data, _mono())
 
+    def impair_with(self, layer: Any) -> None:
+        """Route this master's datagrams through the impairment *layer* (``aio/impaired.py``) while it has a
+        fault; the socket is unwrapped again once every fault has ended (no cost without impairments)."""
+        from .impaired import ImpairedSocket
+
+        sock = self._sock
+        if sock is None or isinstance(sock, ImpairedSocket) or not layer.active:
+            return
+        wrapper: ImpairedSocket
+
+        def unwrap() -> None:
+            if self._sock is wrapper:
+                self._sock = wrapper.sock
+
+        wrapper = ImpairedSocket(sock, layer, self._loop, on_ready=self.read_responses, on_error=self._on_error,
+                                 on_idle=unwrap)
+        self._sock = wrapper  # type: ignore[assignment]
+
     def read_one(self) -> None:
         """The clock's ``idle`` hook: one datagram at most, so the spin ends close to its deadline."""
         self.read_responses(1)
@@ -382,6 +407,10 @@ class Master:
                 elif t is StateChanged:
                     log.info("station_state", station=f"{ev.station:02X}H", old=ev.old.value, new=ev.new.value)
                 elif t is AlarmRaised:
+                    record_alarm = getattr(metrics, "record_alarm", None)  # a sink of its own may not count them
+                    if record_alarm is not None:
+                        record_alarm(ev.station)
+                    self.alarms_seen.setdefault(ev.station, Counter())[ev.name or f"{ev.code:02X}H"] += 1
                     log.info("station_alarm", station=f"{ev.station:02X}H", code=ev.code, name=ev.name,
                                 source=ev.source)
                 elif t is AlarmCleared:

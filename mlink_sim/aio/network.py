@@ -51,9 +51,11 @@ class RunOptions:
     #: "real" (slave processes, UDP, the wall clock) or "virtual" (one process, in-memory network, simulated time;
     #: the loop must be a ``vclock.VirtualEventLoop``), docs/virtual-time.md
     clock: str = "real"
-    seed: int = 0  #: virtual clock: seed of the network model's jitter
+    seed: int = 0  #: every random draw: the impairments' (docs/faults.md), the virtual network model's jitter
     realtime: bool = False  #: SCHED_FIFO, locked memory, the clock on a CPU of its own, where permitted (CLI: on)
     capture: Any = None  #: a started CaptureWriter recording every datagram of the masters (``--capture``)
+    #: ``--control HOST:PORT``: answer control requests (impair, heal, faults) while running (aio/control.py)
+    control: tuple[str, int] | None = None
 
 
 @dataclasses.dataclass
@@ -110,11 +112,11 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
     session: NetworkSession | None = None
     workers = None
     session_cls: type[NetworkSession] = NetworkSession
-    extra: dict[str, Any] = {}
+    extra: dict[str, Any] = {"seed": opts.seed}
     if opts.clock == "virtual":
         from .virtual import VirtualSession
 
-        session_cls, extra = VirtualSession, {"seed": opts.seed}
+        session_cls = VirtualSession
     elif endpoints is None:
         workers = resolve_workers(opts.workers, len(config.station))
         if opts.workers == "auto" and workers is not None:
@@ -129,6 +131,7 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
     scales = speed_scales(config)  # now, not in the event loop once it keeps time
     status = LiveStatus() if opts.status else None
     capture = opts.capture
+    control = None
     try:
         session = await session_cls.open(
             config, opts.config_path, endpoints=endpoints, workers=workers, state_dir=opts.state_dir,
@@ -138,6 +141,12 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
             _notice(opts, "realtime", "realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items()))
         net = session.net
         assert net is not None
+        if opts.control is not None:
+            from .control import ControlServer, impairment_ops
+
+            control = ControlServer(impairment_ops(session))
+            host, port = await control.start(*opts.control)
+            _notice(opts, "control", f"control: {host}:{port} (mlink-sim control {host}:{port} impair|heal|faults)")
         # -- bring-up ----------------------------------------------------------------------------------------------
         bring = loop.create_task(session.bring_up(opts.bringup_timeout_s))
         stopper = loop.create_task(stop.wait())
@@ -181,6 +190,8 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
         report = await session.report(assertions=opts.assertions, slave_stats=False, extra_meta={
             "interrupted": interrupted, "not_run": [s.describe for s in scenario.not_run()]})
     finally:
+        if control is not None:
+            control.close()
         if status is not None:
             status.stop()
         if session is not None:

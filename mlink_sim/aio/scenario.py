@@ -25,6 +25,10 @@ __all__ = ["SpeedScale", "CheckResult", "NetworkHandle", "Scenario", "StationCon
 log = get_logger("mlink_sim.scenario")
 
 
+#: Timeline actions on the impairment layer (docs/faults.md): ``station = "all"`` is one fault on every path.
+_NETWORK_FAULTS = frozenset({"impair", "heal"})
+
+
 class SpeedScale:
     """Hz <-> raw speed reference / output frequency of one station (its o1-03 / n035 units)."""
 
@@ -98,6 +102,9 @@ class NetworkHandle(Protocol):
     async def disconnect(self, station: int) -> Any: ...
     async def reconnect(self, station: int) -> Any: ...
     def kill_slave(self, station: int) -> bool: ...
+    def impair(self, station: int | None, spec: Any) -> None: ...
+    def alarms_seen(self, station: int) -> dict[str, int]: ...
+    def heal(self, station: int | None = None) -> int: ...
 
 
 class StationControls:
@@ -183,14 +190,22 @@ class Scenario:
         log.info("timeline_action", step=step.describe)
         if self.note is not None:
             self.note(f"timeline: {step.describe}")
-        coros = []
-        for address in self._targets(step):
-            coros.append(self._act_one(step, address))
+        if step.do in _NETWORK_FAULTS:  # one fault on the path of every station, not one per station
+            coros = [self._act_network(step)]
+        else:
+            coros = [self._act_one(step, address) for address in self._targets(step)]
         for outcome in await asyncio.gather(*coros, return_exceptions=True):
             if isinstance(outcome, Exception):
                 msg = f"{step.describe}: {outcome}"
                 self.action_errors.append(msg)
                 log.warning("timeline_action_failed", step=step.describe, error=str(outcome))
+
+    async def _act_network(self, step: TimelineStep) -> None:
+        station = None if step.station == "all" else step.station
+        if step.do == "impair":
+            self.net.impair(station, step.impairment)
+        elif step.do == "heal":
+            self.net.heal(station)
 
     async def _act_one(self, step: TimelineStep, address: int) -> None:
         net = self.net
@@ -254,6 +269,15 @@ class Scenario:
             names = {n.lower() for n in (view.alarm_name or "").replace("/", " ").split()}
             ok = (step.alarm or "").lower() in names if step.alarm else bool(view.fault or view.alarm)
             detail = f"alarm {view.alarm_name or 'none'}"
+        elif what == "alarm-seen":
+            # a transient alarm too: the master may have cleared it and recovered the station since (docs/faults.md)
+            seen = self.net.alarms_seen(address)
+            wanted = (step.alarm or "").lower()
+            hits = sum(n for name, n in seen.items()
+                       if not wanted or wanted in {x.lower() for x in name.replace("/", " ").split()})
+            ok = hits > 0
+            detail = (f"raised {hits} time(s); " if ok else "never raised; ") + (
+                "alarms seen: " + ", ".join(f"{k} ×{v}" for k, v in sorted(seen.items())) if seen else "no alarm seen")
         else:  # pragma: no cover - validated by the config model
             ok, detail = False, f"unknown check {what!r}"
         result = CheckResult(step.at / 1e9, address, step.describe if step.station != "all"

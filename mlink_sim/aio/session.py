@@ -90,6 +90,10 @@ class NetworkApi:
         """The master's :class:`~mlink_sim.master.StationView` of *station* (state, phase, status, alarms …)."""
         return self.by_station[station].view(station)
 
+    def alarms_seen(self, station: int) -> dict[str, int]:
+        """Every alarm *station* raised so far, as the master saw it: name -> how many times."""
+        return dict(self.by_station[station].alarms_seen.get(station, {}))
+
     def views(self) -> dict[int, Any]:
         out: dict[int, Any] = {}
         for m in self.masters.values():
@@ -129,6 +133,23 @@ class NetworkApi:
     async def reconnect(self, station: int) -> Any:
         self.by_station[station].connect(station)
 
+    #: the session that owns the impairment layer (``impair``/``heal``), set by it
+    faults: Any = None
+
+    def impair(self, station: int | None, spec: Any) -> None:
+        """Start the network impairment *spec* (an :class:`~mlink_sim.impair.Impairment`) on *station* (None:
+        every station), replacing the one there (docs/faults.md)."""
+        self._faults().impair(station, spec)
+
+    def heal(self, station: int | None = None) -> int:
+        """End every network impairment of *station* (None: of every station); returns how many ended."""
+        return self._faults().heal(station)
+
+    def _faults(self) -> Any:
+        if self.faults is None:
+            raise RuntimeError("this network has no impairment layer")
+        return self.faults
+
     def kill_slave(self, station: int) -> bool:
         worker = self.workers.get(station)
         if worker is None:
@@ -151,7 +172,9 @@ class NetworkSession:
 
     def __init__(self, config: Config, config_path: Path, *, workers: int | None = None,
                  state_dir: Path | None = None, run_dir: Path | None = None, restart_slaves: bool = True,
-                 problems: list[str] | None = None, realtime: bool = False, capture: Any = None) -> None:
+                 problems: list[str] | None = None, realtime: bool = False, capture: Any = None,
+                 seed: int = 0) -> None:
+        from ..impair import ImpairmentLayer
         from ..metrics import NetworkMetrics
 
         self.capture = capture  #: a CaptureWriter recording every master socket (``--capture``), or None
@@ -180,6 +203,34 @@ class NetworkSession:
         self._restart_tasks: set[asyncio.Task[Any]] = set()
         self._stopping = False
         self._closed = False
+        self.seed = seed
+        #: network impairments between the masters and the stations (docs/faults.md); seeded by *seed*
+        self.impairments = ImpairmentLayer(seed=seed, listener=self._on_fault)
+
+    # ------------------------------------------------------------------ faults
+    def _now_ns(self) -> int:
+        """Now on the session's clock (real: ``time.monotonic_ns``)."""
+        return time.monotonic_ns()
+
+    def impair(self, station: int | None, spec: Any) -> None:
+        """Start *spec* (an :class:`~mlink_sim.impair.Impairment`) on *station* (None: every station)."""
+        self.impairments.impair(spec, station, self._now_ns())
+        self._route_impairments()
+
+    def heal(self, station: int | None = None) -> int:
+        """End the network impairments of *station* (None: all); returns how many ended."""
+        return self.impairments.heal(station, self._now_ns(), groups=("impair",))
+
+    def _route_impairments(self) -> None:
+        """Put the masters' sockets behind the layer while it has a fault (the virtual fabric reads it itself)."""
+        for master in self.masters.values():
+            master.impair_with(self.impairments)
+
+    def _on_fault(self, event: str, station: int | None, group: str, now: int) -> None:
+        who = "every station" if station is None else f"station {station:02X}H"
+        log.info("fault_" + event, station=who, fault=group)
+        if self.capture is not None:
+            self.capture.note(now, f"{group} {'started' if event == 'start' else 'ended'}: {who}")
 
     # ------------------------------------------------------------------ life cycle
     @classmethod
@@ -277,6 +328,7 @@ class NetworkSession:
             master.record_lateness = not self.masters
             self.masters[link] = master
         self._cycle_callbacks = [m.on_cycle for m in self.masters.values()]
+        self._route_impairments()
         if clock is not None:
             readers = [m.read_one for m in self.masters.values()]
 
@@ -287,6 +339,7 @@ class NetworkSession:
             clock.idle = idle
             clock.start()
         self.net = NetworkApi(self.config, self.masters, self.workers)
+        self.net.faults = self
 
     def _on_cycle(self, cycle: int, deadline_ns: int, now_ns: int, skipped: int) -> None:
         for on_cycle in self._cycle_callbacks:
@@ -390,6 +443,8 @@ class NetworkSession:
         if slave_stats:
             await self.refresh_slave_stats()
         self._record_cpu()
+        for station, counts in self.impairments.injected().items():
+            self.metrics.record_injected(station, counts)
         meta = {
             "config": str(self.config_path),
             "network": self.config.network.name,

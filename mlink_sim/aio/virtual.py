@@ -96,13 +96,14 @@ class VirtualSession(NetworkSession):
         self._wall_start = time.perf_counter()
         self._sim_start = self.clock.now
         super().__init__(config, config_path, state_dir=state_dir, restart_slaves=restart_slaves,
-                         problems=problems, capture=capture)
+                         problems=problems, capture=capture, seed=seed)
         if capture is not None:  # simulated time, shown from the wall-clock second the run starts (a whole
             # second, so that the file's microseconds round the same in every run with the same seed)
             capture.epoch_offset_ns = time.time_ns() // 1_000_000_000 * 1_000_000_000 - self.clock.now
         net = config.network
         self.fabric = Fabric(self.clock, latency_ns=net.latency, jitter_ns=net.jitter, seed=seed,
                              state_dir=state_dir, capture=capture)
+        self.fabric.impair = self.impairments
         self.cycle: VirtualCycle | None = None
 
     # ------------------------------------------------------------------ life cycle
@@ -131,7 +132,14 @@ class VirtualSession(NetworkSession):
         self._cycle_callbacks = [m.on_cycle for m in self.masters.values()]
         workers = {st.address: _VirtualWorker(self, st.address) for st in self.config.station}
         self.net = NetworkApi(self.config, self.masters, workers)  # type: ignore[arg-type]
+        self.net.faults = self
         cycle.start()
+
+    def _now_ns(self) -> int:
+        return self.clock.now
+
+    def _route_impairments(self) -> None:
+        """Nothing to route: the fabric puts every datagram through the layer while it is active."""
 
     def kill_station(self, address: int) -> None:
         """As a killed slave worker: the station stops answering; powered up again 0.5 s later (its EEPROM image

@@ -28,11 +28,13 @@ def _register_optional() -> None:
     # Commands are imported here so that a slow import of one does not slow `mlink-sim decode`.
     from .network import master_cmd, up_cmd, validate_cmd
     from .probe import probe_cmd
+    from .proxy import control_cmd, proxy_cmd
     from .replay import replay_cmd
     from .slave import slave_cmd
     from .wireshark import wireshark_cmd
 
-    for cmd in (slave_cmd, up_cmd, master_cmd, probe_cmd, validate_cmd, replay_cmd, wireshark_cmd):
+    for cmd in (slave_cmd, up_cmd, master_cmd, probe_cmd, validate_cmd, replay_cmd, wireshark_cmd, proxy_cmd,
+                control_cmd):
         cli.add_command(cmd)
     try:
         from .compose import compose_cmd

@@ -14,6 +14,7 @@ from ..config import Config, format_ns, parse_duration_ns
 from .capture_opts import capture_options, open_capture_or_exit
 from .inputs import InputError, assertions, check_stations, load_checked, report_path
 from .logs import configure_logging
+from .proxy import parse_control
 from .slave import _parse_endpoints
 
 __all__ = ["up_cmd", "master_cmd", "validate_cmd"]
@@ -68,6 +69,9 @@ _common = [
     click.option("--bringup-timeout", default="10s", show_default=True, help="How long bring-up may take."),
     click.option("--include-bringup", is_flag=True,
                  help="Count bring-up in the report and --assert figures (default: from the end of bring-up)."),
+    click.option("--control", "control", metavar="HOST:PORT",
+                 help="Answer control requests here while running: impair, heal, faults ('mlink-sim control'; "
+                      "docs/faults.md). Port 0: any free port, printed on stderr."),
     click.option("--log-json", is_flag=True, help="Log JSON lines on stderr."),
     click.option("--log-level", default="warning", show_default=True,
                  type=click.Choice(["debug", "info", "warning", "error"])),
@@ -117,11 +121,11 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
 @click.option("--clock", type=click.Choice(["real", "virtual"]), default="real", show_default=True,
               help="real: slave processes over UDP on the wall clock; virtual: one process, in-memory network with "
                    "[network] latency/jitter, simulated time (faster than real time, deterministic).")
-@click.option("--seed", type=int, default=0, show_default=True, help="--clock virtual: seed of the jitter draws.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random draw: impairments (docs/faults.md), the virtual clock's jitter.")
 @_with_common
 @_with_stalls
 def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, report, asserts, status,
-           bringup_timeout, include_bringup, log_json, log_level, host_stalls, stall_bound, rt, capture_path,
+           bringup_timeout, include_bringup, control, log_json, log_level, host_stalls, stall_bound, rt, capture_path,
            capture_max) -> None:  # noqa: ANN001
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held.
 
@@ -147,6 +151,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, repo
         realtime=rt,
         clock=clock,
         seed=seed,
+        control=parse_control(control),
         capture=open_capture_or_exit("up", capture_path, capture_max),
     )
     from ..aio.supervisor import WorkerError
@@ -165,10 +170,11 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, repo
 @click.argument("config_path", metavar="CONFIG", type=click.Path(dir_okay=False))
 @click.option("--endpoint", "endpoints", multiple=True, metavar="ADDR=HOST:PORT",
               help="Where station ADDR listens (overrides the config's endpoint); repeatable.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the impairments' draws (docs/faults.md).")
 @_with_common
 @_with_stalls
-def master_cmd(config_path, endpoints, duration, report, asserts, status, bringup_timeout, include_bringup,
-               log_json, log_level, host_stalls, stall_bound, rt, capture_path, capture_max) -> None:  # noqa: ANN001
+def master_cmd(config_path, endpoints, seed, duration, report, asserts, status, bringup_timeout, include_bringup,
+               control, log_json, log_level, host_stalls, stall_bound, rt, capture_path, capture_max) -> None:  # noqa: ANN001
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
     config, path = load_checked(config_path)
@@ -197,6 +203,8 @@ def master_cmd(config_path, endpoints, duration, report, asserts, status, bringu
         log_json=log_json,
         bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
         realtime=rt,
+        seed=seed,
+        control=parse_control(control),
         capture=open_capture_or_exit("master", capture_path, capture_max),
     )
     try:

@@ -244,20 +244,30 @@ class StationConfig(BaseModel):
         return parse_endpoint(self.endpoint) if self.endpoint else (default_host, 0)
 
 
-_ACTIONS = ("run", "stop", "set-param", "fault-reset", "alm-clr", "ef0", "disconnect", "connect", "kill-slave")
-_EXPECTS = ("running", "stopped", "speed-agree", "phase", "no-alarm", "alarm", "output-hz")
+_ACTIONS = ("run", "stop", "set-param", "fault-reset", "alm-clr", "ef0", "disconnect", "connect", "kill-slave",
+            "impair", "heal")
+_EXPECTS = ("running", "stopped", "speed-agree", "phase", "no-alarm", "alarm", "output-hz", "alarm-seen")
+
+
+#: The fields of ``do = "impair"`` (docs/faults.md), checked by :class:`~mlink_sim.impair.Impairment`.
+IMPAIR_FIELDS = ("loss", "burst", "delay", "jitter", "duplicate", "reorder", "corrupt")
+#: The actions that take ``for`` (how long the fault lasts).
+FOR_ACTIONS: tuple[str, ...] = ("impair",)
+Probability = float | str
 
 
 class TimelineStep(BaseModel):
     """One timed action or check of a scenario. ``at`` is measured from the moment every station is up."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
 
     at: DurationNs = Field(description="when, e.g. '0.5s', from the end of bring-up")
     station: Address | Literal["all"] = Field("all", description="station address, or 'all'")
     do: Literal[_ACTIONS] | None = Field(None, description="action: " + ", ".join(_ACTIONS))  # type: ignore[valid-type]
     expect: Literal[_EXPECTS] | None = Field(None, description="check: " + ", ".join(_EXPECTS))  # type: ignore[valid-type]
-    direction: Literal["forward", "reverse"] = Field("forward", description="run: direction")
+    direction: Literal["forward", "reverse", "to-station", "to-master", "both"] | None = Field(
+        None, description="run: 'forward' (default) or 'reverse'; impair: 'to-station', 'to-master' or 'both' "
+        "(default)")
     speed_hz: float | None = Field(None, ge=0, description="run: frequency reference in Hz")
     param: str | None = Field(None, description="set-param: parameter name, e.g. 'C1-01'")
     value: float | int | None = Field(None, description="set-param: value in engineering units")
@@ -265,6 +275,15 @@ class TimelineStep(BaseModel):
     tolerance_hz: float = Field(0.5, ge=0, description="output-hz: tolerance in Hz")
     phase: int | None = Field(None, ge=1, le=3, description="phase: expected communication phase")
     alarm: str | None = Field(None, description="alarm: expected alarm name, e.g. 'E5' or 'bUS'")
+    loss: Probability | None = Field(None, description="impair: probability per datagram of a loss, 0…1 or '5%'")
+    burst: float | None = Field(None, description="impair: mean length of a loss burst (Gilbert–Elliott), ≥ 1")
+    delay: DurationNs | None = Field(None, description="impair: added one-way delay, e.g. '300us'")
+    jitter: DurationNs | None = Field(None, description="impair: uniform spread ± around the delay, e.g. '200us'")
+    duplicate: Probability | None = Field(None, description="impair: probability of a duplicated datagram")
+    reorder: Probability | None = Field(None, description="impair: probability that the next datagram overtakes")
+    corrupt: Probability | None = Field(None, description="impair: probability of a bit flipped after the FCS")
+    for_: DurationNs | None = Field(None, alias="for", description="impair: how long it lasts (default: until "
+                                    "'heal'), e.g. '2s'")
 
     @field_validator("alarm")
     @classmethod
@@ -283,7 +302,33 @@ class TimelineStep(BaseModel):
             raise ValueError("'expect = \"output-hz\"' needs output_hz")
         if self.expect == "phase" and self.phase is None:
             raise ValueError("'expect = \"phase\"' needs phase")
+        given = [name for name in IMPAIR_FIELDS if getattr(self, name) is not None]
+        if given and self.do != "impair":
+            raise ValueError(f"{given[0]}: only 'do = \"impair\"' takes it")
+        if self.for_ is not None and self.do not in FOR_ACTIONS:
+            raise ValueError(f"for: only {', '.join(repr(a) for a in FOR_ACTIONS)} take it")
+        if self.do == "impair":
+            if self.direction in ("forward", "reverse"):
+                raise ValueError(f"direction: impair takes 'to-station', 'to-master' or 'both', got "
+                                 f"{self.direction!r}")
+            self.direction = self.direction or "both"
+            self.impairment  # noqa: B018 - ImpairError (a ValueError) names the bad field
+        elif self.direction in ("to-station", "to-master", "both"):
+            raise ValueError(f"direction: {self.direction!r} applies to 'do = \"impair\"' (run: 'forward' or "
+                             "'reverse')")
+        elif self.direction is None:
+            self.direction = "forward"
         return self
+
+    @property
+    def impairment(self) -> Any:
+        """``do = "impair"``: the :class:`~mlink_sim.impair.Impairment` (ImpairError for a bad value)."""
+        from ..impair.spec import Impairment, parse_probability
+
+        probs = {n: parse_probability(getattr(self, n), n) for n in ("loss", "duplicate", "reorder", "corrupt")
+                 if getattr(self, n) is not None}
+        return Impairment(direction=self.direction or "both", burst=self.burst, delay=self.delay or 0,
+                          jitter=self.jitter or 0, for_ns=self.for_, **probs)
 
     @property
     def describe(self) -> str:
@@ -298,8 +343,10 @@ class TimelineStep(BaseModel):
             extra = f" {self.output_hz:g}±{self.tolerance_hz:g} Hz"
         elif self.expect == "phase":
             extra = f" {self.phase}"
-        elif self.expect == "alarm" and self.alarm:
+        elif self.expect in ("alarm", "alarm-seen") and self.alarm:
             extra = f" {self.alarm}"
+        elif self.do == "impair":
+            extra = f" {self.impairment.describe()}"
         return f"{self.at / 1e9:g}s {who}: {what}{extra}"
 
 

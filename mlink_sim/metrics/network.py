@@ -27,14 +27,14 @@ from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from .histogram import LatencyHistogram
-from .report import SCHEMA_ID
+from .report import INJECTED_KINDS, SCHEMA_ID
 from .stalls import StallLog
 
-__all__ = ["StationMetrics", "NetworkMetrics", "SLAVE_COUNTERS", "station_key"]
+__all__ = ["StationMetrics", "NetworkMetrics", "SLAVE_COUNTERS", "INJECTED_KINDS", "station_key"]
 
 #: Counters a slave keeps and reports in its snapshot, cumulative since the slave process started.
 SLAVE_COUNTERS: tuple[str, ...] = ("reception_failures", "wdt_errors", "dropped")
-_MASTER_COUNTERS: tuple[str, ...] = ("sent", "answered", "late", "missing")
+_MASTER_COUNTERS: tuple[str, ...] = ("sent", "answered", "late", "missing", "alarms")
 
 
 def station_key(station: int) -> str:
@@ -69,7 +69,7 @@ class _Cumulative:
 class StationMetrics:
     """Figures of one slave station. Master-side counters are plain attributes; slave-side ones are set."""
 
-    __slots__ = ("address", "rtt", "sent", "answered", "late", "missing", "_slave")
+    __slots__ = ("address", "rtt", "sent", "answered", "late", "missing", "alarms", "_slave", "_injected")
 
     def __init__(self, address: int) -> None:
         self.address = address
@@ -78,16 +78,27 @@ class StationMetrics:
         self.answered = 0
         self.late = 0
         self.missing = 0
+        self.alarms = 0  #: alarms the station raised, as the master saw them (AlarmRaised)
         self._slave = {name: _Cumulative() for name in SLAVE_COUNTERS}
+        self._injected = {name: _Cumulative() for name in INJECTED_KINDS}
 
     def copy(self) -> StationMetrics:
         out = StationMetrics(self.address)
         out.rtt = self.rtt.copy()
-        out.sent, out.answered, out.late, out.missing = self.sent, self.answered, self.late, self.missing
-        for name, c in self._slave.items():
-            o = out._slave[name]
-            o.base, o.last, o.zero = c.base, c.last, c.zero
+        for name in _MASTER_COUNTERS:
+            setattr(out, name, getattr(self, name))
+        for mine, theirs in ((self._slave, out._slave), (self._injected, out._injected)):
+            for name, c in mine.items():
+                o = theirs[name]
+                o.base, o.last, o.zero = c.base, c.last, c.zero
         return out
+
+    def set_injected(self, counts: Mapping[str, int]) -> None:
+        """The fault injection's cumulative counts for this station (``ImpairmentLayer.injected()``)."""
+        for name, value in counts.items():
+            slot = self._injected.get(name)
+            if slot is not None:
+                slot.feed(value)
 
     def reset(self) -> None:
         """Forget what was counted so far (RTT, master counters; slave counters count from their current value).
@@ -97,8 +108,8 @@ class StationMetrics:
         ``answered + missing <= sent`` by about one command per station after bring-up (issue 14, item 8)."""
         self.rtt.reset()
         self.sent = max(0, self.sent - self.answered - self.missing)
-        self.answered = self.late = self.missing = 0
-        for c in self._slave.values():
+        self.answered = self.late = self.missing = self.alarms = 0
+        for c in (*self._slave.values(), *self._injected.values()):
             c.reset()
 
     @property
@@ -117,7 +128,7 @@ class StationMetrics:
         """Take the slave's cumulative counters from its snapshot (``StationSnapshot.counters`` as is).
 
         Reads ``reception_failures``, ``wdt_errors`` and ``dropped``; without ``dropped``, the sum of
-        ``dropped_by_reason`` (the cards' ``StationCounters``). Other keys are the card's own and are skipped.
+        ``dropped_by_reason`` (the cards' ``StationCounters``; a number there is that sum already). Other keys are the card's own and are skipped.
         Values are the slave's totals since it started; a value lower than the previous one means the slave
         restarted, and the run total keeps what was counted before. Returns the names of the counters above
         whose value was unusable (not a non-negative integer), so the caller can log them.
@@ -127,6 +138,8 @@ class StationMetrics:
         if "dropped" not in values and isinstance(by_reason, Mapping):
             good = [v for v in by_reason.values() if isinstance(v, int) and not isinstance(v, bool) and v >= 0]
             values["dropped"] = sum(good) if len(good) == len(by_reason) else by_reason
+        elif "dropped" not in values and by_reason is not None:  # already summed (the session's flattened counters)
+            values["dropped"] = by_reason
         rejected = []
         for name, slot in self._slave.items():
             if name not in values:
@@ -146,6 +159,7 @@ class StationMetrics:
         out: dict[str, Any] = {"rtt": rtt}
         out.update({name: getattr(self, name) for name in _MASTER_COUNTERS})
         out.update({name: self._slave[name].total for name in SLAVE_COUNTERS})
+        out["injected"] = {name: c.total for name, c in self._injected.items()}
         return out
 
     def to_wire(self, *, hdr: bool = True) -> dict[str, Any]:
@@ -155,6 +169,7 @@ class StationMetrics:
             "rtt": self.rtt.encode() if hdr else self.rtt.to_pairs(),
             **{name: getattr(self, name) for name in _MASTER_COUNTERS},
             "slave": {name: [c.base, c.last, c.zero] for name, c in self._slave.items()},
+            "injected": {name: [c.base, c.last, c.zero] for name, c in self._injected.items()},
         }
 
     @classmethod
@@ -162,13 +177,14 @@ class StationMetrics:
         out = cls(address)
         out.rtt = _histogram(data["rtt"])
         for name in _MASTER_COUNTERS:
-            setattr(out, name, _non_negative(data[name], name))
-        for name, pair in data.get("slave", {}).items():
-            if name in out._slave:
-                base, last, *zero = pair
-                out._slave[name].base = _non_negative(base, name)
-                out._slave[name].last = _non_negative(last, name)
-                out._slave[name].zero = _non_negative(zero[0], name) if zero else 0
+            setattr(out, name, _non_negative(data.get(name, 0), name))
+        for key, slots in (("slave", out._slave), ("injected", out._injected)):
+            for name, pair in data.get(key, {}).items():
+                if name in slots:
+                    base, last, *zero = pair
+                    slots[name].base = _non_negative(base, name)
+                    slots[name].last = _non_negative(last, name)
+                    slots[name].zero = _non_negative(zero[0], name) if zero else 0
         return out
 
     def merge(self, other: StationMetrics) -> None:
@@ -178,6 +194,8 @@ class StationMetrics:
             setattr(self, name, getattr(self, name) + getattr(other, name))
         for name, c in self._slave.items():
             c.base += other._slave[name].total
+        for name, c in self._injected.items():
+            c.base += other._injected[name].total
 
 
 class NetworkMetrics:
@@ -270,6 +288,14 @@ class NetworkMetrics:
     def record_missing(self, station: int) -> None:
         """A command to ``station`` will never be answered."""
         self.station(station).missing += 1
+
+    def record_alarm(self, station: int) -> None:
+        """``station`` raised an alarm (the master's ``AlarmRaised``)."""
+        self.station(station).alarms += 1
+
+    def record_injected(self, station: int, counts: Mapping[str, int]) -> None:
+        """What the fault injection did to ``station`` so far (cumulative, as ``set_slave_counters``)."""
+        self.station(station).set_injected(counts)
 
     # ------------------------------------------------------------------ recording (from other processes)
     def record_slave_counters(self, station: int, counters: Mapping[str, Any]) -> list[str]:

@@ -22,12 +22,20 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-__all__ = ["REPORT_SCHEMA", "SCHEMA_ID", "write_report", "dumps_report", "host_info"]
+__all__ = ["REPORT_SCHEMA", "SCHEMA_ID", "INJECTED_KINDS", "write_report", "dumps_report", "host_info"]
 
 #: Value of the report's ``"schema"`` field. Bumped (``/2``) on any incompatible change of the document.
 SCHEMA_ID = "mlink-sim/report/1"
 
 _COUNT = {"type": "integer", "minimum": 0, "x-kind": "count"}
+#: The report's ``station[…].injected`` keys (the fault injection counts under them, docs/faults.md); a new kind
+#: of fault adds its name here and its stage counts under it.
+INJECTED_KINDS: tuple[str, ...] = ("drops", "delays", "corruptions", "duplicates", "reorders")
+_INJECTED_HELP = {
+    "drops": "datagrams dropped (loss)", "delays": "datagrams delivered later (delay, jitter)",
+    "corruptions": "datagrams with a bit flipped after the FCS", "duplicates": "datagrams delivered twice",
+    "reorders": "datagrams held back until the next one overtook them",
+}
 _TIME = {"type": "integer", "minimum": 0, "x-kind": "time"}
 
 REPORT_SCHEMA: dict[str, Any] = {
@@ -56,6 +64,7 @@ REPORT_SCHEMA: dict[str, Any] = {
         "answered": {**_COUNT, "description": "responses matched to a command (on time or late)"},
         "late": {**_COUNT, "description": "responses that arrived after their cycle's deadline"},
         "missing": {**_COUNT, "description": "commands never answered"},
+        "alarms": {**_COUNT, "description": "alarms and warnings the stations raised, as the master saw them"},
         "reception_failures": {**_COUNT, "description": "reception failures counted by the slaves"},
         "wdt_errors": {**_COUNT, "description": "watchdog (WDT) errors counted by the slaves"},
         "dropped": {**_COUNT, "description": "datagrams dropped by the slaves (bad frames)"},
@@ -151,8 +160,18 @@ REPORT_SCHEMA: dict[str, Any] = {
             "properties": {
                 "rtt": {"$ref": "#/$defs/histogram"},
                 "sent": {**_COUNT}, "answered": {**_COUNT}, "late": {**_COUNT}, "missing": {**_COUNT},
+                "alarms": {**_COUNT, "description": "alarms and warnings the station raised, as the master saw them"},
                 "reception_failures": {**_COUNT}, "wdt_errors": {**_COUNT}, "dropped": {**_COUNT},
+                "injected": {"$ref": "#/$defs/injected"},
             },
+        },
+        "injected": {
+            "type": "object",
+            "additionalProperties": False,
+            "required": list(INJECTED_KINDS),
+            "description": "what the fault injection did to the station's datagrams (docs/faults.md)",
+            "properties": {name: {**_COUNT, "description": _INJECTED_HELP.get(name, name)}
+                           for name in INJECTED_KINDS},
         },
         "cpu": {
             "type": "object",

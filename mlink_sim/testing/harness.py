@@ -101,13 +101,14 @@ class RunningNetwork(StationControls, ReportChecks):
     """The network of *config* (a TOML path), up for as long as the ``with`` block (or :meth:`start`/:meth:`stop`).
 
     *workers* is ``up --workers``: a number of slave processes, ``"station"`` (one per station) or ``"auto"``
-    (None, the default: one per station up to max(2, CPUs − 1) stations, else CPUs − 1); *timeline* also runs
+    (None, the default: one per station up to max(2, CPUs − 1) stations, else CPUs − 1); *seed* fixes the draws
+    of the impairments (:meth:`impair`, docs/faults.md); *timeline* also runs
     the config's timeline (its checks: :meth:`wait_timeline`); *reset_after_bringup* starts the figures after
     bring-up so they describe the steady state; *log_level* is the host's (its log: :attr:`log_path`)."""
 
     def __init__(self, config: str | Path, *, workers: int | str | None = None, bringup_timeout: float = 10.0,
                  timeline: bool = False, reset_after_bringup: bool = True, state_dir: str | Path | None = None,
-                 run_dir: str | Path | None = None, log_level: str | None = None) -> None:
+                 run_dir: str | Path | None = None, log_level: str | None = None, seed: int = 0) -> None:
         self.config_path = resolve_config_path(config)  # a path, or the name of a shipped example
         self.config: Config = load_config(self.config_path)
         self._args = [str(self.config_path), "--bringup-timeout", str(bringup_timeout),
@@ -118,6 +119,8 @@ class RunningNetwork(StationControls, ReportChecks):
             self._args.append("--timeline")
         if not reset_after_bringup:
             self._args.append("--no-reset")
+        if seed:
+            self._args += ["--seed", str(int(seed))]
         if state_dir:
             self._args += ["--state-dir", str(state_dir)]
         self.run_dir = Path(run_dir) if run_dir else Path(tempfile.mkdtemp(prefix="mlink-sim-test-"))
@@ -288,6 +291,25 @@ class RunningNetwork(StationControls, ReportChecks):
     def kill_slave(self, station: int) -> bool:
         """SIGKILL the worker process hosting *station* (it is restarted and brought up again)."""
         return bool(self._rpc("kill_slave", station))
+
+    def impair(self, station: int | str = "all", spec: Any = None, **fields: Any) -> Any:
+        """Start a network impairment on *station* (``"all"``: every station), replacing the one there: *spec* is
+        an :class:`~mlink_sim.impair.Impairment` or its text (``"loss=5%,delay=200us"``), or give its fields
+        (``impair(0x21, loss=0.1, for_=2.0)``; durations in seconds). Bad values raise ValueError here, before
+        anything is sent (docs/faults.md). Returns the Impairment."""
+        from ..impair import as_impairment, target_station
+
+        impairment = as_impairment(spec, fields)
+        target = target_station(station)
+        self._rpc("impair", "all" if target is None else target, **impairment.as_fields())
+        return impairment
+
+    def heal(self, station: int | str = "all") -> int:
+        """End the network impairments of *station* (``"all"``: of every station); how many ended."""
+        from ..impair import target_station
+
+        target = target_station(station)
+        return int(self._rpc("heal", "all" if target is None else target))
 
     # ------------------------------------------------------------------ what the master sees
     @staticmethod

@@ -11,7 +11,7 @@ bring-up is over, then serves requests on ``127.0.0.1:P``: one JSON object per l
     ← {"id": 7, "error": {"type": "StationAlarmError", "message": "…", "station": 33, "code": 148, "name": "…"}}
 
 Methods: the request methods of :class:`~mlink_sim.aio.session.NetworkApi` (``prm_rd`` … ``reconnect``),
-``set_control``, ``view``, ``views``, ``kill_slave``, ``snapshot`` (figures as bucket pairs + report meta; the
+``set_control``, ``view``, ``views``, ``kill_slave``, ``impair``/``heal`` (docs/faults.md), ``snapshot`` (figures as bucket pairs + report meta; the
 client builds the report, so the cycle is never held up by it), ``reset_metrics``, ``timeline`` (waits for the
 config's timeline and returns its checks) and ``stop`` (DISCONNECT, final report, exit). SIGTERM, SIGINT or the
 test process dying (``PR_SET_PDEATHSIG``) stop it too; its slave workers never outlive it.
@@ -120,6 +120,16 @@ class Host:
             return {str(a): encode_value(v) for a, v in net.views().items()}
         if method == "kill_slave":
             return net.kill_slave(*args)
+        if method == "impair":
+            from ..impair import as_impairment, target_station
+
+            spec = as_impairment(kwargs.pop("spec", None), kwargs)
+            self.session.impair(target_station(args[0] if args else "all"), spec)
+            return spec.as_fields()
+        if method == "heal":
+            from ..impair import target_station
+
+            return self.session.heal(target_station(args[0] if args else "all"))
         if method == "snapshot":
             metrics, meta = await self.session.snapshot(slave_stats=kwargs.get("slave_stats", True))
             return {"metrics": metrics.to_wire(hdr=False), "meta": meta}
@@ -156,7 +166,7 @@ async def serve(args: argparse.Namespace) -> int:
     scales = speed_scales(config) if args.timeline else None  # before the clock starts (aio/scenario.py)
     workers = resolve_workers(args.workers, len(config.station))  # ValueError: reported as an error event
     session = await NetworkSession.open(config, Path(args.config), workers=workers,
-                                        state_dir=args.state_dir, run_dir=args.run_dir)
+                                        state_dir=args.state_dir, run_dir=args.run_dir, seed=args.seed)
     try:
         not_up = await session.bring_up(args.bringup_timeout)
         if args.reset:
@@ -187,6 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--state-dir", type=Path)
     parser.add_argument("--run-dir", type=Path)
     parser.add_argument("--log-level", default="warning")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the impairments' draws (docs/faults.md)")
     args = parser.parse_args(argv)
     from ..cli.logs import configure_logging
     from ..aio.supervisor import WorkerError

@@ -13,6 +13,8 @@ Fixtures:
   else ``--mlink-config`` / the ``mlink_config`` ini option. Stopped after the test. With ``clock="virtual"``
   (and ``seed=N``) it is a :class:`~mlink_sim.testing.virtual.VirtualRunningNetwork`: the same methods, the
   network in the test's process on simulated time (``wait(2.0)`` returns at once; docs/virtual-time.md).
+  On either clock ``mlink_network.impair(0x21, loss=0.1, for_=2.0)`` and ``heal()`` inject network faults,
+  drawn from ``seed`` (docs/faults.md).
 - ``mlink_network_factory`` — ``start(CONFIG, **options)`` for tests that need several networks or options
   decided in the test; every network started is stopped after the test.
 
@@ -80,7 +82,6 @@ class _Factory:
 
             net: Any = VirtualRunningNetwork(_resolve(config, pconfig), **options)
         elif clock == "real":
-            options.pop("seed", None)
             net = RunningNetwork(_resolve(config, pconfig), **options)
         else:
             raise pytest.UsageError(f"mlink_network: clock must be 'real' or 'virtual', got {clock!r}")

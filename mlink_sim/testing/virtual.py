@@ -22,7 +22,7 @@ __all__ = ["VirtualRunningNetwork"]
 _DELEGATED = frozenset({
     "prm_rd", "prm_wr", "send_config", "id_rd", "alm_rd", "alm_clr", "disconnect", "reconnect", "set_control",
     "run", "stop_station", "kill_slave", "view", "views", "output_hz", "running", "station", "snapshots", "snapshot",
-    "advance", "run_until", "step", "now", "now_ns", "reset_metrics",
+    "advance", "run_until", "step", "now", "now_ns", "reset_metrics", "impair", "heal",
 })
 
 

@@ -29,10 +29,13 @@ def _config(tmp_path: Path, network_extra: str) -> Path:
     return path
 
 
-def _run_two_seconds(seed: int) -> dict:
+def _run_two_seconds(seed: int, impair: str | None = None) -> dict:
     with VirtualNetwork(QUICKSTART, seed=seed) as net:
         net.run(0x21, hz=30)
         net.run(0x23, hz=10, direction="reverse")
+        if impair:
+            net.advance(0.5)
+            net.impair("all", impair)
         net.advance(2.0)
     assert net.final_report is not None
     return without_wall_clock(net.final_report)
@@ -98,6 +101,18 @@ def test_same_seed_same_report_and_another_seed_differs_only_in_the_drawn_delays
 
     assert c["rtt"] != a["rtt"]
     assert without_rtt(c) == without_rtt(a)
+
+
+def test_same_seed_same_report_with_impairments_and_another_seed_draws_other_faults():
+    """docs/faults.md: every draw of the impairment layer comes from the seed (issue 19, item 6)."""
+    impair = "loss=3%,corrupt=1%,duplicate=1%,reorder=0.5%,delay=300us,jitter=200us,for=1s"
+    a, b = _run_two_seconds(5, impair), _run_two_seconds(5, impair)
+    assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+    injected = a["station"]["0x21"]["injected"]
+    assert all(injected[k] > 0 for k in ("drops", "corruptions", "duplicates", "delays"))
+    assert a["station"]["0x21"]["reception_failures"] > 0
+    c = _run_two_seconds(6, impair)
+    assert c["station"] != a["station"]
 
 
 def test_the_real_time_fast_paths_carry_the_cyclic_traffic(monkeypatch):

@@ -1,0 +1,202 @@
+"""The stages of the impairment pipeline (docs/faults.md, "The impairment layer").
+
+A stage takes the datagrams one datagram became so far — ``[(delay_ns, bytes), …]``, starting as
+``[(0, datagram)]`` — and returns what they become: fewer (dropped), more (duplicated), altered (corrupted) or
+later (delayed). It draws every random number from ``path.rng``, the seeded generator of its path (one station,
+one direction), and counts what it injected with ``path.count(kind)``. Stages run in the order of their
+``order`` (:data:`ORDER`), whatever the order in which they were added.
+
+Adding a stage: subclass :class:`Stage`, give it an ``order`` (a slot of :data:`ORDER`, or a number between
+two of them) and a ``counter`` (the ``injected`` key of the report it counts under), implement :meth:`Stage.apply`
+and hand instances to :meth:`~mlink_sim.impair.layer.ImpairmentLayer.add`.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, ClassVar
+
+from ..wire.frame import FCS_SIZE, HEADER_SIZE
+
+if TYPE_CHECKING:
+    from .layer import PathState
+
+__all__ = ["ORDER", "LOSS_BLOCK", "Stage", "Items", "Loss", "Corrupt", "Duplicate", "Delay", "Reorder"]
+
+Items = list[tuple[int, bytes]]
+
+#: The pipeline's slots, in the order the stages run. A datagram that a stage drops reaches no later stage.
+ORDER: dict[str, int] = {
+    "gate": 100,       # the datagram is not sent at all (a silent station, skipped cycles)
+    "rewrite": 200,    # the master's datagram altered before it leaves, FCS recomputed (frozen WDT, bad command)
+    "loss": 300,       # dropped on the way
+    "corrupt": 400,    # a bit flipped after the FCS: the receiver sees a bad FCS
+    "duplicate": 500,  # delivered twice
+    "delay": 600,      # delivered later (delay ± jitter)
+    "reorder": 700,    # held back until after the next datagram of its path
+}
+#: Datagrams of a path per block of stratified loss (:class:`Loss`).
+LOSS_BLOCK = 1000
+#: Hold of a reordered datagram when its path has no interval yet (its first datagram).
+DEFAULT_HOLD_NS = 1_000_000
+
+
+class Stage:
+    """One step of the pipeline (see the module docstring)."""
+
+    order: ClassVar[int]
+    counter: ClassVar[str]  #: the ``injected`` key it counts under
+    __slots__ = ()
+
+    def apply(self, items: Items, path: PathState) -> Items:
+        raise NotImplementedError
+
+
+class Loss(Stage):
+    """Drop a datagram with probability *p*.
+
+    Without *burst* the losses are stratified: in every block of :data:`LOSS_BLOCK` datagrams of a path exactly
+    ``p × LOSS_BLOCK`` of them (the fraction carried over to the next block) are lost, at positions drawn at
+    random. Each datagram is still lost with probability *p*, and the realised rate is exact over whole blocks,
+    so a short run does not see 0.8 % where 1 % was asked (with independent draws, 10,000 datagrams at 1 % miss
+    ±10 % one time in three).
+
+    With *burst* (mean length of a loss burst) the drops come from a two-state Gilbert–Elliott chain: in the
+    good state nothing is lost, in the bad state everything; it leaves the bad state with r = 1/burst per
+    datagram and enters it with q = p·r/(1 − p), so the long-run loss rate is q/(q + r) = p and a burst lasts
+    1/r datagrams on average."""
+
+    order = ORDER["loss"]
+    counter = "drops"
+    __slots__ = ("p", "enter_bad", "leave_bad")
+
+    def __init__(self, p: float, burst: float | None = None) -> None:
+        self.p = p
+        if burst is None:
+            self.enter_bad = self.leave_bad = None
+        else:
+            r = 1.0 / burst
+            self.leave_bad = r
+            self.enter_bad = 1.0 if p >= 1.0 else min(1.0, p * r / (1.0 - p))
+
+    def apply(self, items: Items, path: PathState) -> Items:
+        out = []
+        for item in items:
+            if self.enter_bad is None:
+                lost = self._stratified(path)
+            else:
+                bad = path.scratch.get(self, False)
+                random = path.rng.random()
+                bad = (random >= self.leave_bad) if bad else (random < self.enter_bad)
+                path.scratch[self] = lost = bad
+            if lost:
+                path.count(self.counter)
+            else:
+                out.append(item)
+        return out
+
+    def _stratified(self, path: PathState) -> bool:
+        state = path.scratch.get(self)
+        if state is None or state[0] == LOSS_BLOCK:  # a new block: draw its losses
+            carry = 0.0 if state is None else state[2]
+            want = self.p * LOSS_BLOCK + carry
+            k = int(want)
+            state = [0, frozenset(path.rng.sample(range(LOSS_BLOCK), k)), want - k]
+            path.scratch[self] = state
+        lost = state[0] in state[1]
+        state[0] += 1
+        return lost
+
+
+class Corrupt(Stage):
+    """With probability *p* flip one bit of the data (between the envelope header and the FCS, so the receiver
+    finds the FCS wrong rather than a wrong header; the whole datagram if it is too short to have data)."""
+
+    order = ORDER["corrupt"]
+    counter = "corruptions"
+    __slots__ = ("p",)
+
+    def __init__(self, p: float) -> None:
+        self.p = p
+
+    def apply(self, items: Items, path: PathState) -> Items:
+        random = path.rng.random
+        out = []
+        for delay, data in items:
+            if random() < self.p and data:
+                lo, hi = (HEADER_SIZE, len(data) - FCS_SIZE) if len(data) > HEADER_SIZE + FCS_SIZE else (0, len(data))
+                bit = lo * 8 + int(random() * (hi - lo) * 8)
+                buf = bytearray(data)
+                buf[bit >> 3] ^= 1 << (bit & 7)
+                data = bytes(buf)
+                path.count(self.counter)
+            out.append((delay, data))
+        return out
+
+
+class Duplicate(Stage):
+    """With probability *p* deliver the datagram twice (the copy right behind it)."""
+
+    order = ORDER["duplicate"]
+    counter = "duplicates"
+    __slots__ = ("p",)
+
+    def __init__(self, p: float) -> None:
+        self.p = p
+
+    def apply(self, items: Items, path: PathState) -> Items:
+        random = path.rng.random
+        out = []
+        for item in items:
+            out.append(item)
+            if random() < self.p:
+                out.append(item)
+                path.count(self.counter)
+        return out
+
+
+class Delay(Stage):
+    """Add *delay_ns* ± *jitter_ns* (uniform, whole ns) to every datagram. Jitter may reorder datagrams, as on a
+    real network."""
+
+    order = ORDER["delay"]
+    counter = "delays"
+    __slots__ = ("delay", "span", "jitter")
+
+    def __init__(self, delay_ns: int, jitter_ns: int = 0) -> None:
+        self.delay = delay_ns
+        self.jitter = jitter_ns
+        self.span = 2 * jitter_ns + 1 if jitter_ns else 0
+
+    def apply(self, items: Items, path: PathState) -> Items:
+        out = []
+        for delay, data in items:
+            d = self.delay
+            if self.span:
+                d += int(path.rng.random() * self.span) - self.jitter
+            if d > 0:
+                path.count(self.counter)
+            out.append((delay + d, data))
+        return out
+
+
+class Reorder(Stage):
+    """With probability *p* hold the datagram back by 1.5 times its path's interval between datagrams (one
+    transmission cycle for a cyclic command), so the next datagram of the path overtakes it."""
+
+    order = ORDER["reorder"]
+    counter = "reorders"
+    __slots__ = ("p",)
+
+    def __init__(self, p: float) -> None:
+        self.p = p
+
+    def apply(self, items: Items, path: PathState) -> Items:
+        random = path.rng.random
+        out = []
+        for delay, data in items:
+            if random() < self.p:
+                hold = path.interval_ns * 3 // 2 if path.interval_ns else DEFAULT_HOLD_NS
+                delay += hold
+                path.count(self.counter)
+            out.append((delay, data))
+        return out

@@ -1,0 +1,36 @@
+"""The fixture's fault injection (docs/faults.md, issue 19 item 5): ``mlink_network.impair(0x21, loss=0.1,
+for_=2.0)`` and ``heal()``, on the virtual clock (the real-clock host serves the same two methods; tests/e2e)."""
+
+from __future__ import annotations
+
+import pytest
+
+from mlink_sim.impair import ImpairError
+
+
+@pytest.mark.mlink_network("configs/faults-network.toml", clock="virtual", seed=2)
+def test_impair_then_heal_a_station(mlink_network):
+    net = mlink_network
+    spec = net.impair(0x21, loss=0.1, for_=2.0)  # every tenth datagram, both ways, for two simulated seconds
+    assert spec.loss == 0.1 and spec.for_ns == 2_000_000_000
+    net.wait(1.0)
+    injected = net.metrics.report["station"]["0x21"]["injected"]
+    assert injected["drops"] > 0
+    net.check("station[0x21].injected.drops > 0", "station[0x21].reception_failures > 0",
+              "station[0x22].injected.drops == 0")
+    assert net.heal() == 2  # both directions of 21H
+    drops = net.metrics.report["station"]["0x21"]["injected"]["drops"]
+    net.wait(0.5)
+    assert net.metrics.report["station"]["0x21"]["injected"]["drops"] == drops  # healed: nothing more
+
+
+@pytest.mark.mlink_network("configs/faults-network.toml", clock="virtual")
+def test_every_station_and_the_text_form(mlink_network):
+    mlink_network.impair("all", "corrupt=2%,direction=to-station,for=0.5s")
+    mlink_network.wait(1.0)
+    for station in ("0x21", "0x22", "0x23"):
+        assert mlink_network.metrics.report["station"][station]["injected"]["corruptions"] > 0
+    with pytest.raises(ImpairError, match="loss: a probability"):
+        mlink_network.impair(0x21, loss=2)
+    with pytest.raises(ImpairError, match="station"):
+        mlink_network.impair("nowhere", loss=0.1)
