@@ -167,7 +167,7 @@ REPORT_SCHEMA: dict[str, Any] = {
         },
         "injected": {
             "type": "object",
-            "additionalProperties": False,
+            "additionalProperties": {**_COUNT},
             "required": list(INJECTED_KINDS),
             "description": "what the fault injection did to the station's datagrams (docs/faults.md)",
             "properties": {name: {**_COUNT, "description": _INJECTED_HELP.get(name, name)}
