@@ -34,7 +34,7 @@ __all__ = ["StationMetrics", "NetworkMetrics", "SLAVE_COUNTERS", "INJECTED_KINDS
 
 #: Counters a slave keeps and reports in its snapshot, cumulative since the slave process started.
 SLAVE_COUNTERS: tuple[str, ...] = ("reception_failures", "wdt_errors", "dropped")
-_MASTER_COUNTERS: tuple[str, ...] = ("sent", "answered", "late", "missing", "alarms")
+_MASTER_COUNTERS: tuple[str, ...] = ("sent", "answered", "late", "missing")
 
 
 def station_key(station: int) -> str:
@@ -85,7 +85,7 @@ class StationMetrics:
     def copy(self) -> StationMetrics:
         out = StationMetrics(self.address)
         out.rtt = self.rtt.copy()
-        for name in _MASTER_COUNTERS:
+        for name in (*_MASTER_COUNTERS, "alarms"):
             setattr(out, name, getattr(self, name))
         for mine, theirs in ((self._slave, out._slave), (self._injected, out._injected)):
             for name, c in mine.items():
@@ -158,6 +158,7 @@ class StationMetrics:
             rtt["hdr"] = self.rtt.encode()
         out: dict[str, Any] = {"rtt": rtt}
         out.update({name: getattr(self, name) for name in _MASTER_COUNTERS})
+        out["alarms"] = self.alarms
         out.update({name: self._slave[name].total for name in SLAVE_COUNTERS})
         out["injected"] = {name: c.total for name, c in self._injected.items()}
         return out
@@ -168,6 +169,7 @@ class StationMetrics:
         return {
             "rtt": self.rtt.encode() if hdr else self.rtt.to_pairs(),
             **{name: getattr(self, name) for name in _MASTER_COUNTERS},
+            "alarms": self.alarms,
             "slave": {name: [c.base, c.last, c.zero] for name, c in self._slave.items()},
             "injected": {name: [c.base, c.last, c.zero] for name, c in self._injected.items()},
         }
@@ -177,7 +179,8 @@ class StationMetrics:
         out = cls(address)
         out.rtt = _histogram(data["rtt"])
         for name in _MASTER_COUNTERS:
-            setattr(out, name, _non_negative(data.get(name, 0), name))
+            setattr(out, name, _non_negative(data[name], name))
+        out.alarms = _non_negative(data.get("alarms", 0), "alarms")
         for key, slots in (("slave", out._slave), ("injected", out._injected)):
             for name, pair in data.get(key, {}).items():
                 if name in slots:
@@ -190,7 +193,7 @@ class StationMetrics:
     def merge(self, other: StationMetrics) -> None:
         """Add ``other``'s figures (same station measured by another process or in another period)."""
         self.rtt.merge(other.rtt)
-        for name in _MASTER_COUNTERS:
+        for name in (*_MASTER_COUNTERS, "alarms"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
         for name, c in self._slave.items():
             c.base += other._slave[name].total

@@ -64,7 +64,6 @@ REPORT_SCHEMA: dict[str, Any] = {
         "answered": {**_COUNT, "description": "responses matched to a command (on time or late)"},
         "late": {**_COUNT, "description": "responses that arrived after their cycle's deadline"},
         "missing": {**_COUNT, "description": "commands never answered"},
-        "alarms": {**_COUNT, "description": "alarms and warnings the stations raised, as the master saw them"},
         "reception_failures": {**_COUNT, "description": "reception failures counted by the slaves"},
         "wdt_errors": {**_COUNT, "description": "watchdog (WDT) errors counted by the slaves"},
         "dropped": {**_COUNT, "description": "datagrams dropped by the slaves (bad frames)"},
