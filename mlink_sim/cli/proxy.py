@@ -18,6 +18,8 @@ from .logs import configure_logging
 
 __all__ = ["proxy_cmd", "control_cmd", "parse_control"]
 
+_ATTEMPTS = 3
+
 
 def _endpoint(text: str, flag: str) -> tuple[str, int]:
     try:
@@ -131,7 +133,8 @@ async def _serve(links: list[Any], spec: Any, seed: int, control_addr: tuple[str
 @click.argument("op", type=click.Choice(["impair", "heal", "faults", "ping"]))
 @click.argument("station", required=False)
 @click.argument("spec", required=False)
-@click.option("--timeout", default=2.0, show_default=True, help="Seconds to wait for the answer.")
+@click.option("--timeout", default=3.0, show_default=True,
+              help="Seconds to wait for the answer (the request is sent up to three times).")
 def control_cmd(address: str, op: str, station: str | None, spec: str | None, timeout: float) -> None:
     """Send a request to the control endpoint of a running 'mlink-sim up --control' or 'mlink-sim proxy'.
 
@@ -159,7 +162,11 @@ def control_cmd(address: str, op: str, station: str | None, spec: str | None, ti
             raise click.UsageError(f"{op} takes no SPEC")
     except ImpairError as exc:
         raise click.UsageError(str(exc)) from None
-    reply = asyncio.run(query_control(host, port, op, timeout=timeout, **fields))
+    reply = None
+    for _ in range(_ATTEMPTS):  # UDP: a request can go unanswered; each operation can be repeated safely
+        reply = asyncio.run(query_control(host, port, op, timeout=timeout / _ATTEMPTS, **fields))
+        if reply is not None:
+            break
     if reply is None:
         click.echo(f"mlink-sim control: no answer from {address} within {timeout:g} s", err=True)
         sys.exit(1)

@@ -63,10 +63,10 @@ def test_proxy_between_a_master_and_a_slave_impaired_while_it_runs(tmp_path: Pat
                                    "--endpoint", f"0x21=127.0.0.1:{port}", "--report", str(tmp_path / "r.json")],
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         time.sleep(1.5)
-        r = run_cli("control", control, "impair", "0x21", "loss=30%,direction=to-master,for=0.3s")
+        r = run_cli("control", control, "impair", "0x21", "loss=30%,direction=to-master,for=0.3s", "--timeout", "6")
         assert r.returncode == 0 and json.loads(r.stdout)["ok"], r.stdout + r.stderr
         out, err = master.communicate(timeout=60)
-        faults = json.loads(run_cli("control", control, "faults").stdout)
+        faults = json.loads(run_cli("control", control, "faults", "--timeout", "6").stdout)
         assert faults["faults"] == [] and faults["injected"]["0x21"]["drops"] > 0
         report = json.loads((tmp_path / "r.json").read_text())
         assert report["station"]["0x21"]["missing"] > 0  # the answers the proxy lost
@@ -86,7 +86,7 @@ def test_up_control_impairs_a_running_network(tmp_path: Path) -> None:
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     _, m = _lines_until(up.stderr, r"control: (127\.0\.0\.1:\d+)")
     time.sleep(0.5)
-    r = run_cli("control", m.group(1), "impair", "all", "delay=100us,for=0.5s")
+    r = run_cli("control", m.group(1), "impair", "all", "delay=100us,for=0.5s", "--timeout", "6")
     assert r.returncode == 0, r.stdout + r.stderr
     out, _ = up.communicate(timeout=60)
     assert up.returncode == 0, out
