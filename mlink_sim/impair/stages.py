@@ -107,51 +107,57 @@ class Loss(Stage):
         return lost
 
 
-class Corrupt(Stage):
+class _Chance(Stage):
+    """A stage that does something to each datagram with probability *p* (:meth:`hit`), counted once per hit."""
+
+    __slots__ = ("p",)
+
+    def __init__(self, p: float) -> None:
+        self.p = p
+
+    def apply(self, items: Items, path: PathState) -> Items:
+        random = path.rng.random
+        out: Items = []
+        for item in items:
+            if random() < self.p:
+                out += self.hit(item, path)
+                path.count(self.counter)
+            else:
+                out.append(item)
+        return out
+
+    def hit(self, item: tuple[int, bytes], path: PathState) -> Items:
+        raise NotImplementedError
+
+
+class Corrupt(_Chance):
     """With probability *p* flip one bit of the data (between the envelope header and the FCS, so the receiver
     finds the FCS wrong rather than a wrong header; the whole datagram if it is too short to have data)."""
 
     order = ORDER["corrupt"]
     counter = "corruptions"
-    __slots__ = ("p",)
+    __slots__ = ()
 
-    def __init__(self, p: float) -> None:
-        self.p = p
-
-    def apply(self, items: Items, path: PathState) -> Items:
-        random = path.rng.random
-        out = []
-        for delay, data in items:
-            if random() < self.p and data:
-                lo, hi = (HEADER_SIZE, len(data) - FCS_SIZE) if len(data) > HEADER_SIZE + FCS_SIZE else (0, len(data))
-                bit = lo * 8 + int(random() * (hi - lo) * 8)
-                buf = bytearray(data)
-                buf[bit >> 3] ^= 1 << (bit & 7)
-                data = bytes(buf)
-                path.count(self.counter)
-            out.append((delay, data))
-        return out
+    def hit(self, item: tuple[int, bytes], path: PathState) -> Items:
+        delay, data = item
+        if not data:
+            return [item]
+        lo, hi = (HEADER_SIZE, len(data) - FCS_SIZE) if len(data) > HEADER_SIZE + FCS_SIZE else (0, len(data))
+        bit = lo * 8 + int(path.rng.random() * (hi - lo) * 8)
+        buf = bytearray(data)
+        buf[bit >> 3] ^= 1 << (bit & 7)
+        return [(delay, bytes(buf))]
 
 
-class Duplicate(Stage):
+class Duplicate(_Chance):
     """With probability *p* deliver the datagram twice (the copy right behind it)."""
 
     order = ORDER["duplicate"]
     counter = "duplicates"
-    __slots__ = ("p",)
+    __slots__ = ()
 
-    def __init__(self, p: float) -> None:
-        self.p = p
-
-    def apply(self, items: Items, path: PathState) -> Items:
-        random = path.rng.random
-        out = []
-        for item in items:
-            out.append(item)
-            if random() < self.p:
-                out.append(item)
-                path.count(self.counter)
-        return out
+    def hit(self, item: tuple[int, bytes], path: PathState) -> Items:
+        return [item, item]
 
 
 class Delay(Stage):
@@ -179,24 +185,14 @@ class Delay(Stage):
         return out
 
 
-class Reorder(Stage):
+class Reorder(_Chance):
     """With probability *p* hold the datagram back by 1.5 times its path's interval between datagrams (one
     transmission cycle for a cyclic command), so the next datagram of the path overtakes it."""
 
     order = ORDER["reorder"]
     counter = "reorders"
-    __slots__ = ("p",)
+    __slots__ = ()
 
-    def __init__(self, p: float) -> None:
-        self.p = p
-
-    def apply(self, items: Items, path: PathState) -> Items:
-        random = path.rng.random
-        out = []
-        for delay, data in items:
-            if random() < self.p:
-                hold = path.interval_ns * 3 // 2 if path.interval_ns else DEFAULT_HOLD_NS
-                delay += hold
-                path.count(self.counter)
-            out.append((delay, data))
-        return out
+    def hit(self, item: tuple[int, bytes], path: PathState) -> Items:
+        hold = path.interval_ns * 3 // 2 if path.interval_ns else DEFAULT_HOLD_NS
+        return [(item[0] + hold, item[1])]
