@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 
 from mlink_sim.drive import (
-    SEL_MON_TABLES,
     Drive,
     DriveCommand,
     DriveSettings,
@@ -28,6 +27,7 @@ from mlink_sim.drive import (
 )
 
 from mlink_sim.drive.monitors import read_monitor
+from mlink_sim.wire.selections import SEL_MON_TABLES
 
 from .eeprom import HISTORY_DEPTH
 

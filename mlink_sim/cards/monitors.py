@@ -5,8 +5,8 @@
 * SI-T/V7 Table 4 (SEL REF: only 4 = terminal outputs; "5 to F Not used. The SI-T/V7 ignores the written
   data") and Table 5 (SEL MON: 1 = output frequency, not motor speed; 9, A, D–F not used).
 
-SEL_MON code → monitor name comes from the drive's copy of these tables (``mlink_sim.drive.SEL_MON_TABLES``
-via :meth:`DriveLink.sel_mon_name`); here the card resolves what only it knows: E/F read the MEMOBUS register
+The tables themselves are data in :mod:`mlink_sim.wire.selections` (``SEL_REF_TABLES``, ``SEL_MON_TABLES``); SEL_MON
+code → monitor name reaches the card through :meth:`DriveLink.sel_mon_name`. Here the card resolves what only it knows: E/F read the MEMOBUS register
 set in F6-23/F6-24 at power-up (any parameter or monitor register, through the parameter store), 7/8 the
 drive's fault / minor-fault code (SI-T3 Tables 26/27, SI-T/V7 Tables 10/11), and U2/U3 the fault history that
 survives power cycles. Values travel as 16-bit two's complement.
@@ -22,21 +22,19 @@ from collections.abc import Mapping
 from types import MappingProxyType
 from typing import TYPE_CHECKING
 
+from mlink_sim.wire.selections import SEL_REF_TABLES as _SEL_REF
+
+from .settings import CARD_NAMES
+
 if TYPE_CHECKING:
     from .drive_link import DriveLink
     from .paramstore import ParamStore
 
 __all__ = ["SEL_REF_TABLES", "sel_mon_value", "sel_mon_enabled", "sel_ref_item"]
 
-_A1000_REF = ("", "torque compensation", "analog output 1", "analog output 2", "terminal outputs",
-              "PID setpoint", "pulse output", "V/f gain", "", "control selection", "", "", "", "", "", "")
-
-#: SEL_REF code -> reference item ("" = nothing selected / not used).
-SEL_REF_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType({
-    "si-t3": _A1000_REF,  # SI-T3 Table 17
-    "si-et3": _A1000_REF,  # SI-ET3 Table 21
-    "si-t-v7": ("", "", "", "", "terminal outputs", "", "", "", "", "", "", "", "", "", "", ""),  # V7 Table 4
-})
+#: SEL_REF code -> reference item ("" = nothing selected / not used), by card id (:mod:`mlink_sim.wire.selections`).
+SEL_REF_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
+    {card: _SEL_REF[label] for card, label in CARD_NAMES.items()})
 
 
 def sel_ref_item(card: str, code: int) -> str:

@@ -10,9 +10,8 @@ Three tables per generation, each cited from its manual:
 * **phase × sub-command** – SI-ET3 Table 10 (:data:`ML3_SUB_PHASES`); SI-T3 §8 "Sub-commands" and
   SI-T/V7 §7.2 (:data:`ML2_SUB_PHASES`).
 * **main × sub-command combinations** – SI-ET3 Table 13 (:data:`ML3_COMBINATIONS`, "-" = CMD_ALM BH),
-  SI-T3 Table 7 (:data:`ML2_COMBINATIONS`, "NG" = A.95). The SI-T/V7 manual has no combination table;
-  it uses SI-T3 Table 7 extended with its own CONFIG sub-command (V7 §7.2), treated like PRM_WR
-  (:data:`V7_COMBINATIONS`; docs/cards.md).
+  SI-T3 Table 7 (:data:`ML2_COMBINATIONS`, "NG" = A.95), SI-T/V7 (:data:`V7_COMBINATIONS`): the wire's
+  tables, :mod:`mlink_sim.wire.combinations` (the master reads the same), re-exported here.
 
 A command code absent from a table is unsupported (A.95 / CMD_ALM 8H).
 """
@@ -24,6 +23,7 @@ from collections.abc import Mapping
 from types import MappingProxyType
 
 from mlink_sim.wire import M2Cmd, M3Cmd
+from mlink_sim.wire.combinations import ML2_COMBINATIONS, ML3_COMBINATIONS, V7_COMBINATIONS, combination_ok
 
 __all__ = [
     "Admit",
@@ -115,72 +115,7 @@ ML2_SUB_PHASES = _freeze({
 V7_SUB_PHASES = _freeze({**ML2_SUB_PHASES, M2Cmd.CONFIG: (E, A, A)})
 
 
-def _combos(rows: dict[int, str], columns: tuple[int, ...]) -> Mapping[int, frozenset[int]]:
-    """Rows of 'O'/'-' marks per sub-command column -> main code -> allowed sub-command codes."""
-    out: dict[int, frozenset[int]] = {}
-    for main, marks in rows.items():
-        marks = marks.replace(" ", "")
-        if len(marks) != len(columns):
-            raise ValueError(f"combination row {main:#04x}: {len(marks)} marks for {len(columns)} columns")
-        out[int(main)] = frozenset(int(c) for c, m in zip(columns, marks) if m == "O")
-    return MappingProxyType(out)
-
-
-#: SI-T3 Table 7 "Main Command and Sub-command" – columns NOP, PRM_RD, PRM_WR, ALM_RD, INV_I/O;
-#: O = OK, - = NG (A.95).
-_ML2_COLUMNS = (M2Cmd.NOP, M2Cmd.PRM_RD, M2Cmd.PRM_WR, M2Cmd.ALM_RD, M2Cmd.INV_IO)
-_ML2_ROWS = {
-    M2Cmd.NOP: "O O O O O",
-    M2Cmd.PRM_RD: "O - - O O",
-    M2Cmd.PRM_WR: "O - - O O",
-    M2Cmd.ID_RD: "O O O O O",
-    M2Cmd.CONFIG: "O - - - -",
-    M2Cmd.ALM_RD: "O - - - -",
-    M2Cmd.ALM_CLR: "O - - - -",
-    M2Cmd.SYNC_SET: "O O O O O",
-    M2Cmd.CONNECT: "O - - - -",
-    M2Cmd.DISCONNECT: "O - - - -",
-    M2Cmd.INV_CTL: "O O O O O",
-}
-ML2_COMBINATIONS = _combos(_ML2_ROWS, _ML2_COLUMNS)
-
-#: SI-T/V7: SI-T3 Table 7 plus a CONFIG sub-command column marked like PRM_WR (the V7 manual has no
-#: combination table; docs/cards.md).
-_V7_COLUMNS = (*_ML2_COLUMNS, M2Cmd.CONFIG)
-V7_COMBINATIONS = _combos(
-    {k: v + " " + v.replace(" ", "")[2] for k, v in _ML2_ROWS.items()}, _V7_COLUMNS
-)
-
-#: SI-ET3 Table 13 "Main Commands and Sub-Commands" – columns NOP, PRM_RD, PRM_WR, ALM_RD, INV_I/O;
-#: O = OK, - = CMD_ALM BH (sub-command combination error).
-_ML3_COLUMNS = (M3Cmd.NOP, M3Cmd.PRM_RD, M3Cmd.PRM_WR, M3Cmd.ALM_RD, M3Cmd.INV_IO)
-ML3_COMBINATIONS = _combos(
-    {
-        M3Cmd.NOP: "O O O O O",
-        M3Cmd.PRM_RD: "O - - O O",
-        M3Cmd.PRM_WR: "O - - O O",
-        M3Cmd.ID_RD: "O O O O O",
-        M3Cmd.CONFIG: "O - - - -",
-        M3Cmd.ALM_RD: "O - - - -",
-        M3Cmd.ALM_CLR: "O - - - -",
-        M3Cmd.SYNC_SET: "O O O O O",
-        M3Cmd.CONNECT: "O - - - -",
-        M3Cmd.DISCONNECT: "O - - - -",
-        M3Cmd.INV_CTL: "O O O O O",
-    },
-    _ML3_COLUMNS,
-)
-
-
 def admit(table: Mapping[int, tuple[Admit, Admit, Admit]], code: int, phase: int) -> Admit | None:
     """The admission of *code* in *phase* (1–3), or None when the table does not know the code."""
     row = table.get(code)
     return None if row is None else row[phase - 1]
-
-
-def combination_ok(table: Mapping[int, frozenset[int]], main: int, sub: int) -> bool:
-    """True if sub-command *sub* may accompany main command *main* (unknown mains allow only NOP)."""
-    allowed = table.get(main)
-    if allowed is None:
-        return sub == 0
-    return sub in allowed

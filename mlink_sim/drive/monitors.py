@@ -1,6 +1,7 @@
 """Monitors in the drive's raw units: U1/U2/U3 (A1000 family), U-xx (VS-606V7), SEL_MON codes.
 
-Units (A1000 Technical Manual, "U: Monitors"; SI-T3 Table 18; SI-ET3 Table 22; SI-T/V7 Table 5):
+Units (A1000 Technical Manual, "U: Monitors"; SI-T3 Table 18; SI-ET3 Table 22; SI-T/V7 Table 5). What each
+SEL_MON code selects is the wire's table (:data:`mlink_sim.wire.selections.SEL_MON_TABLES`, re-exported here):
 
 ========  ============================  ===================================================
 U1-01     frequency reference           o1-03 units
@@ -40,6 +41,7 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from ..wire.selections import SEL_MON_TABLES
 from .faults import fault_code, minor_code
 from .settings import DriveSettings, Family, _ref_to_hz
 
@@ -70,20 +72,6 @@ def ref_to_hz(s: DriveSettings, raw: int) -> float:
 def _r(x: float) -> int:
     return int(math.floor(x + 0.5)) if x >= 0 else -int(math.floor(-x + 0.5))
 
-
-#: SEL_MON code -> monitor name, "" for "nothing"/"not used" (0), or a special token:
-#: "ALARM"/"WARNING" (drive fault / minor fault code), "F6-23"/"F6-24" (register set there).
-SEL_MON_TABLES: dict[str, tuple[str, ...]] = {
-    # SI-T3 Table 18 (SEL MON1/2 (3/4, 5/6) Selection Range)
-    "SI-T3": ("", "U1-05", "U1-09", "", "U1-01", "U1-14", "U1-07", "ALARM", "WARNING",
-              "U1-11", "U1-15", "U1-10", "U1-13", "", "F6-23", "F6-24"),
-    # SI-ET3 Table 22 (SEL_MON Monitor Data Codes); PG counters (3, D) not simulated: 0
-    "SI-ET3": ("", "U1-05", "U1-09", "", "U1-01", "U1-14", "U1-07", "ALARM", "WARNING",
-               "U1-11", "U1-15", "U1-10", "U1-13", "", "F6-23", "F6-24"),
-    # SI-T/V7 Table 5 (SEL MON1/2 Selection Range); 5 (pulse train RP) and C (analog FR): 0
-    "SI-T/V7": ("", "U-02", "U-08", "", "U-01", "", "U-05", "ALARM", "WARNING", "", "",
-                "U-06", "", "", "", ""),
-}
 
 #: MEMOBUS register -> monitor, for F6-23 / F6-24 (A1000 Technical Manual, MEMOBUS data table:
 #: U1-01 is 0040H, consecutive up to U1-12 at 004BH).  Other registers read 0 here; a card

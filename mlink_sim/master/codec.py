@@ -35,6 +35,7 @@ from ..wire import (
     ml2,
     ml3,
 )
+from ..wire.combinations import V7_COMBINATIONS, forbids
 from ..wire.drive_codes import SiT3DriveAlarm, SiT3DriveWarning, V7InverterAlarm, V7InverterWarning
 from .plan import StationPlan
 from .types import Control
@@ -52,24 +53,16 @@ _DRIVE_COMM_FAULTS = {int(SiT3DriveAlarm.E5), int(SiT3DriveAlarm.BUS)}
 _DRIVE_COMM_MINORS = {int(SiT3DriveWarning.E5), int(SiT3DriveWarning.BUS)}
 _CYC = int(SiT3DriveWarning.CYC)
 
-# Main/sub-command combinations (SI-T3 Table 7, SI-ET3 Table 13): main command -> sub-commands it accepts.
-# Mains not listed accept every sub-command (NOP, ID_RD, SYNC_SET, INV_CTL rows are all "OK").
-_ONLY_NOP = frozenset({"NOP"})
-_COMBINATIONS: dict[str, frozenset[str]] = {
-    "PRM_RD": frozenset({"NOP", "ALM_RD", "INV_IO"}),
-    "PRM_WR": frozenset({"NOP", "ALM_RD", "INV_IO"}),
-    "CONFIG": _ONLY_NOP,
-    "ALM_RD": _ONLY_NOP,
-    "ALM_CLR": _ONLY_NOP,
-    "CONNECT": _ONLY_NOP,
-    "DISCONNECT": _ONLY_NOP,
-}
-
-
 def compatible(main: str, sub: str) -> bool:
-    """Whether main command *main* may travel with sub-command *sub* (names as in :class:`M2Cmd`)."""
-    allowed = _COMBINATIONS.get(main)
-    return allowed is None or sub in allowed
+    """Whether main command *main* may travel with sub-command *sub* (names as in :class:`M2Cmd`): False only
+    where the combination table marks the pair NG (SI-T3 Table 7, SI-ET3 Table 13: the same rows; read from
+    :mod:`mlink_sim.wire.combinations`, on the SI-T/V7's version, which adds its CONFIG sub-command column).
+    A main command the table does not know forbids nothing (the slave refuses an unknown code itself)."""
+    main_code = M2Cmd.__members__.get(main)
+    if main_code is None:
+        return True
+    sub_code = M2Cmd.__members__.get(sub)
+    return not forbids(V7_COMBINATIONS, main_code, -1 if sub_code is None else sub_code)
 
 
 def command_name(link: Link, code: int) -> str:

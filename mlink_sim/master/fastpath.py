@@ -1,6 +1,6 @@
 """The master's per-cycle INV_CTL exchange straight from and to bytes (the steady state of a phase-3 network).
 
-Once a station is up, almost every slot is the same cyclic INV_CTL command (SI-T3 Table 16, SI-ET3 Table 21,
+Once a station is up, almost every slot is the same cyclic INV_CTL command (SI-T3 Table 16, SI-ET3 Table 20,
 SI-T/V7 Table 3) answered by an INV_CTL response without alarm or warning. The general path builds a
 :class:`~mlink_sim.wire.Frame` and message objects for it, then a :class:`~mlink_sim.master.codec.Reply`, and
 runs the phase machine. Profiling put that at ~10 µs to encode and ~25 µs to decode per station and cycle,
@@ -30,7 +30,7 @@ import struct
 from typing import Any
 
 from ..wire import Frame, Kind, Link, encode, ml2, ml3
-from ..wire.codes import M2Cmd, M3Cmd
+from ..wire.codes import M2Cmd, M2Status, M3Cmd
 from ..wire.frame import ENVELOPE, FCS_SIZE, HEADER, HEADER_SIZE, MAGIC, fcs_ok, with_fcs
 from ..wire.layout import fast_format, field_offset
 from .codec import Codec
@@ -46,10 +46,13 @@ def cycle_of(datagram: bytes) -> int:
     """The envelope's cycle number (u32, bytes 4–7) of a datagram at least a header long."""
     return _CYCLE.unpack_from(datagram, _CYCLE_OFFSET)[0]
 
-#: ML-II STATUS bits 0/1 (ALM, WARNG; SI-T3 Table 19) and the ALARM byte must be zero for the fast path.
-_ML2_TROUBLE = 0x0003
-#: ML-III CMD_STAT (SI-ET3 Table 12): ALM (bit 0) and CMD_ALM (bits 8-11) must be zero; COMM_ALM (bits 12-15) must
-#: not change (a latched warning 1-7 may stay; 8 and up is an alarm, and an edge is an event).
+
+#: ML-II STATUS ALM and WARNG (bits 0/1, SI-T3 "STATUS Field", an unnumbered table) and the ALARM byte must be
+#: zero for the fast path.
+_ML2_TROUBLE = int(M2Status.ALM | M2Status.WARNG)
+#: ML-III CMD_STAT (SI-ET3 §8 "Command Status (CMD_STAT)", an unnumbered table): D_ALM (bit 0) and CMD_ALM
+#: (bits 8-11) must be zero; COMM_ALM (bits 12-15) must not change (a latched warning 1-7 may stay; 8 and up is an
+#: alarm, and an edge is an event).
 _ML3_ALARMS = 0x0F01
 
 
