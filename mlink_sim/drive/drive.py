@@ -14,9 +14,9 @@ import math
 from dataclasses import dataclass
 
 from .faults import Fault, minor_code
-from . import integrate as _integrate
+from .integrate import CHANGED, IntegratorState, begin_search, steady_to, substep
 from .monitors import read_monitor, read_sel_mon
-from .motor import LoadSpec, MotorConstants, vf_voltage
+from .motor import LoadSpec, vf_voltage
 from .settings import DriveSettings, Family, StopMethod, _ref_to_hz
 from .status import DriveStatus
 
@@ -25,7 +25,6 @@ __all__ = ["Drive", "DriveCommand"]
 _MAX_EVENTS = 64
 INF = math.inf
 _EF_DELAY_NS = 500_000_000  # A1000 "EF": forward and reverse both on for longer than 0.5 s
-_KIND_CODE = {"inertia": 0, "constant": 1, "fan": 2, "friction": 0}
 _ALARMS = (StopMethod.ALARM_ONLY, StopMethod.ALARM_RUN_D1_04, StopMethod.ALARM_RAMP)
 
 
@@ -55,20 +54,9 @@ class Drive:
     """One simulated drive.  See the module docstring and docs/drive-model.md."""
 
     __slots__ = (
-        "family", "settings", "load", "_events", "_remote_override", "_sub", "_t", "_cmd",
-        "_m", "_q", "_dir", "_out", "_w", "_theta", "_T", "_I", "_P", "_fout", "_E", "_V",
-        "_fault", "_fault_stop", "_history", "_latched", "_cond", "_dyn", "_mains", "_ope",
-        "_stop_alarm", "_d104", "_ef_since", "_event_at", "_hold_acc", "_hold_dec",
-        "_tlimited", "_status", "_steady", "steady_epoch", "_run", "_mt", "_dt", "_A", "_D", "_Js", "_Je",
-        "_Jds", "_Jde", "_tmode", "_tval", "_ref_hz", "_remote", "_net_run", "_net_ref",
-        # speed search (integrate.search_step): phase 0 off / 1 output off (b3-05, b3-25) / 2 sweep; sweep
-        # frequency, where it started, time left in phase 1, restarts so far, time above b3-17 (None: not
-        # watching), (sweep rate Hz/s, found level A, restart level A)
-        "_ss", "_ss_f", "_ss_start", "_ss_wait", "_ss_n", "_ss_hi", "_ss_k",
-        # constants
-        "_K", "_wph", "_Tr", "_I0", "_IT", "_Ir", "_R3", "_fb", "_J", "_lkind", "_Tl", "_B",
-        "_kf", "_En", "_Vn", "_C", "_Pc", "_ov", "_uv", "_oc", "_acc_lvl", "_dec_lvl",
-        "_tau", "_ol1", "_dec_raise", "_hot", "_skey", "_slast",
+        "family", "settings", "load", "_x", "_events", "_remote_override", "_sub", "_t", "_cmd",
+        "_fault", "_fault_stop", "_history", "_latched", "_cond", "_ope", "_stop_alarm", "_d104", "_ef_since",
+        "_event_at", "_status", "_skey", "_slast", "steady_epoch", "_ref_hz", "_remote", "_net_run", "_net_ref",
     )
 
     def __init__(self, family: Family, settings: DriveSettings, load: LoadSpec, *, now: int = 0,
@@ -83,65 +71,32 @@ class Drive:
         self._sub = int(substep_ns)
         self._t = int(now)
         self._cmd = _IDLE
-        self._m = self._q = self._w = self._theta = 0.0
-        self._T = self._I = self._P = self._fout = 0.0
-        self._dir = 1
-        self._out = False
         self._fault: Fault | None = None
         self._fault_stop = StopMethod.COAST
         self._history: list[Fault] = []
         self._latched: set[Fault] = set()
         self._cond: frozenset[Fault] = frozenset()
-        self._dyn: frozenset[Fault] = frozenset()  # Uv / ov minors found by the integrator
-        self._mains = True
         self._stop_alarm = False
         self._d104 = False
         self._ef_since: int | None = None
         self._event_at: int | None = None
-        self._hold_acc = self._hold_dec = self._tlimited = False
-        self._ss = self._ss_n = 0
-        self._ss_f = self._ss_start = self._ss_wait = 0.0
-        self._ss_hi: float | None = None
-        self._ss_k = (0.0, 0.0, INF)
         self._status: DriveStatus | None = None
         self._skey: tuple[bool, ...] = ()
         self._slast: DriveStatus | None = None
-        self._steady = False
+        self._ref_hz = 0.0
         #: Bumped whenever the drive becomes steady or stops being steady: while it is steady and this number
         #: is unchanged, no output or monitor of the drive changes (only the oL1 thermal state moves).
         self.steady_epoch = 0
         self.load = load
+        #: the integrator's state, inputs and constants (integrate.py): the drive's continuous half
+        self._x = IntegratorState(settings, load)
         self._apply_settings(settings)
-        self._E, self._V = self._En, self._Vn
         self._recompute()
 
     # ------------------------------------------------------------------ configuration
     def _apply_settings(self, s: DriveSettings) -> None:
         self.settings = s
-        mc = MotorConstants.from_settings(s)
-        self._K, self._wph, self._Tr = mc.stiffness, mc.w_per_hz, mc.rated_torque
-        self._I0, self._IT, self._Ir = mc.i0, mc.i_t_rated, mc.i_rated
-        self._R3, self._fb = 3.0 * mc.r_phase, mc.base_freq
-        ld = self.load.resolve(s)
-        self._J, self._lkind, self._B = ld.inertia_kgm2, ld.kind, ld.viscous_nms
-        self._Tl = ld.torque_nm if ld.kind in ("constant", "fan") else 0.0
-        w_fan = (ld.rated_speed_rpm * math.pi / 30.0) if ld.rated_speed_rpm else mc.rated_speed
-        self._kf = ld.torque_nm / (w_fan * w_fan) if ld.kind == "fan" else 0.0  # type: ignore[operator]
-        self._C, self._Pc = s.bus_capacitance_f, s.control_power_w
-        self._Vn = s.nominal_bus_v
-        self._En = 0.5 * self._C * self._Vn * self._Vn
-        self._ov, self._uv = s.ov_level_v, s.uv_level_v
-        i_drive = s.drive_rated_current_a
-        self._oc = s.oc_level_pct * 0.01 * i_drive
-        self._acc_lvl = s.stall_accel_level_pct * 0.01 * i_drive if s.stall_accel else INF
-        self._dec_lvl = s.stall_decel_level_v if s.stall_decel else INF
-        self._dec_raise = s.stall_decel_intelligent
-        self._tau, self._ol1 = s.ol1_tau_s, s.ol1_enabled and s.ol1_tau_s > 0
-        # constants of the hot loop, unpacked in one go by _substep
-        self._hot = (self._K, self._wph, self._fb, self._Tr, self._IT, self._I0, self._R3,
-                     self._J, self._B, _KIND_CODE[self._lkind], self._Tl, self._kf, self._En,
-                     self._Pc, self._C, self._Vn, self._ov, self._uv, self._oc, self._acc_lvl,
-                     self._dec_lvl, self._dec_raise, self._ol1, self._tau, self._Ir)
+        self._x.configure(s, self.load)
         self._ope = s.check()
         ro = self._remote_override
         self._net_run = s.run_from_network if ro is None else ro
@@ -156,8 +111,9 @@ class Drive:
         self._apply_settings(settings)
         if self._ope is not None:
             self._event("ope", self._ope)
-        self._E = max(self._E, self._En) if self._mains else self._E
-        self._V = math.sqrt(2.0 * self._E / self._C)
+        x = self._x
+        x.E = max(x.E, x.En) if x.mains else x.E
+        x.V = math.sqrt(2.0 * x.E / x.C)
         self._recompute()
 
     def set_load(self, load: LoadSpec, now: int) -> None:
@@ -170,10 +126,11 @@ class Drive:
     def set_main_power(self, on: bool, now: int) -> None:
         """Mains on/off.  Off: the bus feeds the load and the control power until the Uv level."""
         self.advance(now)
-        self._mains = bool(on)
-        if on and self._E < self._En:
-            self._E, self._V = self._En, self._Vn
-            self._dyn = frozenset()
+        x = self._x
+        x.mains = bool(on)
+        if on and x.E < x.En:
+            x.E, x.V = x.En, x.Vn
+            x.dyn = frozenset()
         self._recompute()
 
     # ------------------------------------------------------------------ network inputs
@@ -275,9 +232,9 @@ class Drive:
     # ------------------------------------------------------------------ mode evaluation
     def _recompute(self) -> None:
         """Re-derive run request, target, ramp rates and torque mode after any discrete change."""
-        s, c = self.settings, self._cmd
+        s, c, x = self.settings, self._cmd, self._x
         inp, mi = s.inputs, self._cmd.multi_inputs
-        self._steady = False
+        x.steady = False
         self.steady_epoch += 1
         self._status = self._slast = None
         run_src = self._net_run
@@ -293,7 +250,7 @@ class Drive:
                 self._event_at = self._ef_since + _EF_DELAY_NS
         else:
             self._ef_since = None
-        active = self._out or (fwd != rev)
+        active = x.out or (fwd != rev)
         fast_alarm = False
         if c.external_fault and (not s.ef0_run_only or active):
             if s.ef0_stop in _ALARMS:
@@ -313,27 +270,28 @@ class Drive:
             cond.add(Fault.BB)
         fast = bool(mi & inp.fast_stop_no) or bool(inp.fast_stop_nc and not mi & inp.fast_stop_nc)
         self._cond = frozenset(cond)
-        pon = self._mains or self._V >= self._uv
+        pon = x.mains or x.V >= x.uv
         can_run = ((fwd != rev) and self._fault is None and self._ope is None and pon and not bb
                    and not fast and not fast_alarm and not self._stop_alarm)
         self._ref_hz = ref = self._select_ref(mi)
-        self._run = can_run
+        x.run = can_run
         fmax, fast_rate = s.max_freq_hz, INF
         use2 = bool(mi & inp.accel_decel_2)
         acc_s, dec_s = (s.accel2_s, s.decel2_s) if use2 else (s.accel_s, s.decel_s)
         s0, s1, s2, s3 = s.s_curve_s
-        out = self._out
+        out = x.out
         if can_run:
-            self._dt = 1 if fwd else -1
+            x.dt = 1 if fwd else -1
             mt = min(ref, fmax)
-            self._mt = mt if mt >= s.min_freq_hz else 0.0
+            x.mt = mt if mt >= s.min_freq_hz else 0.0
             if not out:  # output on: V/f starts at 0 Hz, or at the speed a speed search finds
-                self._out, self._m, self._q, self._dir = True, 0.0, 0.0, self._dt
+                x.out, x.m, x.q, x.dir = True, 0.0, 0.0, x.dt
                 if s.search.at_start or mi & (inp.search_max | inp.search_ref):
                     from_ref = bool(mi & inp.search_ref) and not mi & inp.search_max
-                    self._begin_search(self._mt if from_ref else fmax, s.search.delay_s)
+                    begin_search(x, x.mt if from_ref else fmax, s.search.delay_s)
+                    self._take_pending()
         else:
-            self._dt, self._mt = self._dir, 0.0
+            x.dt, x.mt = x.dir, 0.0
             coast = bb or self._ope is not None or not pon
             if self._fault is not None:
                 coast |= self._fault_stop is StopMethod.COAST
@@ -343,44 +301,40 @@ class Drive:
                 fast = True
             elif not self._stop_alarm:
                 coast |= s.coast_on_run_off
-            if coast or self._ss or (out and self._m == 0.0 and self._q == 0.0):
-                self._out = False  # a search cut short by a stop leaves the motor coasting
+            if coast or x.ss or (out and x.m == 0.0 and x.q == 0.0):
+                x.out = False  # a search cut short by a stop leaves the motor coasting
             if fast and s.fast_stop_s > 0:
                 fast_rate = fmax / s.fast_stop_s
             elif fast:
                 fast_rate = INF
-        if not self._out:
-            self._m = self._q = self._fout = 0.0
-            self._T = self._I = 0.0
-            self._ss = self._ss_n = 0
-            self._ss_hi = None
-            self._hold_acc = self._hold_dec = self._tlimited = False
-        self._A = fmax / acc_s if acc_s > 0 else INF
-        self._Js = self._A / s0 if s0 > 0 else INF
-        self._Je = self._A / s1 if s1 > 0 else INF
+        if not x.out:
+            x.output_off()
+        x.A = fmax / acc_s if acc_s > 0 else INF
+        x.Js = x.A / s0 if s0 > 0 else INF
+        x.Je = x.A / s1 if s1 > 0 else INF
         if fast:
-            self._D, self._Jds, self._Jde = fast_rate, INF, INF
+            x.D, x.Jds, x.Jde = fast_rate, INF, INF
         else:
-            self._D = fmax / dec_s if dec_s > 0 else INF
-            self._Jds = self._D / s2 if s2 > 0 else INF
-            self._Jde = self._D / s3 if s3 > 0 else INF
+            x.D = fmax / dec_s if dec_s > 0 else INF
+            x.Jds = x.D / s2 if s2 > 0 else INF
+            x.Jde = x.D / s3 if s3 > 0 else INF
         if s.torque_from_network and s.family is Family.A1000:
             if s.torque_control:
-                self._tmode, self._tval = 2, c.torque_ref_raw * 0.001 * self._Tr
+                x.tmode, x.tval = 2, c.torque_ref_raw * 0.001 * x.Tr
             else:
-                self._tmode, self._tval = 1, abs(c.torque_limit_raw) * 0.001 * self._Tr
+                x.tmode, x.tval = 1, abs(c.torque_limit_raw) * 0.001 * x.Tr
         else:
-            self._tmode, self._tval = 0, 0.0
+            x.tmode, x.tval = 0, 0.0
 
-    def _begin_search(self, start_hz: float, wait_s: float) -> None:
-        """Start (or restart) a speed search: output off for ``wait_s``, then sweep down from ``start_hz``."""
-        s = self.settings
-        ss, i_drive = s.search, s.drive_rated_current_a
-        self._ss, self._ss_f, self._ss_start, self._ss_wait = 1, start_hz, start_hz, wait_s
-        self._ss_hi = None
-        self._ss_k = (s.max_freq_hz / ss.decel_s, ss.current_pct * 0.01 * i_drive, ss.restart_pct * 0.01 * i_drive)
-        self._m = self._q = self._fout = 0.0
-        self._event("speed_search", f"restart {self._ss_n}" if self._ss_n else "start")
+    def _take_pending(self) -> None:
+        """Apply what the integrator reported, in its order: trips (coast stop) and log events."""
+        x = self._x
+        for p in x.pending:
+            if isinstance(p, Fault):
+                self._trip_now(p, StopMethod.COAST)
+            else:
+                self._event(*p)
+        x.pending.clear()
 
     def _select_ref(self, mi: int) -> float:
         """Selected frequency reference (Hz): d1-04 override, jog, multi-step (F6-07), network."""
@@ -403,32 +357,48 @@ class Drive:
     # ------------------------------------------------------------------ time
     def advance(self, now: int) -> None:
         """Integrate to ``now`` (monotonic ns; earlier times are ignored)."""
+        x = self._x
         while self._t < now:
             t = self._t
             ev = self._event_at
             end = now if ev is None or ev > now else ev
-            if self._steady:
-                self._steady_to(end)  # may stop early at an oL1 trip; the loop goes on from there
+            if x.steady:
+                took = steady_to(x, end - t)
+                if took:  # an oL1 trip after `took` ns; the loop goes on from there
+                    self._t = t + took
+                    self._take_pending()
+                    self._recompute()
+                else:
+                    self._t = end
             else:
+                self._status = None
                 dt = end - t
                 sub = self._sub
                 if dt <= sub:
-                    self._substep(dt * 1e-9)
+                    r = substep(x, dt * 1e-9)
+                    if r:
+                        self._after_substep(r)
                     self._t = end
                 else:
                     n = -(-dt // sub)
                     for i in range(n):
                         t_i = t + (dt * (i + 1)) // n
-                        self._substep((t_i - self._t) * 1e-9)
+                        r = substep(x, (t_i - self._t) * 1e-9)
+                        if r:
+                            self._after_substep(r)
                         self._t = t_i
-                        if self._steady:
+                        if x.steady:
                             break  # the rest in closed form, next turn of the loop
             if ev is not None and self._t == ev and self._event_at == ev:
                 self._event_at = None
                 self._recompute()
 
-    _steady_to = _integrate.steady_to
-    _substep = _integrate.substep
+    def _after_substep(self, result: int) -> None:
+        if result == CHANGED:
+            self._take_pending()
+            self._recompute()
+        else:  # STEADY
+            self.steady_epoch += 1
 
     # ------------------------------------------------------------------ outputs
     @property
@@ -448,24 +418,24 @@ class Drive:
         Discrete inputs (faults, minors, commands, oPE, mains) only change through
         :meth:`_recompute`, which drops the cached object; the integrator only moves the
         continuous signals, compared here as a small key (a frozen dataclass is slow to build)."""
-        s = self.settings
-        out = self._out
-        f = self._fout if out else 0.0
-        running = self._run or out
+        s, x = self.settings, self._x
+        out = x.out
+        f = x.fout if out else 0.0
+        running = x.run or out
         af = f if f >= 0.0 else -f
-        on = out and not self._ss  # no speed agree while a speed search sweeps
-        key = (running, f < 0.0 or (f == 0.0 and running and self._dir < 0),
+        on = out and not x.ss  # no speed agree while a speed search sweeps
+        key = (running, f < 0.0 or (f == 0.0 and running and x.dir < 0),
                af < s.min_freq_hz or not out,
                running and on and abs(af - min(self._ref_hz, s.max_freq_hz)) <= s.agree_width_hz,
                running and on and abs(af - s.agree_level_hz) <= s.agree_width_hz,
-               self._tlimited, self._hold_acc or self._hold_dec)
+               x.tlimited, x.hold_acc or x.hold_dec)
         last = self._slast
         if last is not None and key == self._skey:
             return last
         running, reverse, zero, agree, uagree, tlim, stall = key
-        minors = frozenset(self._latched | self._cond | self._dyn)
+        minors = frozenset(self._latched | self._cond | x.dyn)
         minor = min(minors, key=lambda x: (minor_code(self.family, x) or 0x1000, x.value)) if minors else None
-        pon = self._mains or self._V >= self._uv
+        pon = x.mains or x.V >= x.uv
         st = DriveStatus(
             running=running, reverse=reverse, zero_speed=zero, speed_agree=agree,
             user_speed_agree=uagree, ready=pon and self._fault is None and self._ope is None,
@@ -493,57 +463,62 @@ class Drive:
     @property
     def output_frequency_hz(self) -> float:
         """Signed output frequency (negative in reverse); 0 while baseblocked."""
-        return self._fout if self._out else 0.0
+        x = self._x
+        return x.fout if x.out else 0.0
 
     @property
     def soft_starter_hz(self) -> float:
-        return self._dir * self._m if self._out else 0.0
+        x = self._x
+        return x.dir * x.m if x.out else 0.0
 
     @property
     def motor_speed_rad_s(self) -> float:
-        return self._w
+        return self._x.w
 
     @property
     def motor_speed_rpm(self) -> float:
-        return self._w * 30.0 / math.pi
+        return self._x.w * 30.0 / math.pi
 
     @property
     def output_current_a(self) -> float:
-        return self._I
+        return self._x.I
 
     @property
     def output_voltage_v(self) -> float:
-        return vf_voltage(self.settings, self._fout) if self._out else 0.0
+        x = self._x
+        return vf_voltage(self.settings, x.fout) if x.out else 0.0
 
     @property
     def output_power_kw(self) -> float:
-        return self._P * 1e-3 if self._out else 0.0
+        x = self._x
+        return x.P * 1e-3 if x.out else 0.0
 
     @property
     def dc_bus_v(self) -> float:
-        return self._V
+        return self._x.V
 
     @property
     def torque_nm(self) -> float:
-        return self._T
+        return self._x.T
 
     @property
     def torque_pct(self) -> float:
-        return 100.0 * self._T / self._Tr
+        x = self._x
+        return 100.0 * x.T / x.Tr
 
     @property
     def motor_thermal(self) -> float:
         """oL1 thermal state theta (per unit of rated-current heating; trips at 1.21)."""
-        return self._theta
+        return self._x.theta
 
     @property
     def speed_search_active(self) -> bool:
         """True while a speed search runs (b3 / n101, n102): its delay, its sweep, the wait before a restart."""
-        return self._ss != 0
+        return self._x.ss != 0
 
     @property
     def is_steady(self) -> bool:
-        return self._steady
+        return self._x.steady
 
     @property
     def command_in_effect(self) -> DriveCommand:

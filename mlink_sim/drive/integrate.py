@@ -1,150 +1,295 @@
-"""The drive's integrator: one sub-step, and the closed form of a steady state.
+"""The drive's integrator: its state, one sub-step, and the closed form of a steady state.
 
-Bound as methods of :class:`mlink_sim.drive.Drive` (``Drive._substep`` / ``Drive._steady_to``);
-kept in their own module to keep the files small.  They read and write the drive's private
-state directly: this is the inside of the drive, not an API.
+:class:`IntegratorState` holds everything that moves between sub-steps (frequencies, shaft speed, bus
+energy, thermal state, speed search), the inputs the drive's mode logic sets (target, ramp rates, torque
+mode) and the constants of the motor, the load and the bus.  :class:`mlink_sim.drive.Drive` owns one and
+calls the plain functions below on it; this module does not know the :class:`Drive`.  What the drive must
+act on -- a trip, an event for its log -- the functions put in :attr:`IntegratorState.pending` and say so
+in their return value (:data:`CHANGED`); the drive then applies them in order and re-derives its mode.
 
-Per sub-step ``h`` (docs/drive-model.md, "Numerics"):
+Per sub-step ``h`` (:func:`substep`; docs/drive-model.md, "Numerics"), one function each:
 
-1. soft starter: the output frequency magnitude ``m`` moves toward the target with rate ``q``
+1. :func:`soft_starter`: the output frequency magnitude ``m`` moves toward the target with rate ``q``
    limited to ``E1-04 / C1-0x`` and jerk ``rate / C2-0x`` (S-curve); the landing follows
    ``q = sqrt(2 j e)`` so the end jerk is exact; stall prevention holds ``q = 0``;
-2. motor: ``T = K phi^2 (w_s - w)`` (or a held torque value), the synchronous speed ``w_s``
-   linear in time across the step;
-3. mechanics ``J dw/dt = T - T_c - B w`` integrated exactly (exponential integrator) with the
+2. :func:`motor_torque`: ``T = K phi^2 (w_s - w)`` (or a held torque value), the synchronous speed
+   ``w_s`` linear in time across the step; after step 3 :func:`motor_outputs` gives the torque,
+   current, power and output frequency at the step's end;
+3. :func:`mechanics`: ``J dw/dt = T - T_c - B w`` integrated exactly (exponential integrator) with the
    load linearised at the start of the step (exact for inertia, constant, friction loads);
-4. DC bus energy ``E = C V^2 / 2`` takes ``-(P_out + P_ctrl) h`` above the rectified level;
-5. oL1 thermal state, oC / ov / Uv1 checks, stall-prevention flags, steady-state detection.
+4. :func:`dc_bus`: the bus energy ``E = C V^2 / 2`` takes ``-(P_out + P_ctrl) h`` above the rectified
+   level;
+5. :func:`protections`: oL1 thermal state, oC / ov / Uv1 checks, stall-prevention flags; then
+   :func:`substep` detects a steady state.
 
 While a speed search runs (:func:`search_step`) the drive applies no torque (its search voltage is
 reduced; the shaft coasts through steps 2-3) and the sweep frequency and the search current replace
 step 1; after it, :func:`restart_watch` restarts a search whose current stays above b3-17 (SEr when
 b3-19 is exceeded).
+
+The functions are the hot loop of every simulated station: locals over attributes, no allocation
+beyond small tuples, the same floating-point operations in the same order (the determinism tests,
+tests/drive/test_determinism_and_integration.py, and scripts/bench_drive.py guard it).
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 from .faults import Fault
-from .settings import OL1_TRIP_LEVEL, StopMethod
+from .motor import LoadSpec, MotorConstants
+from .search import SpeedSearch
+from .settings import OL1_TRIP_LEVEL, DriveSettings
 
-if TYPE_CHECKING:
-    from .drive import Drive
-
-__all__ = ["restart_watch", "search_step", "steady_to", "substep"]
+__all__ = [
+    "CHANGED",
+    "STEADY",
+    "IntegratorState",
+    "begin_search",
+    "dc_bus",
+    "mechanics",
+    "motor_outputs",
+    "motor_torque",
+    "protections",
+    "restart_watch",
+    "search_step",
+    "soft_starter",
+    "steady_to",
+    "substep",
+]
 
 INF = math.inf
 _STOP_W = 1e-4  # rad/s below which a coasting shaft is taken as stopped
+_KIND_CODE = {"inertia": 0, "constant": 1, "fan": 2, "friction": 0}
+
+#: :func:`substep` results: the drive must apply :attr:`IntegratorState.pending` and re-derive its mode ...
+CHANGED = 1
+#: ... or the state came to rest (the drive goes on in closed form, :func:`steady_to`).
+STEADY = 2
+
+#: A :attr:`IntegratorState.pending` entry: a fault that trips with a coast stop, or a log event
+#: ``(kind, detail)`` ("speed_search", "start" / "restart <n>" / "found <Hz> Hz").
+Pending = Fault | tuple[str, str]
 
 
-def steady_to(self: Drive, end: int) -> None:
-    """Steady state: only the oL1 thermal state moves, exactly: th -> i^2 + (th - i^2) e^(-t/tau)."""
-    if not self._ol1:
-        self._t = end
-        return
-    dt = (end - self._t) * 1e-9
-    i2 = self._I / self._Ir
+class IntegratorState:
+    """The drive's continuous state, its mode inputs and its constants (see the module docstring).
+
+    Symbols follow docs/drive-model.md: ``m`` soft-starter magnitude (Hz), ``q`` its rate (Hz/s), ``dir``
+    the output direction (+1/-1), ``w`` shaft speed (rad/s), ``T`` torque (N m), ``I`` current (A), ``P``
+    output power (W), ``E`` / ``V`` bus energy (J) / voltage (V), ``theta`` the oL1 thermal state."""
+
+    __slots__ = (
+        # state
+        "m", "q", "dir", "out", "fout", "w", "T", "I", "P", "E", "V", "theta",
+        "hold_acc", "hold_dec", "tlimited", "steady", "dyn",
+        # inputs, set by the drive: mains on, run allowed, target magnitude and direction, ramp rate and jerk
+        # limits (accel A, Js at the start, Je at the end; decel D, Jds, Jde), torque mode 0 speed /
+        # 1 limit / 2 control and its value (N m)
+        "mains", "run", "mt", "dt", "A", "Js", "Je", "D", "Jds", "Jde", "tmode", "tval",
+        # speed search: phase 0 off / 1 output off (b3-05, b3-25) / 2 sweep; sweep frequency, where it
+        # started, time left in phase 1, restarts so far, time above b3-17 (None: not watching), (sweep rate
+        # Hz/s, found level A, restart level A)
+        "ss", "ss_f", "ss_start", "ss_wait", "ss_n", "ss_hi", "ss_k",
+        # constants: motor (MotorConstants), load (LoadSpec.resolve), bus, protections, search settings
+        "K", "wph", "Tr", "I0", "IT", "Ir", "R3", "fb", "J", "kind", "Tl", "B", "kf",
+        "En", "Vn", "C", "Pc", "ov", "uv", "oc", "acc_lvl", "dec_lvl", "dec_raise", "tau", "ol1",
+        "fmax", "slip", "search", "i_drive",
+        # for the drive: trips and events, in the order they happened
+        "pending",
+    )
+
+    def __init__(self, settings: DriveSettings, load: LoadSpec) -> None:
+        self.m = self.q = self.w = self.theta = self.fout = 0.0
+        self.T = self.I = self.P = 0.0
+        self.dir = 1
+        self.out = self.hold_acc = self.hold_dec = self.tlimited = self.steady = False
+        self.dyn: frozenset[Fault] = frozenset()  # Uv / ov minors found by the integrator
+        self.mains, self.run = True, False
+        self.mt = 0.0
+        self.dt = 1
+        self.A = self.Js = self.Je = self.D = self.Jds = self.Jde = INF
+        self.tmode, self.tval = 0, 0.0
+        self.ss = self.ss_n = 0
+        self.ss_f = self.ss_start = self.ss_wait = 0.0
+        self.ss_hi: float | None = None
+        self.ss_k = (0.0, 0.0, INF)
+        self.pending: list[Pending] = []
+        self.configure(settings, load)
+        self.E, self.V = self.En, self.Vn
+
+    def configure(self, s: DriveSettings, load: LoadSpec) -> None:
+        """Take the constants of ``s`` and ``load`` (the state is kept)."""
+        mc = MotorConstants.from_settings(s)
+        self.K, self.wph, self.Tr = mc.stiffness, mc.w_per_hz, mc.rated_torque
+        self.I0, self.IT, self.Ir = mc.i0, mc.i_t_rated, mc.i_rated
+        self.R3, self.fb = 3.0 * mc.r_phase, mc.base_freq
+        ld = load.resolve(s)
+        # resolve() fills every None but the fan's rated speed
+        assert ld.inertia_kgm2 is not None and ld.torque_nm is not None and ld.viscous_nms is not None
+        self.J, self.kind, self.B = ld.inertia_kgm2, _KIND_CODE[ld.kind], ld.viscous_nms
+        self.Tl = ld.torque_nm if ld.kind in ("constant", "fan") else 0.0
+        w_fan = (ld.rated_speed_rpm * math.pi / 30.0) if ld.rated_speed_rpm else mc.rated_speed
+        self.kf = ld.torque_nm / (w_fan * w_fan) if ld.kind == "fan" else 0.0
+        self.C, self.Pc = s.bus_capacitance_f, s.control_power_w
+        self.Vn = s.nominal_bus_v
+        self.En = 0.5 * self.C * self.Vn * self.Vn
+        self.ov, self.uv = s.ov_level_v, s.uv_level_v
+        i_drive = self.i_drive = s.drive_rated_current_a
+        self.oc = s.oc_level_pct * 0.01 * i_drive
+        self.acc_lvl = s.stall_accel_level_pct * 0.01 * i_drive if s.stall_accel else INF
+        self.dec_lvl = s.stall_decel_level_v if s.stall_decel else INF
+        self.dec_raise = s.stall_decel_intelligent
+        self.tau, self.ol1 = s.ol1_tau_s, s.ol1_enabled and s.ol1_tau_s > 0
+        self.fmax, self.slip, self.search = s.max_freq_hz, s.motor_rated_slip_hz, s.search
+
+    def output_off(self) -> None:
+        """Baseblock: no output frequency, torque or current; no search, no stall or torque limit."""
+        self.m = self.q = self.fout = 0.0
+        self.T = self.I = 0.0
+        self.ss = self.ss_n = 0
+        self.ss_hi = None
+        self.hold_acc = self.hold_dec = self.tlimited = False
+
+
+# ---------------------------------------------------------------------------------------------- closed form
+def steady_to(x: IntegratorState, span: int) -> int:
+    """Cover ``span`` ns of a steady state: only the oL1 thermal state moves, exactly:
+    th -> i^2 + (th - i^2) e^(-t/tau).  0 when the whole span is covered; else the ns to the oL1 trip
+    (at least 1), which is then in :attr:`~IntegratorState.pending`."""
+    if not x.ol1:
+        return 0
+    dt = span * 1e-9
+    i2 = x.I / x.Ir
     i2 *= i2
-    th = self._theta
+    th = x.theta
     if i2 > OL1_TRIP_LEVEL > th:
-        t_trip = self._tau * math.log((i2 - th) / (i2 - OL1_TRIP_LEVEL))
+        t_trip = x.tau * math.log((i2 - th) / (i2 - OL1_TRIP_LEVEL))
         if t_trip <= dt:
-            self._t += max(1, math.ceil(t_trip * 1e9))
-            self._theta = OL1_TRIP_LEVEL
-            self._trip_now(Fault.OL1, StopMethod.COAST)
-            self._recompute()
-            return
-    self._theta = i2 + (th - i2) * math.exp(-dt / self._tau)
-    self._t = end
+            x.theta = OL1_TRIP_LEVEL
+            x.pending.append(Fault.OL1)
+            return max(1, math.ceil(t_trip * 1e9))
+    x.theta = i2 + (th - i2) * math.exp(-dt / x.tau)
+    return 0
 
-def substep(self: Drive, h: float) -> None:  # noqa: C901, PLR0912, PLR0915 - the hot loop, flat on purpose
+
+# ---------------------------------------------------------------------------------------------- sub-step
+def substep(x: IntegratorState, h: float) -> int:
+    """Integrate ``h`` seconds (steps 1-5 of the module docstring).  0, :data:`CHANGED` (apply
+    :attr:`~IntegratorState.pending`, re-derive the mode) or :data:`STEADY` (the state came to rest)."""
     if h <= 0.0:
-        return
-    (K, wph, fb, Tr, IT, I0, R3, J, B, kind, Tl, kf, En, Pc, C, Vn, ov, uv, oc, acc_lvl,
-     dec_lvl, dec_raise, ol1, tau, Ir) = self._hot
-    mains = self._mains
-    w = self._w
-    E = self._E
-    srch = self._ss
-    out = self._out and not srch
-    m0 = m1 = self._m
-    q = 0.0
-    T1 = I1 = pag = 0.0
-    limited = False
+        return 0
+    w, E, srch = x.w, x.E, x.ss
+    out = x.out and not srch
+    m0 = x.m
     if out:
-        # ---- soft starter (ramp with S-curve) ------------------------------------------
-        q, d, mt = self._q, self._dir, self._mt
-        if self._dt != d:
-            if m0 == 0.0:
-                d = self._dir = self._dt
-            else:
-                mt = 0.0
-        if m0 != mt or q != 0.0:
-            if mt > m0:
-                if self._hold_acc:
-                    q = 0.0
-                else:
-                    je, js, a = self._Je, self._Js, self._A
-                    qlim = a if je == INF else min(a, math.sqrt(2.0 * je * (mt - m0)))
-                    if js == INF:
-                        q = qlim
-                        m1 = m0 + q * h
-                    else:
-                        q1 = min(q + js * h, qlim)
-                        m1 = m0 + 0.5 * (q + q1) * h
-                        q = q1
-                    if m1 >= mt:
-                        m1, q = mt, 0.0
-            elif mt < m0:
-                if self._hold_dec:
-                    q = 0.0
-                    if dec_raise:  # L3-04 = 2: no frequency below the rotor's
-                        fr = d * w / wph
-                        if fr > m1:
-                            m1 = fr
-                else:
-                    je, js, a = self._Jde, self._Jds, self._D
-                    qd = -q
-                    qlim = a if je == INF else min(a, math.sqrt(2.0 * je * (m0 - mt)))
-                    if js == INF:
-                        qd = qlim
-                        m1 = m0 - qd * h
-                    else:
-                        q1 = min(qd + js * h, qlim)
-                        m1 = m0 - 0.5 * (qd + q1) * h
-                        qd = q1
-                    q = -qd
-                    if m1 <= mt:
-                        m1, q = mt, 0.0
-            else:
-                q = 0.0
-        # ---- motor torque: T = K phi^2 (w_s - w), or held at the torque value --------------
-        ws0 = d * m0 * wph
-        ws1 = d * m1 * wph
-        phi = fb / m1 if m1 > fb else 1.0
-        k = K * phi * phi
-        kk, aT = k, 0.0
-        tmode = self._tmode
-        if tmode:
-            tv = self._tval
-            if tmode == 2:  # torque control, speed limit = soft-starter output
-                wl = ws1 if tv >= 0.0 else -ws1
-                ws0 = ws1 = wl
-                tf = k * (wl - w)
-                if (tv >= 0.0 and tf > tv) or (tv < 0.0 and tf < tv):
-                    kk, aT, limited = 0.0, tv, True
-            else:
-                tf = k * (ws1 - w)
-                if tf > tv or tf < -tv:
-                    kk, aT, limited = 0.0, (tv if tf > 0 else -tv), True
-        T0 = aT + kk * (ws0 - w)
+        m1, q, d = soft_starter(x, h, m0, w)
+        ws0, ws1, phi, k, kk, aT, limited = motor_torque(x, d, m0, m1, w)
+        w1 = mechanics(x, h, w, kk, aT, ws0, ws1)
+        T1, I1, P, m1, q = motor_outputs(x, d, m0, m1, q, w, w1, ws0, ws1, phi, k, kk, aT, limited)
     else:
-        m1 = kk = aT = T0 = ws0 = ws1 = 0.0
-    # ---- mechanics: J dw/dt = aT + kk (ws(t) - w) - Tc - B w, exact for linear loads -----
-    Tc = 0.0
+        m1 = q = T1 = 0.0
+        limited = False
+        w1 = mechanics(x, h, w, 0.0, 0.0, 0.0, 0.0)
+        if -_STOP_W < w1 < _STOP_W:
+            w1 = 0.0
+        I1 = search_step(x, h, w1) if srch else 0.0
+        P = x.R3 * I1 * I1
+    E1, V = dc_bus(x, h, P, E, out)
+    x.w, x.T, x.I, x.P, x.E, x.V = w1, T1, I1, P, E1, V
+    changed = srch and not x.ss  # a speed search found the motor speed
+    if protections(x, h, I1, V, m1, q, limited, out, changed):
+        return CHANGED
+    if not srch and E1 == E and (w1 == w or -1e-9 * (1.0 + abs(w)) <= w1 - w <= 1e-9 * (1.0 + abs(w))):
+        if not out or (m1 == m0 and q == 0.0 and x.dt == x.dir):
+            x.steady = True
+            return STEADY
+    return 0
+
+
+def soft_starter(x: IntegratorState, h: float, m0: float, w: float) -> tuple[float, float, int]:
+    """Step 1, the ramp with S-curve: ``(m1, q, direction)`` at the step's end."""
+    q, d, mt = x.q, x.dir, x.mt
+    m1 = m0
+    if x.dt != d:
+        if m0 == 0.0:
+            d = x.dir = x.dt
+        else:
+            mt = 0.0  # reversing: down to 0 Hz first
+    if m0 == mt and q == 0.0:
+        return m1, q, d
+    if mt > m0:
+        if x.hold_acc:
+            return m1, 0.0, d
+        je, js, a = x.Je, x.Js, x.A
+        qlim = a if je == INF else min(a, math.sqrt(2.0 * je * (mt - m0)))
+        if js == INF:
+            q = qlim
+            m1 = m0 + q * h
+        else:
+            q1 = min(q + js * h, qlim)
+            m1 = m0 + 0.5 * (q + q1) * h
+            q = q1
+        if m1 >= mt:
+            m1, q = mt, 0.0
+    elif mt < m0:
+        if x.hold_dec:
+            if x.dec_raise:  # L3-04 = 2: no frequency below the rotor's
+                fr = d * w / x.wph
+                if fr > m1:
+                    m1 = fr
+            return m1, 0.0, d
+        je, js, a = x.Jde, x.Jds, x.D
+        qd = -q
+        qlim = a if je == INF else min(a, math.sqrt(2.0 * je * (m0 - mt)))
+        if js == INF:
+            qd = qlim
+            m1 = m0 - qd * h
+        else:
+            q1 = min(qd + js * h, qlim)
+            m1 = m0 - 0.5 * (qd + q1) * h
+            qd = q1
+        q = -qd
+        if m1 <= mt:
+            m1, q = mt, 0.0
+    else:
+        q = 0.0
+    return m1, q, d
+
+
+def motor_torque(x: IntegratorState, d: int, m0: float, m1: float, w: float
+                 ) -> tuple[float, float, float, float, float, float, bool]:
+    """Step 2, the torque law ``T = aT + kk (w_s - w)`` over the step: ``(ws0, ws1, phi, k, kk, aT,
+    limited)`` -- synchronous speed at the step's start and end, flux ratio, stiffness ``K phi^2``, and
+    either ``kk = k, aT = 0`` (V/f) or ``kk = 0, aT`` the held torque (limit or control reached)."""
+    wph = x.wph
+    ws0 = d * m0 * wph
+    ws1 = d * m1 * wph
+    fb = x.fb
+    phi = fb / m1 if m1 > fb else 1.0
+    k = x.K * phi * phi
+    tmode = x.tmode
+    if tmode:
+        tv = x.tval
+        if tmode == 2:  # torque control, speed limit = soft-starter output
+            wl = ws1 if tv >= 0.0 else -ws1
+            tf = k * (wl - w)
+            if (tv >= 0.0 and tf > tv) or (tv < 0.0 and tf < tv):
+                return wl, wl, phi, k, 0.0, tv, True
+            return wl, wl, phi, k, k, 0.0, False
+        tf = k * (ws1 - w)
+        if tf > tv or tf < -tv:
+            return ws0, ws1, phi, k, 0.0, (tv if tf > 0 else -tv), True
+    return ws0, ws1, phi, k, k, 0.0, False
+
+
+def mechanics(x: IntegratorState, h: float, w: float, kk: float, aT: float, ws0: float, ws1: float) -> float:
+    """Step 3: ``J dw/dt = aT + kk (ws(t) - w) - Tc - B w``, exact for linear loads; the shaft speed at the
+    step's end."""
+    kind, B = x.kind, x.B
+    Tc = td = 0.0
     if kind == 1:  # constant (passive) torque
+        Tl = x.Tl
         if w > 0.0:
             Tc = Tl
         elif w < 0.0:
@@ -153,103 +298,123 @@ def substep(self: Drive, h: float) -> None:  # noqa: C901, PLR0912, PLR0915 - th
             td = aT + kk * 0.5 * (ws0 + ws1)
             Tc = td if -Tl <= td <= Tl else (Tl if td > 0 else -Tl)
     elif kind == 2:  # fan, linearised around w
+        kf = x.kf
         aw = w if w >= 0.0 else -w
         B = B + 2.0 * kf * aw
         Tc = -kf * w * aw
+    J = x.J
     lam = (kk + B) / J
     u0 = (aT + kk * ws0 - Tc) / J
-    x = lam * h
-    if x < 1e-6:
-        a1 = h * (1.0 - 0.5 * x)
-        a2 = h * h * (0.5 - x / 6.0)
-        e = 1.0 - x
+    y = lam * h
+    if y < 1e-6:
+        a1 = h * (1.0 - 0.5 * y)
+        a2 = h * h * (0.5 - y / 6.0)
+        e = 1.0 - y
     else:
-        e = math.exp(-x)
+        e = math.exp(-y)
         a1 = (1.0 - e) / lam
         a2 = (h - a1) / lam
     w1 = w * e + u0 * a1 + kk * (ws1 - ws0) / (h * J) * a2
     if kind == 1 and (w * w1 < 0.0 or (w == 0.0 and Tc == td)):
         w1 = 0.0  # a passive load stops the shaft and holds it
-    if not out and -_STOP_W < w1 < _STOP_W:
-        w1 = 0.0
-    if srch:
-        I1 = search_step(self, h, w1)
-    # ---- electrical ---------------------------------------------------------------------
-    if out:
-        T1 = aT + kk * (ws1 - w1)
-        if limited:
-            fel = (w1 + T1 / k) / wph
-            if tmode == 1:
-                m1, q = (fel * d if fel * d > 0.0 else 0.0), 0.0
-            self._fout = fel
-        else:
-            self._fout = d * m1
-        pag = 0.5 * (T0 * (w + T0 / k) + T1 * (w1 + T1 / k))
-        it = T1 / Tr * IT / phi
-        i0 = I0 * phi
-        I1 = math.sqrt(i0 * i0 + it * it)
-        self._m, self._q = m1, q
-    P = pag + R3 * I1 * I1
-    # ---- DC bus: C V dV/dt = -P - P_ctrl above the rectified level ------------------------
+    return w1
+
+
+def motor_outputs(x: IntegratorState, d: int, m0: float, m1: float, q: float, w: float, w1: float,
+                  ws0: float, ws1: float, phi: float, k: float, kk: float, aT: float, limited: bool
+                  ) -> tuple[float, float, float, float, float]:
+    """Step 2, at the step's end: ``(T1, I1, P, m1, q)`` -- torque, current, output power (air gap,
+    trapezoidal, plus copper losses); the soft starter follows the rotor while the torque is limited.
+    Sets the output frequency and the soft starter's state."""
+    T0 = aT + kk * (ws0 - w)
+    T1 = aT + kk * (ws1 - w1)
+    wph = x.wph
+    if limited:
+        fel = (w1 + T1 / k) / wph
+        if x.tmode == 1:
+            m1, q = (fel * d if fel * d > 0.0 else 0.0), 0.0
+        x.fout = fel
+    else:
+        x.fout = d * m1
+    pag = 0.5 * (T0 * (w + T0 / k) + T1 * (w1 + T1 / k))
+    it = T1 / x.Tr * x.IT / phi
+    i0 = x.I0 * phi
+    I1 = math.sqrt(i0 * i0 + it * it)
+    x.m, x.q = m1, q
+    return T1, I1, pag + x.R3 * I1 * I1, m1, q
+
+
+def dc_bus(x: IntegratorState, h: float, P: float, E: float, out: bool) -> tuple[float, float]:
+    """Step 4, ``C V dV/dt = -P - P_ctrl`` above the rectified level: ``(E1, V)`` at the step's end."""
+    mains = x.mains
+    En = x.En
     if out or E > En or not mains:
-        E1 = E - (P + Pc) * h
+        E1 = E - (P + x.Pc) * h
         if mains and E1 < En:
             E1 = En
         if E1 < 0.0:
             E1 = 0.0
-        V = Vn if E1 == En else math.sqrt(2.0 * E1 / C)
-    else:
-        E1, V = E, self._V
-    # ---- state, protections --------------------------------------------------------------
-    self._w, self._T, self._I, self._P, self._E, self._V = w1, T1, I1, P, E1, V
-    changed = srch and not self._ss  # a speed search found the motor speed
-    if ol1:
-        i2 = I1 / Ir
+        return E1, (x.Vn if E1 == En else math.sqrt(2.0 * E1 / x.C))
+    return E, x.V
+
+
+def protections(x: IntegratorState, h: float, I1: float, V: float, m1: float, q: float, limited: bool,
+                out: bool, changed: bool) -> bool:
+    """Step 5: oL1 thermal state, oC / ov / Uv1 trips, stall-prevention and torque-limit flags, the end of a
+    stop, the b3-17 restart watch, the Uv / ov minors.  True when the drive must re-derive its mode
+    (``changed`` on entry: it must already)."""
+    if x.ol1:
+        i2 = I1 / x.Ir
         i2 *= i2
-        th = self._theta
-        th += (i2 - th) * h / tau
-        self._theta = th
+        th = x.theta
+        th += (i2 - th) * h / x.tau
+        x.theta = th
         if th >= OL1_TRIP_LEVEL and out:
-            self._trip_now(Fault.OL1, StopMethod.COAST)
+            x.pending.append(Fault.OL1)
             changed = True
+    mains = x.mains
     if out:
-        if I1 >= oc:
-            self._trip_now(Fault.OC, StopMethod.COAST)
+        if I1 >= x.oc:
+            x.pending.append(Fault.OC)
             changed = True
-        if V >= ov:
-            self._trip_now(Fault.OV, StopMethod.COAST)
+        if V >= x.ov:
+            x.pending.append(Fault.OV)
             changed = True
-        if not mains and V < uv:
-            self._trip_now(Fault.UV1, StopMethod.COAST)
+        if not mains and V < x.uv:
+            x.pending.append(Fault.UV1)
             changed = True
-        ha, hd = I1 >= acc_lvl, V >= dec_lvl
-        if ha != self._hold_acc or hd != self._hold_dec or limited != self._tlimited:
-            self._hold_acc, self._hold_dec, self._tlimited = ha, hd, limited
-        if not self._run and m1 == 0.0 and q == 0.0:
+        ha, hd = I1 >= x.acc_lvl, V >= x.dec_lvl
+        if ha != x.hold_acc or hd != x.hold_dec or limited != x.tlimited:
+            x.hold_acc, x.hold_dec, x.tlimited = ha, hd, limited
+        if not x.run and m1 == 0.0 and q == 0.0:
             changed = True  # stop completed: baseblock
-        if self._ss_hi is not None and not changed:
-            changed = restart_watch(self, h, I1)
-    dyn = self._dyn
-    if dyn or V >= ov or (not mains and V < uv):
+        if x.ss_hi is not None and not changed:
+            changed = restart_watch(x, h, I1)
+    dyn = x.dyn
+    if dyn or V >= x.ov or (not mains and V < x.uv):
         nd = set()
-        if V >= ov and not out:
+        if V >= x.ov and not out:
             nd.add(Fault.OV)
-        if not mains and V < uv and not out:
+        if not mains and V < x.uv and not out:
             nd.add(Fault.UV)
         if frozenset(nd) != dyn:
-            self._dyn = frozenset(nd)
+            x.dyn = frozenset(nd)
             changed = True
-    if changed:
-        self._recompute()
-        return
-    self._status = None
-    if not srch and E1 == E and (w1 == w or -1e-9 * (1.0 + abs(w)) <= w1 - w <= 1e-9 * (1.0 + abs(w))):
-        if not out or (m1 == m0 and q == 0.0 and self._dt == self._dir):
-            self._steady = True
-            self.steady_epoch += 1
+    return changed
 
 
-def search_step(self: Drive, h: float, w: float) -> float:
+# ---------------------------------------------------------------------------------------------- speed search
+def begin_search(x: IntegratorState, start_hz: float, wait_s: float) -> None:
+    """Start (or restart) a speed search: output off for ``wait_s``, then sweep down from ``start_hz``."""
+    ss, i_drive = x.search, x.i_drive
+    x.ss, x.ss_f, x.ss_start, x.ss_wait = 1, start_hz, start_hz, wait_s
+    x.ss_hi = None
+    x.ss_k = (x.fmax / ss.decel_s, ss.current_pct * 0.01 * i_drive, ss.restart_pct * 0.01 * i_drive)
+    x.m = x.q = x.fout = 0.0
+    x.pending.append(("speed_search", f"restart {x.ss_n}" if x.ss_n else "start"))
+
+
+def search_step(x: IntegratorState, h: float, w: float) -> float:
     """One sub-step of a speed search; returns the output current.  ``w``: shaft speed at the step's end.
 
     Phase 1 (b3-05 delay, b3-25 wait): output off.  Then Speed Estimation (b3-24 = 1) outputs the rotor's
@@ -258,67 +423,67 @@ def search_step(self: Drive, h: float, w: float) -> float:
     motor would draw ``I = phi sqrt(I0^2 + (I_T s / s_r)^2)`` at slip ``s`` (section 4), so the current
     drops below b3-02 where ``s = s_r sqrt((I_b302 / phi)^2 - I0^2) / I_T``: the output resumes there.
     """
-    rate, level, _ = self._ss_k
-    d = self._dir
-    if self._ss == 1:
-        self._ss_wait -= h
-        self._fout = 0.0
-        if self._ss_wait > 1e-12:
+    rate, level, _ = x.ss_k
+    d = x.dir
+    if x.ss == 1:
+        x.ss_wait -= h
+        x.fout = 0.0
+        if x.ss_wait > 1e-12:
             return 0.0
-        if self.settings.search.estimation:
-            fr = w / self._wph
+        if x.search.estimation:
+            fr = w / x.wph
             if fr:
                 d = 1 if fr > 0.0 else -1
-            fr = min(abs(fr), self.settings.max_freq_hz)
-            _resume(self, fr, d)
-            return self._I0 * (self._fb / fr if fr > self._fb else 1.0)
-        self._ss = 2
-        self._fout = d * self._ss_f
+            fr = min(abs(fr), x.fmax)
+            _resume(x, fr, d)
+            return x.I0 * (x.fb / fr if fr > x.fb else 1.0)
+        x.ss = 2
+        x.fout = d * x.ss_f
         return level
-    f0 = self._ss_f
+    f0 = x.ss_f
     f1 = f0 - rate * h
     if f1 < 0.0:
         f1 = 0.0
-    fr = d * w / self._wph  # rotor electrical frequency in the search direction
-    lim = level / (self._fb / f1) if f1 > self._fb else level
-    x = lim * lim - self._I0 * self._I0
-    if x > 0.0:
-        s_th = self.settings.motor_rated_slip_hz * math.sqrt(x) / self._IT
+    fr = d * w / x.wph  # rotor electrical frequency in the search direction
+    lim = level / (x.fb / f1) if f1 > x.fb else level
+    y = lim * lim - x.I0 * x.I0
+    if y > 0.0:
+        s_th = x.slip * math.sqrt(y) / x.IT
         if f1 - fr <= s_th:
-            _resume(self, min(max(fr + s_th, f1), f0), d)
+            _resume(x, min(max(fr + s_th, f1), f0), d)
             return level
     if f1 == 0.0:  # swept to 0 Hz without finding it (e.g. turning the other way): a plain start
-        _resume(self, 0.0, d)
+        _resume(x, 0.0, d)
         return 0.0
-    self._ss_f = f1
-    self._fout = d * f1
+    x.ss_f = f1
+    x.fout = d * f1
     return level
 
 
-def _resume(self: Drive, f: float, d: int) -> None:
+def _resume(x: IntegratorState, f: float, d: int) -> None:
     """Output on at ``f`` Hz in direction ``d``; the ramp goes on from there.  Watch b3-17 from now."""
-    self._ss = 0
-    self._m, self._q, self._dir = f, 0.0, d
-    self._fout = d * f
-    self._ss_hi = 0.0
-    self._event("speed_search", f"found {f:.2f} Hz")
+    x.ss = 0
+    x.m, x.q, x.dir = f, 0.0, d
+    x.fout = d * f
+    x.ss_hi = 0.0
+    x.pending.append(("speed_search", f"found {f:.2f} Hz"))
 
 
-def restart_watch(self: Drive, h: float, i: float) -> bool:
+def restart_watch(x: IntegratorState, h: float, i: float) -> bool:
     """After a search: current >= b3-17 for b3-18 restarts it (after the b3-25 wait); more than b3-19
     restarts trip SEr (SI-T3 Table 26, 3BH).  The first step below b3-17 ends the watch and the count."""
-    ss = self.settings.search
-    if i < self._ss_k[2]:
-        self._ss_hi = None
-        self._ss_n = 0
+    ss: SpeedSearch = x.search
+    if i < x.ss_k[2]:
+        x.ss_hi = None
+        x.ss_n = 0
         return False
-    hi = self._ss_hi = (self._ss_hi or 0.0) + h
+    hi = x.ss_hi = (x.ss_hi or 0.0) + h
     if hi < ss.restart_s - 1e-12:
         return False
-    self._ss_n += 1
-    if self._ss_n > ss.restarts:
-        self._ss_hi = None
-        self._trip_now(Fault.SER, StopMethod.COAST)
+    x.ss_n += 1
+    if x.ss_n > ss.restarts:
+        x.ss_hi = None
+        x.pending.append(Fault.SER)
     else:
-        self._begin_search(self._ss_start, ss.wait_s)
+        begin_search(x, x.ss_start, ss.wait_s)
     return True

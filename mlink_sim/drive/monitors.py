@@ -39,17 +39,54 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from ..wire.selections import SEL_MON_TABLES
-from .faults import fault_code, minor_code
+from .faults import Fault, fault_code, minor_code
 from .settings import DriveSettings, Family, _ref_to_hz
+from .status import DriveStatus
 
-if TYPE_CHECKING:
-    from .drive import Drive
-
-__all__ = ["hz_to_ref", "ref_to_hz", "read_monitor", "read_sel_mon", "sel_mon_readers",
+__all__ = ["DriveView", "hz_to_ref", "ref_to_hz", "read_monitor", "read_sel_mon", "sel_mon_readers",
            "SEL_MON_TABLES", "MONITOR_REGISTERS", "MONITOR_NAMES"]
+
+
+class _Inputs(Protocol):
+    @property
+    def multi_inputs(self) -> int: ...
+
+
+class DriveView(Protocol):
+    """What the monitors read of a drive: :class:`mlink_sim.drive.Drive`'s outputs (this module does not import
+    it; the drive imports this one)."""
+
+    @property
+    def family(self) -> Family: ...
+    @property
+    def settings(self) -> DriveSettings: ...
+    @property
+    def status(self) -> DriveStatus: ...
+    @property
+    def fault_history(self) -> tuple[Fault, ...]: ...
+    @property
+    def command_in_effect(self) -> _Inputs: ...  # a DriveCommand: its multi-function inputs
+    @property
+    def frequency_reference_hz(self) -> float: ...
+    @property
+    def output_frequency_hz(self) -> float: ...
+    @property
+    def soft_starter_hz(self) -> float: ...
+    @property
+    def motor_speed_rad_s(self) -> float: ...
+    @property
+    def output_current_a(self) -> float: ...
+    @property
+    def output_voltage_v(self) -> float: ...
+    @property
+    def output_power_kw(self) -> float: ...
+    @property
+    def dc_bus_v(self) -> float: ...
+    @property
+    def torque_pct(self) -> float: ...
 
 
 def hz_to_ref(s: DriveSettings, hz: float) -> int:
@@ -79,8 +116,8 @@ def _r(x: float) -> int:
 MONITOR_REGISTERS: dict[int, str] = {0x40 + i: f"U1-{i + 1:02d}" for i in range(12)}
 
 
-def _u2(idx: int) -> Callable[[Drive], int]:
-    def read(d: Drive) -> int:
+def _u2(idx: int) -> Callable[[DriveView], int]:
+    def read(d: DriveView) -> int:
         cur = d.status.fault
         if idx == 1:
             return fault_code(d.family, cur)
@@ -90,37 +127,37 @@ def _u2(idx: int) -> Callable[[Drive], int]:
     return read
 
 
-def _u3(idx: int) -> Callable[[Drive], int]:
-    def read(d: Drive) -> int:
+def _u3(idx: int) -> Callable[[DriveView], int]:
+    def read(d: DriveView) -> int:
         hist = d.fault_history
         return fault_code(d.family, hist[idx - 1]) if idx <= len(hist) else 0
     return read
 
 
-def _u1_11(d: Drive) -> int:
+def _u1_11(d: DriveView) -> int:
     st = d.status
     return int(st.running) | int(st.zero_speed) << 1 | int(st.speed_agree) << 2 | int(st.faulted) << 7
 
 
-def _u1_12(d: Drive) -> int:
+def _u1_12(d: DriveView) -> int:
     st = d.status
     return (int(st.running) | int(st.zero_speed) << 1 | int(st.reverse) << 2
             | int(st.fault_reset_input) << 3 | int(st.speed_agree) << 4 | int(st.ready) << 5
             | int(st.minor_fault) << 6 | int(st.faulted) << 7)
 
 
-def _v7_u07(d: Drive) -> int:
+def _v7_u07(d: DriveView) -> int:
     st = d.status
     return int(st.faulted) | int(st.running) << 1 | int(st.speed_agree) << 2
 
 
-def _zero(d: Drive) -> int:
+def _zero(d: DriveView) -> int:
     return 0
 
 
 _TWO_PI = 2.0 * math.pi
 
-_A1000: dict[str, Callable[[Drive], int]] = {
+_A1000: dict[str, Callable[[DriveView], int]] = {
     "U1-01": lambda d: hz_to_ref(d.settings, d.frequency_reference_hz),
     "U1-02": lambda d: abs(hz_to_ref(d.settings, d.output_frequency_hz)),
     "U1-03": lambda d: _r(d.output_current_a / d.settings.current_unit_a),
@@ -139,7 +176,7 @@ _A1000: dict[str, Callable[[Drive], int]] = {
     **{f"U3-{i:02d}": _u3(i) for i in range(1, 11)},
 }
 
-_V7: dict[str, Callable[[Drive], int]] = {
+_V7: dict[str, Callable[[DriveView], int]] = {
     "U-01": lambda d: hz_to_ref(d.settings, d.frequency_reference_hz),
     "U-02": lambda d: abs(hz_to_ref(d.settings, d.output_frequency_hz)),
     "U-03": lambda d: _r(d.output_current_a * 10.0),
@@ -156,47 +193,47 @@ _V7: dict[str, Callable[[Drive], int]] = {
 MONITOR_NAMES: dict[Family, tuple[str, ...]] = {Family.A1000: tuple(_A1000), Family.V7: tuple(_V7)}
 
 
-def read_monitor(drive: Drive, name: str) -> int:
+def read_monitor(drive: DriveView, name: str) -> int:
     """Monitor ``name`` in raw units (see module docstring); unknown names read 0."""
     fn = (_V7 if drive.family is Family.V7 else _A1000).get(name)
     return fn(drive) if fn is not None else 0
 
 
-def _alarm(d: Drive) -> int:
+def _alarm(d: DriveView) -> int:
     return fault_code(d.family, d.status.fault)
 
 
-def _warning(d: Drive) -> int:
+def _warning(d: DriveView) -> int:
     return minor_code(d.family, d.status.minor)
 
 
-def _register(which: str) -> Callable[[Drive], int]:
-    def read(d: Drive) -> int:
+def _register(which: str) -> Callable[[DriveView], int]:
+    def read(d: DriveView) -> int:
         reg = d.settings.f6_23 if which == "F6-23" else d.settings.f6_24
         target = MONITOR_REGISTERS.get(reg)
         return read_monitor(d, target) if target else 0
     return read
 
 
-def _sel_mon_readers(table: tuple[str, ...], family: dict[str, Callable[[Drive], int]]
-                     ) -> tuple[Callable[[Drive], int], ...]:
+def _sel_mon_readers(table: tuple[str, ...], family: dict[str, Callable[[DriveView], int]]
+                     ) -> tuple[Callable[[DriveView], int], ...]:
     special = {"": _zero, "ALARM": _alarm, "WARNING": _warning, "F6-23": _register("F6-23"),
                "F6-24": _register("F6-24")}
     return tuple(special.get(name) or family.get(name, _zero) for name in table)
 
 
-_SEL_MON_READERS: dict[str, tuple[Callable[[Drive], int], ...]] = {
+_SEL_MON_READERS: dict[str, tuple[Callable[[DriveView], int], ...]] = {
     card: _sel_mon_readers(table, _V7 if card == "SI-T/V7" else _A1000)
     for card, table in SEL_MON_TABLES.items()
 }
 
 
-def sel_mon_readers(card: str) -> tuple[Callable[[Drive], int], ...]:
+def sel_mon_readers(card: str) -> tuple[Callable[[DriveView], int], ...]:
     """The 16 reader functions of ``card``'s SEL_MON table (call ``reader(drive)``)."""
     return _SEL_MON_READERS.get(card, (_zero,) * 16)
 
 
-def read_sel_mon(drive: Drive, card: str, code: int) -> int:
+def read_sel_mon(drive: DriveView, card: str, code: int) -> int:
     """SEL_MON ``code`` (0..F) for ``card`` ("SI-T3", "SI-ET3", "SI-T/V7")."""
     readers = _SEL_MON_READERS.get(card)
     if readers is None or not 0 <= code <= 0xF:
