@@ -2,7 +2,8 @@
 
 Used as a library, mlink-sim must not print: structlog's defaults write every event to stdout. The package's
 loggers (:func:`get_logger`) therefore follow structlog's configuration once an application (or the ``mlink-sim``
-command line, ``cli/logs.py``) has called ``structlog.configure``; before that they hand their events to the
+command line and the pytest plugin's host process, through :func:`configure_logging`) has called
+``structlog.configure``; before that they hand their events to the
 standard library's ``logging`` under the logger's name (``mlink_sim.…``), where the package's
 ``logging.NullHandler`` keeps them silent until the application configures ``logging``.
 """
@@ -10,11 +11,12 @@ standard library's ``logging`` under the logger's name (``mlink_sim.…``), wher
 from __future__ import annotations
 
 import logging
+import sys
 from typing import Any
 
 import structlog
 
-__all__ = ["get_logger"]
+__all__ = ["configure_logging", "get_logger"]
 
 logging.getLogger("mlink_sim").addHandler(logging.NullHandler())
 
@@ -54,3 +56,24 @@ class _Logger:
 def get_logger(name: str, **initial: Any) -> Any:
     """The package's logger *name* with *initial* context (as ``structlog.get_logger(name, **initial)``)."""
     return _Logger(name, dict(initial))
+
+
+def configure_logging(*, json: bool = False, level: str = "info") -> None:
+    """Configure structlog once per process: key=value lines (or JSON) on stderr; stdout is kept for results and
+    ready lines. Only the entry points call it (the ``mlink-sim`` commands, the pytest plugin's host process, the
+    benchmark scripts): as a library the package prints nothing."""
+    renderer: structlog.types.Processor = (
+        structlog.processors.JSONRenderer() if json else structlog.dev.ConsoleRenderer(colors=False)
+    )
+    structlog.configure(
+        processors=[
+            structlog.contextvars.merge_contextvars,
+            structlog.processors.add_log_level,
+            structlog.processors.TimeStamper(fmt="iso", utc=True),
+            structlog.processors.format_exc_info,
+            renderer,
+        ],
+        wrapper_class=structlog.make_filtering_bound_logger(getattr(logging, level.upper(), logging.INFO)),
+        logger_factory=structlog.PrintLoggerFactory(file=sys.stderr),
+        cache_logger_on_first_use=True,
+    )

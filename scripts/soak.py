@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from mlink_sim.aio.state import atomic_write
+from mlink_sim._files import write_atomically
 
 ROOT = Path(__file__).resolve().parent.parent
 MLINK = [sys.executable, "-m", "mlink_sim"]
@@ -146,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{summary['cycles_lost']}; runs within the bound with missed cycles: "
           f"{summary['runs_within_bound_with_missed']} of {summary['runs_within_bound']}")
     if args.json:
-        atomic_write(Path(args.json), json.dumps({"rows": rows, "summary": summary}, indent=1).encode())
+        write_atomically(args.json, json.dumps({"rows": rows, "summary": summary}, indent=1))
     return 0 if summary["passed"] * 100 >= args.target * summary["runs"] else 1
 
 

@@ -82,8 +82,8 @@ def virtual_address(end: int | str) -> tuple[str, int]:
     192.0.2.1:4000x, x the link number (station addresses start at 03H, so .1 is never a station)."""
     if isinstance(end, int):
         return f"192.0.2.{end}", 47001
-    link = end.rsplit("ML", 1)[-1]
-    return "192.0.2.1", 40000 + (int(link) if link.isdigit() else 0)
+    number = end.rsplit("ML", 1)[-1]  # "master:ML3" -> "3"
+    return "192.0.2.1", 40000 + (int(number) if number.isdigit() else 0)
 
 
 class Fabric:

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ..config import StationConfig
+from ..wire import Link
 from .state import eeprom_path, read_state
 
 __all__ = ["StationSpec", "build_station", "spec_for"]
@@ -25,7 +26,7 @@ class StationSpec:
     frame_size: int | None
     params: list[str]
     load: Any = None
-    link: str | None = None
+    link: Link | None = None  #: None: the card's own (F6-22 / S1-1 as the parameters say)
     options: dict[str, Any] | None = None
 
 
@@ -41,7 +42,7 @@ def spec_for(st: StationConfig, host: str = "127.0.0.1", port: int = 0) -> Stati
         frame_size=st.frame_size,
         params=[f"{k}={v}" for k, v in st.params.items()],
         load=LoadSpec.from_config(st.load.model_dump(exclude_none=True)),
-        link=st.link.name if st.link else None,
+        link=st.link,
         options=st.options,
     )
 
@@ -61,7 +62,7 @@ def build_station(spec: StationSpec, state_dir: Path | None, now: int, *, eeprom
     unknown = sorted(set(spec.options or {}) - known)
     if unknown:
         raise ValueError(f"unknown card option(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})")
-    link_speed = {"ML1": 4, "ML2": 10}.get((spec.link or "").upper())
+    link_speed = {Link.ML1: 4, Link.ML2: 10}.get(spec.link) if spec.link is not None else None
     settings = settings_for(
         spec.card,
         spec.address,

@@ -54,16 +54,15 @@ def fault_by_name(name: str) -> Fault | None:
 class DriveLink:
     """A drive of *family* ("a1000" / "v7") driven by one card."""
 
-    __slots__ = ("family", "fam", "drive", "_restored", "_sel_mon", "_card_label", "_mon_static")
+    __slots__ = ("family", "drive", "_restored", "_sel_mon", "_card_label", "_mon_static")
 
     def __init__(self, family: str, card_label: str, values: Mapping[str, int], load: LoadSpec | None,
                  now: int, history: Iterable[str] = ()) -> None:
-        self.family = family
-        self.fam = Family(family)
-        settings = DriveSettings.from_params(self.fam, values)
+        self.family = Family(family)
+        settings = DriveSettings.from_params(self.family, values)
         if load is None:
             load = LoadSpec.for_motor(settings)
-        self.drive = Drive(self.fam, settings, load, now=now)
+        self.drive = Drive(self.family, settings, load, now=now)
         restored = [fault_by_name(n) for n in history]
         self._restored: list[Fault] = [f for f in restored if f is not None][:HISTORY_DEPTH]
         self._card_label = card_label
@@ -79,12 +78,12 @@ class DriveLink:
         self.drive.advance(now)
 
     def command(self, cmd: DriveCommand, now: int) -> None:
-        if cmd.fault_history_clear and not self.drive._cmd.fault_history_clear:  # noqa: SLF001
+        if cmd.fault_history_clear and not self.drive.command_in_effect.fault_history_clear:
             self._restored.clear()
         self.drive.command(cmd, now)
 
     def reconfigure(self, values: Mapping[str, int], now: int) -> None:
-        self.drive.reconfigure(DriveSettings.from_params(self.fam, values), now)
+        self.drive.reconfigure(DriveSettings.from_params(self.family, values), now)
 
     def trip(self, fault: Fault, stop: int, now: int) -> None:
         self.drive.trip(fault, StopMethod(stop), now)
@@ -128,7 +127,7 @@ class DriveLink:
 
     @property
     def run_commanded(self) -> bool:
-        c = self.drive._cmd  # noqa: SLF001
+        c = self.drive.command_in_effect
         return c.forward or c.reverse
 
     def fault_code(self, fault: Fault | None) -> int:

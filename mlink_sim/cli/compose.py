@@ -2,37 +2,16 @@
 
 from __future__ import annotations
 
-import os
 import shlex
 import sys
-import tempfile
-from pathlib import Path
 
 import click
 
+from .._files import write_atomically
 from ..config import ConfigError, load_config, parse_duration_ns, resolve_config_path
 from ..testbed.compose import DEFAULT_IMAGE, DEFAULT_REPORT_DIR, DEFAULT_STATION_PORT, render_compose
 
-__all__ = ["compose_cmd", "write_atomically"]
-
-
-def write_atomically(path: Path, text: str) -> None:
-    """Write *text* to *path* via a temporary file in the same directory and ``os.replace``."""
-    directory = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+__all__ = ["compose_cmd"]
 
 
 def _command_line(config_path: str, output: str | None, image: str, report_dir: str, port: int,
@@ -107,7 +86,7 @@ def compose_cmd(config_path: str, output: str | None, image: str, report_dir: st
         click.echo(text, nl=False)
         return
     try:
-        write_atomically(Path(output), text)
+        write_atomically(output, text, mode=0o644)
     except OSError as exc:
         click.echo(f"mlink-sim compose: cannot write {output}: {exc.strerror or exc}", err=True)
         sys.exit(2)

@@ -18,25 +18,26 @@ from ..aio.slave import HostedStation, SlaveServer
 from ..aio.stations import StationSpec, build_station, spec_for
 from ..aio.udp import BindError, loop_name, new_event_loop
 from ..config import ConfigError, load_config, parse_address, parse_duration_ns, parse_endpoint
+from ..wire import Link
 from .capture_opts import capture_options, open_capture_or_exit
 from .inputs import InputError, check_stations
 from .logs import configure_logging
 
-__all__ = ["slave_cmd", "StationSpec", "build_station", "station_specs_from_config"]
+__all__ = ["slave_cmd", "station_specs_from_config"]
 
 log = get_logger("mlink_sim.slave")
 
 
-def _check_link(card: str, link: str | None) -> None:
+def _check_link(card: str, link_name: str | None) -> None:
     """``--link`` must be one the card speaks (SI-T3 Table 29 / F6-22, V7 switch S1-1: ML-I/II; SI-ET3: ML-III)."""
-    if link is None:
+    if link_name is None:
         return
     from ..config import CARD_LINKS
 
     links = CARD_LINKS[card]
-    if link.upper() not in {lk.name for lk in links}:
+    if link_name.upper() not in {lk.name for lk in links}:
         names = " or ".join(lk.name.lower() for lk in links)
-        raise InputError(f"--link {link}: {card} speaks {'/'.join(lk.label for lk in links)}; use --link {names}")
+        raise InputError(f"--link {link_name}: {card} speaks {'/'.join(lk.label for lk in links)}; use --link {names}")
 
 
 def station_specs_from_config(
@@ -112,7 +113,7 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
 @click.option("--station", "station_text", help="Station address, e.g. 0x21 (F6-20 / V7 switches).")
 @click.option("--listen", default="127.0.0.1:0", show_default=True, help="HOST:PORT to listen on (0 = any free port).")
 @click.option("--frame-size", type=click.Choice(["17", "32", "64"]), help="Data size (F6-21 / V7 S1-2).")
-@click.option("--link", type=click.Choice(["ml1", "ml2", "ml3"], case_sensitive=False),
+@click.option("--link", "link_name", type=click.Choice(["ml1", "ml2", "ml3"], case_sensitive=False),
               help="ml1 = 4 Mbps MECHATROLINK-I (F6-22 = 1 / V7 S1-1 off); default ml2 (ml3 for si-et3).")
 @click.option("--param", "params", multiple=True, metavar="NAME=VALUE",
               help="Parameter in engineering units (C1-01=5.0) or raw register (0x0200=50); repeatable.")
@@ -133,7 +134,7 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
 @click.option("--realtime", "rt", is_flag=True,
               help="SCHED_FIFO, locked memory, off the master's CPU, where permitted (docs/timing.md).")
 @capture_options
-def slave_cmd(card, station_text, listen, frame_size, link, params, config_path, only, endpoints, state_dir,
+def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_path, only, endpoints, state_dir,
               control, log_json, log_level, ready_json, host_stalls, stall_bound, rt, capture_path,
               capture_max) -> None:  # noqa: ANN001
     """Serve one station over UDP until SIGINT/SIGTERM (or several stations of a --config)."""
@@ -156,10 +157,11 @@ def slave_cmd(card, station_text, listen, frame_size, link, params, config_path,
         else:
             if not card or not station_text:
                 raise click.UsageError("give --card and --station (or --config FILE)")
-            _check_link(card, link)
+            _check_link(card, link_name)
             host, port = parse_endpoint(listen)
             specs = [StationSpec(card, parse_address(station_text), host, port,
-                                 int(frame_size) if frame_size else None, list(params), link=link)]
+                                 int(frame_size) if frame_size else None, list(params),
+                                 link=Link[link_name.upper()] if link_name else None)]
         now = time.monotonic_ns()
         stations = [HostedStation(build_station(s, state, now, absorb_ns=absorb_ns), s.host, s.port) for s in specs]
     except ConfigError as exc:

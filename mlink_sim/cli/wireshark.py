@@ -27,7 +27,7 @@ def personal_plugin_dir() -> Path:
               help="With --install: this folder instead of the personal plugin folder.")
 def wireshark_cmd(install: bool, show_path: bool, dest: Path | None) -> None:
     """The Wireshark dissector for mlink-sim's datagrams (Lua, Wireshark 4.0 or later)."""
-    from ..aio.state import atomic_write
+    from .._files import write_atomically
     from ..wireshark.generate import shipped_path
 
     source = shipped_path()
@@ -42,7 +42,7 @@ def wireshark_cmd(install: bool, show_path: bool, dest: Path | None) -> None:
         target = target_dir / source.name
         try:
             target_dir.mkdir(parents=True, exist_ok=True)
-            atomic_write(target, source.read_bytes())
+            write_atomically(target, source.read_bytes())
         except OSError as exc:
             click.echo(f"mlink-sim wireshark: cannot install into {target_dir}: {exc.strerror or exc}", err=True)
             sys.exit(2)

@@ -17,10 +17,10 @@ import functools
 import json
 import os
 import platform
-import tempfile
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
+
+from .._files import write_atomically
 
 __all__ = ["REPORT_SCHEMA", "SCHEMA_ID", "INJECTED_KINDS", "write_report", "dumps_report", "host_info"]
 
@@ -219,48 +219,14 @@ def dumps_report(report: Mapping[str, Any]) -> str:
 
 
 def write_report(path: str | os.PathLike[str], report: Mapping[str, Any]) -> None:
-    """Write ``report`` as JSON to ``path`` atomically.
+    """Write ``report`` as JSON to ``path`` atomically and durably (:func:`mlink_sim._files.write_atomically`).
 
-    The document is serialised first, then written to a temporary file in the same directory, flushed and
-    fsync'ed, and moved over ``path`` with :func:`os.replace`. On any error the temporary file is removed and
-    an existing ``path`` is left untouched. The file gets the mode of the file it replaces, else 0644.
+    The document is serialised first, so a document that cannot be written fails before anything touches the
+    disk. On any error an existing ``path`` is left untouched and no temporary file stays behind. The file gets
+    the mode of the file it replaces, else 0644.
     """
-    target = Path(path)
     text = dumps_report(report)              # fails before anything touches the disk
-    directory = target.parent
-    try:
-        mode = target.stat().st_mode & 0o7777
-    except FileNotFoundError:
-        mode = 0o644
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, mode)
-        os.replace(tmp, target)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    _fsync_dir(directory)
-
-
-def _fsync_dir(directory: Path) -> None:
-    """Persist the rename (best effort: not every platform or file system allows fsync on a directory)."""
-    try:
-        dfd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(dfd)
-    except OSError:
-        pass
-    finally:
-        os.close(dfd)
+    write_atomically(path, text)
 
 
 def host_info() -> dict[str, Any]:

@@ -53,19 +53,19 @@ def _fcs(data: bytes) -> bytes:
     return (((_REVERSED[crc & 0xFF] << 8) | _REVERSED[crc >> 8]) ^ 0xFFFF).to_bytes(2, "little")
 
 
-def nop_command(link: str, size: int, station: int, cycle: int) -> bytes:
+def nop_command(link_name: str, size: int, station: int, cycle: int) -> bytes:
     """The NOP command datagram: main NOP (00H) and, in a 32/64-byte frame, NOP sub-command; WDT 0."""
-    body = _HEADER.pack(_MAGIC, LINK_CODES[link], _COMMAND, station, cycle, _TCYCLE_NS) + bytes(size)
+    body = _HEADER.pack(_MAGIC, LINK_CODES[link_name], _COMMAND, station, cycle, _TCYCLE_NS) + bytes(size)
     return body + _fcs(body)
 
 
-def is_nop_answer(datagram: bytes, link: str, size: int, station: int, cycle: int) -> bool:
-    """*datagram* is *station*'s response to :func:`nop_command` (*link*, *size*, *cycle*): same length, envelope
+def is_nop_answer(datagram: bytes, link_name: str, size: int, station: int, cycle: int) -> bool:
+    """*datagram* is *station*'s response to :func:`nop_command` (*link_name*, *size*, *cycle*): same length, envelope
     echoing station and cycle, command code 00H echoed in the first data byte, FCS correct."""
     if len(datagram) != _HEADER.size + size + 2 or _fcs(datagram[:-2]) != datagram[-2:]:
         return False
     magic, link_code, kind, answered_by, echoed, _ = _HEADER.unpack_from(datagram)
-    return (magic, link_code, kind, answered_by, echoed) == (_MAGIC, LINK_CODES[link], _RESPONSE, station, cycle) \
+    return (magic, link_code, kind, answered_by, echoed) == (_MAGIC, LINK_CODES[link_name], _RESPONSE, station, cycle) \
         and datagram[_HEADER.size] == 0x00  # fmt: skip
 
 
@@ -78,8 +78,8 @@ def probe(host: str, port: int, station: int, attempts: tuple[tuple[str, int], .
     sock = _socket.socket(family, _socket.SOCK_DGRAM)
     try:
         per_try = max(timeout / len(attempts), 0.05)
-        for cycle, (link, size) in enumerate(attempts, start=1):
-            sock.sendto(nop_command(link, size, station, cycle), address)
+        for cycle, (link_name, size) in enumerate(attempts, start=1):
+            sock.sendto(nop_command(link_name, size, station, cycle), address)
             end = time.monotonic() + per_try
             while (left := end - time.monotonic()) > 0:
                 sock.settimeout(left)
@@ -89,8 +89,8 @@ def probe(host: str, port: int, station: int, attempts: tuple[tuple[str, int], .
                     break
                 except ConnectionRefusedError:  # ICMP port unreachable: nothing listens (yet)
                     return None
-                if is_nop_answer(data, link, size, station, cycle):
-                    return f"{link} {size}-byte"
+                if is_nop_answer(data, link_name, size, station, cycle):
+                    return f"{link_name} {size}-byte"
         return None
     finally:
         sock.close()
@@ -149,12 +149,12 @@ def _parse(argv: list[str]) -> tuple[str, int, int, tuple[tuple[str, int], ...],
     if size_text is not None and size_text not in ("17", "32", "64"):
         raise _Usage(f"--frame-size must be 17, 32 or 64, got {size_text!r}")
     size = int(size_text) if size_text is not None else None
-    link = opts.get("--link", "").lower() or None
-    if link is not None and link not in LINK_CODES:
-        raise _Usage(f"--link must be one of {', '.join(LINK_CODES)}, got {link!r}")
-    attempts = tuple((lk, sz) for lk, sz in ATTEMPTS if link in (None, lk) and size in (None, sz))
+    link_name = opts.get("--link", "").lower() or None
+    if link_name is not None and link_name not in LINK_CODES:
+        raise _Usage(f"--link must be one of {', '.join(LINK_CODES)}, got {link_name!r}")
+    attempts = tuple((lk, sz) for lk, sz in ATTEMPTS if link_name in (None, lk) and size in (None, sz))
     if not attempts:
-        raise _Usage(f"no {link or 'link'} carries {size}-byte frames")
+        raise _Usage(f"no {link_name or 'link'} carries {size}-byte frames")
     return host, int(port_text), station, attempts, timeout
 
 

@@ -68,7 +68,7 @@ class Node:
     veth: str  #: host end, on the bridge; the namespace end is called eth0
     ip: str
     address: int | None = None  #: station address
-    link: str | None = None  #: "ml1"/"ml2"/"ml3"
+    link_name: str | None = None  #: "ml1"/"ml2"/"ml3"
     frame_size: int | None = None
 
     @property
@@ -117,7 +117,7 @@ class Plan:
                 *self.slave_flags]  # fmt: skip
 
     def reach_argv(self, python: str = sys.executable, ip: str = "ip") -> list[str]:
-        targets = [f"{self.endpoint(n)}/{n.link}/{n.frame_size}" for n in self.stations]
+        targets = [f"{self.endpoint(n)}/{n.link_name}/{n.frame_size}" for n in self.stations]
         return [ip, "netns", "exec", self.master.netns, python, "-m", "mlink_sim.testbed.reach", *targets]
 
     def master_argv(

@@ -199,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--log-level", default="warning")
     parser.add_argument("--seed", type=int, default=0, help="seed of the impairments' draws (docs/faults.md)")
     args = parser.parse_args(argv)
-    from ..cli.logs import configure_logging
+    from .._log import configure_logging
     from ..aio.supervisor import WorkerError
 
     configure_logging(level=args.log_level)
