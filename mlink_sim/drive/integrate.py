@@ -197,7 +197,7 @@ def substep(x: IntegratorState, h: float) -> int:
         P = x.R3 * I1 * I1
     E1, V = dc_bus(x, h, P, E, out)
     x.w, x.T, x.I, x.P, x.E, x.V = w1, T1, I1, P, E1, V
-    changed = srch and not x.ss  # a speed search found the motor speed
+    changed = srch != 0 and x.ss == 0  # a speed search found the motor speed
     if protections(x, h, I1, V, m1, q, limited, out, changed):
         return CHANGED
     if not srch and E1 == E and (w1 == w or -1e-9 * (1.0 + abs(w)) <= w1 - w <= 1e-9 * (1.0 + abs(w))):
