@@ -23,10 +23,8 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Hashable, Mapping
-from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, ClassVar
-
 
 from mlink_sim.params import ParamError
 from mlink_sim.wire import DropReason, Kind, Link, WireError, decode, ml2, ml3
@@ -39,6 +37,7 @@ from .paramstore import ParamStore
 from .reception import FailureKind, ReceptionMonitor
 from .results import Err
 from .settings import CARD_NAMES, CardOptions, CardSettings, param_table
+from .snapshot import DriveSnapshot, StationCounters, StationSnapshot
 from .watchdog import Watchdog
 
 __all__ = ["Station", "StationCounters", "StationSnapshot", "DriveSnapshot", "DEFAULT_TCYCLE_NS", "SLOW"]
@@ -69,81 +68,6 @@ def _is_status_query(msg: Any) -> bool:
     """A main NOP with no sub-command or a NOP one: the only command another source may send (a status query,
     answered by ``_status_reply`` of the generation's class without changing anything)."""
     return type(msg.body) in _NOPS and (msg.sub is None or type(msg.sub) in _NOPS)
-
-
-@dataclass(slots=True)
-class StationCounters:
-    """What happened to the datagrams a station saw. ``dropped_by_reason`` keys are wire
-    :class:`~mlink_sim.wire.DropReason` names plus the card's own: ``WRONG_LINK`` (a datagram for another
-    MECHATROLINK generation), ``DUPLICATE`` (a cycle number seen again), ``AER`` (station address error:
-    the card does not answer)."""
-
-    rx_ok: int = 0  #: valid commands for this station from the accepted source
-    tx: int = 0  #: responses returned
-    dropped_by_reason: dict[str, int] = field(default_factory=dict)
-    other_station: int = 0  #: valid datagrams addressed to another station
-    foreign_source: int = 0  #: commands from a source other than the connected master (ignored)
-    status_queries: int = 0  #: NOPs from another source, answered with the status only (health checks)
-    wdt_errors: int = 0
-    reception_failures: int = 0  #: missed communication cycles (gap, silence, FCS) in phases 2/3
-    fcs_errors: int = 0  #: bad-FCS datagrams for this station in phases 2/3
-    commands_refused: int = 0  #: main or sub-commands answered with A.94/A.95 or CMD_ALM/SUBCMD_ALM
-    bus_alarms: int = 0  #: communication alarms counted towards F6-26
-    internal_errors: int = 0  #: exceptions caught at the station boundary (a bug if not 0)
-
-    def drop(self, reason: str) -> None:
-        self.dropped_by_reason[reason] = self.dropped_by_reason.get(reason, 0) + 1
-
-    def as_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {name: getattr(self, name) for name in self.__slots__}  # type: ignore[attr-defined]
-        out["dropped_by_reason"] = dict(self.dropped_by_reason)
-        return out
-
-
-@dataclass(frozen=True)
-class DriveSnapshot:
-    """The drive as a status display shows it."""
-
-    running: bool
-    reverse: bool
-    output_hz: float
-    reference_hz: float
-    output_current_a: float
-    dc_bus_v: float
-    motor_rpm: float
-    ready: bool
-    remote: bool
-    baseblock: bool
-    fault: str | None  #: operator display name of the active fault
-    minors: tuple[str, ...]  #: minor faults / alarms
-    ope: str | None
-    fault_history: tuple[str, ...]  #: most recent first
-
-
-@dataclass(frozen=True)
-class StationSnapshot:
-    """A station's state for status displays (``mlink-sim slave`` status, logs)."""
-
-    card: str
-    address: int
-    link: str  #: "ML1" / "ML2" / "ML3"
-    data_size: int
-    phase: int
-    connected_source: Hashable | None
-    tcycle_ns: int  #: transmission cycle in use (2 ms before CONNECT)
-    com_tim: int
-    comm_cycle_ns: int
-    subcommands: bool
-    leds: Mapping[str, str]  #: LED name -> "on" / "off" / "blink"
-    led_colors: Mapping[str, str]  #: LED name -> colour while lit (SI-ET3 R/E is green or red)
-    alarm_code: int  #: MECHATROLINK-II ALARM byte / MECHATROLINK-III COMM_ALM
-    alarm_name: str | None
-    warnings: tuple[str, ...]
-    cmd_alm: int  #: MECHATROLINK-III CMD_ALM of the last response (0 on MECHATROLINK-II)
-    station_error: str | None  #: "AEr" when the station address is invalid
-    drive: DriveSnapshot
-    counters: Mapping[str, Any]
-    eeprom_error: str | None
 
 
 class Station(abc.ABC):
@@ -327,16 +251,15 @@ class Station(abc.ABC):
             self._log.error("eeprom_write_failed", generation=generation)
 
     def snapshot(self) -> StationSnapshot:
-        link = self.drive
-        st = link.status
-        d = link.drive
+        status = self.drive.status
+        model = self.drive.drive
         drive = DriveSnapshot(
-            running=st.running, reverse=st.reverse, output_hz=abs(d.output_frequency_hz),
-            reference_hz=d.frequency_reference_hz, output_current_a=d.output_current_a, dc_bus_v=d.dc_bus_v,
-            motor_rpm=d.motor_speed_rpm, ready=st.ready, remote=st.remote, baseblock=st.baseblock,
-            fault=st.fault.display if st.fault is not None else None,
-            minors=tuple(sorted(f.display for f in st.minors)), ope=st.ope_code,
-            fault_history=tuple(f.display for f in link.history()),
+            running=status.running, reverse=status.reverse, output_hz=abs(model.output_frequency_hz),
+            reference_hz=model.frequency_reference_hz, output_current_a=model.output_current_a,
+            dc_bus_v=model.dc_bus_v, motor_rpm=model.motor_speed_rpm, ready=status.ready, remote=status.remote,
+            baseblock=status.baseblock, fault=status.fault.display if status.fault is not None else None,
+            minors=tuple(sorted(f.display for f in status.minors)), ope=status.ope_code,
+            fault_history=tuple(f.display for f in self.drive.history()),
         )
         leds, colors = self._leds()
         code, name, warnings, cmd_alm = self._alarm_view()
@@ -491,13 +414,6 @@ class Station(abc.ABC):
             self._foreign_logged.add(key)
             self._log.warning("foreign_source_ignored", source=key, connected=repr(self._source))
 
-    def _log_refused(self, **fields: Any) -> None:
-        """"connect_refused", once per distinct refused CONNECT (a master may retry it every cycle)."""
-        key = tuple(sorted(fields.items()))
-        if key != self._last_refused:
-            self._last_refused = key
-            self._log.info("connect_refused", **fields)
-
     def _internal_error(self, where: str) -> None:
         n = self.counters.internal_errors = self.counters.internal_errors + 1
         if n <= 10 or n & (n - 1) == 0:
@@ -511,7 +427,7 @@ class Station(abc.ABC):
             self.eeprom.changed()
             self._log.info("eeprom_dirty", reason="fault history", history=list(names))
 
-    # -- phases and connection -----------------------------------------------------------------------
+    # -- phases ----------------------------------------------------------------------------------------
     def _set_phase(self, phase: int) -> None:
         if phase != self.phase:
             old, self.phase = self.phase, phase
@@ -530,8 +446,14 @@ class Station(abc.ABC):
         from phase 1", so only CONNECT binds it and nothing that writes is executed (docs/cards.md)."""
         return self.phase if self._source is not None else 1
 
-    def _connect(self, source: Hashable, cycle: int, now: int, *, sync: bool, tcycle_ns: int, com_tim: int,
-                 comm_cycle_ns: int, wdt: int) -> None:
+    def _led_recent(self, at: int | None) -> bool:
+        return at is not None and self._now - at <= LED_WINDOW_NS
+
+    # -- the operations the command handlers use (mlink_sim.cards.commands, the cards' handler tables) --------------
+    def connect(self, source: Hashable, cycle: int, now: int, *, sync: bool, tcycle_ns: int, com_tim: int,
+                comm_cycle_ns: int, wdt: int) -> None:
+        """An accepted CONNECT from *source*: the connection, the transmission/communication cycle of the header from
+        now on, phase 2 or 3 (*sync*), reception-failure monitoring and the watchdog start."""
         self._source = source
         self.tcycle_ns, self.com_tim, self.comm_cycle_ns = tcycle_ns, com_tim, comm_cycle_ns
         self.reception.start(cycle, now, comm_cycle_ns, max(1, round(comm_cycle_ns / tcycle_ns)),
@@ -543,7 +465,7 @@ class Station(abc.ABC):
             self.watchdog.disarm()
         self._incident("connected", source=repr(source), tcycle_ns=tcycle_ns, com_tim=com_tim, sync=sync)
 
-    def _disconnect(self, now: int) -> None:
+    def disconnect(self, now: int) -> None:
         """DISCONNECT: "the data for the control command to the Drive is cleared to 0, and a fault reset
         command is carried out" (SI-T3 / SI-T/V7); back to phase 1 and the 2 ms default cycle. Without a connection
         (phase 1, or released by a connection loss) there is none to release and nothing changes: only the
@@ -562,18 +484,23 @@ class Station(abc.ABC):
         self._clear_comm_alarms()
         self._set_phase(1)
 
-    def _alarm_clear(self, now: int) -> bool:
+    def sync_set(self, wdt: int) -> None:
+        """SYNC_SET: phase 3, the watchdog checked from the master count in *wdt* on."""
+        self.watchdog.arm(wdt)
+        self._set_phase(3)
+
+    def alarm_clear(self, now: int) -> bool:
         """ALM_CLR / CMD_CTRL.ALM_CLR: communication alarms, card minor faults, drive faults (refused by the
         drive while RUN is on). True if the drive accepted the reset."""
         self._clear_comm_alarms()
         self._bus_count = 0
         return self.drive.reset_fault(now)
 
-    def _led_recent(self, at: int | None) -> bool:
-        return at is not None and self._now - at <= LED_WINDOW_NS
+    def read_params(self, no: int, size: int) -> tuple[bytes, Err]:
+        """PRM_RD (SI-T3 Table 8, SI-ET3 PRM_RD, SI-T/V7 PRM_RD): PARAMETER (8 bytes) and the verdict."""
+        return self.store.read(no, size, self.drive.monitor)
 
-    # -- command bodies shared by the profiles --------------------------------------------------------
-    def _prm_write(self, no: int, size: int, data: bytes, now: int) -> Err:
+    def write_params(self, no: int, size: int, data: bytes, now: int) -> Err:
         """PRM_WR (SI-T3 Table 9, SI-ET3 PRM_WR, SI-T/V7 PRM_WR)."""
         if not self.drive.status.main_power_on:
             return Err.UNDERVOLTAGE  # "During an undervoltage fault" / "Writing Error during Under Voltage"
@@ -584,13 +511,7 @@ class Station(abc.ABC):
             self._log.debug("prm_wr", values=changes, pending=not self.prm_immediate)
         return err
 
-    def _reconfigure(self, now: int) -> None:
-        try:
-            self.drive.reconfigure(self.store.active, now)
-        except (KeyError, ValueError) as exc:  # a combination the model cannot take: keep the old settings
-            self._log.warning("drive_reconfigure_failed", reason=str(exc))
-
-    def _config(self, mod: int, now: int, *, sub: bool = False) -> Err:
+    def config(self, mod: int, now: int, *, sub: bool = False) -> Err:
         """CONFIG (SI-T3 Table 12, SI-ET3 Table 15, SI-T/V7 CONFIG): 0 = RAM, 1 = RAM and EEPROM. With
         ``eeprom.enabled`` the EEPROM store is complete only once the image is durable (``EepromWriteBack.hold``)."""
         if mod not in (0, 1):
@@ -603,24 +524,41 @@ class Station(abc.ABC):
             self._log.info("eeprom_dirty", reason="CONFIG_MOD=1", params=len(self._saved_params))
         return Err.OK
 
-    def _sel_refs(self, sel: int, *values: int) -> None:
-        """Record REF values by the item their SEL_REF nibble selects (unused codes are ignored)."""
+    def select_refs(self, sel: int, *values: int) -> None:
+        """Record REF values by the item their SEL_REF nibble selects (SI-T3 Table 17, SI-ET3 Table 21, SI-T/V7
+        Table 4; unused codes are ignored)."""
         for i, value in enumerate(values):
             item = sel_ref_item(self.card, (sel >> (4 * i)) & 0xF)
             if item:
                 self.refs[item] = value
 
-    def _mon(self, code: int) -> int:
+    def monitor(self, code: int) -> int:
+        """The 16-bit value SEL_MON *code* selects (SI-T3 Table 18, SI-ET3 Table 22, SI-T/V7 Table 5)."""
         return sel_mon_value(self.drive, self.store, self._mon_regs, code)
+
+    def log_refused(self, **fields: Any) -> None:
+        """"connect_refused", once per distinct refused CONNECT (a master may retry it every cycle)."""
+        key = tuple(sorted(fields.items()))
+        if key != self._last_refused:
+            self._last_refused = key
+            self._log.info("connect_refused", **fields)
+
+    # -- helpers of the generations --------------------------------------------------------------------
+    def _reconfigure(self, now: int) -> None:
+        try:
+            self.drive.reconfigure(self.store.active, now)
+        except (KeyError, ValueError) as exc:  # a combination the model cannot take: keep the old settings
+            self._log.warning("drive_reconfigure_failed", reason=str(exc))
 
     def _outputs(self, sel_mon: int) -> tuple[int, int, int, int]:
         """Output frequency, output current, MON1 and MON2 of the INV_CTL response. While the drive is steady they
         cannot change, so they are kept under :meth:`DriveLink.outputs_key` (the per-cycle cost of a steady
         station); tests/cards/test_fast_path.py checks the kept values against fresh ones."""
-        link = self.drive
-        key = link.outputs_key(sel_mon) if self.keep_outputs else None
+        drive = self.drive
+        key = drive.outputs_key(sel_mon) if self.keep_outputs else None
         if key is not None and key == self._out_key:
             return self._out
-        out = (link.output_freq_raw(), link.output_current_raw(), self._mon(sel_mon & 0xF), self._mon(sel_mon >> 4))
+        out = (drive.output_freq_raw(), drive.output_current_raw(), self.monitor(sel_mon & 0xF),
+               self.monitor(sel_mon >> 4))
         self._out_key, self._out = key, out
         return out

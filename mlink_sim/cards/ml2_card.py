@@ -1,8 +1,10 @@
 """MECHATROLINK-I/II station machinery shared by the SI-T3 and the SI-T/V7 (SI-T3 §7–§9, SI-T/V7 §5–§8).
 
 Each command is answered by a handler from a table keyed by command code (:data:`MAIN_HANDLERS`,
-:data:`SUB_HANDLERS`); a card profile copies and adjusts the tables. A handler returns the response body and
-an :class:`~mlink_sim.cards.results.Err`; a refused command is ignored and reported with A.94/A.95 in the ALARM
+:data:`SUB_HANDLERS`): the handlers both generations share come from :mod:`mlink_sim.cards.commands`, the
+MECHATROLINK-I/II ones (CONNECT, DISCONNECT, ID_RD, ALM_RD, INV_CTL) are ``_handle_*`` methods below; a card
+profile copies and adjusts the tables. A handler returns the response body and an
+:class:`~mlink_sim.cards.results.Err`; a refused command is ignored and reported with A.94/A.95 in the ALARM
 byte ("Received commands are ignored", SI-T3 Table 25), a refused sub-command additionally with SUBWARNG.
 Main before sub: "If a conflict occurs between a request for a main command and a request for a sub-command,
 the request for the main command is processed"; INV_I/O references are applied after INV_CTL's, so "If an
@@ -12,16 +14,19 @@ INV_CTL main command and an INV_I/O sub-command conflict, the sub-command is giv
 from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Mapping
+from types import MappingProxyType
 from typing import Any, ClassVar
 
 from mlink_sim.wire import (
     MAGIC, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, Unknown, encode, ml2,
 )
-from mlink_sim.wire.frame import HEADER, fcs_ok, with_fcs
-from mlink_sim.wire.layout import fast_struct
+from mlink_sim.wire.frame import HEADER, HEADER_SIZE, fcs_ok, with_fcs
+from mlink_sim.wire.layout import fast_struct, field_offset
 
+from . import commands
 from .alarms import Ml2Alarms, ml2_failure_code
 from .base import SLOW, Station
+from .commands import Handler, SubHandler
 from .drive_link import DriveCommand, Fault, ml2_status_bits
 from .eeprom import BUSY
 from .idinfo import ML2_ID_AREAS, ml2_id_window
@@ -29,7 +34,7 @@ from .phases import ML2_COMBINATIONS, ML2_MAIN_PHASES, ML2_SUB_PHASES, Admit, co
 from .reception import FailureKind
 from .results import Err
 
-__all__ = ["Ml2Station", "MAIN_HANDLERS", "SUB_HANDLERS"]
+__all__ = ["Ml2Station", "MAIN_HANDLERS", "SUB_HANDLERS", "echo_main", "echo_sub"]
 
 _ZERO_MAIN = bytes(ml2.RESPONSE_MAIN.size)
 _ZERO_SUB = bytes(ml2.RESPONSE_SUB.size)
@@ -38,22 +43,37 @@ _SUB_CODE = {cls: layout.code for cls, layout in ml2.COMMAND_SUB.by_class.items(
 _ALLOWED, _IGNORED = Admit.ALLOWED, Admit.IGNORED
 
 
-# The fast path's formats, derived from the wire declarations (so they cannot drift from them).
+# The fast path's formats, offsets and codes, derived from the wire declarations (so they cannot drift from them),
+# as master/fastpath.py does. Offsets are datagram offsets: the envelope, then the data frame.
 _INV_CTL = fast_struct(ml2.COMMAND_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.COMMAND_MAIN.size)
 _INV_CTL_R = fast_struct(ml2.RESPONSE_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.RESPONSE_MAIN.size)
 _RF17 = fast_struct(ml2.RESPONSE_FRAME_17, 17)
 _RF32 = fast_struct(ml2.RESPONSE_FRAME_32, 32)
+
+
+def _command_at(name: str) -> int:
+    """Datagram offset of command frame field *name*, the same in 17- and 32-byte frames."""
+    at = field_offset(ml2.COMMAND_FRAME_17, name)
+    if at != field_offset(ml2.COMMAND_FRAME_32, name):
+        raise ValueError(f"MECHATROLINK-II command field {name!r} moves with the frame size")
+    return HEADER_SIZE + at
+
+
+_CODE_AT = _command_at("code")
+_MAIN_AT = _command_at("main")
+_WDT_AT = _command_at("wdt")
+_SUBCODE_AT = HEADER_SIZE + field_offset(ml2.COMMAND_FRAME_32, "subcode")
+_CMD_INV_CTL = int(M2Cmd.INV_CTL)
+_KIND_COMMAND = int(Kind.COMMAND)
+_KIND_RESPONSE = int(Kind.RESPONSE)
 _CMDRDY = int(M2Status.CMDRDY)
 _SUBRDY = int(M2SubStatus.SUBCMDRDY)
 _SUBWARN = int(M2SubStatus.SUBCMDRDY | M2SubStatus.SUBWARNG)
 _MS = 1_000_000
 _HALF_MS = 500_000
 
-Handler = Callable[["Ml2Station", Any, Frame, Hashable, int], tuple[Any, Err]]
-SubHandler = Callable[["Ml2Station", Any, int], tuple[Any, Err]]
 
-
-def _echo_main(body: Any) -> Any:
+def echo_main(body: Any) -> Any:
     """The response body of a command that was not executed: its fields echoed, data zero."""
     t = type(body)
     if t is ml2.PrmRd:
@@ -69,7 +89,7 @@ def _echo_main(body: Any) -> Any:
     return body  # NOP, PRM_WR, CONFIG, ALM_CLR, SYNC_SET, CONNECT, DISCONNECT echo themselves
 
 
-def _echo_sub(sub: Any) -> Any:
+def echo_sub(sub: Any) -> Any:
     t = type(sub)
     if t is ml2.PrmRd:
         return ml2.PrmRdResponse(sub.no, sub.size)
@@ -90,8 +110,8 @@ class Ml2Station(Station):
     combinations: ClassVar[Mapping[int, frozenset[int]]] = ML2_COMBINATIONS
     id_areas: ClassVar[Mapping[int, bytes]] = ML2_ID_AREAS
     alm_rd_modes: ClassVar[frozenset[int]] = frozenset((0, 1, 2))
-    handlers: ClassVar[Mapping[int, Handler]]
-    sub_handlers: ClassVar[Mapping[int, SubHandler]]
+    handlers: ClassVar[Mapping[int, Handler]]  #: the card profile's main-command table (MAIN_HANDLERS, adjusted)
+    sub_handlers: ClassVar[Mapping[int, SubHandler]]  #: its sub-command table (SUB_HANDLERS, adjusted)
     v7: ClassVar[bool] = False
     mfi_mask: ClassVar[int] = 0x3F  #: operation signals bits 2–7 -> S3–S8 (SI-T3 Table 16); V7: S3–S7
 
@@ -99,8 +119,8 @@ class Ml2Station(Station):
         super().__init__(**kwargs)
         self.alarms = Ml2Alarms(_CodeTable(self.drive.fault_code), _CodeTable(self.drive.minor_code))
         self._subcmd = self.data_size == 32
-        self._st_obj: object = None
-        self._st_word = 0
+        self._status_seen: object = None  # the DriveStatus self._status_word was computed from
+        self._status_word = 0
         self._deferred_cyc = False
         self._fast_len = 12 + self.data_size + 2
 
@@ -114,17 +134,17 @@ class Ml2Station(Station):
         row = self.main_phases.get(code)
         hold = self.eeprom.hold(False, code)
         if hold is not None:  # a CONFIG waits for the EEPROM (eeprom.EepromWriteBack)
-            rbody, err = _echo_main(body), (Err.OK if hold is BUSY else hold)
+            rbody, err = echo_main(body), (Err.OK if hold is BUSY else hold)
         elif row is None:
-            rbody, err = _echo_main(body), Err.UNSUPPORTED
+            rbody, err = echo_main(body), Err.UNSUPPORTED
         else:
             adm = row[phase - 1]
             if adm is _ALLOWED:
                 rbody, err = self.handlers[code](self, body, frame, source, now)
             elif adm is _IGNORED:
-                rbody, err = _echo_main(body), Err.OK
+                rbody, err = echo_main(body), Err.OK
             else:
-                rbody, err = _echo_main(body), Err.PHASE
+                rbody, err = echo_main(body), Err.PHASE
         if err is not Err.OK:
             self.alarms.warning(err.ml2)
             self.counters.commands_refused += 1
@@ -146,9 +166,9 @@ class Ml2Station(Station):
     def _status_reply(self, frame: Frame) -> bytes:
         """NOP response with ALARM/STATUS as they stand, for a source other than the connected master (health
         checks): nothing is executed, no warning is consumed, RWDT does not advance (docs/cards.md)."""
-        st = self.drive.status
-        alarm, alm, warng = self.alarms.report(st.fault, st.minor, st.fault_reset_input)
-        word = ml2_status_bits(st, cmdrdy=not self.eeprom.busy(False), v7=self.v7) & ~3 | alm | warng << 1
+        status = self.drive.status
+        alarm, alm, warng = self.alarms.report(status.fault, status.minor, status.fault_reset_input)
+        word = ml2_status_bits(status, cmdrdy=not self.eeprom.busy(False), v7=self.v7) & ~3 | alm | warng << 1
         sub = frame.message.sub
         resp = ml2.M2Response(ml2.Nop(), alarm, word, self.watchdog.peek(), None if sub is None else ml2.Nop(),
                               0 if sub is None or self.eeprom.busy(True) else _SUBRDY)
@@ -156,16 +176,16 @@ class Ml2Station(Station):
 
     def _alarm_status(self, prm_rd: bool) -> tuple[int, int]:
         """ALARM byte and STATUS word of the next response (SI-T3 "STATUS Field", Tables 19–21)."""
-        st = self.drive.status
+        status = self.drive.status
         alarms = self.alarms
-        alarms.observe(st.fault)
-        alarm, alm, warng = alarms.report(st.fault, st.minor, st.fault_reset_input)
+        alarms.observe(status.fault)
+        alarm, alm, warng = alarms.report(status.fault, status.minor, status.fault_reset_input)
         if prm_rd:  # PRM_RD: "only the settings for the STATUS (CMDRDY) is valid"
             return alarm, _CMDRDY | alm | warng << 1
-        if st is not self._st_obj:
-            self._st_obj = st
-            self._st_word = ml2_status_bits(st, cmdrdy=True, v7=self.v7) & ~3
-        return alarm, self._st_word | alm | warng << 1
+        if status is not self._status_seen:
+            self._status_seen = status
+            self._status_word = ml2_status_bits(status, cmdrdy=True, v7=self.v7) & ~3
+        return alarm, self._status_word | alm | warng << 1
 
     def _fast_receive(self, dg: bytes, source: Hashable, now: int) -> object:
         """INV_CTL with a NOP (or no) sub-command in phase 2/3 – the per-cycle command – straight from and to
@@ -174,25 +194,26 @@ class Ml2Station(Station):
         if len(dg) != self._fast_len:
             return SLOW
         magic, link, kind, stn, cycle, tcycle = HEADER.unpack_from(dg)
-        if (magic != MAGIC or link != self.link or kind != 1 or stn != self.address or dg[12] != M2Cmd.INV_CTL
-                or (self.data_size == 32 and dg[28] != 0)
+        if (magic != MAGIC or link != self.link or kind != _KIND_COMMAND or stn != self.address
+                or dg[_CODE_AT] != _CMD_INV_CTL
+                or (self.data_size == 32 and dg[_SUBCODE_AT] != 0)
                 or not fcs_ok(dg)):
             return SLOW
-        if not self._accept(cycle, tcycle, dg[27], M2Cmd.INV_CTL, source, now):
+        if not self._accept(cycle, tcycle, dg[_WDT_AT], _CMD_INV_CTL, source, now):
             return None
         if self._source is None:  # this command's gap lost the connection
             return self._answer_after_loss(dg, source, now)
-        sig, speed, torque, sel_ref, sel_mon, ref1, ref2 = _INV_CTL.unpack_from(dg, 14)
+        sig, speed, torque, sel_ref, sel_mon, ref1, ref2 = _INV_CTL.unpack_from(dg, _MAIN_AT)
         ofreq, cur, mon1, mon2 = self._inv_ctl(sig, speed, torque, sel_ref, sel_mon, ref1, ref2, now)
         alarm, word = self._alarm_status(False)
         main = _INV_CTL_R.pack(ofreq, cur, sel_ref, sel_mon, mon1, mon2)
         if self.data_size == 32:
-            data = _RF32.pack(M2Cmd.INV_CTL, alarm, word, main, self.watchdog.rwdt(), 0, _SUBRDY, _ZERO_SUB)
+            data = _RF32.pack(_CMD_INV_CTL, alarm, word, main, self.watchdog.rwdt(), 0, _SUBRDY, _ZERO_SUB)
         else:
-            data = _RF17.pack(M2Cmd.INV_CTL, alarm, word, main, self.watchdog.rwdt())
+            data = _RF17.pack(_CMD_INV_CTL, alarm, word, main, self.watchdog.rwdt())
         self.alarms.reported()
         self._sent(now)
-        return with_fcs(HEADER.pack(MAGIC, link, 2, stn, cycle, tcycle) + data)
+        return with_fcs(HEADER.pack(MAGIC, link, _KIND_RESPONSE, stn, cycle, tcycle) + data)
 
     def _inv_ctl(self, sig: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,
                  now: int) -> tuple[int, int, int, int]:
@@ -211,20 +232,20 @@ class Ml2Station(Station):
             if cmd.fault_history_clear:
                 self._watch_history()
         if sel_ref:
-            self._sel_refs(sel_ref, ref1, ref2)
+            self.select_refs(sel_ref, ref1, ref2)
         return self._outputs(sel_mon)
 
     def _process_sub(self, main_code: int, sub: Any, phase: int, subcmd: bool, now: int) -> tuple[Any, int]:
         stype = type(sub)
         scode = sub.code if stype is Unknown else _SUB_CODE[stype]
         if not subcmd:  # CONNECT with SUBCMD = 0: the sub-command area is not used
-            return _echo_sub(sub), _SUBRDY
+            return echo_sub(sub), _SUBRDY
         row = self.sub_phases.get(scode)
         hold = self.eeprom.hold(True, scode)
         if hold is BUSY:  # the SI-T/V7 CONFIG sub-command waits for the EEPROM: "SUBCMDRDY 0 Busy"
-            return _echo_sub(sub), 0
+            return echo_sub(sub), 0
         if hold is Err.OK:
-            return _echo_sub(sub), _SUBRDY
+            return echo_sub(sub), _SUBRDY
         if hold is not None:
             err = hold
         elif row is None:
@@ -240,24 +261,63 @@ class Ml2Station(Station):
             else:
                 err = Err.OK if adm is _IGNORED else Err.PHASE
                 if err is Err.OK:
-                    return _echo_sub(sub), _SUBRDY
+                    return echo_sub(sub), _SUBRDY
         self.alarms.warning(err.ml2)
         self.counters.commands_refused += 1
-        return _echo_sub(sub), _SUBWARN
+        return echo_sub(sub), _SUBWARN
 
-    # -- shared command bodies -------------------------------------------------------------------
-    def _prm_main_refused(self) -> bool:
-        """SI-T/V7: "If the MECHATROLINK-II 32-byte mode is used, PRM_RD can be used only in a sub-command"."""
-        return self.v7 and self.data_size == 32 and not self.options.v7_prm_main_in_32byte
+    # -- the MECHATROLINK-I/II handlers (the tables MAIN_HANDLERS / SUB_HANDLERS below) ------------------
+    def _handle_id_rd(self, body: ml2.IdRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+        """ID_RD (SI-T3 Tables 10/11, SI-T/V7 ID_RD): up to 8 bytes of the DEVICE_CODE's area."""
+        data = ml2_id_window(self.id_areas, body.device_code, body.offset, body.size)
+        if data is None:
+            return echo_main(body), Err.DATA
+        return ml2.IdRdResponse(body.device_code, body.offset, body.size, data), Err.OK
+
+    def _handle_alm_rd(self, body: ml2.AlmRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+        data, err = self._alm_data(body.alm_rd_mod, body.alm_index)
+        return ml2.AlmRdResponse(body.alm_rd_mod, data), err
+
+    def _handle_sub_alm_rd(self, sub: ml2.AlmRd, now: int) -> tuple[Any, Err]:
+        data, err = self._alm_data(sub.alm_rd_mod, sub.alm_index)
+        return ml2.AlmRdResponse(sub.alm_rd_mod, data), err
+
+    def _handle_connect(self, body: ml2.Connect, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+        """CONNECT (SI-T3 CONNECT with its errata, SI-T/V7 CONNECT): phase 2 or 3 per SYNCMOD."""
+        err, sync, cyc = self._check_connect(body, frame.tcycle_ns)
+        if self.has_cyc:  # SI-T3 Table 27 33H CyC "Transmission Cycle Error": raised once this A.94 is answered
+            if cyc:
+                self._deferred_cyc = True
+            else:
+                self.drive.minor(Fault.CYC, False, now)
+        if err is not Err.OK:
+            self.log_refused(ver=body.ver, com_mod=body.com_mod, com_tim=body.com_tim,
+                             tcycle_ns=frame.tcycle_ns, cycle_fault=cyc)
+            return body, err
+        self._subcmd = self.data_size == 32 and bool(body.com_mod & 0x80)
+        comm = frame.tcycle_ns if self.link is not Link.ML1 else body.com_tim * _MS
+        self.connect(source, frame.cycle, now, sync=sync, tcycle_ns=frame.tcycle_ns, com_tim=body.com_tim,
+                     comm_cycle_ns=comm, wdt=frame.message.wdt)
+        return body, Err.OK
+
+    def _handle_disconnect(self, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+        self.disconnect(now)
+        self._subcmd = self.data_size == 32
+        return body, Err.OK
+
+    def _handle_inv_ctl(self, body: ml2.InvCtl, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+        ofreq, cur, mon1, mon2 = self._inv_ctl(body.signals, body.speed_ref, body.torque_ref, body.sel_ref,
+                                               body.sel_mon, body.ref1, body.ref2, now)
+        return ml2.InvCtlResponse(ofreq, cur, body.sel_ref, body.sel_mon, mon1, mon2), Err.OK
 
     def _alm_data(self, mod: int, index: int) -> tuple[bytes, Err]:
         """ALM_DATA (10 bytes) per SI-T3 Tables 13/14 (SI-T/V7: modes 0 and 1, two history entries)."""
         if mod not in self.alm_rd_modes:
             return bytes(10), Err.DATA
-        link = self.drive
-        hist = [link.fault_code(f) & 0xFF for f in link.history()]
+        drive = self.drive
+        hist = [drive.fault_code(f) & 0xFF for f in drive.history()]
         if mod == 0:
-            return bytes((link.monitor("U2-01") & 0xFF, link.monitor("U2-02") & 0xFF)).ljust(10, b"\0"), Err.OK
+            return bytes((drive.monitor("U2-01") & 0xFF, drive.monitor("U2-02") & 0xFF)).ljust(10, b"\0"), Err.OK
         if mod == 1:
             depth = 2 if self.v7 else 10
             return bytes(hist[:depth]).ljust(10, b"\0"), Err.OK
@@ -320,20 +380,20 @@ class Ml2Station(Station):
         return self.data_size == 32 and self._subcmd
 
     def _alarm_view(self) -> tuple[int, str | None, tuple[str, ...], int]:
-        st = self.drive.status
-        self.alarms.observe(st.fault)
-        code, alm, _ = self.alarms.report(st.fault, st.minor, st.fault_reset_input)
+        status = self.drive.status
+        self.alarms.observe(status.fault)
+        code, alm, _ = self.alarms.report(status.fault, status.minor, status.fault_reset_input)
         name: str | None = None
         if code:
             try:
                 name = M2Alarm(code).name
             except ValueError:
-                if alm and st.fault is not None:
-                    name = st.fault.display
-                elif st.minor is not None:
-                    name = st.minor.display
+                if alm and status.fault is not None:
+                    name = status.fault.display
+                elif status.minor is not None:
+                    name = status.minor.display
         warnings = tuple(f"A.{c:02X}" for c in sorted(self.alarms.comm_warnings))
-        warnings += tuple(sorted(f.display for f in st.minors))
+        warnings += tuple(sorted(f.display for f in status.minors))
         return code, name, warnings, 0
 
 
@@ -349,134 +409,29 @@ class _CodeTable:
         return self._fn(key) or default
 
 
-# -- handlers ---------------------------------------------------------------------------------------
-def _nop(st: Ml2Station, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    return body, Err.OK
+#: MECHATROLINK-I/II main commands (SI-T3 Table 5, SI-T/V7 Table 1) -> handler; admission by phase in
+#: :data:`~mlink_sim.cards.phases.ML2_MAIN_PHASES`.
+MAIN_HANDLERS: Mapping[int, Handler] = MappingProxyType({
+    M2Cmd.NOP: commands.nop,
+    M2Cmd.PRM_RD: commands.prm_rd,
+    M2Cmd.PRM_WR: commands.prm_wr,
+    M2Cmd.ID_RD: Ml2Station._handle_id_rd,
+    M2Cmd.CONFIG: commands.config,
+    M2Cmd.ALM_RD: Ml2Station._handle_alm_rd,
+    M2Cmd.ALM_CLR: commands.alm_clr,
+    M2Cmd.SYNC_SET: commands.sync_set,
+    M2Cmd.CONNECT: Ml2Station._handle_connect,
+    M2Cmd.DISCONNECT: Ml2Station._handle_disconnect,
+    M2Cmd.INV_CTL: Ml2Station._handle_inv_ctl,
+})
 
-
-def _prm_rd(st: Ml2Station, body: ml2.PrmRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    if st._prm_main_refused():
-        return _echo_main(body), Err.CONDITION
-    data, err = st.store.read(body.no, body.size, st.drive.monitor)
-    return ml2.PrmRdResponse(body.no, body.size, data), err
-
-
-def _prm_wr(st: Ml2Station, body: ml2.PrmWr, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    if st._prm_main_refused():
-        return body, Err.CONDITION
-    return body, st._prm_write(body.no, body.size, body.data, now)
-
-
-def _id_rd(st: Ml2Station, body: ml2.IdRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    data = ml2_id_window(st.id_areas, body.device_code, body.offset, body.size)
-    if data is None:
-        return _echo_main(body), Err.DATA
-    return ml2.IdRdResponse(body.device_code, body.offset, body.size, data), Err.OK
-
-
-def _config(st: Ml2Station, body: ml2.Config, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    return body, st._config(body.config_mod, now)
-
-
-def _alm_rd(st: Ml2Station, body: ml2.AlmRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    data, err = st._alm_data(body.alm_rd_mod, body.alm_index)
-    return ml2.AlmRdResponse(body.alm_rd_mod, data), err
-
-
-def _alm_clr(st: Ml2Station, body: ml2.AlmClr, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    if body.alm_clr_mod != 0:
-        return body, Err.DATA
-    st._alarm_clear(now)
-    return body, Err.OK
-
-
-def _sync_set(st: Ml2Station, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    st.watchdog.arm(frame.message.wdt)
-    st._set_phase(3)
-    return body, Err.OK
-
-
-def _connect(st: Ml2Station, body: ml2.Connect, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    err, sync, cyc = st._check_connect(body, frame.tcycle_ns)
-    if st.has_cyc:  # SI-T3 Table 27 33H CyC "Transmission Cycle Error": raised once this A.94 is answered
-        if cyc:
-            st._deferred_cyc = True
-        else:
-            st.drive.minor(Fault.CYC, False, now)
-    if err is not Err.OK:
-        st._log_refused(ver=body.ver, com_mod=body.com_mod, com_tim=body.com_tim,
-                        tcycle_ns=frame.tcycle_ns, cycle_fault=cyc)
-        return body, err
-    st._subcmd = st.data_size == 32 and bool(body.com_mod & 0x80)
-    comm = frame.tcycle_ns if st.link is not Link.ML1 else body.com_tim * _MS
-    st._connect(source, frame.cycle, now, sync=sync, tcycle_ns=frame.tcycle_ns, com_tim=body.com_tim,
-                comm_cycle_ns=comm, wdt=frame.message.wdt)
-    return body, Err.OK
-
-
-def _disconnect(st: Ml2Station, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    st._disconnect(now)
-    st._subcmd = st.data_size == 32
-    return body, Err.OK
-
-
-def _inv_ctl(st: Ml2Station, body: ml2.InvCtl, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    ofreq, cur, mon1, mon2 = st._inv_ctl(body.signals, body.speed_ref, body.torque_ref, body.sel_ref, body.sel_mon,
-                                         body.ref1, body.ref2, now)
-    return ml2.InvCtlResponse(ofreq, cur, body.sel_ref, body.sel_mon, mon1, mon2), Err.OK
-
-
-MAIN_HANDLERS: Mapping[int, Handler] = {
-    M2Cmd.NOP: _nop,
-    M2Cmd.PRM_RD: _prm_rd,
-    M2Cmd.PRM_WR: _prm_wr,
-    M2Cmd.ID_RD: _id_rd,
-    M2Cmd.CONFIG: _config,
-    M2Cmd.ALM_RD: _alm_rd,
-    M2Cmd.ALM_CLR: _alm_clr,
-    M2Cmd.SYNC_SET: _sync_set,
-    M2Cmd.CONNECT: _connect,
-    M2Cmd.DISCONNECT: _disconnect,
-    M2Cmd.INV_CTL: _inv_ctl,
-}
-
-
-# -- sub-command handlers (SI-T3 §8 "Sub-commands", SI-T/V7 §7.2) -------------------------------------
-def _sub_nop(st: Ml2Station, sub: Any, now: int) -> tuple[Any, Err]:
-    return sub, Err.OK
-
-
-def _sub_prm_rd(st: Ml2Station, sub: ml2.PrmRd, now: int) -> tuple[Any, Err]:
-    data, err = st.store.read(sub.no, sub.size, st.drive.monitor)
-    return ml2.PrmRdResponse(sub.no, sub.size, data), err
-
-
-def _sub_prm_wr(st: Ml2Station, sub: ml2.PrmWr, now: int) -> tuple[Any, Err]:
-    return sub, st._prm_write(sub.no, sub.size, sub.data, now)
-
-
-def _sub_alm_rd(st: Ml2Station, sub: ml2.AlmRd, now: int) -> tuple[Any, Err]:
-    data, err = st._alm_data(sub.alm_rd_mod, sub.alm_index)
-    return ml2.AlmRdResponse(sub.alm_rd_mod, data), err
-
-
-def _sub_config(st: Ml2Station, sub: ml2.Config, now: int) -> tuple[Any, Err]:
-    return sub, st._config(sub.config_mod, now, sub=True)
-
-
-def _sub_inv_io(st: Ml2Station, sub: ml2.InvIo, now: int) -> tuple[Any, Err]:
-    st._sel_refs(sub.sel_ref34, sub.ref3, sub.ref4)
-    st._sel_refs(sub.sel_ref56, sub.ref5, sub.ref6)
-    m34, m56 = sub.sel_mon34, sub.sel_mon56
-    return ml2.InvIoResponse(sub.sel_ref34, sub.sel_ref56, m34, m56, st._mon(m34 & 0xF), st._mon(m34 >> 4),
-                             st._mon(m56 & 0xF), st._mon(m56 >> 4)), Err.OK
-
-
-SUB_HANDLERS: Mapping[int, SubHandler] = {
-    M2Cmd.NOP: _sub_nop,
-    M2Cmd.PRM_RD: _sub_prm_rd,
-    M2Cmd.PRM_WR: _sub_prm_wr,
-    M2Cmd.ALM_RD: _sub_alm_rd,
-    M2Cmd.CONFIG: _sub_config,
-    M2Cmd.INV_IO: _sub_inv_io,
-}
+#: MECHATROLINK-I/II sub-commands (SI-T3 Table 6, SI-T/V7 Table 2 and the CONFIG sub-command of §7.2) -> handler;
+#: the SI-T3 drops CONFIG (si_t3.py).
+SUB_HANDLERS: Mapping[int, SubHandler] = MappingProxyType({
+    M2Cmd.NOP: commands.sub_nop,
+    M2Cmd.PRM_RD: commands.sub_prm_rd,
+    M2Cmd.PRM_WR: commands.sub_prm_wr,
+    M2Cmd.ALM_RD: Ml2Station._handle_sub_alm_rd,
+    M2Cmd.CONFIG: commands.sub_config,
+    M2Cmd.INV_IO: commands.sub_inv_io,
+})

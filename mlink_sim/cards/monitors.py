@@ -41,22 +41,22 @@ def sel_ref_item(card: str, code: int) -> str:
     return SEL_REF_TABLES[card][code & 0xF]
 
 
-def sel_mon_enabled(link: DriveLink, code: int) -> bool:
+def sel_mon_enabled(drive: DriveLink, code: int) -> bool:
     """SI-ET3 INVCMD_STAT bits 24/25 "SEL_MONx enabled": the code selects something on this card."""
-    return bool(link.sel_mon_name(code))
+    return bool(drive.sel_mon_name(code))
 
 
-def sel_mon_value(link: DriveLink, store: ParamStore, registers: Mapping[str, int], code: int) -> int:
+def sel_mon_value(drive: DriveLink, store: ParamStore, registers: Mapping[str, int], code: int) -> int:
     """The 16-bit value SEL_MON *code* selects. *registers*: ``{"F6-23": reg, "F6-24": reg}`` read at power-up."""
-    name = link.sel_mon_name(code)
+    name = drive.sel_mon_name(code)
     if not name:
         return 0
     if name == "ALARM":
-        return link.fault_code(link.status.fault)
+        return drive.fault_code(drive.status.fault)
     if name == "WARNING":
-        return link.minor_code(link.status.minor)
+        return drive.minor_code(drive.status.minor)
     if name in ("F6-23", "F6-24"):
         reg = registers.get(name, 0)
-        word = store.read_register(reg, link.monitor) if reg else None
+        word = store.read_register(reg, drive.monitor) if reg else None
         return word or 0
-    return link.monitor(name) & 0xFFFF
+    return drive.monitor(name) & 0xFFFF

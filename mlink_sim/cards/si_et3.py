@@ -17,18 +17,21 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Hashable, Mapping
+from collections.abc import Hashable, Mapping
+from types import MappingProxyType
 from typing import Any, ClassVar
 
 from mlink_sim.wire import (
     MAGIC, PROFILE_TYPE_INVERTER, CommAlm, Frame, Kind, Link, M3Cmd, Unknown, encode, ml3,
 )
-from mlink_sim.wire.frame import HEADER, fcs_ok, with_fcs
-from mlink_sim.wire.layout import fast_struct
+from mlink_sim.wire.frame import HEADER, HEADER_SIZE, fcs_ok, with_fcs
+from mlink_sim.wire.layout import fast_struct, field_offset
 
+from . import commands
 from .alarms import Ml3Alarms, ml3_failure_code
 from .base import SLOW, Station
-from .drive_link import DriveCommand, Fault, ml3_invcmd_stat_bits
+from .commands import Handler, SubHandler
+from .drive_link import DriveCommand, DriveStatus, Fault, ml3_invcmd_stat_bits
 from .eeprom import BUSY
 from .idinfo import ml3_id_data, ml3_id_window
 from .monitors import sel_mon_enabled
@@ -46,19 +49,46 @@ _SUB_CODE = {cls: layout.code for cls, layout in ml3.COMMAND_SUB.by_class.items(
 _ALLOWED, _IGNORED, _PHASE = Admit.ALLOWED, Admit.IGNORED, Admit.PHASE_ERROR
 
 
-# The fast path's formats, derived from the wire declarations (so they cannot drift from them).
+# The fast path's formats, offsets and codes, derived from the wire declarations (so they cannot drift from them),
+# as master/fastpath.py does. Offsets are datagram offsets: the envelope, then the data frame.
 _INV_CTL = fast_struct(ml3.COMMAND_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.COMMAND_MAIN.size)
 _INV_CTL_R = fast_struct(ml3.RESPONSE_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.RESPONSE_MAIN.size)
 _RF32 = fast_struct(ml3.RESPONSE_FRAME_32, 32)
 _RF64 = fast_struct(ml3.RESPONSE_FRAME_64, 64)
+
+
+def _command_at(name: str) -> int:
+    """Datagram offset of command frame field *name*, the same in 32- and 64-byte frames."""
+    at = field_offset(ml3.COMMAND_FRAME_32, name)
+    if at != field_offset(ml3.COMMAND_FRAME_64, name):
+        raise ValueError(f"MECHATROLINK-III command field {name!r} moves with the frame size")
+    return HEADER_SIZE + at
+
+
+_CODE_AT = _command_at("code")
+_WDT_AT = _command_at("wdt")
+_CTRL_AT = _command_at("cmd_ctrl")  # CMD_CTRL's low byte: ALM_CLR (bit 3), CMD_ID (bits 6-7)
+_MAIN_AT = _command_at("main")
+_SUBCODE_AT = HEADER_SIZE + field_offset(ml3.COMMAND_FRAME_64, "subcode")
+_CMD_INV_CTL = int(M3Cmd.INV_CTL)
+_LINK = int(Link.ML3)
+_KIND_COMMAND = int(Kind.COMMAND)
+_KIND_RESPONSE = int(Kind.RESPONSE)
+_SUBCMDRDY = ml3.SubStat(subcmdrdy=True).to_int()  # SUB_STAT with SUBCMDRDY only (Table 24)
 _US = 1_000
 
 #: ID_CODE 18H = 03H granularity within 16H (250 µs) … 17H (8 ms): 250, 500, 750 µs and 1–8 ms in 0.5 ms steps.
 VALID_TCYCLES_NS = frozenset({250 * _US, 500 * _US, 750 * _US} | {1000 * _US + 500 * _US * k for k in range(15)})
 _COMM_MIN_NS, _COMM_MAX_NS = 250 * _US, 32_000 * _US  # ID_CODE 19H / 1AH
 
-Handler = Callable[["SiEt3", Any, Frame, Hashable, int], tuple[Any, Err]]
-SubHandler = Callable[["SiEt3", Any, int], tuple[Any, Err]]
+
+
+def cmd_stat(status: DriveStatus, alarms: Ml3Alarms, ready: bool, ctrl: int, cmd_alm: int,
+             handshake: bool = True) -> int:
+    """CMD_STAT ("Command Status (CMD_STAT)", bit for bit :class:`mlink_sim.wire.ml3.CmdStat`): D_ALM/D_WAR from the
+    drive, CMDRDY (*ready*), ALM_CLR_CMP (with *handshake*), RCMD_ID = CMD_ID of *ctrl*, *cmd_alm*, COMM_ALM."""
+    return (status.faulted | status.minor_fault << 1 | ready << 2 | (handshake and alarms.alm_clr_cmp) << 3
+            | (ctrl & 0xC0) | cmd_alm << 8 | alarms.comm_alm << 12)
 
 
 def _echo_main(body: Any) -> Any:
@@ -102,8 +132,8 @@ class SiEt3(Station):
         self.alarms = Ml3Alarms()
         self._subcmd = False
         self._profile = 0
-        self._st_obj: object = None
-        self._st_word = 0
+        self._status_seen: object = None  # the DriveStatus self._status_word was computed from
+        self._status_word = 0
         self._last_cmd_alm = 0
         self._last_sub_alm = 0
         self._fast_len = 12 + self.data_size + 2
@@ -129,7 +159,7 @@ class SiEt3(Station):
         ctrl = msg.cmd_ctrl
         # CMD_CTRL.ALM_CLR: "same processing as ALM_CLR_MODE = 0" – so, like ALM_CLR, only from the connected master
         if self._source is not None and alarms.alm_clr_edge(bool(ctrl & 0x08)):
-            self._alarm_clear(now)
+            self.alarm_clear(now)
             alarms.alm_clr_cmp = True
         body = msg.body
         btype = type(body)
@@ -163,26 +193,22 @@ class SiEt3(Station):
             if sub_alm:
                 self.counters.commands_refused += 1
             self._last_sub_alm = sub_alm
-            sub_stat = 0x04 | sub_alm << 8  # SUBCMDRDY, SUBCMD_ALM (Table 24)
+            sub_stat = _SUBCMDRDY | sub_alm << 8  # SUBCMDRDY, SUBCMD_ALM (Table 24)
         if err is not Err.OK:
             self.counters.commands_refused += 1
         self._last_cmd_alm = cmd_alm
-        st = self.drive.status
-        ready = 0 if self.eeprom.busy(False) else 0x04  # CMD_STAT.CMDRDY "1: Command reception enabled 0: Other"
-        stat = (st.faulted | st.minor_fault << 1 | ready | alarms.alm_clr_cmp << 3 | (ctrl & 0xC0)
-                | cmd_alm << 8 | alarms.comm_alm << 12)
+        # CMD_STAT.CMDRDY "1: Command reception enabled 0: Other"
+        stat = cmd_stat(self.drive.status, alarms, not self.eeprom.busy(False), ctrl, cmd_alm)
         resp = ml3.M3Response(rbody, self.watchdog.rwdt(), stat, rsub, sub_stat)
         return encode(Frame(Link.ML3, Kind.RESPONSE, self.address, frame.cycle, frame.tcycle_ns, resp))
 
     def _status_reply(self, frame: Frame) -> bytes:
         """NOP response with CMD_STAT as it stands, for a source other than the connected master (health checks):
         nothing is executed, CMD_ALM is not touched, RWDT does not advance (docs/cards.md)."""
-        st = self.drive.status
-        alarms = self.alarms
-        stat = st.faulted | st.minor_fault << 1 | (0 if self.eeprom.busy(False) else 0x04) | alarms.comm_alm << 12
+        stat = cmd_stat(self.drive.status, self.alarms, not self.eeprom.busy(False), 0, 0, False)
         sub = frame.message.sub
         resp = ml3.M3Response(ml3.Nop(), self.watchdog.peek(), stat, None if sub is None else ml3.Nop(),
-                              0 if sub is None else 0x04)
+                              0 if sub is None else _SUBCMDRDY)
         return encode(Frame(Link.ML3, Kind.RESPONSE, self.address, frame.cycle, frame.tcycle_ns, resp))
 
     def _fast_receive(self, dg: bytes, source: Hashable, now: int) -> object:
@@ -191,33 +217,32 @@ class SiEt3(Station):
         if len(dg) != self._fast_len:
             return SLOW
         magic, link, kind, stn, cycle, tcycle = HEADER.unpack_from(dg)
-        if (magic != MAGIC or link != 3 or kind != 1 or stn != self.address or dg[12] != M3Cmd.INV_CTL
-                or (self.data_size == 64 and dg[44] != 0)
+        if (magic != MAGIC or link != _LINK or kind != _KIND_COMMAND or stn != self.address
+                or dg[_CODE_AT] != _CMD_INV_CTL
+                or (self.data_size == 64 and dg[_SUBCODE_AT] != 0)
                 or not fcs_ok(dg)):
             return SLOW
-        if not self._accept(cycle, tcycle, dg[13], M3Cmd.INV_CTL, source, now):
+        if not self._accept(cycle, tcycle, dg[_WDT_AT], _CMD_INV_CTL, source, now):
             return None
         if self._source is None:  # this command's gap lost the connection
             return self._answer_after_loss(dg, source, now)
         alarms = self.alarms
-        ctrl = dg[14]
+        ctrl = dg[_CTRL_AT]
         if alarms.alm_clr_edge(bool(ctrl & 0x08)):
-            self._alarm_clear(now)
+            self.alarm_clear(now)
             alarms.alm_clr_cmp = True
-        ictrl, _io, speed, torque, sel_ref, sel_mon, ref1, ref2 = _INV_CTL.unpack_from(dg, 16)
-        stat, ofreq, cur, mon1, mon2 = self._inv_ctl(ictrl, speed, torque, sel_ref, sel_mon, ref1, ref2, now)
-        main = _INV_CTL_R.pack(stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2)
+        ictrl, _io, speed, torque, sel_ref, sel_mon, ref1, ref2 = _INV_CTL.unpack_from(dg, _MAIN_AT)
+        invcmd_stat, ofreq, cur, mon1, mon2 = self._inv_ctl(ictrl, speed, torque, sel_ref, sel_mon, ref1, ref2, now)
+        main = _INV_CTL_R.pack(invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2)
         self._last_cmd_alm = 0
-        st = self.drive.status
-        cstat = (st.faulted | st.minor_fault << 1 | 0x04 | alarms.alm_clr_cmp << 3 | (ctrl & 0xC0)
-                 | alarms.comm_alm << 12)
+        stat = cmd_stat(self.drive.status, alarms, True, ctrl, 0)
         if self.data_size == 64:
             self._last_sub_alm = 0
-            data = _RF64.pack(M3Cmd.INV_CTL, self.watchdog.rwdt(), cstat, main, 0, 0x04, _ZERO_SUB)
+            data = _RF64.pack(_CMD_INV_CTL, self.watchdog.rwdt(), stat, main, 0, _SUBCMDRDY, _ZERO_SUB)
         else:
-            data = _RF32.pack(M3Cmd.INV_CTL, self.watchdog.rwdt(), cstat, main)
+            data = _RF32.pack(_CMD_INV_CTL, self.watchdog.rwdt(), stat, main)
         self._sent(now)
-        return with_fcs(HEADER.pack(MAGIC, 3, 2, stn, cycle, tcycle) + data)
+        return with_fcs(HEADER.pack(MAGIC, _LINK, _KIND_RESPONSE, stn, cycle, tcycle) + data)
 
     def _inv_ctl(self, ctrl: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,
                  now: int) -> tuple[int, int, int, int, int]:
@@ -236,16 +261,16 @@ class SiEt3(Station):
             if cmd.fault_history_clear:
                 self._watch_history()
         if sel_ref:
-            self._sel_refs(sel_ref, ref1, ref2)
-        link = self.drive
-        status = link.status
-        if status is not self._st_obj:
-            self._st_obj = status
-            self._st_word = ml3_invcmd_stat_bits(status)
+            self.select_refs(sel_ref, ref1, ref2)
+        drive = self.drive
+        status = drive.status
+        if status is not self._status_seen:
+            self._status_seen = status
+            self._status_word = ml3_invcmd_stat_bits(status)
         m1, m2 = sel_mon & 0xF, sel_mon >> 4
-        stat = self._st_word | sel_mon_enabled(link, m1) << 24 | sel_mon_enabled(link, m2) << 25
+        invcmd_stat = self._status_word | sel_mon_enabled(drive, m1) << 24 | sel_mon_enabled(drive, m2) << 25
         ofreq, cur, mon1, mon2 = self._outputs(sel_mon)
-        return stat, ofreq, cur, mon1, mon2
+        return invcmd_stat, ofreq, cur, mon1, mon2
 
     def _process_sub(self, main_code: int, sub: Any, phase: int, subcmd: bool, now: int) -> tuple[Any, Err]:
         stype = type(sub)
@@ -267,10 +292,52 @@ class SiEt3(Station):
         rsub, err = self.sub_handlers[scode](self, sub, now)
         return (rsub if err is Err.OK else _echo_sub(sub)), err
 
-    # -- shared command bodies -------------------------------------------------------------------
+    # -- the MECHATROLINK-III handlers (the tables MAIN_HANDLERS / SUB_HANDLERS below) --------------------
+    def _handle_id_rd(self, body: ml3.IdRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+        """ID_RD (Table 14): up to 24 bytes of the ID_CODE's value."""
+        data = ml3_id_data(body.id_code, data_size=self.data_size, profile=self._profile,
+                           speed_unit=self.store.active.get("o1-03", 0))
+        window = None if data is None else ml3_id_window(data, body.offset, body.size)
+        if window is None:
+            return _echo_main(body), Err.DATA
+        return ml3.IdRdResponse(body.id_code, body.offset, body.size, window), Err.OK
+
+    def _handle_alm_rd(self, body: ml3.AlmRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+        data, err = self._alm_data(body.alm_rd_mod, body.alm_index)
+        return ml3.AlmRdResponse(body.alm_rd_mod, body.alm_index, data), err
+
+    def _handle_sub_alm_rd(self, sub: ml3.AlmRd, now: int) -> tuple[Any, Err]:
+        data, err = self._alm_data(sub.alm_rd_mod, sub.alm_index)
+        return ml3.AlmRdResponse(sub.alm_rd_mod, sub.alm_index, data), err
+
+    def _handle_connect(self, body: ml3.Connect, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+        """CONNECT (Tables 18/19): phase 2 or 3 per SYNCMODE."""
+        err, sync, cyc = self._check_connect(body, frame.tcycle_ns)
+        self.drive.minor(Fault.CYC, cyc, now)  # Table 26 CYC "Communications Cycle Setting Error"
+        if err is not Err.OK:
+            self.log_refused(ver=body.ver, com_mod=body.com_mod, com_tim=body.com_tim,
+                             profile=body.profile_type, tcycle_ns=frame.tcycle_ns, cycle_fault=cyc)
+            return self._connect_echo(body), err
+        self._subcmd = self.data_size == 64 and bool(body.com_mod & 0x80)
+        self._profile = body.profile_type
+        self.connect(source, frame.cycle, now, sync=sync, tcycle_ns=frame.tcycle_ns, com_tim=body.com_tim,
+                     comm_cycle_ns=frame.tcycle_ns * body.com_tim, wdt=frame.message.wdt)
+        return self._connect_echo(body), Err.OK
+
+    def _handle_disconnect(self, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+        self.disconnect(now)
+        self._subcmd = False
+        self._profile = 0
+        return body, Err.OK
+
+    def _handle_inv_ctl(self, body: ml3.InvCtl, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+        invcmd_stat, ofreq, cur, mon1, mon2 = self._inv_ctl(body.invcmd_ctrl, body.speed_ref, body.torque_ref,
+                                                            body.sel_ref, body.sel_mon, body.ref1, body.ref2, now)
+        return ml3.InvCtlResponse(invcmd_stat, 0, ofreq, cur, body.sel_ref, body.sel_mon, mon1, mon2), Err.OK
+
     def _alm_data(self, mod: int, index: int) -> tuple[bytes, Err]:
         """ALM_DATA from byte 8, two bytes per code (SI-ET3 Tables 16/17)."""
-        link = self.drive
+        drive = self.drive
         if mod == 0:
             names = ("U2-01", "U2-02")
         elif mod == 1:
@@ -279,7 +346,7 @@ class SiEt3(Station):
             names = ("U2-01",) if index == 0 else (f"U3-{index:02d}",)
         else:
             return bytes(20), Err.DATA
-        data = b"".join((link.monitor(n) & 0xFFFF).to_bytes(2, "little") for n in names)
+        data = b"".join((drive.monitor(n) & 0xFFFF).to_bytes(2, "little") for n in names)
         return data.ljust(20, b"\0"), Err.OK
 
     def _check_connect(self, body: ml3.Connect, tcycle: int) -> tuple[Err, bool, bool]:
@@ -321,17 +388,15 @@ class SiEt3(Station):
     def _alarm_view(self) -> tuple[int, str | None, tuple[str, ...], int]:
         code = self.alarms.comm_alm
         name = CommAlm(code).name if code in CommAlm._value2member_map_ and code else None
-        st = self.drive.status
         warnings = (f"COMM_ALM {code:X}H",) if 0 < code < 8 else ()
-        warnings += tuple(sorted(f.display for f in st.minors))
+        warnings += tuple(sorted(f.display for f in self.drive.status.minors))
         return code, name, warnings, self._last_cmd_alm
 
     def _leds(self) -> tuple[dict[str, str], dict[str, str]]:
         """Table 4: R/E green once powered up, red for an error/alarm or a command error (parameter, phase,
         combination); CON lit with a connection; LK1 while frames arrive (the simulated network has one port,
         so LK2 stays unlit)."""
-        st = self.drive.status
-        error = (self.station_error is not None or self.alarms.comm_alarm_active or st.faulted
+        error = (self.station_error is not None or self.alarms.comm_alarm_active or self.drive.status.faulted
                  or bool(self._last_cmd_alm) or bool(self._last_sub_alm))
         leds = {
             "R/E": "on",
@@ -342,126 +407,30 @@ class SiEt3(Station):
         return leds, {"R/E": "red" if error else "green", "CON": "green", "LK1": "green", "LK2": "green"}
 
 
-# -- handlers ---------------------------------------------------------------------------------------
-def _nop(st: SiEt3, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    return body, Err.OK
+#: MECHATROLINK-III main commands (Table 11) -> handler; admission by phase in
+#: :data:`~mlink_sim.cards.phases.ML3_MAIN_PHASES` (Table 9).
+MAIN_HANDLERS: Mapping[int, Handler] = MappingProxyType({
+    M3Cmd.NOP: commands.nop,
+    M3Cmd.PRM_RD: commands.prm_rd,
+    M3Cmd.PRM_WR: commands.prm_wr,
+    M3Cmd.ID_RD: SiEt3._handle_id_rd,
+    M3Cmd.CONFIG: commands.config,
+    M3Cmd.ALM_RD: SiEt3._handle_alm_rd,
+    M3Cmd.ALM_CLR: commands.alm_clr,
+    M3Cmd.SYNC_SET: commands.sync_set,
+    M3Cmd.CONNECT: SiEt3._handle_connect,
+    M3Cmd.DISCONNECT: SiEt3._handle_disconnect,
+    M3Cmd.INV_CTL: SiEt3._handle_inv_ctl,
+})
 
-
-def _prm_rd(st: SiEt3, body: ml3.PrmRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    data, err = st.store.read(body.no, body.size, st.drive.monitor)
-    return ml3.PrmRdResponse(body.no, body.size, data), err
-
-
-def _prm_wr(st: SiEt3, body: ml3.PrmWr, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    return body, st._prm_write(body.no, body.size, body.data, now)
-
-
-def _id_rd(st: SiEt3, body: ml3.IdRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    data = ml3_id_data(body.id_code, data_size=st.data_size, profile=st._profile,
-                       speed_unit=st.store.active.get("o1-03", 0))
-    window = None if data is None else ml3_id_window(data, body.offset, body.size)
-    if window is None:
-        return _echo_main(body), Err.DATA
-    return ml3.IdRdResponse(body.id_code, body.offset, body.size, window), Err.OK
-
-
-def _config(st: SiEt3, body: ml3.Config, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    return body, st._config(body.config_mod, now)
-
-
-def _alm_rd(st: SiEt3, body: ml3.AlmRd, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    data, err = st._alm_data(body.alm_rd_mod, body.alm_index)
-    return ml3.AlmRdResponse(body.alm_rd_mod, body.alm_index, data), err
-
-
-def _alm_clr(st: SiEt3, body: ml3.AlmClr, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    if body.alm_clr_mod != 0:
-        return body, Err.DATA
-    st._alarm_clear(now)
-    return body, Err.OK
-
-
-def _sync_set(st: SiEt3, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    st.watchdog.arm(frame.message.wdt)  # "Completing this command commences watchdog data error detection"
-    st._set_phase(3)
-    return body, Err.OK
-
-
-def _connect(st: SiEt3, body: ml3.Connect, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    err, sync, cyc = st._check_connect(body, frame.tcycle_ns)
-    st.drive.minor(Fault.CYC, cyc, now)  # SI-ET3 Table 26 CYC "Communications Cycle Setting Error"
-    if err is not Err.OK:
-        st._log_refused(ver=body.ver, com_mod=body.com_mod, com_tim=body.com_tim,
-                        profile=body.profile_type, tcycle_ns=frame.tcycle_ns, cycle_fault=cyc)
-        return st._connect_echo(body), err
-    st._subcmd = st.data_size == 64 and bool(body.com_mod & 0x80)
-    st._profile = body.profile_type
-    st._connect(source, frame.cycle, now, sync=sync, tcycle_ns=frame.tcycle_ns, com_tim=body.com_tim,
-                comm_cycle_ns=frame.tcycle_ns * body.com_tim, wdt=frame.message.wdt)
-    return st._connect_echo(body), Err.OK
-
-
-def _disconnect(st: SiEt3, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    st._disconnect(now)
-    st._subcmd = False
-    st._profile = 0
-    return body, Err.OK
-
-
-def _inv_ctl(st: SiEt3, body: ml3.InvCtl, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-    stat, ofreq, cur, mon1, mon2 = st._inv_ctl(body.invcmd_ctrl, body.speed_ref, body.torque_ref, body.sel_ref,
-                                               body.sel_mon, body.ref1, body.ref2, now)
-    return ml3.InvCtlResponse(stat, 0, ofreq, cur, body.sel_ref, body.sel_mon, mon1, mon2), Err.OK
-
-
-SiEt3.handlers = {
-    M3Cmd.NOP: _nop,
-    M3Cmd.PRM_RD: _prm_rd,
-    M3Cmd.PRM_WR: _prm_wr,
-    M3Cmd.ID_RD: _id_rd,
-    M3Cmd.CONFIG: _config,
-    M3Cmd.ALM_RD: _alm_rd,
-    M3Cmd.ALM_CLR: _alm_clr,
-    M3Cmd.SYNC_SET: _sync_set,
-    M3Cmd.CONNECT: _connect,
-    M3Cmd.DISCONNECT: _disconnect,
-    M3Cmd.INV_CTL: _inv_ctl,
-}
-MAIN_HANDLERS = SiEt3.handlers
-
-
-# -- sub-command handlers (SI-ET3 §10) --------------------------------------------------------------
-def _sub_nop(st: SiEt3, sub: Any, now: int) -> tuple[Any, Err]:
-    return sub, Err.OK
-
-
-def _sub_prm_rd(st: SiEt3, sub: ml3.PrmRd, now: int) -> tuple[Any, Err]:
-    data, err = st.store.read(sub.no, sub.size, st.drive.monitor)
-    return ml3.PrmRdResponse(sub.no, sub.size, data), err
-
-
-def _sub_prm_wr(st: SiEt3, sub: ml3.PrmWr, now: int) -> tuple[Any, Err]:
-    return sub, st._prm_write(sub.no, sub.size, sub.data, now)
-
-
-def _sub_alm_rd(st: SiEt3, sub: ml3.AlmRd, now: int) -> tuple[Any, Err]:
-    data, err = st._alm_data(sub.alm_rd_mod, sub.alm_index)
-    return ml3.AlmRdResponse(sub.alm_rd_mod, sub.alm_index, data), err
-
-
-def _sub_inv_io(st: SiEt3, sub: ml3.InvIo, now: int) -> tuple[Any, Err]:
-    st._sel_refs(sub.sel_ref34, sub.ref3, sub.ref4)
-    st._sel_refs(sub.sel_ref56, sub.ref5, sub.ref6)
-    m34, m56 = sub.sel_mon34, sub.sel_mon56
-    return ml3.InvIoResponse(sub.sel_ref34, sub.sel_ref56, m34, m56, st._mon(m34 & 0xF), st._mon(m34 >> 4),
-                             st._mon(m56 & 0xF), st._mon(m56 >> 4)), Err.OK
-
-
-SiEt3.sub_handlers = {
-    M3Cmd.NOP: _sub_nop,
-    M3Cmd.PRM_RD: _sub_prm_rd,
-    M3Cmd.PRM_WR: _sub_prm_wr,
-    M3Cmd.ALM_RD: _sub_alm_rd,
-    M3Cmd.INV_IO: _sub_inv_io,
-}
-SUB_HANDLERS = SiEt3.sub_handlers
+#: MECHATROLINK-III sub-commands (Table 12) -> handler; admission by phase in
+#: :data:`~mlink_sim.cards.phases.ML3_SUB_PHASES` (Table 10).
+SUB_HANDLERS: Mapping[int, SubHandler] = MappingProxyType({
+    M3Cmd.NOP: commands.sub_nop,
+    M3Cmd.PRM_RD: commands.sub_prm_rd,
+    M3Cmd.PRM_WR: commands.sub_prm_wr,
+    M3Cmd.ALM_RD: SiEt3._handle_sub_alm_rd,
+    M3Cmd.INV_IO: commands.sub_inv_io,
+})
+SiEt3.handlers = MAIN_HANDLERS
+SiEt3.sub_handlers = SUB_HANDLERS

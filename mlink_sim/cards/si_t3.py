@@ -14,9 +14,10 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from types import MappingProxyType
 from typing import ClassVar
 
-from mlink_sim.wire import Link
+from mlink_sim.wire import Link, M2Cmd
 
 from .ml2_card import MAIN_HANDLERS, SUB_HANDLERS, Ml2Station
 from .settings import CardSettings
@@ -30,7 +31,8 @@ class SiT3(Ml2Station):
     card: ClassVar[str] = "si-t3"
     family: ClassVar[str] = "a1000"
     handlers = MAIN_HANDLERS
-    sub_handlers = {code: h for code, h in SUB_HANDLERS.items() if code != 0x04}  # no CONFIG sub-command
+    sub_handlers = MappingProxyType({code: handler for code, handler in SUB_HANDLERS.items()
+                                     if code != M2Cmd.CONFIG})  # Table 6: no CONFIG sub-command
 
     def _power_up(self, values: Mapping[str, int], settings: CardSettings) -> None:
         self.address = values["F6-20"]

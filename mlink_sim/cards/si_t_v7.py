@@ -16,17 +16,33 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import ClassVar
+from collections.abc import Hashable, Mapping
+from types import MappingProxyType
+from typing import Any, ClassVar
 
-from mlink_sim.wire import Link
+from mlink_sim.wire import Frame, Link, M2Cmd
 
+from .commands import Handler
 from .idinfo import V7_ID_AREAS
-from .ml2_card import MAIN_HANDLERS, SUB_HANDLERS, Ml2Station
+from .ml2_card import MAIN_HANDLERS, SUB_HANDLERS, Ml2Station, echo_main
 from .phases import V7_COMBINATIONS, V7_SUB_PHASES
+from .results import Err
 from .settings import CardSettings
 
 __all__ = ["SiTV7"]
+
+
+def _sub_command_only_in_32byte(handler: Handler) -> Handler:
+    """PRM_RD / PRM_WR: "If the MECHATROLINK-II 32-byte mode is used, PRM_RD can be used only in a sub-command" –
+    "If received as a main command in 32-byte mode: Command alarm (A.95)" (``CardOptions.v7_prm_main_in_32byte``
+    accepts them, docs/cards.md)."""
+
+    def main_command(station: Any, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
+        if station.data_size == 32 and not station.options.v7_prm_main_in_32byte:
+            return echo_main(body), Err.CONDITION
+        return handler(station, body, frame, source, now)
+
+    return main_command
 
 
 class SiTV7(Ml2Station):
@@ -42,8 +58,12 @@ class SiTV7(Ml2Station):
     combinations = V7_COMBINATIONS
     id_areas = V7_ID_AREAS
     alm_rd_modes = frozenset((0, 1))
-    handlers = MAIN_HANDLERS
-    sub_handlers = SUB_HANDLERS
+    handlers = MappingProxyType({
+        **MAIN_HANDLERS,
+        M2Cmd.PRM_RD: _sub_command_only_in_32byte(MAIN_HANDLERS[M2Cmd.PRM_RD]),
+        M2Cmd.PRM_WR: _sub_command_only_in_32byte(MAIN_HANDLERS[M2Cmd.PRM_WR]),
+    })
+    sub_handlers = SUB_HANDLERS  # with the CONFIG sub-command (§7.2)
 
     def _power_up(self, values: Mapping[str, int], settings: CardSettings) -> None:
         station = settings.station if settings.station is not None else 0x21
