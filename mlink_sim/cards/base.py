@@ -34,6 +34,7 @@ from .drive_link import DriveCommand, DriveLink, Fault
 from .eeprom import EepromError, EepromImage, EepromWriteBack
 from .monitors import sel_mon_value, sel_ref_item
 from .paramstore import ParamStore
+from .phases import PhaseEvent, next_phase
 from .reception import FailureKind, ReceptionMonitor
 from .results import Err
 from .settings import CARD_NAMES, CardOptions, CardSettings, param_table
@@ -375,8 +376,8 @@ class Station(abc.ABC):
 
     def _comm_alarm(self, n: int, now: int) -> None:
         """*n* communications alarms (E6 / COMM_ALM 8–B): phase 3 -> 2, bUS after F6-26 of them."""
-        if self.phase == 3:
-            self._set_phase(2)
+        if self._source is not None:  # not in the command whose gap has just released the station (phase 1 on)
+            self._phase_event(PhaseEvent.COMM_ALARM)
         self.counters.bus_alarms += n
         before = self._bus_count
         self._bus_count += n
@@ -397,8 +398,7 @@ class Station(abc.ABC):
         self.drive.trip_e5(now)  # the drive's E5 is this same event: the card's code is the most recent
         self._observe_drive()
         self._report_wdt()
-        if self.phase == 3:
-            self._set_phase(2)
+        self._phase_event(PhaseEvent.WDT_ERROR)
         self._incident("wdt_error", level="warning", master_count=self.watchdog.master)
 
     def _incident(self, event: str, level: str = "info", **fields: Any) -> None:
@@ -428,6 +428,11 @@ class Station(abc.ABC):
             self._log.info("eeprom_dirty", reason="fault history", history=list(names))
 
     # -- phases ----------------------------------------------------------------------------------------
+    def _phase_event(self, event: PhaseEvent) -> None:
+        """Take the transition of *event* in the phase the station acts in (phases.PHASE_TRANSITIONS; an illegal one
+        raises PhaseError there)."""
+        self._set_phase(next_phase(self._arrival_phase(), event))
+
     def _set_phase(self, phase: int) -> None:
         if phase != self.phase:
             old, self.phase = self.phase, phase
@@ -454,13 +459,14 @@ class Station(abc.ABC):
                 comm_cycle_ns: int, wdt: int) -> None:
         """An accepted CONNECT from *source*: the connection, the transmission/communication cycle of the header from
         now on, phase 2 or 3 (*sync*), reception-failure monitoring and the watchdog start."""
+        phase = next_phase(self._arrival_phase(), PhaseEvent.CONNECT_SYNC if sync else PhaseEvent.CONNECT_ASYNC)
         self._source = source
         self.tcycle_ns, self.com_tim, self.comm_cycle_ns = tcycle_ns, com_tim, comm_cycle_ns
         self.reception.start(cycle, now, comm_cycle_ns, max(1, round(comm_cycle_ns / tcycle_ns)),
                              self.options.silence_tolerance_ns)
         self._bus_count = 0
         self.watchdog.arm(wdt)
-        self._set_phase(3 if sync else 2)
+        self._set_phase(phase)
         if not sync:
             self.watchdog.disarm()
         self._incident("connected", source=repr(source), tcycle_ns=tcycle_ns, com_tim=com_tim, sync=sync)
@@ -472,6 +478,7 @@ class Station(abc.ABC):
         connected master changes the run state or the phase."""
         if self._source is None:
             return
+        phase = next_phase(self._arrival_phase(), PhaseEvent.DISCONNECT)
         self._incident("disconnected", source=repr(self._source))
         self._source = None
         self.reception.stop()
@@ -482,12 +489,12 @@ class Station(abc.ABC):
         self._cmd_key = None
         self.refs.clear()
         self._clear_comm_alarms()
-        self._set_phase(1)
+        self._set_phase(phase)
 
     def sync_set(self, wdt: int) -> None:
         """SYNC_SET: phase 3, the watchdog checked from the master count in *wdt* on."""
         self.watchdog.arm(wdt)
-        self._set_phase(3)
+        self._phase_event(PhaseEvent.SYNC_SET)
 
     def alarm_clear(self, now: int) -> bool:
         """ALM_CLR / CMD_CTRL.ALM_CLR: communication alarms, card minor faults, drive faults (refused by the

@@ -1,6 +1,10 @@
 """Communication phases and command admission, as data.
 
-Three tables per generation, each cited from its manual:
+**Phase transitions** – :data:`PHASE_TRANSITIONS`, (phase, :class:`PhaseEvent`) -> next phase, the same on all three
+cards (SI-T3 Figure 8, SI-ET3 Figure 19, SI-T/V7 §5.3 "Communications Phases"); :func:`next_phase` rejects any other
+pair with :class:`PhaseError`, in this one place.
+
+**Admission** – three tables per generation, each cited from its manual:
 
 * **phase × main command** – what a command gets in phase 1, 2 and 3:
   :data:`ML3_MAIN_PHASES` is SI-ET3 Table 9 verbatim (○ = ALLOWED, △ = IGNORED, – = PHASE_ERROR,
@@ -26,6 +30,10 @@ from mlink_sim.wire import M2Cmd, M3Cmd
 from mlink_sim.wire.combinations import ML2_COMBINATIONS, ML3_COMBINATIONS, V7_COMBINATIONS, combination_ok
 
 __all__ = [
+    "PhaseEvent",
+    "PhaseError",
+    "PHASE_TRANSITIONS",
+    "next_phase",
     "Admit",
     "ML2_MAIN_PHASES",
     "ML2_SUB_PHASES",
@@ -38,6 +46,52 @@ __all__ = [
     "admit",
     "combination_ok",
 ]
+
+
+class PhaseEvent(enum.Enum):
+    """What moves a station between phases (the arrows of SI-T3 Figure 8 / SI-ET3 Figure 19)."""
+
+    CONNECT_ASYNC = "CONNECT (asynchronous)"  #: an accepted CONNECT with SYNCMOD(E) = asynchronous
+    CONNECT_SYNC = "CONNECT (synchronous)"  #: an accepted CONNECT with SYNCMOD(E) = synchronous
+    SYNC_SET = "SYNC_SET"
+    DISCONNECT = "DISCONNECT"  #: a DISCONNECT that releases a connection
+    COMM_ALARM = "communications fault"  #: a reception-failure alarm (E6 / COMM_ALM 8H–BH)
+    WDT_ERROR = "watchdog timer fault"  #: E5 / COMM_ALM CH
+
+
+class PhaseError(RuntimeError):
+    """A phase transition the manuals do not have: a bug in the card (counted as ``internal_errors``)."""
+
+
+_E = PhaseEvent
+
+#: (phase, event) -> next phase. "phase" is the phase the station acts in: 1 for a station released by a connection
+#: loss, which is admitted "as from phase 1" and keeps showing phase 2 (docs/cards.md, "Who may change a station").
+#: SI-T3 Figure 8, SI-ET3 Figure 19, SI-T/V7 §5.3:
+#: phase 1 "the phase moves to phase 2 or phase 3 after a response to the CONNECT command is returned";
+#: phase 2 "moves to phase 3 when a SYNC_SET command is received, and it moves to phase 1 when a DISCONNECT
+#: command is received"; phase 3 "If the DISCONNECT command is received, the phase moves to phase 1. If a reception
+#: fault or a watchdog timer fault is detected, the phase moves to phase 2".
+PHASE_TRANSITIONS: Mapping[tuple[int, PhaseEvent], int] = MappingProxyType({
+    (1, _E.CONNECT_ASYNC): 2,
+    (1, _E.CONNECT_SYNC): 3,
+    (2, _E.SYNC_SET): 3,
+    (2, _E.DISCONNECT): 1,
+    (2, _E.COMM_ALARM): 2,  # reported in phase 2 (SI-T3 Table 22 / SI-T/V7 Table 7: 96, E6), no phase change
+    (3, _E.SYNC_SET): 3,  # MECHATROLINK-I/II admit SYNC_SET in phase 3 (it re-arms the watchdog); SI-ET3 Table 9: △
+    (3, _E.DISCONNECT): 1,
+    (3, _E.COMM_ALARM): 2,
+    (3, _E.WDT_ERROR): 2,  # the watchdog is checked in phase 3 only ("Watchdog timer faults ... are detected")
+})
+
+
+def next_phase(phase: int, event: PhaseEvent) -> int:
+    """The phase after *event* in *phase*; :class:`PhaseError` for a pair :data:`PHASE_TRANSITIONS` does not have."""
+    try:
+        return PHASE_TRANSITIONS[phase, event]
+    except KeyError:
+        raise PhaseError(f"{event.value} in phase {phase}: no such transition (SI-T3 Figure 8, SI-ET3 Figure 19)") \
+            from None
 
 
 class Admit(enum.Enum):
