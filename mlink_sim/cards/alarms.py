@@ -1,6 +1,7 @@
 """Alarm and warning reporting.
 
-MECHATROLINK-I/II (SI-T3 Tables 19–21, SI-T/V7 §8.1 and Table 6) – :class:`Ml2Alarms`:
+MECHATROLINK-I/II (SI-T3 Table 19 "Fault Type", SI-T3 Table 20 "Fault Type and SI-T3 Processing", SI-T3 Table 21
+"Response Data for Consecutive Alarms and/or Warnings"; SI-T/V7 §8.1 and SI-T/V7 Table 6) – :class:`Ml2Alarms`:
 
 * four kinds: drive alarm (fault, SI-T3 Table 26 / V7 Table 10 code), communications alarm (E5, E6),
   drive warning (minor fault, Table 27 / V7 Table 11 code), communications warning (94, 95, 96);
@@ -16,26 +17,40 @@ CMD_ALM per command (cleared by the next normal command, so it is simply the ver
 answered); COMM_ALM latched until the ALM_CLR command or the rising edge of CMD_CTRL.ALM_CLR, which is
 answered with ALM_CLR_CMP while the bit stays set; an alarm code replaces a warning, a newer alarm an older.
 
-The failure → code mapping (:func:`ml2_failure_code`, :func:`ml3_failure_code`) follows SI-T3 Table 22 and
-the SI-ET3 COMM_ALM table (docs/cards.md for the FCS / gap / silence distinction).
+The failure → code mapping: SI-T3 Table 22 / SI-T/V7 Table 7 as data (:data:`ML2_RECEPTION_FAILURES`, read by
+:func:`ml2_failure_code`); the SI-ET3 "COMM_ALM" codes in :func:`ml3_failure_code` (docs/cards.md for the FCS /
+gap / silence distinction).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from types import MappingProxyType
 
 from mlink_sim.wire import CommAlm, M2Alarm
 
 from .reception import FailureKind
 
-__all__ = ["Ml2Alarms", "Ml3Alarms", "ml2_failure_code", "ml3_failure_code"]
+__all__ = ["ML2_RECEPTION_FAILURES", "Ml2Alarms", "Ml3Alarms", "ml2_failure_code", "ml3_failure_code"]
 
 
-def ml2_failure_code(kind: FailureKind, first: bool) -> int:
-    """SI-T3 Table 22 / V7 Table 7: first failure 96, consecutive E6; a transmission-cycle fault is E6."""
-    if kind is FailureKind.CYCLE or not first:
-        return M2Alarm.COMM_ERROR
-    return M2Alarm.COMM_WARNING
+#: SI-T3 Table 22 "Reception Failures in Each Phase" (SI-T/V7 Table 7): phase -> ALARM code of a first reception
+#: failure, of a second (consecutive) one, and of a transmission cycle fault. Phase 1 is "−": "Even if a transfer
+#: fault is detected in phase 1, no fault notification is provided" (the station does not monitor it, reception.py).
+#: The codes are SI-T3 Table 23 (96 warning, E6 alarm); first / consecutive are counted by Station._failures.
+ML2_RECEPTION_FAILURES: Mapping[int, tuple[int, int, int]] = MappingProxyType({
+    2: (M2Alarm.COMM_WARNING, M2Alarm.COMM_ERROR, M2Alarm.COMM_ERROR),
+    3: (M2Alarm.COMM_WARNING, M2Alarm.COMM_ERROR, M2Alarm.COMM_ERROR),
+})
+
+
+def ml2_failure_code(kind: FailureKind, first: bool, phase: int) -> int:
+    """The ALARM code of a reception failure in *phase* (2 or 3), from :data:`ML2_RECEPTION_FAILURES` (SI-T3
+    Table 22 / SI-T/V7 Table 7): first failure 96, consecutive E6; a transmission cycle fault E6."""
+    first_code, consecutive, cycle_fault = ML2_RECEPTION_FAILURES[phase]
+    if kind is FailureKind.CYCLE:
+        return cycle_fault
+    return first_code if first else consecutive
 
 
 def ml3_failure_code(kind: FailureKind, first: bool, phase: int) -> int:
@@ -51,7 +66,8 @@ def ml3_failure_code(kind: FailureKind, first: bool, phase: int) -> int:
 
 
 class Ml2Alarms:
-    """ALARM byte and STATUS ALM/WARNG of MECHATROLINK-I/II responses (SI-T3 Tables 19–21, V7 Table 6)."""
+    """ALARM byte and STATUS ALM/WARNG of MECHATROLINK-I/II responses (SI-T3 Table 19, SI-T3 Table 20, SI-T3 Table 21,
+    SI-T/V7 Table 6)."""
 
     __slots__ = ("_fault_codes", "_minor_codes", "_seq", "_comm", "_warnings", "_fault", "_fault_seq",
                  "_cached")
@@ -112,7 +128,7 @@ class Ml2Alarms:
         return frozenset(self._warnings)
 
     def report(self, fault: object | None, minor: object | None, hide_fault: bool) -> tuple[int, bool, bool]:
-        """``(ALARM byte, STATUS ALM, STATUS WARNG)`` for drive *fault*/*minor* (Table 21)."""
+        """``(ALARM byte, STATUS ALM, STATUS WARNG)`` for drive *fault*/*minor* (SI-T3 Table 21, SI-T/V7 Table 6)."""
         key = (fault if not hide_fault else None, minor)
         cached = self._cached
         if cached is not None and cached[0] is key[0] and cached[1] is key[1]:

@@ -91,7 +91,8 @@ class DriveLink:
     def trip_bus(self, now: int) -> bool:
         """bUS after F6-26 communication alarms, per F6-01; only when run or reference come from the option
         (SI-T3 / SI-ET3 "bUS ... Only detected when the run command or frequency reference is assigned to the
-        option"). False when not detected."""
+        option"; SI-T3 Table 28 bUS "After establishing initial communication, the connection was lost"). False when
+        not detected."""
         s = self.drive.settings
         if not (s.run_from_network or s.ref_from_network):
             return False

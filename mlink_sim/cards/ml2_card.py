@@ -311,7 +311,8 @@ class Ml2Station(Station):
         return ml2.InvCtlResponse(ofreq, cur, body.sel_ref, body.sel_mon, mon1, mon2), Err.OK
 
     def _alm_data(self, mod: int, index: int) -> tuple[bytes, Err]:
-        """ALM_DATA (10 bytes) per SI-T3 Tables 13/14 (SI-T/V7: modes 0 and 1, two history entries)."""
+        """ALM_DATA (10 bytes): modes per SI-T3 Table 13 (ALM_RD_MOD), data per SI-T3 Table 14 (ALM_DATA); SI-T/V7:
+        modes 0 and 1, two history entries."""
         if mod not in self.alm_rd_modes:
             return bytes(10), Err.DATA
         drive = self.drive
@@ -361,7 +362,7 @@ class Ml2Station(Station):
 
     # -- failures and alarms ---------------------------------------------------------------------
     def _report_failure(self, kind: FailureKind, first: bool) -> None:
-        code = ml2_failure_code(kind, first)
+        code = ml2_failure_code(kind, first, self.phase)
         if first and kind is not FailureKind.CYCLE:
             self.alarms.warning(code)
         else:

@@ -1,9 +1,9 @@
 """SEL_REF / SEL_MON of INV_CTL and INV_I/O, per card – each card has its own tables:
 
-* SI-T3 Table 17 (SEL REF) and Table 18 (SEL MON);
-* SI-ET3 Table 21 (SEL_REF) and Table 22 (SEL_MON);
+* SI-T3 Table 17 (SEL REF) and SI-T3 Table 18 (SEL MON);
+* SI-ET3 Table 21 (SEL_REF) and SI-ET3 Table 22 (SEL_MON);
 * SI-T/V7 Table 4 (SEL REF: only 4 = terminal outputs; "5 to F Not used. The SI-T/V7 ignores the written
-  data") and Table 5 (SEL MON: 1 = output frequency, not motor speed; 9, A, D–F not used).
+  data") and SI-T/V7 Table 5 (SEL MON: 1 = output frequency, not motor speed; 9, A, D–F not used).
 
 The tables themselves are data in :mod:`mlink_sim.wire.selections` (``SEL_REF_TABLES``, ``SEL_MON_TABLES``); SEL_MON
 code → monitor name reaches the card through :meth:`DriveLink.sel_mon_name`. Here the card resolves what only it knows: E/F read the MEMOBUS register

@@ -1,5 +1,5 @@
-"""Parameters as PRM_RD / PRM_WR / CONFIG see them (SI-T3 Tables 8, 9, 12; SI-ET3 PRM_RD, PRM_WR, CONFIG
-Table 15; SI-T/V7 §7.1).
+"""Parameters as PRM_RD / PRM_WR / CONFIG see them (SI-T3 Table 8, SI-T3 Table 9, SI-T3 Table 12; SI-ET3 PRM_RD,
+PRM_WR, CONFIG Table 15; SI-T/V7 §7.1).
 
 * Register numbers are MEMOBUS register numbers ("The register number (NO) is the same as the register
   number that is set and referenced in MEMOBUS/Modbus transfers"); SIZE is 2, 4, 6 or 8 bytes = 1–4
@@ -54,7 +54,7 @@ class ParamStore:
         return raw & 0xFFFF
 
     def read(self, no: int, size: int, monitor: Callable[[str], int]) -> tuple[bytes, Err]:
-        """PRM_RD: ``(PARAMETER bytes (8, zero padded), verdict)``."""
+        """PRM_RD: ``(PARAMETER bytes (8, zero padded), verdict)`` (SI-T3 Table 8 reads C1-01 at register 200H)."""
         if size not in SIZES or no + size // 2 > 0x10000:
             return _ZERO8, Err.DATA
         words = []

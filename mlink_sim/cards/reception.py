@@ -1,8 +1,12 @@
 """Reception-failure monitor: missed commands from gaps in the cycle numbers and from silence.
 
-SI-T3 Tables 22–24 / SI-T/V7 Tables 7–9: in phases 2 and 3 the first reception failure is warning 96,
-a second consecutive one alarm E6; phase 1 never notifies. SI-ET3 "COMM_ALM": warnings 1/2/3, alarms
-8/9/A. This module only counts; :mod:`mlink_sim.cards.alarms` turns the counts into codes.
+What is counted: the "Communications failure" of SI-T3 Table 24 (SI-T/V7 Table 9, "Transmission LSI detected a
+data reception failure") and its "Transmission cycle fault" (:class:`FailureKind`); the watchdog timer error of
+the same tables is :mod:`mlink_sim.cards.watchdog`'s. In phases 2 and 3 the first reception failure is warning 96,
+a second consecutive one alarm E6, and phase 1 never notifies: SI-T3 Table 22 / SI-T/V7 Table 7, as data in
+:data:`mlink_sim.cards.alarms.ML2_RECEPTION_FAILURES` (the codes are SI-T3 Table 23 / SI-T/V7 Table 8). SI-ET3
+"COMM_ALM": warnings 1/2/3, alarms 8/9/A (:func:`mlink_sim.cards.alarms.ml3_failure_code`). This module only
+counts.
 
 A failure is one communication cycle (transmission cycle × COM_TIM, SI-ET3 CONNECT) without a valid command
 for this station. Two detectors feed the same count, so nothing is counted twice:

@@ -2,7 +2,7 @@
 
 MECHATROLINK-I/II report a refused command as a communications warning in the ALARM byte (SI-T3 Table 25,
 SI-T/V7 "Other Faults"): A.94 data setting warning, A.95 command warning – "Received commands are ignored".
-MECHATROLINK-III reports it in CMD_ALM / SUBCMD_ALM (SI-ET3 "CMD_ALM", Table 25).
+MECHATROLINK-III reports it in CMD_ALM / SUBCMD_ALM (SI-ET3 "CMD_ALM", SI-ET3 Table 25 "SUBCMD_ALM").
 """
 
 from __future__ import annotations

@@ -40,7 +40,7 @@ from .reception import FailureKind
 from .results import Err
 from .settings import CardSettings
 
-__all__ = ["SiEt3", "MAIN_HANDLERS", "SUB_HANDLERS", "VALID_TCYCLES_NS"]
+__all__ = ["SiEt3", "MAIN_HANDLERS", "SUB_HANDLERS", "VALID_TCYCLES_NS", "MANUAL_TABLES", "cmd_stat"]
 
 _ZERO_MAIN = bytes(ml3.RESPONSE_MAIN.size)
 _ZERO_SUB = bytes(ml3.RESPONSE_SUB.size)
@@ -77,7 +77,8 @@ _KIND_RESPONSE = int(Kind.RESPONSE)
 _SUBCMDRDY = ml3.SubStat(subcmdrdy=True).to_int()  # SUB_STAT with SUBCMDRDY only (Table 24)
 _US = 1_000
 
-#: ID_CODE 18H = 03H granularity within 16H (250 µs) … 17H (8 ms): 250, 500, 750 µs and 1–8 ms in 0.5 ms steps.
+#: ID_CODE 18H = 03H granularity within 16H (250 µs) … 17H (8 ms): 250, 500, 750 µs and 1–8 ms in 0.5 ms steps
+#: (Table 14; Table 28 "Minimum transmission cycle 250 μs", "Maximum transmission cycle 8 ms").
 VALID_TCYCLES_NS = frozenset({250 * _US, 500 * _US, 750 * _US} | {1000 * _US + 500 * _US * k for k in range(15)})
 _COMM_MIN_NS, _COMM_MAX_NS = 250 * _US, 32_000 * _US  # ID_CODE 19H / 1AH
 
@@ -273,6 +274,8 @@ class SiEt3(Station):
         return invcmd_stat, ofreq, cur, mon1, mon2
 
     def _process_sub(self, main_code: int, sub: Any, phase: int, subcmd: bool, now: int) -> tuple[Any, Err]:
+        """The sub-command: admission (Table 10), combination (Table 13), handler; SUB_CTRL (Table 23) is reserved
+        bits only and not read."""
         stype = type(sub)
         scode = sub.code if stype is Unknown else _SUB_CODE[stype]
         row = ML3_SUB_PHASES.get(scode)
@@ -311,7 +314,7 @@ class SiEt3(Station):
         return ml3.AlmRdResponse(sub.alm_rd_mod, sub.alm_index, data), err
 
     def _handle_connect(self, body: ml3.Connect, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
-        """CONNECT (Tables 18/19): phase 2 or 3 per SYNCMODE."""
+        """CONNECT (Table 18 COM_MOD): phase 2 or 3 per SYNCMODE (Table 19)."""
         err, sync, cyc = self._check_connect(body, frame.tcycle_ns)
         self.drive.minor(Fault.CYC, cyc, now)  # Table 26 CYC "Communications Cycle Setting Error"
         if err is not Err.OK:
@@ -336,7 +339,7 @@ class SiEt3(Station):
         return ml3.InvCtlResponse(invcmd_stat, 0, ofreq, cur, body.sel_ref, body.sel_mon, mon1, mon2), Err.OK
 
     def _alm_data(self, mod: int, index: int) -> tuple[bytes, Err]:
-        """ALM_DATA from byte 8, two bytes per code (SI-ET3 Tables 16/17)."""
+        """ALM_DATA from byte 8, two bytes per code: modes per Table 16 (ALM_RD_MOD), data per Table 17 (ALM_DATA)."""
         drive = self.drive
         if mod == 0:
             names = ("U2-01", "U2-02")
@@ -350,7 +353,8 @@ class SiEt3(Station):
         return data.ljust(20, b"\0"), Err.OK
 
     def _check_connect(self, body: ml3.Connect, tcycle: int) -> tuple[Err, bool, bool]:
-        """``(verdict, synchronous, cycle fault)`` of a CONNECT (SI-ET3 CONNECT, Tables 18/19, Table 14)."""
+        """``(verdict, synchronous, cycle fault)`` of a CONNECT (SI-ET3 CONNECT): COM_MOD per Table 18 and its bits per
+        Table 19, the cycles per Table 14 (ID_CODE 16H–1AH) and Table 28."""
         mod = body.com_mod
         if body.ver != 0x30 or mod & 0x71 or mod & 0x0C:  # VER 30H; reserved bits; DTMODE 0 only
             return Err.DATA, False, False
@@ -434,3 +438,37 @@ SUB_HANDLERS: Mapping[int, SubHandler] = MappingProxyType({
 })
 SiEt3.handlers = MAIN_HANDLERS
 SiEt3.sub_handlers = SUB_HANDLERS
+
+#: Every table of the SI-ET3 manual -> where it is implemented (``mlink_sim.``-relative), or None for hardware and
+#: installation the simulator does not model. Each target cites the table by its own number ("SI-ET3 Table n");
+#: tests/cards/test_manual_tables.py checks titles against the manual, targets and citations.
+MANUAL_TABLES: Mapping[int, tuple[str, str | None]] = MappingProxyType({
+    1: ("Compatible Products", None),
+    2: ("Option Package Contents", None),
+    3: ("Communication Connector", None),
+    4: ("Option LED States", "cards.si_et3.SiEt3._leds"),
+    5: ("Procedures for Installing and Wiring Options on a Drive", None),
+    6: ("MECHATROLINK-III Communication Cable", None),
+    7: ("Related Parameter Settings", "cards.si_et3.SiEt3._power_up"),
+    8: ("Command Format of the Standard Profile Common Commands", "wire.ml3"),
+    9: ("Main Command Communication Phases", "cards.phases.ML3_MAIN_PHASES"),
+    10: ("Sub-Command Communication Phases", "cards.phases.ML3_SUB_PHASES"),
+    11: ("Main Commands", "cards.si_et3.MAIN_HANDLERS"),
+    12: ("Sub-Commands", "cards.si_et3.SUB_HANDLERS"),
+    13: ("Main Commands and Sub-Commands", "cards.phases.ML3_COMBINATIONS"),
+    14: ("ID_CODE", "cards.idinfo.ml3_id_data"),
+    15: ("CONFIG_MOD", "cards.base.Station.config"),
+    16: ("ALM_RD_MOD", "cards.si_et3.SiEt3._alm_data"),
+    17: ("ALM_DATA", "cards.si_et3.SiEt3._alm_data"),
+    18: ("COM_MOD", "cards.si_et3.SiEt3._check_connect"),
+    19: ("COM_MOD Bits", "cards.si_et3.SiEt3._check_connect"),
+    20: ("INVCMD_CTRL Bits", "cards.si_et3.SiEt3._inv_ctl"),
+    21: ("SEL_REF Reference Data Codes", "cards.monitors.SEL_REF_TABLES"),
+    22: ("SEL_MON Monitor Data Codes", "cards.monitors.sel_mon_value"),
+    23: ("SUB_CTRL", "cards.si_et3.SiEt3._process_sub"),
+    24: ("SUB_STAT", "cards.si_et3.SiEt3._process"),
+    25: ("SUBCMD_ALM", "cards.results.Err"),
+    26: ("Fault Display and Possible Solutions", "cards.si_et3.SiEt3._handle_connect"),
+    27: ("Option Compatibility", None),
+    28: ("Option Specifications", "cards.si_et3.VALID_TCYCLES_NS"),
+})

@@ -22,7 +22,7 @@ from mlink_sim.wire import Link, M2Cmd
 from .ml2_card import MAIN_HANDLERS, SUB_HANDLERS, Ml2Station
 from .settings import CardSettings
 
-__all__ = ["SiT3"]
+__all__ = ["SiT3", "MANUAL_TABLES"]
 
 
 class SiT3(Ml2Station):
@@ -60,3 +60,38 @@ class SiT3(Ml2Station):
             "RX": "on" if self._led_recent(self._any_rx) else "off",
         }
         return leds, {"RUN": "green", "ERR": "red", "TX": "green", "RX": "green"}
+
+#: Every table of the SI-T3 manual -> where it is implemented (``mlink_sim.``-relative), or None for hardware the
+#: simulator does not model. Each target cites the table by its own number ("SI-T3 Table n");
+#: tests/cards/test_manual_tables.py checks titles against the manual, targets and citations.
+MANUAL_TABLES: Mapping[int, tuple[str, str | None]] = MappingProxyType({
+    1: ("Contents of Package", None),
+    2: ("Communication connector", None),
+    3: ("MECHATROLINK-II Operation LED Status", "cards.si_t3.SiT3._leds"),
+    4: ("Parameter Settings", "cards.si_t3.SiT3._power_up"),
+    5: ("Main Commands", "cards.ml2_card.MAIN_HANDLERS"),
+    6: ("Sub-commands", "cards.si_t3.SiT3.sub_handlers"),
+    7: ("Main Command and Sub-command", "cards.phases.ML2_COMBINATIONS"),
+    8: ("Example when reading C1-01 (200H)", "cards.paramstore.ParamStore.read"),
+    9: ("Example when writing in C1-01 (200H)", "cards.paramstore.ParamStore.write"),
+    10: ("DEVICE_CODE", "cards.idinfo.ML2_ID_AREAS"),
+    11: ("Vender Code (DEVICE_CODE = 0FH)", "cards.idinfo.ML2_ID_AREAS"),
+    12: ("CONFIG_MOD", "cards.base.Station.config"),
+    13: ("ALM_RD_MOD", "cards.ml2_card.Ml2Station._alm_data"),
+    14: ("ALM_DATA", "cards.ml2_card.Ml2Station._alm_data"),
+    15: ("ALM_CLR_MOD", "cards.commands.alm_clr"),
+    16: ("Operation Signals", "cards.ml2_card.Ml2Station._inv_ctl"),
+    17: ("SEL REF1/2 (3/4, 5/6) Selection Range", "cards.monitors.SEL_REF_TABLES"),
+    18: ("SEL MON1/2 (3/4, 5/6) Selection Range", "cards.monitors.sel_mon_value"),
+    19: ("Fault Type", "cards.alarms.Ml2Alarms"),
+    20: ("Fault Type and SI-T3 Processing", "cards.alarms.Ml2Alarms"),
+    21: ("Response Data for Consecutive Alarms and/or Warnings", "cards.alarms.Ml2Alarms.report"),
+    22: ("Reception Failures in Each Phase", "cards.alarms.ML2_RECEPTION_FAILURES"),
+    23: ("Alarm Code (MECHATROLINK-II Response ALARM Value)", "wire.codes.M2Alarm"),
+    24: ("Fault Types", "cards.reception.FailureKind"),
+    25: ("Other fault detected by SI-T3", "cards.results.Err"),
+    26: ("Drive Alarm Codes", "drive.faults.SI_T3_FAULT_CODES"),
+    27: ("Drive Minor Fault and Alarm", "drive.faults.SI_T3_MINOR_CODES"),
+    28: ("Fault Display and Possible Solutions", "cards.drive_link.DriveLink.trip_bus"),
+    29: ("Option Specifications", "cards.si_t3.SiT3._power_up"),
+})

@@ -12,6 +12,8 @@
 * Alarms: §8, Tables 6–11. A communications alarm is notified to the inverter at once (§8.1 "Notification
   to Inverter"): it faults BUS (Table 10 E6H) when run or reference come from the option (n003 = 3 / n004 = 9).
 * LEDs (§3.3): RUN, ERR, TX, RX.
+* Table 12 (causes of the faults the Digital Operator displays): the display names of
+  :class:`mlink_sim.drive.faults.Fault`, coded per Table 10 / Table 11.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from .phases import V7_COMBINATIONS, V7_SUB_PHASES
 from .results import Err
 from .settings import CardSettings
 
-__all__ = ["SiTV7"]
+__all__ = ["SiTV7", "MANUAL_TABLES"]
 
 
 def _sub_command_only_in_32byte(handler: Handler) -> Handler:
@@ -90,3 +92,21 @@ class SiTV7(Ml2Station):
             "RX": "on" if self._led_recent(self._any_rx) else "off",
         }
         return leds, {"RUN": "green", "ERR": "red", "TX": "green", "RX": "green"}
+
+#: Every numbered table of the SI-T/V7 manual -> where it is implemented (``mlink_sim.``-relative). Each target
+#: cites the table by its own number ("SI-T/V7 Table n" or "V7 Table n"); tests/cards/test_manual_tables.py checks
+#: titles against the manual, targets and citations. (The ID_RD and phase tables of the manual are unnumbered.)
+MANUAL_TABLES: Mapping[int, tuple[str, str | None]] = MappingProxyType({
+    1: ("Main Commands", "cards.ml2_card.MAIN_HANDLERS"),
+    2: ("Sub-commands", "cards.ml2_card.SUB_HANDLERS"),
+    3: ("Operation Signals", "cards.ml2_card.Ml2Station._inv_ctl"),
+    4: ("SEL REF1/2 Selection Range", "cards.monitors.SEL_REF_TABLES"),
+    5: ("SEL MON1/2 Selection Range", "cards.monitors.sel_mon_value"),
+    6: ("Response Data for Consecutive Alarms and/or Warnings", "cards.alarms.Ml2Alarms.report"),
+    7: ("Reception Failures in Each Phase", "cards.alarms.ML2_RECEPTION_FAILURES"),
+    8: ("Alarm Code (MECHATROLINK-II Response ALARM Value)", "wire.codes.M2Alarm"),
+    9: ("Fault Types", "cards.reception.FailureKind"),
+    10: ("Inverter Alarm Codes", "drive.faults.V7_FAULT_CODES"),
+    11: ("Inverter Warning Codes", "drive.faults.V7_WARNING_CODES"),
+    12: ("Causes and Countermeasures of Main Faults Displayed on VSmini V7 Digital Operator", "cards.si_t_v7"),
+})
