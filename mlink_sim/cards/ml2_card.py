@@ -20,12 +20,12 @@ from typing import Any, ClassVar
 from mlink_sim.wire import (
     MAGIC, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, Unknown, encode, ml2,
 )
-from mlink_sim.wire.frame import HEADER, HEADER_SIZE, fcs_ok, with_fcs
-from mlink_sim.wire.layout import fast_struct, field_offset
+from mlink_sim.wire.frame import FCS_SIZE, HEADER, HEADER_SIZE, fcs_ok, with_fcs
+from mlink_sim.wire.layout import fast_struct
 
 from . import commands
 from .alarms import Ml2Alarms, ml2_failure_code
-from .base import SLOW, Station
+from .base import SLOW, Station, datagram_offset
 from .commands import Handler, SubHandler
 from .drive_link import DriveCommand, Fault, ml2_status_bits
 from .eeprom import BUSY
@@ -49,20 +49,11 @@ _INV_CTL = fast_struct(ml2.COMMAND_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml
 _INV_CTL_R = fast_struct(ml2.RESPONSE_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.RESPONSE_MAIN.size)
 _RF17 = fast_struct(ml2.RESPONSE_FRAME_17, 17)
 _RF32 = fast_struct(ml2.RESPONSE_FRAME_32, 32)
-
-
-def _command_at(name: str) -> int:
-    """Datagram offset of command frame field *name*, the same in 17- and 32-byte frames."""
-    at = field_offset(ml2.COMMAND_FRAME_17, name)
-    if at != field_offset(ml2.COMMAND_FRAME_32, name):
-        raise ValueError(f"MECHATROLINK-II command field {name!r} moves with the frame size")
-    return HEADER_SIZE + at
-
-
-_CODE_AT = _command_at("code")
-_MAIN_AT = _command_at("main")
-_WDT_AT = _command_at("wdt")
-_SUBCODE_AT = HEADER_SIZE + field_offset(ml2.COMMAND_FRAME_32, "subcode")
+_FRAMES = (ml2.COMMAND_FRAME_17, ml2.COMMAND_FRAME_32)  # both frame sizes: the fields below sit alike
+_CODE_AT = datagram_offset("code", *_FRAMES)
+_MAIN_AT = datagram_offset("main", *_FRAMES)
+_WDT_AT = datagram_offset("wdt", *_FRAMES)
+_SUBCODE_AT = datagram_offset("subcode", ml2.COMMAND_FRAME_32)
 _CMD_INV_CTL = int(M2Cmd.INV_CTL)
 _KIND_COMMAND = int(Kind.COMMAND)
 _KIND_RESPONSE = int(Kind.RESPONSE)
@@ -122,7 +113,7 @@ class Ml2Station(Station):
         self._status_seen: object = None  # the DriveStatus self._status_word was computed from
         self._status_word = 0
         self._deferred_cyc = False
-        self._fast_len = 12 + self.data_size + 2
+        self._fast_len = HEADER_SIZE + self.data_size + FCS_SIZE
 
     # -- the command ---------------------------------------------------------------------------
     def _process(self, frame: Frame, source: Hashable, now: int) -> bytes:

@@ -24,12 +24,12 @@ from typing import Any, ClassVar
 from mlink_sim.wire import (
     MAGIC, PROFILE_TYPE_INVERTER, CommAlm, Frame, Kind, Link, M3Cmd, Unknown, encode, ml3,
 )
-from mlink_sim.wire.frame import HEADER, HEADER_SIZE, fcs_ok, with_fcs
-from mlink_sim.wire.layout import fast_struct, field_offset
+from mlink_sim.wire.frame import FCS_SIZE, HEADER, HEADER_SIZE, fcs_ok, with_fcs
+from mlink_sim.wire.layout import fast_struct
 
 from . import commands
 from .alarms import Ml3Alarms, ml3_failure_code
-from .base import SLOW, Station
+from .base import SLOW, Station, datagram_offset
 from .commands import Handler, SubHandler
 from .drive_link import DriveCommand, DriveStatus, Fault, ml3_invcmd_stat_bits
 from .eeprom import BUSY
@@ -55,21 +55,12 @@ _INV_CTL = fast_struct(ml3.COMMAND_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml
 _INV_CTL_R = fast_struct(ml3.RESPONSE_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.RESPONSE_MAIN.size)
 _RF32 = fast_struct(ml3.RESPONSE_FRAME_32, 32)
 _RF64 = fast_struct(ml3.RESPONSE_FRAME_64, 64)
-
-
-def _command_at(name: str) -> int:
-    """Datagram offset of command frame field *name*, the same in 32- and 64-byte frames."""
-    at = field_offset(ml3.COMMAND_FRAME_32, name)
-    if at != field_offset(ml3.COMMAND_FRAME_64, name):
-        raise ValueError(f"MECHATROLINK-III command field {name!r} moves with the frame size")
-    return HEADER_SIZE + at
-
-
-_CODE_AT = _command_at("code")
-_WDT_AT = _command_at("wdt")
-_CTRL_AT = _command_at("cmd_ctrl")  # CMD_CTRL's low byte: ALM_CLR (bit 3), CMD_ID (bits 6-7)
-_MAIN_AT = _command_at("main")
-_SUBCODE_AT = HEADER_SIZE + field_offset(ml3.COMMAND_FRAME_64, "subcode")
+_FRAMES = (ml3.COMMAND_FRAME_32, ml3.COMMAND_FRAME_64)  # both frame sizes: the fields below sit alike
+_CODE_AT = datagram_offset("code", *_FRAMES)
+_WDT_AT = datagram_offset("wdt", *_FRAMES)
+_CTRL_AT = datagram_offset("cmd_ctrl", *_FRAMES)  # CMD_CTRL's low byte: ALM_CLR (bit 3), CMD_ID (bits 6-7)
+_MAIN_AT = datagram_offset("main", *_FRAMES)
+_SUBCODE_AT = datagram_offset("subcode", ml3.COMMAND_FRAME_64)
 _CMD_INV_CTL = int(M3Cmd.INV_CTL)
 _LINK = int(Link.ML3)
 _KIND_COMMAND = int(Kind.COMMAND)
@@ -81,7 +72,6 @@ _US = 1_000
 #: (Table 14; Table 28 "Minimum transmission cycle 250 μs", "Maximum transmission cycle 8 ms").
 VALID_TCYCLES_NS = frozenset({250 * _US, 500 * _US, 750 * _US} | {1000 * _US + 500 * _US * k for k in range(15)})
 _COMM_MIN_NS, _COMM_MAX_NS = 250 * _US, 32_000 * _US  # ID_CODE 19H / 1AH
-
 
 
 def cmd_stat(status: DriveStatus, alarms: Ml3Alarms, ready: bool, ctrl: int, cmd_alm: int,
@@ -137,7 +127,7 @@ class SiEt3(Station):
         self._status_word = 0
         self._last_cmd_alm = 0
         self._last_sub_alm = 0
-        self._fast_len = 12 + self.data_size + 2
+        self._fast_len = HEADER_SIZE + self.data_size + FCS_SIZE
 
     def _power_up(self, values: Mapping[str, int], settings: CardSettings) -> None:
         self.address = values["F6-20"]
