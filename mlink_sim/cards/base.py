@@ -192,7 +192,8 @@ class Station(abc.ABC):
         ...
 
     def _observe_drive(self) -> None:
-        """Take note of the drive's fault now (MECHATROLINK-II "most recent alarm" ordering)."""
+        """Take note of the drive's fault now (MECHATROLINK-II "most recent alarm" ordering); nothing by default."""
+        return None
 
     @abc.abstractmethod
     def _leds(self) -> tuple[dict[str, str], dict[str, str]]:

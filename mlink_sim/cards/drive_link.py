@@ -67,10 +67,10 @@ class DriveLink:
         self._restored: list[Fault] = [f for f in restored if f is not None][:HISTORY_DEPTH]
         self._card_label = card_label
         self._sel_mon = SEL_MON_TABLES.get(card_label, ("",) * 16)
-        # SEL_MON codes whose value only the drive's state decides (Tables SI-T3 18 / SI-ET3 22 / SI-T/V7 5):
+        # SEL_MON codes whose value only the drive's state decides (SI-T3 Table 18 / SI-ET3 Table 22 / SI-T/V7 Table 5):
         # not the fault history (U2-xx, U3-xx, U-09) nor a parameter (F6-23/F6-24).
         self._mon_static = tuple(
-            name in ("", "ALARM", "WARNING") or (name.startswith("U1-") or name.startswith("U-")) and name != "U-09"
+            name in ("", "ALARM", "WARNING") or name.startswith(("U1-", "U-")) and name != "U-09"
             for name in self._sel_mon)
 
     # -- time and commands ------------------------------------------------------------------------

@@ -6,10 +6,10 @@
   data") and SI-T/V7 Table 5 (SEL MON: 1 = output frequency, not motor speed; 9, A, D–F not used).
 
 The tables themselves are data in :mod:`mlink_sim.wire.selections` (``SEL_REF_TABLES``, ``SEL_MON_TABLES``); SEL_MON
-code → monitor name reaches the card through :meth:`DriveLink.sel_mon_name`. Here the card resolves what only it knows: E/F read the MEMOBUS register
-set in F6-23/F6-24 at power-up (any parameter or monitor register, through the parameter store), 7/8 the
-drive's fault / minor-fault code (SI-T3 Tables 26/27, SI-T/V7 Tables 10/11), and U2/U3 the fault history that
-survives power cycles. Values travel as 16-bit two's complement.
+code → monitor name reaches the card through :meth:`DriveLink.sel_mon_name`. Here the card resolves what only it
+knows: E/F read the MEMOBUS register set in F6-23/F6-24 at power-up (any parameter or monitor register, through
+the parameter store), 7/8 the drive's fault / minor-fault code (SI-T3 Tables 26/27, SI-T/V7 Tables 10/11), and
+U2/U3 the fault history that survives power cycles. Values travel as 16-bit two's complement.
 
 SEL_REF codes are recorded (they show in the station snapshot); the drive model has no analog outputs, PID
 or pulse output, so REF values change nothing else. Codes a table marks unused are ignored, as the SI-T/V7

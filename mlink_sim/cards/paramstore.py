@@ -72,7 +72,7 @@ class ParamStore:
             return Err.DATA, {}
         words = _WORDS[size // 2].unpack_from(data)
         changes: dict[str, int] = {}
-        for reg, word in zip(range(no, no + size // 2), words):
+        for reg, word in zip(range(no, no + size // 2), words, strict=True):
             p = self.table.by_register(reg)
             if p is None or p.read_only:
                 return Err.DATA, {}

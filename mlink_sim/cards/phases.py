@@ -102,7 +102,7 @@ class Admit(enum.Enum):
     PHASE_ERROR = "phase error"  #: not executed; A.95 (MECHATROLINK-I/II) or CMD_ALM/SUBCMD_ALM CH (MECHATROLINK-III)
 
 
-A, I, E = Admit.ALLOWED, Admit.IGNORED, Admit.PHASE_ERROR
+A, I, E = Admit.ALLOWED, Admit.IGNORED, Admit.PHASE_ERROR  # noqa: E741 - the tables' marks ○ △ – as letters
 
 
 def _freeze(table: dict[int, tuple[Admit, Admit, Admit]]) -> Mapping[int, tuple[Admit, Admit, Admit]]:

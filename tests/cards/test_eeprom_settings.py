@@ -195,15 +195,15 @@ def test_config_to_eeprom_busy_until_durable_then_completed_once(card: str) -> N
     mod = ml3 if m.ml3 else ml2
     reg = 0x0113 if card == "si-t-v7" else 0x0200
 
-    def ready(r) -> bool:  # noqa: ANN001
+    def ready(r) -> bool:
         if m.ml3:
             return bool(r.message.stat.cmdrdy)
         return bool(r.message.substatus & 0x04 if sub else r.message.status & M2Status.CMDRDY)
 
-    def config():  # noqa: ANN202
+    def config():
         return m.send(mod.Nop(), mod.Config(1)) if sub else m.send(mod.Config(1))
 
-    def write(value: int):  # noqa: ANN202
+    def write(value: int):
         body = mod.PrmWr(reg, 2, _word(value))
         return m.send(mod.Nop(), body) if sub else m.send(body)
 
