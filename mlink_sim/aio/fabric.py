@@ -206,6 +206,12 @@ class Fabric:
         port.on_datagram(data, self.clock.now)
 
     # ------------------------------------------------------------------ polls
+    def rearm(self, address: int) -> None:
+        """The station's deadline may be sooner than armed (a drive fault changed its drive): poll it then."""
+        node = self.nodes.get(address)
+        if node is not None:
+            self._arm(node)
+
     def _arm(self, node: _Node) -> None:
         station = node.station
         if station is None:

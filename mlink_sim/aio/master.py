@@ -38,6 +38,8 @@ from ..master import (
     StationState,
     StationView,
 )
+from ..faults import Episode, FaultSpec, FaultStage, MasterFault, StationTraits
+from ..faults.stage import is_healthy
 from ..wire import Link, ml2, ml3
 from .ticker import CycleTimer
 from .udp import bound_socket, close_watched
@@ -111,6 +113,8 @@ class Master:
         self._note: Callable[[int, Any], None] | None = None  #: a capture's note hook (``capture=``)
         #: every alarm each station raised (AlarmRaised), by name: what ``expect = "alarm-seen"`` reads
         self.alarms_seen: dict[int, Counter[str]] = {}
+        #: the master-side faults (mlink_sim.faults.stage), made on the first fault: None costs nothing per cycle
+        self.faults: FaultStage | None = None
         self._closed = False
         self._log = get_logger(__name__).bind(component="master", link=core.plan.link.name)
 
@@ -297,6 +301,45 @@ class Master:
     def views(self) -> dict[int, StationView]:
         return self.core.views()
 
+    # ------------------------------------------------------------------ faults (docs/faults.md)
+    def fault_stage(self) -> FaultStage:
+        """The master-side fault stage of this master's stations, made on first use."""
+        if self.faults is None:
+            core, metrics = self.core, self.metrics
+            self.faults = FaultStage(
+                [StationTraits(sp.address, "v7" if sp.is_v7 else "a1000", sp.subcmd) for sp in core.plan.stations],
+                healthy=lambda a: is_healthy(core.view(a)), on_recovery=getattr(metrics, "record_recovery", None),
+                on_unrecovered=getattr(metrics, "record_unrecovered", None))
+        return self.faults
+
+    def inject_fault(self, station: int, fault: MasterFault) -> Episode:
+        """Start the master-side *fault* (silence, skip-cycles, freeze-wdt, bad-command) on *station* now."""
+        self.core.plan.station(station)  # KeyError for a station of another master
+        return self.fault_stage().inject(station, fault, self._now())
+
+    def begin_fault(self, station: int, fault: FaultSpec, end_ns: int | None = None) -> Episode:
+        """A fault applied on the slave side (a drive fault) begins now: its recovery is measured after
+        :meth:`end_fault` (or *end_ns*, a time on this master's clock)."""
+        return self.fault_stage().begin(station, fault, self._now(), end_ns)
+
+    def end_fault(self, episode: Episode) -> None:
+        self.fault_stage().end(episode, self._now())
+
+    def now_ns(self) -> int:
+        """This master's clock (monotonic ns; a virtual master's simulated time)."""
+        return self._now()
+
+    def deliver(self, datagram: bytes, now: int) -> None:
+        """One response for the core, through the fault stage when a fault is in force (a silenced station's is
+        dropped)."""
+        faults = self.faults
+        if faults is not None and faults.active and len(datagram) > 3:
+            kept = faults.to_master(datagram[3], datagram, now)
+            if kept is None:
+                return
+            datagram = kept
+        self.core.on_response(datagram, now)
+
     def _future(self, req: Request) -> asyncio.Future[Any]:
         fut: asyncio.Future[Any] = self._loop.create_future()
 
@@ -322,13 +365,19 @@ class Master:
         self.read_responses()  # answers already here belong to the cycle that just ended
         endpoints = self.endpoints
         sendto = sock.sendto
-        for station, datagram in self.core.on_cycle(cycle, now_ns):
+        out = self.core.on_cycle(cycle, now_ns)
+        faults = self.faults
+        if faults is not None and faults.active:
+            out = [(s, d) for s, d in ((s, faults.to_station(s, d, now_ns)) for s, d in out) if d is not None]
+        for station, datagram in out:
             try:
                 sendto(datagram, endpoints[station])
             except OSError as exc:  # BlockingIOError (send buffer full) included: that datagram is lost
                 self._on_error(exc)
             metrics.record_sent(station)
         self._pump()
+        if faults is not None and faults.watching:
+            faults.after_cycle(now_ns)
 
     on_cycle = _on_cycle  #: the cycle callback, for a shared clock
 
@@ -339,7 +388,8 @@ class Master:
         if sock is None:
             return
         recv = sock.recv
-        on_response = self.core.on_response
+        faults = self.faults
+        on_response = self.core.on_response if faults is None or not faults.active else self.deliver
         for _ in range(limit):
             try:
                 data = recv(4096)

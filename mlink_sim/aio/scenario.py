@@ -14,6 +14,8 @@ from typing import Any, Protocol
 
 from .._log import get_logger
 from ..config import CARD_FAMILY, Config, StationConfig, TimelineStep
+from ..config.faults import step_fault
+from ..faults.spec import FAULT_ACTIONS
 from ..drive import DriveSettings, Family
 from ..drive.monitors import hz_to_ref, ref_to_hz
 from ..params import FAMILIES
@@ -93,6 +95,9 @@ class CheckResult:
 class NetworkHandle(Protocol):
     """What the scenario needs from the running network (implemented in :mod:`mlink_sim.aio.network`)."""
 
+    fault_control: Any  #: aio.faults.FaultControl (the fault stage of each station, for the recovery checks)
+    async def fault(self, station: int, fault: Any) -> Any: ...
+
     def view(self, station: int) -> Any: ...
     def set_control(self, station: int, **fields: Any) -> None: ...
     def control(self, station: int) -> Any: ...
@@ -160,6 +165,7 @@ class Scenario:
         self.started = 0  #: steps begun so far, in order of time (``steps[:started]``)
         #: called with each action step's description as it begins (a capture's comments: ``--capture``)
         self.note: Callable[[str], None] | None = None
+        self._waiting: set[asyncio.Task[None]] = set()  # checks that wait (recovered, refused)
 
     @property
     def current(self) -> TimelineStep | None:
@@ -180,9 +186,16 @@ class Scenario:
             self.started += 1
             if step.do:
                 await self._act(step)
+            elif step.expect in ("recovered", "refused"):
+                for address in self._targets(step):
+                    task = asyncio.get_running_loop().create_task(self._wait_check(step, address))
+                    self._waiting.add(task)
+                    task.add_done_callback(self._waiting.discard)
             else:
                 for address in self._targets(step):
                     self.results.append(self.check(step, address))
+        if self._waiting:
+            await asyncio.gather(*list(self._waiting))
 
     # -- actions ----------------------------------------------------------------------------------------------
 
@@ -235,8 +248,23 @@ class Scenario:
         elif step.do == "kill-slave":
             if not net.kill_slave(address):
                 raise RuntimeError("kill-slave works only under 'mlink-sim up'")
+        elif step.do in FAULT_ACTIONS:
+            await net.fault(address, step_fault(step))
 
     # -- checks -----------------------------------------------------------------------------------------------
+
+    async def _wait_check(self, step: TimelineStep, address: int) -> None:
+        """``recovered`` / ``refused``: wait (without holding up the timeline) until the answer is known."""
+        from .faultchecks import recovered, refused
+
+        check = recovered if step.expect == "recovered" else refused
+        try:
+            ok, detail = await check(self.net.fault_control, step, address, self.config.network.transmission_cycle)
+        except Exception as exc:  # noqa: BLE001 - a check that cannot be made fails, it does not stop the run
+            ok, detail = False, f"could not check: {exc}"
+        result = CheckResult(step.at / 1e9, address, _label(step, address), ok, detail)
+        log.info("timeline_check", what=result.what, ok=ok, detail=detail)
+        self.results.append(result)
 
     def check(self, step: TimelineStep, address: int) -> CheckResult:
         view = self.net.view(address)
@@ -280,7 +308,11 @@ class Scenario:
                 "alarms seen: " + ", ".join(f"{k} ×{v}" for k, v in sorted(seen.items())) if seen else "no alarm seen")
         else:  # pragma: no cover - validated by the config model
             ok, detail = False, f"unknown check {what!r}"
-        result = CheckResult(step.at / 1e9, address, step.describe if step.station != "all"
-                             else step.describe.replace("all stations", f"station {address:#04x}"), ok, detail)
+        result = CheckResult(step.at / 1e9, address, _label(step, address), ok, detail)
         log.info("timeline_check", what=result.what, ok=ok, detail=detail)
         return result
+
+
+def _label(step: TimelineStep, address: int) -> str:
+    """The check's description for one station (a step on all stations names each)."""
+    return step.describe if step.station != "all" else step.describe.replace("all stations", f"station {address:#04x}")

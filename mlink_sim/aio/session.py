@@ -25,6 +25,7 @@ from .._log import get_logger
 from ..config import Config
 from ..metrics.stalls import StallLog
 from ..wire import Link
+from .faults import FaultControl
 from .heap import settle_heap
 from .slave import query_control
 from .ticker import CycleTimer
@@ -81,6 +82,7 @@ class NetworkApi:
         self.workers = workers
         self.by_station = {st.address: masters[st.link] for st in config.station}
         self._controls: dict[int, dict[str, Any]] = {st.address: {} for st in config.station}
+        self.fault_control = FaultControl(self)  #: station, master and drive faults (docs/faults.md)
 
     def master(self, station: int) -> Any:
         """The :class:`~mlink_sim.aio.master.Master` serving *station*."""
@@ -157,6 +159,12 @@ class NetworkApi:
         log.warning("killing_slave", station=f"{station:#04x}", pid=worker.pid)
         worker.kill()
         return True
+
+    async def fault(self, station: int, fault: Any) -> Any:
+        """Start *fault* (a :mod:`mlink_sim.faults.spec` value) on *station* now; returns its
+        :class:`~mlink_sim.faults.Episode` (recovery measured after its end). Drive faults need the slaves of
+        ``up`` or the virtual clock (:class:`~mlink_sim.aio.faults.PlantError` otherwise)."""
+        return await self.fault_control.inject(station, fault)
 
 
 def _local_target(host: str) -> str:
@@ -445,6 +453,10 @@ class NetworkSession:
         self._record_cpu()
         for station, counts in self.impairments.injected().items():
             self.metrics.record_injected(station, counts)
+        for master in self.masters.values():  # what the fault stages did (docs/faults.md)
+            if master.faults is not None:
+                for station, totals in master.faults.injected().items():
+                    self.metrics.record_injected(station, totals)
         meta = {
             "config": str(self.config_path),
             "network": self.config.network.name,

@@ -27,6 +27,8 @@ from typing import Any
 from .._log import get_logger
 from ..jsonable import to_jsonable
 from ..metrics.stalls import WORKER_STALL_NS, StallLog
+from ..faults.plant import PlantFaults
+from .faults import handle_plant_request
 from .state import atomic_write, eeprom_path, remove_stale_temps
 from .udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endpoint
 
@@ -92,6 +94,7 @@ class SlaveServer:
         self._closing = False
         self._capture = capture
         self._phases = {id(hs): hs.station.phase for hs in stations}
+        self.plants = PlantFaults()  #: drive faults in force (``{"op": "plant"}``)
         for hs in stations:
             if self.state_dir is not None and hs.eeprom is None:
                 hs.eeprom = eeprom_path(self.state_dir, hs.station.card, hs.station.address)
@@ -273,12 +276,16 @@ class SlaveServer:
             since = request.get("since", 0)
             reply: dict[str, Any] = self.stats(since if isinstance(since, int) and not isinstance(since, bool)
                                                else 0)
+        elif op in ("plant", "release"):  # a drive fault (aio/faults.py, docs/faults.md)
+            reply = handle_plant_request(request, {hs.station.address: hs.station for hs in self.stations},
+                                         self.plants, time.monotonic_ns())
         elif op == "cpu":
             reply = self.cpu()
         elif op == "ping":
             reply = {"ok": True, "pid": os.getpid()}
         else:
-            reply = {"ok": False, "error": "expected a JSON object with op = 'stats', 'cpu' or 'ping'"}
+            reply = {"ok": False, "error": "expected a JSON object with op = 'stats', 'cpu', 'ping', 'plant' or "
+                                           "'release'"}
         payload = json.dumps(reply, separators=(",", ":")).encode()
         if len(payload) > 60_000:
             payload = json.dumps({"ok": False, "error": "stats too large for one datagram"}).encode()

@@ -22,7 +22,9 @@ from typing import Any
 
 from ..config import Config
 from ..master import MasterCore, NetworkPlan
+from ..faults.plant import PlantFaults
 from .fabric import Fabric, FabricPort, VirtualCycle
+from .faults import handle_plant_request
 from .master import Master, MetricsSink, NullMetrics
 from .session import NetworkApi, NetworkSession, _flatten_counters, build_plans
 from .stations import build_station, spec_for
@@ -55,7 +57,7 @@ class VirtualMaster(Master):
         if callable(add_stations):
             add_stations(self.core.addresses)
         self._fabric = fabric
-        self._sock = FabricPort(fabric, f"master:{plan.link.name}", self.core.on_response)  # type: ignore[assignment]
+        self._sock = FabricPort(fabric, f"master:{plan.link.name}", self.deliver)  # type: ignore[assignment]
         self._timer, self._owns_timer = cycle, False  # type: ignore[assignment]
         return self
 
@@ -80,6 +82,15 @@ class _VirtualWorker:
     def kill(self) -> None:
         self.session.kill_station(self.address)
 
+    def plant(self, request: dict[str, Any]) -> dict[str, Any]:
+        """A drive fault on the card core itself (what a slave's ``{"op": "plant"}`` does)."""
+        fabric = self.session.fabric
+        station = fabric.station(self.address)
+        reply = handle_plant_request(request, {} if station is None else {self.address: station},
+                                     self.session.plants, fabric.clock.now)
+        fabric.rearm(self.address)  # the drive is moving again: poll it
+        return reply
+
 
 class VirtualSession(NetworkSession):
     """A :class:`NetworkSession` on simulated time (see the module docstring). Open it with
@@ -93,6 +104,7 @@ class VirtualSession(NetworkSession):
             raise RuntimeError("a VirtualSession runs on a VirtualEventLoop")
         self.clock = loop.clock
         self.seed = seed
+        self.plants = PlantFaults()  #: drive faults in force on the fabric's card cores
         self._wall_start = time.perf_counter()
         self._sim_start = self.clock.now
         super().__init__(config, config_path, state_dir=state_dir, restart_slaves=restart_slaves,
@@ -145,6 +157,7 @@ class VirtualSession(NetworkSession):
         """As a killed slave worker: the station stops answering; powered up again 0.5 s later (its EEPROM image
         kept) unless the session was opened with ``restart_slaves=False``."""
         if self.fabric.kill(address, RESTART_AFTER_NS if self._restart else None):
+            self.plants.forget(address)
             self.problems.append(f"station {address:02X}H was killed (kill-slave)"
                                  + ("; powered up again after 0.5 s" if self._restart else ""))
             if self.capture is not None:

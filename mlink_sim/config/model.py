@@ -13,8 +13,10 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator, model_validator
 
+from ..faults.spec import FAULT_ACTIONS
 from ..wire.codes import Link
-from .units import parse_duration_ns
+from .faults import FAULT_FIELDS, check_fault_step, check_fault_targets, fault_end_ns
+from .units import format_ns, parse_duration_ns
 
 __all__ = [
     "CARD_LINKS",
@@ -245,14 +247,15 @@ class StationConfig(BaseModel):
 
 
 _ACTIONS = ("run", "stop", "set-param", "fault-reset", "alm-clr", "ef0", "disconnect", "connect", "kill-slave",
-            "impair", "heal")
-_EXPECTS = ("running", "stopped", "speed-agree", "phase", "no-alarm", "alarm", "output-hz", "alarm-seen")
+            "impair", "heal", *FAULT_ACTIONS)
+_EXPECTS = ("running", "stopped", "speed-agree", "phase", "no-alarm", "alarm", "output-hz", "alarm-seen", "recovered",
+            "refused")
 
 
 #: The fields of ``do = "impair"`` (docs/faults.md), checked by :class:`~mlink_sim.impair.Impairment`.
 IMPAIR_FIELDS = ("loss", "burst", "delay", "jitter", "duplicate", "reorder", "corrupt")
 #: The actions that take ``for`` (how long the fault lasts).
-FOR_ACTIONS: tuple[str, ...] = ("impair",)
+FOR_ACTIONS: tuple[str, ...] = FAULT_FIELDS["for"]
 Probability = float | str
 
 
@@ -283,7 +286,14 @@ class TimelineStep(BaseModel):
     reorder: Probability | None = Field(None, description="impair: probability that the next datagram overtakes")
     corrupt: Probability | None = Field(None, description="impair: probability of a bit flipped after the FCS")
     for_: DurationNs | None = Field(None, alias="for", description="impair: how long it lasts (default: until "
-                                    "'heal'), e.g. '2s'")
+                                    "'heal'), e.g. '2s'; silence, freeze-wdt, mains-loss (required), load, lock-rotor: "
+                                    "how long the fault lasts")
+    # station, master and drive faults (docs/faults.md)
+    count: int | None = Field(None, description="skip-cycles: transmission cycles the master sends nothing")
+    kind: str | None = Field(None, description="bad-command: 'phase', 'combination' or 'data-size'")
+    torque: float | None = Field(None, description="load: N·m of constant load torque added")
+    inertia: float | None = Field(None, description="load: kg·m² of inertia added")
+    within: DurationNs | None = Field(None, description="recovered: the longest recovery time, e.g. '50ms'")
 
     @field_validator("alarm")
     @classmethod
@@ -318,6 +328,7 @@ class TimelineStep(BaseModel):
                              "'reverse')")
         elif self.direction is None:
             self.direction = "forward"
+        check_fault_step(self)
         return self
 
     @property
@@ -329,6 +340,11 @@ class TimelineStep(BaseModel):
                  if getattr(self, n) is not None}
         return Impairment(direction=self.direction or "both", burst=self.burst, delay=self.delay or 0,
                           jitter=self.jitter or 0, for_ns=self.for_, **probs)
+
+    @property
+    def end_ns(self) -> int:
+        """When the step is over: ``at``, plus its fault's duration and a recovery check's ``within``."""
+        return fault_end_ns(self)
 
     @property
     def describe(self) -> str:
@@ -347,6 +363,14 @@ class TimelineStep(BaseModel):
             extra = f" {self.alarm}"
         elif self.do == "impair":
             extra = f" {self.impairment.describe()}"
+        elif self.expect == "refused" and self.alarm:
+            extra = f" {self.alarm}"
+        elif self.expect == "recovered" and self.within is not None:
+            extra = f" within {format_ns(self.within)}"
+        elif self.do in FAULT_ACTIONS:
+            extra = "".join(f" {k}={v}" for k, v in (("kind", self.kind), ("count", self.count),
+                            ("torque", self.torque), ("inertia", self.inertia)) if v is not None)
+            extra += f" for {format_ns(self.for_)}" if self.for_ is not None else ""
         return f"{self.at / 1e9:g}s {who}: {what}{extra}"
 
 
@@ -452,6 +476,8 @@ class Config(BaseModel):
         for i, step in enumerate(self.timeline):
             if step.station != "all" and step.station not in seen:
                 raise ValueError(f"timeline[{i}].station: {step.station:#04x} is not a station of this network")
+            targets = self.station if step.station == "all" else [self.station[seen[step.station]]]
+            check_fault_targets(step, targets, f"timeline[{i}]")
         return self
 
     def station_by_address(self, address: int) -> StationConfig:
@@ -464,5 +490,5 @@ class Config(BaseModel):
     def run_length_ns(self) -> int | None:
         """The end of the scenario: the last timeline step plus one second, or ``network.duration``."""
         if self.timeline:
-            return max(s.at for s in self.timeline) + 1_000_000_000
+            return max(s.end_ns for s in self.timeline) + 1_000_000_000
         return self.network.duration

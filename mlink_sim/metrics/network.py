@@ -26,6 +26,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
+from .faults import FaultFigures
 from .histogram import LatencyHistogram
 from .report import INJECTED_KINDS, SCHEMA_ID
 from .stalls import StallLog
@@ -69,7 +70,7 @@ class _Cumulative:
 class StationMetrics:
     """Figures of one slave station. Master-side counters are plain attributes; slave-side ones are set."""
 
-    __slots__ = ("address", "rtt", "sent", "answered", "late", "missing", "alarms", "_slave", "_injected")
+    __slots__ = ("address", "rtt", "sent", "answered", "late", "missing", "alarms", "_slave", "_injected", "faults")
 
     def __init__(self, address: int) -> None:
         self.address = address
@@ -81,6 +82,7 @@ class StationMetrics:
         self.alarms = 0  #: alarms the station raised, as the master saw them (AlarmRaised)
         self._slave = {name: _Cumulative() for name in SLAVE_COUNTERS}
         self._injected = {name: _Cumulative() for name in INJECTED_KINDS}
+        self.faults = FaultFigures()  #: faults injected, recovery times (metrics/faults.py)
 
     def copy(self) -> StationMetrics:
         out = StationMetrics(self.address)
@@ -91,6 +93,7 @@ class StationMetrics:
             for name, c in mine.items():
                 o = theirs[name]
                 o.base, o.last, o.zero = c.base, c.last, c.zero
+        out.faults = self.faults.copy()
         return out
 
     def set_injected(self, counts: Mapping[str, int]) -> None:
@@ -111,6 +114,7 @@ class StationMetrics:
         self.answered = self.late = self.missing = self.alarms = 0
         for c in (*self._slave.values(), *self._injected.values()):
             c.reset()
+        self.faults.reset()
 
     @property
     def reception_failures(self) -> int:
@@ -161,6 +165,7 @@ class StationMetrics:
         out["alarms"] = self.alarms
         out.update({name: self._slave[name].total for name in SLAVE_COUNTERS})
         out["injected"] = {name: c.total for name, c in self._injected.items()}
+        out.update(self.faults.summary(hdr=hdr))
         return out
 
     def to_wire(self, *, hdr: bool = True) -> dict[str, Any]:
@@ -172,6 +177,7 @@ class StationMetrics:
             "alarms": self.alarms,
             "slave": {name: [c.base, c.last, c.zero] for name, c in self._slave.items()},
             "injected": {name: [c.base, c.last, c.zero] for name, c in self._injected.items()},
+            "faults": self.faults.to_wire(hdr=hdr),
         }
 
     @classmethod
@@ -188,6 +194,8 @@ class StationMetrics:
                     slots[name].base = _non_negative(base, name)
                     slots[name].last = _non_negative(last, name)
                     slots[name].zero = _non_negative(zero[0], name) if zero else 0
+        if "faults" in data:
+            out.faults = FaultFigures.from_wire(data["faults"])
         return out
 
     def merge(self, other: StationMetrics) -> None:
@@ -199,6 +207,7 @@ class StationMetrics:
             c.base += other._slave[name].total
         for name, c in self._injected.items():
             c.base += other._injected[name].total
+        self.faults.merge(other.faults)
 
 
 class NetworkMetrics:
@@ -299,6 +308,14 @@ class NetworkMetrics:
     def record_injected(self, station: int, counts: Mapping[str, int]) -> None:
         """What the fault injection did to ``station`` so far (cumulative, as ``set_slave_counters``)."""
         self.station(station).set_injected(counts)
+    # ------------------------------------------------------------------ faults (mlink_sim.faults, docs/faults.md)
+    def record_recovery(self, station: int, ns: int) -> None:
+        """*station* was healthy again *ns* after a fault ended."""
+        self.station(station).faults.recovery.record(ns)
+
+    def record_unrecovered(self, station: int) -> None:
+        """A fault of *station* ended and the station did not recover (given up after a minute)."""
+        self.station(station).faults.unrecovered += 1
 
     # ------------------------------------------------------------------ recording (from other processes)
     def record_slave_counters(self, station: int, counters: Mapping[str, Any]) -> list[str]:

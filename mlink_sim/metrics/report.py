@@ -30,11 +30,16 @@ SCHEMA_ID = "mlink-sim/report/1"
 _COUNT = {"type": "integer", "minimum": 0, "x-kind": "count"}
 #: The report's ``station[…].injected`` keys (the fault injection counts under them, docs/faults.md); a new kind
 #: of fault adds its name here and its stage counts under it.
-INJECTED_KINDS: tuple[str, ...] = ("drops", "delays", "corruptions", "duplicates", "reorders")
+INJECTED_KINDS: tuple[str, ...] = ("drops", "delays", "corruptions", "duplicates", "reorders",
+                                   "silences", "skips", "wdt_freezes", "bad_commands", "drive_faults")
 _INJECTED_HELP = {
     "drops": "datagrams dropped (loss)", "delays": "datagrams delivered later (delay, jitter)",
     "corruptions": "datagrams with a bit flipped after the FCS", "duplicates": "datagrams delivered twice",
     "reorders": "datagrams held back until the next one overtook them",
+    "silences": "responses dropped (silence)", "skips": "commands the master did not send (skip-cycles)",
+    "wdt_freezes": "commands sent with a frozen WDT count (freeze-wdt)",
+    "bad_commands": "refused commands slipped in (bad-command)",
+    "drive_faults": "load steps, locked rotors and mains losses applied to the drive",
 }
 _TIME = {"type": "integer", "minimum": 0, "x-kind": "time"}
 
@@ -161,7 +166,10 @@ REPORT_SCHEMA: dict[str, Any] = {
                 "sent": {**_COUNT}, "answered": {**_COUNT}, "late": {**_COUNT}, "missing": {**_COUNT},
                 "alarms": {**_COUNT, "description": "alarms and warnings the station raised, as the master saw them"},
                 "reception_failures": {**_COUNT}, "wdt_errors": {**_COUNT}, "dropped": {**_COUNT},
+                "recovery": {"$ref": "#/$defs/histogram",
+                             "description": "recovery times: a fault's end to phase 3 with no alarm (docs/faults.md)"},
                 "injected": {"$ref": "#/$defs/injected"},
+                "unrecovered": {**_COUNT, "description": "faults after which the station did not recover"},
             },
         },
         "injected": {

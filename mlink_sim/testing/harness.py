@@ -34,6 +34,7 @@ from ..aio.scenario import CheckResult, StationControls, speed_scale
 from ..aio.supervisor import parse_workers
 from ..config import Config, load_config, resolve_config_path
 from ..master.types import RequestTimeout, StationAlarmError, StationState, StationView
+from .faults import FaultMethods
 from .metrics import ReportChecks
 
 __all__ = ["RunningNetwork", "NetworkNotUp", "HostError"]
@@ -97,7 +98,7 @@ class _AsyncApi:
         return call
 
 
-class RunningNetwork(StationControls, ReportChecks):
+class RunningNetwork(StationControls, ReportChecks, FaultMethods):
     """The network of *config* (a TOML path), up for as long as the ``with`` block (or :meth:`start`/:meth:`stop`).
 
     *workers* is ``up --workers``: a number of slave processes, ``"station"`` (one per station) or ``"auto"``
@@ -310,6 +311,11 @@ class RunningNetwork(StationControls, ReportChecks):
 
         target = target_station(station)
         return int(self._rpc("heal", "all" if target is None else target))
+    def _fault(self, station: int, action: str, fields: dict[str, Any]) -> dict[str, Any]:
+        return self._rpc("fault", station, action, fields)
+
+    def _fault_episode(self, station: int) -> dict[str, Any] | None:
+        return self._rpc("fault_episode", station)
 
     # ------------------------------------------------------------------ what the master sees
     @staticmethod

@@ -11,7 +11,8 @@ bring-up is over, then serves requests on ``127.0.0.1:P``: one JSON object per l
     ← {"id": 7, "error": {"type": "StationAlarmError", "message": "…", "station": 33, "code": 148, "name": "…"}}
 
 Methods: the request methods of :class:`~mlink_sim.aio.session.NetworkApi` (``prm_rd`` … ``reconnect``),
-``set_control``, ``view``, ``views``, ``kill_slave``, ``impair``/``heal`` (docs/faults.md), ``snapshot`` (figures as bucket pairs + report meta; the
+``set_control``, ``view``, ``views``, ``kill_slave``, ``impair``/``heal``, ``fault``/``fault_episode`` (docs/faults.md),
+``snapshot`` (figures as bucket pairs + report meta; the
 client builds the report, so the cycle is never held up by it), ``reset_metrics``, ``timeline`` (waits for the
 config's timeline and returns its checks) and ``stop`` (DISCONNECT, final report, exit). SIGTERM, SIGINT or the
 test process dying (``PR_SET_PDEATHSIG``) stop it too; its slave workers never outlive it.
@@ -35,7 +36,9 @@ from ..aio.session import NetworkSession
 from ..aio.supervisor import resolve_workers
 from ..aio.udp import new_event_loop
 from ..config import ConfigError, load_config
+from ..faults import fault_from_fields
 from ..jsonable import to_jsonable
+from .faults import episode_dict
 
 log = get_logger("mlink_sim.testing.host")
 
@@ -130,6 +133,11 @@ class Host:
             from ..impair import target_station
 
             return self.session.heal(target_station(args[0] if args else "all"))
+        if method == "fault":  # testing/faults.py: station, action, fields
+            station, action, fields = args
+            return episode_dict(await net.fault(station, fault_from_fields(action, fields)))
+        if method == "fault_episode":
+            return episode_dict(net.fault_control.stage(args[0]).latest(args[0]))
         if method == "snapshot":
             metrics, meta = await self.session.snapshot(slave_stats=kwargs.get("slave_stats", True))
             return {"metrics": metrics.to_wire(hdr=False), "meta": meta}

@@ -14,6 +14,8 @@ from ..aio.embed import BringUpFailed, VirtualNetwork
 from ..aio.scenario import CheckResult
 from ..config import load_config, resolve_config_path
 from .harness import NetworkNotUp, _AsyncApi
+from ..faults import fault_from_fields
+from .faults import FaultMethods, episode_dict
 from .metrics import ReportChecks
 
 __all__ = ["VirtualRunningNetwork"]
@@ -26,7 +28,7 @@ _DELEGATED = frozenset({
 })
 
 
-class VirtualRunningNetwork(ReportChecks):
+class VirtualRunningNetwork(ReportChecks, FaultMethods):
     """:class:`~mlink_sim.testing.RunningNetwork`'s API on simulated time; *seed* draws the network model's jitter.
     *workers*, *run_dir* and *log_level* are accepted for symmetry and have nothing to do here."""
 
@@ -79,6 +81,13 @@ class VirtualRunningNetwork(ReportChecks):
         raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
 
     # ------------------------------------------------------------------ waiting, in simulated time
+    def _fault(self, station: int, action: str, fields: dict[str, Any]) -> dict[str, Any]:
+        net = self._net()
+        return episode_dict(net.call(net.net.fault(station, fault_from_fields(action, fields))))  # type: ignore
+
+    def _fault_episode(self, station: int) -> dict[str, Any] | None:
+        return episode_dict(self._net().net.fault_control.stage(station).latest(station))
+
     def wait(self, seconds: float) -> None:
         """Let the network cycle for *seconds* of simulated time (returns as soon as they are computed)."""
         self._net().advance(seconds)

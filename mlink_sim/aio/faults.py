@@ -1,0 +1,122 @@
+"""Faults on a running network (docs/faults.md): where each one is applied and how its end is timed, for both
+clocks.
+
+* Master-side faults (silence, skip-cycles, freeze-wdt, bad-command) go to the fault stage of the station's master
+  (:meth:`mlink_sim.aio.master.Master.inject_fault`), in this process.
+* Drive faults (load, lock-rotor, mains-loss) are applied to the card core's drive where it runs: in a slave worker
+  of ``mlink-sim up`` through its control endpoint (``{"op": "plant", ...}``, answered by
+  :func:`handle_plant_request`), on the virtual clock directly on the fabric's card core. A fault with ``for`` is
+  released by a second request that long after (``loop.call_later``: simulated time on the virtual clock). The
+  master's fault stage records the episode, so the recovery after the fault's end is measured the same way.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Mapping
+from typing import Any
+
+from .._log import get_logger
+from ..faults import Episode, FaultError, FaultSpec, fault_from_fields
+from ..faults.plant import PlantFaults
+from ..faults.spec import PLANT_FAULTS
+
+__all__ = ["FaultControl", "handle_plant_request", "PlantError"]
+
+log = get_logger("mlink_sim.faults")
+
+
+class PlantError(RuntimeError):
+    """A drive fault could not be applied (no slave process to reach, the slave refused or did not answer)."""
+
+
+def handle_plant_request(request: Mapping[str, Any], stations: Mapping[int, Any], plants: PlantFaults,
+                         now: int) -> dict[str, Any]:
+    """A slave's answer to ``{"op": "plant", "station": 33, "fault": {"do": "load", "torque": 5}}`` (apply; the
+    reply carries a ``handle``) or ``{"op": "release", "station": 33, "handle": 1}``; *stations* maps addresses to
+    the card cores of this process. Bad input is an ``ok: false`` reply with the reason, never an exception."""
+    address = request.get("station")
+    station = stations.get(address) if isinstance(address, int) else None
+    if station is None:
+        return {"ok": False, "error": f"no station {address!r} in this process"}
+    try:
+        if request.get("op") == "release":
+            handle = request.get("handle")
+            if not isinstance(handle, int) or not plants.release(address, station, handle, now):
+                return {"ok": False, "error": f"no drive fault {handle!r} in force on station {address:#04x}"}
+            return {"ok": True}
+        fields = dict(request.get("fault") or {})
+        fault = fault_from_fields(str(fields.pop("do", "")), fields)
+        if fault.action not in PLANT_FAULTS:
+            return {"ok": False, "error": f"{fault.action} is not a drive fault ({', '.join(PLANT_FAULTS)})"}
+        handle = plants.apply(address, station, fault, now)  # type: ignore[arg-type]
+    except FaultError as exc:
+        return {"ok": False, "error": str(exc)}
+    log.info("drive_fault", station=f"{address:02X}H", fault=fault.describe, handle=handle)
+    return {"ok": True, "handle": handle}
+
+
+class FaultControl:
+    """The faults of a :class:`~mlink_sim.aio.session.NetworkApi` (``net.fault(0x21, spec)``)."""
+
+    def __init__(self, net: Any) -> None:
+        self.net = net
+        self._tasks: set[asyncio.Task[Any]] = set()
+        self._handles: list[asyncio.TimerHandle] = []
+
+    async def inject(self, station: int, fault: FaultSpec) -> Episode:
+        """Start *fault* on *station* now; returns its episode (its recovery is measured once it has ended)."""
+        master = self.net.master(station)
+        if fault.action not in PLANT_FAULTS:
+            return master.inject_fault(station, fault)  # type: ignore[arg-type]
+        handle = await self._plant(station, {"op": "plant", "station": station, "fault": fault.as_fields()})
+        episode = master.begin_fault(station, fault)
+        if fault.for_ns is None:
+            master.end_fault(episode)  # a step: it is over once applied
+        else:
+            loop = asyncio.get_running_loop()
+            self._handles.append(loop.call_later(fault.for_ns / 1e9, self._release, station, handle, episode))
+        return episode
+
+    def clear(self, station: int | None = None) -> None:
+        """End every master-side fault of *station* (None: every station) now."""
+        for master in self.net.masters.values():
+            if master.faults is not None:
+                master.faults.clear(station, master.now_ns())
+
+    def stage(self, station: int) -> Any:
+        """The master-side fault stage of *station*'s master (episodes, answers to bad commands)."""
+        return self.net.master(station).fault_stage()
+
+    def _release(self, station: int, handle: int, episode: Episode) -> None:
+        async def release() -> None:
+            try:
+                await self._plant(station, {"op": "release", "station": station, "handle": handle})
+            except PlantError as exc:
+                log.warning("drive_fault_release_failed", station=f"{station:02X}H", error=str(exc))
+            self.net.master(station).end_fault(episode)
+
+        task = asyncio.get_running_loop().create_task(release())
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+
+    async def _plant(self, station: int, request: dict[str, Any]) -> int:
+        worker = self.net.workers.get(station)
+        if worker is None:
+            raise PlantError("drive faults act on the stations' own drive models: they need the slaves of "
+                             "'mlink-sim up' (or the virtual clock), not 'mlink-sim master'")
+        plant = getattr(worker, "plant", None)
+        if plant is not None:  # a station in this process (the virtual clock)
+            reply = plant(request)
+        else:
+            from .slave import query_control
+
+            port = worker.control_port
+            reply = None
+            if worker.alive and port:
+                reply = await query_control("127.0.0.1", port, request.pop("op"), timeout=1.0, **request)
+            if reply is None:
+                raise PlantError(f"the slave of station {station:#04x} did not answer the drive-fault request")
+        if not reply.get("ok"):
+            raise PlantError(str(reply.get("error")))
+        return int(reply.get("handle", 0))
