@@ -13,7 +13,7 @@ __all__ = ["check_fault_step", "check_fault_targets", "fault_end_ns", "step_faul
 
 #: The step fields that belong to faults, and the ``do`` values that take them (f-impair's "impair" takes ``for``).
 FAULT_FIELDS: dict[str, tuple[str, ...]] = {
-    "for": ("silence", "freeze-wdt", "load", "lock-rotor", "mains-loss", "impair"),
+    "for": ("impair", "silence", "freeze-wdt", "load", "lock-rotor", "mains-loss"),
     "count": ("skip-cycles",), "kind": ("bad-command",), "torque": ("load",), "inertia": ("load",),
 }
 
@@ -71,5 +71,6 @@ def step_fault(step: Any) -> Any:
 
 
 def fault_end_ns(step: Any) -> int:
-    """When the step is over: ``at`` plus its ``for`` and a recovery check's ``within``."""
-    return step.at + (step.for_ or 0) + (step.within or 0)
+    """When the step is over: ``at`` plus a station, master or drive fault's ``for`` and a recovery check's
+    ``within`` (an ``impair`` step's ``for`` does not extend the run: ``heal`` or the run's end cut it short)."""
+    return step.at + (step.for_ or 0 if step.do in FAULT_ACTIONS else 0) + (step.within or 0)

@@ -136,7 +136,7 @@ def test_stations_known_before_the_run():
         ("station[0x21 .late == 0", "expected ']' after the station address '0x21' at column 14, got '.'"),
         ("station[0x100].late == 0", "expected a station address from 0x00 to 0xff at column 9, got '0x100'"),
         ("station[0x21] < 1", "expected '.' and a field of 'station[0x21]' (rtt, sent, answered, late, missing, "
-                              "alarms, reception_failures, wdt_errors, dropped, injected) at column 14, got '<' "
+                              "alarms, reception_failures, wdt_errors, dropped, recovery, injected, unrecovered) at column 14, got '<' "
                               "('station[0x21]' is a group of fields, not a value)"),
         ("meta.duration_s > 1", "expected a field of the report (cycles, missed, missed_rate, rtt, lateness, sent, "
                                 "answered, late, missing, reception_failures, wdt_errors, dropped, cpu, station, host) "

@@ -19,7 +19,8 @@ def test_injected_counts_sit_next_to_the_observed_ones_and_validate() -> None:
     report = m.report(meta=META)
     jsonschema.validate(report, REPORT_SCHEMA)
     st = report["station"]["0x21"]
-    assert st["injected"] == {"drops": 12, "delays": 0, "corruptions": 3, "duplicates": 0, "reorders": 0}
+    assert st["injected"] == {"drops": 12, "delays": 0, "corruptions": 3, "duplicates": 0, "reorders": 0,
+                              "silences": 0, "skips": 0, "wdt_freezes": 0, "bad_commands": 0, "drive_faults": 0}
     assert st["alarms"] == 1
     assert report["station"]["0x22"]["injected"]["drops"] == 0
 
