@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
-from typing import Any, ClassVar, Literal, Union
+from typing import Any, ClassVar
 
 
 __all__ = [
@@ -189,9 +189,9 @@ class MainsLoss(_Fault):
             raise FaultError("for: required, e.g. for = \"200ms\" (how long the mains are gone)")
 
 
-MasterFault = Union[Silence, SkipCycles, FreezeWdt, BadCommand]
-PlantFault = Union[LoadStep, LockRotor, MainsLoss]
-FaultSpec = Union[MasterFault, PlantFault]
+MasterFault = Silence | SkipCycles | FreezeWdt | BadCommand
+PlantFault = LoadStep | LockRotor | MainsLoss
+FaultSpec = MasterFault | PlantFault
 
 _CLASSES: dict[str, type[_Fault]] = {c.action: c for c in (Silence, SkipCycles, FreezeWdt, BadCommand, LoadStep,
                                                            LockRotor, MainsLoss)}
@@ -204,7 +204,6 @@ _FIELDS: dict[str, tuple[str, ...]] = {
     "silence": ("for",), "skip-cycles": ("count",), "freeze-wdt": ("for",), "bad-command": ("kind",),
     "load": ("torque", "inertia", "for"), "lock-rotor": ("for",), "mains-loss": ("for",),
 }
-Side = Literal["master", "plant"]
 
 
 def fault_from_fields(action: str, values: Mapping[str, Any]) -> FaultSpec:

@@ -39,7 +39,8 @@ def step(body: str) -> str:
     ('do = "silence"\nfor = "-2ms"', "expected a duration"),
     ('do = "skip-cycles"', "count: required"),
     ('do = "skip-cycles"\ncount = 0', "count: expected a whole number of transmission cycles"),
-    ('do = "skip-cycles"\ncount = 2\nfor = "1s"', "for: only 'impair', 'silence', 'freeze-wdt', 'load', 'lock-rotor', 'mains-loss' take it"),
+    ('do = "skip-cycles"\ncount = 2\nfor = "1s"', "for: only 'impair', 'silence', 'freeze-wdt', 'load', 'lock-rotor', "
+                                                  "'mains-loss' take it"),
     ('do = "freeze-wdt"', "for: required"),
     ('do = "bad-command"', "kind: required, one of 'phase', 'combination', 'data-size'"),
     ('do = "bad-command"\nkind = "size"', "kind: expected one of"),
