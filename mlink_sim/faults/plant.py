@@ -6,8 +6,8 @@ and the drive reacts as they decide.
   added to the station's load (§4); removed again by :meth:`PlantFaults.release`.
 * ``lock-rotor`` — the shaft jams: a passive load torque ten times what the motor develops at the drive's oC current
   level (so no current the drive allows can turn it), and enough to stop the shaft within half a millisecond.
-  Running, the slip jumps to the output frequency and the current past the oC level; from a standstill, stall prevention during acceleration (L3-01/L3-02) holds the current
-  at its level and oL1 follows (§6).
+  Running, the slip jumps to the output frequency and the current past the oC level; from a standstill, stall
+  prevention during acceleration (L3-01/L3-02) holds the current at its level and oL1 follows (§6).
 * ``mains-loss`` — the rectifier's supply is gone (:meth:`Drive.set_main_power`): the DC bus feeds the motor and the
   control power and sags to Uv1 (running) or the Uv minor fault (stopped) (§5–6); when it returns the bus is charged
   again, a Uv1 fault stays until it is reset, the Uv minor fault clears by itself.
