@@ -8,7 +8,9 @@
 """
 
 from .codec import compatible
+from .commands import Cmd
 from .core import MasterCore
+from .machine import IllegalTransition
 from .plan import TCYCLE_RANGE_NS, NetworkPlan, StationPlan
 from .types import (
     AlarmCleared,
@@ -59,4 +61,6 @@ __all__ = [
     "RequestTimeout",
     "StationDisconnected",
     "compatible",
+    "Cmd",
+    "IllegalTransition",
 ]

@@ -35,8 +35,9 @@ from ..wire import (
     ml2,
     ml3,
 )
-from ..wire.combinations import V7_COMBINATIONS, forbids
+from ..wire.combinations import ML2_COMBINATIONS, ML3_COMBINATIONS, V7_COMBINATIONS, forbids
 from ..wire.drive_codes import SiT3DriveAlarm, SiT3DriveWarning, V7InverterAlarm, V7InverterWarning
+from .commands import Cmd, cmd_of
 from .plan import StationPlan
 from .types import Control
 
@@ -52,6 +53,10 @@ _CARD_CODES = {int(m) for m in M2Alarm}
 _DRIVE_COMM_FAULTS = {int(SiT3DriveAlarm.E5), int(SiT3DriveAlarm.BUS)}
 _DRIVE_COMM_MINORS = {int(SiT3DriveWarning.E5), int(SiT3DriveWarning.BUS)}
 _CYC = int(SiT3DriveWarning.CYC)
+#: CONNECT answers meaning "these VER/COM_MOD/COM_TIM do not suit me": A.94 (SI-T3 Table 25) or CyC (Table 27) /
+#: CMD_ALM 1H or 9H (SI-ET3 "CMD_ALM" table).
+_PLAN_REFUSED_ML2 = frozenset({int(M2Alarm.DATA_SETTING_WARNING), _CYC})
+_PLAN_REFUSED_ML3 = frozenset({int(CmdAlm.INVALID_DATA_WARNING), int(CmdAlm.INVALID_DATA)})
 
 def compatible(main: str, sub: str) -> bool:
     """Whether main command *main* may travel with sub-command *sub* (names as in :class:`M2Cmd`): False only
@@ -75,19 +80,25 @@ def command_name(link: Link, code: int) -> str:
 
 @dataclass(frozen=True, slots=True)
 class Reply:
-    """One response, read the same way on every generation."""
+    """One response, read the same way on every generation, with the verdicts the state machine acts on: the
+    core reads these fields and asks the codec nothing more."""
 
     code: int
+    kind: Cmd | None  #: the command kind the response echoes (None: a code the manuals do not define)
     body: Any
     ready: bool
     error: tuple[int, str] | None  #: the main command was refused (code, name)
     phase_error: bool  #: the slave says it is not connected (ML-III CMD_ALM CH)
+    not_connected: bool  #: the slave is in phase 1 although a phase-2/3 command was sent (A.95 / CMD_ALM CH)
+    connect_refusal: tuple[int, str] | None  #: why a CONNECT was refused: *error*, or SI-T3 CyC (33H)
+    plan_refused: bool  #: that refusal says the plan's VER/COM_MOD/COM_TIM do not suit (A.94, CMD_ALM 1/9, CyC)
     comm_alarm: tuple[int, str] | None  #: communication alarm (ML-II E5H/E6H, ML-III COMM_ALM >= 8)
     sub_code: int | None
     sub_body: Any
     sub_ready: bool
     sub_error: tuple[int, str] | None
     # for the view
+    status_valid: bool  #: False for an ML-II PRM_RD answer: only CMDRDY is valid (SI-T3 "STATUS Field" note)
     alarm: int
     comm_alm: int
     cmd_alm: int
@@ -106,7 +117,7 @@ def _enum_name(enum_type: Any, code: int) -> str:
 class Codec:
     """Builds command messages and reads responses for one station's generation."""
 
-    __slots__ = ("plan", "link", "cmd", "mod", "main_slot", "sub_slot", "v7", "_nop")
+    __slots__ = ("plan", "link", "cmd", "mod", "main_slot", "sub_slot", "v7", "combinations", "_nop")
 
     def __init__(self, plan: StationPlan) -> None:
         self.plan = plan
@@ -117,6 +128,7 @@ class Codec:
         self.main_slot = self.mod.COMMAND_MAIN
         self.sub_slot = self.mod.COMMAND_SUB
         self.v7 = plan.is_v7
+        self.combinations = ML3_COMBINATIONS if ml3_link else V7_COMBINATIONS if self.v7 else ML2_COMBINATIONS
         self._nop = self.mod.Nop()
 
     # --- bodies ---------------------------------------------------------------------------------------------
@@ -179,14 +191,20 @@ class Codec:
     def code_of(self, body: Any, sub: bool = False) -> int:
         return (self.sub_slot if sub else self.main_slot).code_of(body)
 
-    def name_of(self, code: int) -> str:
-        return command_name(self.link, code)
+    def kind_of(self, code: int) -> Cmd | None:
+        return cmd_of(self.link, code)
+
+    def forbids(self, main: int, sub: int) -> bool:
+        """The combination table marks main command *main* with sub-command *sub* NG (SI-T3 Table 7, SI-T/V7's
+        version of it, SI-ET3 Table 13: :mod:`mlink_sim.wire.combinations`)."""
+        return forbids(self.combinations, main, sub)
 
     # --- responses ------------------------------------------------------------------------------------------
-    def reply(self, msg: Any) -> Reply:
+    def reply(self, msg: Any, sent_code: int | None = None) -> Reply:
+        """The reading of response *msg* to the command of code *sent_code* (default: the code it echoes)."""
         if self.link is Link.ML3:
             return self._reply3(msg)
-        return self._reply2(msg)
+        return self._reply2(msg, sent_code)
 
     def alarm_name(self, code: int, status: int) -> str:
         """Name of an ML-II ALARM byte value: the card's own codes (SI-T3 Tables 23/25, V7 Table 8) unless STATUS.ALM
@@ -200,7 +218,7 @@ class Codec:
             table = SiT3DriveAlarm if status & M2Status.ALM else SiT3DriveWarning
         return _enum_name(table, code)
 
-    def _reply2(self, m: ml2.M2Response) -> Reply:
+    def _reply2(self, m: ml2.M2Response, sent_code: int | None) -> Reply:
         status = m.status
         alarm = m.alarm
         sub_error = None
@@ -221,22 +239,36 @@ class Codec:
         elif not self.v7 and (alarm in _DRIVE_COMM_FAULTS if status & M2Status.ALM else
                               alarm in _DRIVE_COMM_MINORS and status & M2Status.WARNG):
             comm = (alarm, self.alarm_name(alarm, status))
+        code = ml2.RESPONSE_MAIN.code_of(m.body)
+        warning = bool(status & M2Status.WARNG)
+        # A CONNECT refused: its own error, or on the SI-T3 the minor fault CyC (33H, "SI-T3 Transmission Cycle
+        # Error", Table 27), which as the lower warning code hides the A.94 (Table 21).
+        refusal = error
+        if refusal is None and not self.v7 and alarm == _CYC and warning:
+            refusal = (_CYC, "CYC")
         return Reply(
-            code=ml2.RESPONSE_MAIN.code_of(m.body),
+            code=code,
+            kind=cmd_of(self.link, code),
             body=m.body,
             ready=bool(status & M2Status.CMDRDY),
             error=error,
             phase_error=False,
+            # "If not in phase 2 or 3: Command warning (A.95)" (SI-T3 INV_CTL, SYNC_SET, ALM_CLR)
+            not_connected=(error is not None and error[0] == M2Alarm.COMMAND_WARNING
+                           and (code if sent_code is None else sent_code) in _NOT_CONNECTED_ML2),
+            connect_refusal=refusal,
+            plan_refused=refusal is not None and refusal[0] in _PLAN_REFUSED_ML2,
             comm_alarm=comm,
             sub_code=sub_code,
             sub_body=m.sub,
             sub_ready=sub_ready,
             sub_error=sub_error,
+            status_valid=code != M2Cmd.PRM_RD,
             alarm=alarm,
             comm_alm=0,
             cmd_alm=0,
             fault=bool(status & M2Status.ALM),
-            warning=bool(status & M2Status.WARNG),
+            warning=warning,
             status=status,
         )
 
@@ -255,17 +287,25 @@ class Codec:
             if sub_alm:
                 sub_error = (sub_alm, _enum_name(SubCmdAlm, sub_alm))
         body = m.body
+        code = ml3.RESPONSE_MAIN.code_of(body)
+        error = (cmd_alm, _enum_name(CmdAlm, cmd_alm)) if cmd_alm else None
+        phase_error = cmd_alm == CmdAlm.PHASE_ERROR
         return Reply(
-            code=ml3.RESPONSE_MAIN.code_of(body),
+            code=code,
+            kind=cmd_of(self.link, code),
             body=body,
             ready=bool(v & 4),
-            error=(cmd_alm, _enum_name(CmdAlm, cmd_alm)) if cmd_alm else None,
-            phase_error=cmd_alm == CmdAlm.PHASE_ERROR,
+            error=error,
+            phase_error=phase_error,
+            not_connected=phase_error,  # CMD_ALM CH, SI-ET3 Table 9 "–"
+            connect_refusal=error,
+            plan_refused=cmd_alm in _PLAN_REFUSED_ML3,
             comm_alarm=(comm_alm, _enum_name(CommAlm, comm_alm)) if comm_alm >= 8 else None,
             sub_code=sub_code,
             sub_body=m.sub,
             sub_ready=sub_ready,
             sub_error=sub_error,
+            status_valid=True,
             alarm=0,
             comm_alm=comm_alm,
             cmd_alm=cmd_alm,
@@ -274,24 +314,10 @@ class Codec:
             status=body.invcmd_stat if type(body) is ml3.InvCtlResponse else None,
         )
 
-    def connect_refusal(self, reply: Reply) -> tuple[int, str] | None:
-        """Why a CONNECT was refused, if it was: its own error, or on the SI-T3 the minor fault CyC (33H, "SI-T3
-        Transmission Cycle Error", Table 27), which as the lower warning code hides the A.94 (Table 21)."""
-        if reply.error is not None:
-            return reply.error
-        if self.link is not Link.ML3 and not self.v7 and reply.alarm == _CYC and reply.warning:
-            return (_CYC, "CYC")
-        return None
-
-    def not_connected(self, sent_code: int, reply: Reply) -> bool:
-        """The response says the slave is in phase 1 although the master sent a phase-2/3 command."""
-        if self.link is Link.ML3:
-            return reply.phase_error
-        return (
-            reply.error is not None
-            and reply.error[0] == M2Alarm.COMMAND_WARNING
-            and sent_code in _NOT_CONNECTED_ML2
-        )
+    @staticmethod
+    def connect_refusal(reply: Reply) -> tuple[int, str] | None:
+        """Why a CONNECT was refused, if it was (:attr:`Reply.connect_refusal`)."""
+        return reply.connect_refusal
 
 
 def codec_for(plan: StationPlan) -> Codec:

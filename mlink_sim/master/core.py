@@ -12,12 +12,15 @@ import struct
 from collections import Counter, deque
 from typing import Any
 
-from ..wire import CmdAlm, CommAlm, DropReason, Frame, Kind, Link, Unknown, WireError, decode, encode
+from ..wire import CmdAlm, CommAlm, DropReason, Frame, Kind, Link, WireError, decode, encode
 from ..wire.frame import HEADER_SIZE
-from . import restart
-from .codec import Codec, Reply, compatible
-from .fastpath import CyclicFrames, cycle_of
-from .plan import NetworkPlan, StationPlan
+from . import requests, restart
+from .codec import Reply
+from .commands import Cmd, Send
+from .fastpath import cycle_of
+from .machine import Ev, expects, next_state
+from .plan import NetworkPlan
+from .slave import Sent, Slave
 from .types import (
     AlarmCleared,
     AlarmRaised,
@@ -29,10 +32,8 @@ from .types import (
     Missing,
     Recovered,
     Request,
-    RequestTimeout,
     Rtt,
     StateChanged,
-    StationAlarmError,
     StationDisconnected,
     StationState,
     StationView,
@@ -43,87 +44,6 @@ __all__ = ["MasterCore"]
 S = StationState
 _U32 = 0xFFFFFFFF
 _UP = (S.PHASE2, S.PHASE3)  # states in which requests and INV_CTL are sent
-_CONNECTED = (S.PHASE2, S.SYNCING, S.PHASE3, S.ALARM, S.CONNECTING)
-_MANAGED = frozenset({"CONNECT", "SYNC_SET"})
-#: CONNECT answers meaning "these VER/COM_MOD/COM_TIM do not suit me" (A.94, CMD_ALM 1/9, SI-T3 CyC 33H)
-_PLAN_REFUSED = frozenset({"DATA_SETTING_WARNING", "INVALID_DATA", "INVALID_DATA_WARNING", "CYC"})
-
-
-
-class _Sent:
-    """The command of one slot, kept until its response arrives or the station's next slot."""
-
-    __slots__ = ("cycle", "at", "kind", "code", "req", "sub_req", "late_seen", "body")
-
-    def __init__(self, cycle: int, at: int, kind: str, code: int, body: Any, req: Request | None,
-                 sub_req: Request | None) -> None:
-        self.cycle = cycle
-        self.at = at
-        self.kind = kind  # probe | connect | reset | disconnect | sync | clear | cyclic | request
-        self.code = code
-        self.body = body
-        self.req = req
-        self.sub_req = sub_req
-        self.late_seen = False
-
-
-class _Station:
-    """Mutable per-station state of the core (the public face is :class:`StationView`)."""
-
-    def __init__(self, plan: StationPlan, index: int, period: int, spread: bool, tcycle_ns: int) -> None:
-        self.plan = plan
-        self.address = plan.address
-        self.codec = Codec(plan)
-        self.frames = CyclicFrames(plan, tcycle_ns, self.codec)
-        self.period = period
-        self.offset = index % period if spread else 0
-        self.state = S.OFFLINE
-        self.target = S.PHASE3 if plan.sync else S.PHASE2
-        self.enabled = True
-        self.was_up = False
-        self.wdt = 0
-        self.rwdt = 0
-        self.outstanding: _Sent | None = None
-        #: commands past their next slot still within the answer window, by cycle (oldest first)
-        self.inflight: dict[int, _Sent] = {}
-        self.expired: _Sent | None = None
-        self.answered: int | None = None
-        self.silent = 0
-        self.main_q: deque[Request] = deque()
-        self.sub_q: deque[Request] = deque()
-        self.disconnect_waiters: list[Request] = []
-        self.control = Control()
-        self.ctl_body = self.codec.inv_ctl(self.control)
-        #: after a recovery: the run command is held back (until standstill) or sent with the search input
-        self.run_held = False
-        self.searching = False
-        #: MON1 carries U1-05 motor speed (A1000 cards, SEL_MON 1: SI-T3 Table 18, SI-ET3 Table 22)
-        self.sees_motor = plan.card in restart.MOTOR_SPEED_CARDS
-        self.reset_first = False
-        self.hold_until = -1
-        self.clear_rounds = 0
-        self.fault_since: int | None = None
-        self.fault_reason = ""
-        self.last_error: str | None = None
-        # view
-        self.alarm = 0
-        self.alarm_name: str | None = None
-        self.comm_alm = 0
-        self.cmd_alm = 0
-        self.fault = False
-        self.warning = False
-        self.status = 0
-        self.output_freq = 0
-        self.output_current = 0
-        self.mon1 = 0
-        self.mon2 = 0
-        self.rtt: int | None = None
-        self.last_rx: int | None = None
-        self.sent = 0
-        self.responses = 0
-        self.missing = 0
-        self.late = 0
-        self.recoveries = 0
 
 
 class MasterCore:
@@ -143,11 +63,11 @@ class MasterCore:
         self._now = 0
         self._cycle = 0
         self._window = plan.answer_window_ns
-        self._stations: list[_Station] = []
+        self._stations: list[Slave] = []
         by_period: Counter[int] = Counter()
         for sp in plan.stations:
             period = sp.comm_cycles(plan.tcycle_ns)
-            self._stations.append(_Station(sp, by_period[period], period, plan.spread, plan.tcycle_ns))
+            self._stations.append(Slave(sp, by_period[period], period, plan.spread, plan.tcycle_ns))
             by_period[period] += 1
         self._by_addr = {st.address: st for st in self._stations}
 
@@ -160,7 +80,7 @@ class MasterCore:
         out: list[tuple[int, bytes]] = []
         for st in self._stations:
             if st.main_q or st.sub_q or st.disconnect_waiters:
-                self._expire(st, now)
+                requests.expire(st, now)
             if (cycle - st.offset) % st.period == 0:
                 out.append((st.address, self._slot(st, cycle, now)))
         return out
@@ -196,10 +116,10 @@ class MasterCore:
         self._take(st, sent, now)
         msg = frame.message
         st.rwdt = msg.rwdt
-        reply = st.codec.reply(msg)
-        self._observe(st, sent, reply)
-        if st.state is S.OFFLINE:
-            self._set_state(st, S.PHASE1)
+        reply = st.codec.reply(msg, sent.code)
+        self._observe(st, reply)
+        if expects(st.state, Ev.ANSWERED):
+            self._fire(st, Ev.ANSWERED)
         self._advance(st, sent, reply, now)
 
     def _fast_response(self, datagram: bytes, now: int) -> bool:
@@ -209,7 +129,7 @@ class MasterCore:
         if st is None or st.state not in _UP or st.alarm or st.cmd_alm or st.comm_alm >= 8:
             return False
         sent = self._answer_to(st, cycle_of(datagram))
-        if sent is None or sent.kind != "cyclic" or sent.sub_req is not None:
+        if sent is None or sent.send is not Send.CYCLIC or sent.sub_req is not None:
             return False
         r = st.frames.response(datagram, sent.cycle, st.comm_alm)
         if r is None:
@@ -222,7 +142,7 @@ class MasterCore:
         return True
 
     @staticmethod
-    def _answer_to(st: _Station, cycle: int) -> _Sent | None:
+    def _answer_to(st: Slave, cycle: int) -> Sent | None:
         """The command a response for *cycle* answers: the outstanding one, or the one already counted missing
         (once: a late answer); None when it answers neither (a duplicate or unexpected datagram)."""
         sent = st.outstanding
@@ -237,7 +157,7 @@ class MasterCore:
             return sent
         return None
 
-    def _take(self, st: _Station, sent: _Sent, now: int) -> None:
+    def _take(self, st: Slave, sent: Sent, now: int) -> None:
         """Count the answer to *sent*: ``Rtt`` when it is the outstanding command, else ``Late``. A late answer
         still tells the truth (the command was executed), so it is processed; handlers check the current state,
         so nothing is done twice."""
@@ -272,36 +192,22 @@ class MasterCore:
         with :class:`StationAlarmError` / :class:`RequestTimeout`. CONNECT and SYNC_SET are the core's own;
         DISCONNECT is :meth:`disconnect`."""
         st = self._station(station)
-        codec = st.codec
-        if sub is None:
-            sub = (st.plan.is_v7 and st.plan.subcmd and type(body) in codec.sub_slot.by_class
-                   and type(body) in codec.main_slot.by_class
-                   and codec.name_of(codec.main_slot.code_of(body)) in ("PRM_RD", "PRM_WR"))
-        if sub and not st.plan.subcmd:
-            raise ValueError(f"station {station:02X}H: sub-commands are not enabled in its plan")
-        slot = codec.sub_slot if sub else codec.main_slot
-        if type(body) is not Unknown and type(body) not in slot.by_class:
-            where = "sub-command" if sub else "main command"
-            raise TypeError(f"{type(body).__module__}.{type(body).__name__} is not a {st.plan.link.label} {where}")
-        code = slot.code_of(body)
-        name = codec.name_of(code)
-        if name == "DISCONNECT" and not sub:
+        req = requests.build(st, body, sub, self._deadline(timeout_ns, now))
+        if req.kind is Cmd.DISCONNECT and not req.sub:
             return self.disconnect(station, timeout_ns=timeout_ns, now=now)
-        if name in _MANAGED:
-            raise ValueError(f"{name} is sent by the master core itself (bring-up and recovery)")
-        req = Request(station, body, sub, name, code, self._deadline(timeout_ns, now))
         if not st.enabled:
             req._finish(error=StationDisconnected(f"station {station:02X}H is disconnected; connect() it first"))
             return req
-        (st.sub_q if sub else st.main_q).append(req)
+        (st.sub_q if req.sub else st.main_q).append(req)
         return req
 
     def disconnect(self, station: int, *, timeout_ns: int | None = None, now: int | None = None) -> Request:
         """Send DISCONNECT and keep the station in phase 1 (NOP only) until :meth:`connect`."""
         st = self._station(station)
         st.enabled = False
-        req = Request(station, st.codec.disconnect(), False, "DISCONNECT", st.codec.code_of(st.codec.disconnect()),
-                      self._deadline(timeout_ns, now))
+        body = st.codec.disconnect()
+        req = Request(station, body, False, Cmd.DISCONNECT.value, st.codec.code_of(body),
+                      self._deadline(timeout_ns, now), Cmd.DISCONNECT)
         if st.state in (S.OFFLINE, S.PHASE1):
             req._finish(result=None)
         else:
@@ -359,19 +265,13 @@ class MasterCore:
         return [st.address for st in self._stations]
 
     def view(self, station: int) -> StationView:
-        st = self._station(station)
-        return StationView(
-            st.address, st.plan.label, st.state, st.state.phase, self.at_target(station), st.alarm, st.alarm_name,
-            st.comm_alm, st.cmd_alm, st.fault, st.warning, st.status, st.output_freq, st.output_current, st.mon1,
-            st.mon2, st.rtt, st.last_rx, st.wdt, st.rwdt, st.sent, st.responses, st.missing, st.late,
-            st.recoveries, st.last_error,
-        )
+        return self._station(station).view(self.at_target(station))
 
     def views(self) -> dict[int, StationView]:
         return {st.address: self.view(st.address) for st in self._stations}
 
     # ------------------------------------------------------------------ slot: choose and encode the command
-    def _slot(self, st: _Station, cycle: int, now: int) -> bytes:
+    def _slot(self, st: Slave, cycle: int, now: int) -> bytes:
         prev = st.outstanding
         if prev is not None:
             st.outstanding = None
@@ -382,11 +282,14 @@ class MasterCore:
         if st.inflight:
             self._age(st, now)
         codec = st.codec
-        kind, body, req = self._choose_main(st, cycle)
+        due = st.due(cycle)
+        if due is not None:
+            self._fire(st, due)
+        send, body, req = st.choose_main(cycle)
         code = codec.main_slot.code_of(body)
         sub_body = sub_req = None
         if st.plan.has_sub:
-            sub_req = self._choose_sub(st, codec.name_of(code))
+            sub_req = st.choose_sub(code)
             sub_body = sub_req.body if sub_req is not None else None
             if sub_req is not None:
                 sub_req.attempts += 1
@@ -396,31 +299,25 @@ class MasterCore:
         # over cycles the timer skipped); bits 0-3: echo of the slave's count, RWDT bits 0-3 (docs/master.md).
         st.wdt = wdt = ((((cycle - st.offset) // st.period) & 0xF) << 4) | (st.rwdt & 0x0F)
         c32 = cycle & _U32
-        st.outstanding = _Sent(c32, now, kind, code, body, req, sub_req)
+        st.outstanding = Sent(c32, now, send, code, body, req, sub_req)
         st.sent += 1
-        if kind == "cyclic" and sub_body is None and self.fast_path:
+        if send is Send.CYCLIC and sub_body is None and self.fast_path:
             return st.frames.command(body, c32, wdt)
         return encode(Frame(st.plan.link, Kind.COMMAND, st.address, c32, self.plan.tcycle_ns,
                             codec.message(body, wdt, sub_body)))
 
-    def _missing(self, st: _Station, prev: _Sent, now: int) -> None:
+    def _missing(self, st: Slave, prev: Sent, now: int) -> None:
         """*prev* went unanswered: Missing, a round of each request it carried, OFFLINE after ``offline_after``."""
         st.expired = prev
         st.missing += 1
         st.silent += 1
         self._emit(Missing(st.address, prev.cycle))
-        for req, q in ((prev.req, st.main_q), (prev.sub_req, st.sub_q)):
-            if req is not None and not req.done:
-                req.unanswered += 1
-                if req.unanswered >= self.plan.request_retries:
-                    q.remove(req)
-                    req._finish(error=RequestTimeout(st.address, req.command, req.attempts, req.busy,
-                                                     req.unanswered))
-        if st.silent >= self.plan.offline_after and st.state is not S.OFFLINE:
+        requests.unanswered(st, prev, self.plan.request_retries)
+        if st.silent >= self.plan.offline_after and expects(st.state, Ev.SILENT):
             self._fault(st, "silent", now)
-            self._set_state(st, S.OFFLINE)
+            self._fire(st, Ev.SILENT)
 
-    def _age(self, st: _Station, now: int) -> None:
+    def _age(self, st: Slave, now: int) -> None:
         """Commands in flight longer than the answer window (``NetworkPlan.answer_window_ns``) become Missing."""
         inflight = st.inflight
         horizon = now - self._window
@@ -431,156 +328,95 @@ class MasterCore:
             del inflight[cycle]
             self._missing(st, sent, now)
 
-    def _choose_main(self, st: _Station, cycle: int) -> tuple[str, Any, Request | None]:
-        codec = st.codec
-        state = st.state
-        if not st.enabled:
-            if state in _CONNECTED:
-                return "disconnect", codec.disconnect(), None
-            return "probe", codec.nop(), None
-        if state is S.OFFLINE or cycle < st.hold_until:
-            return "probe", codec.nop(), None
-        if state is S.PHASE1:
-            self._set_state(st, S.CONNECTING)
-            state = S.CONNECTING
-        if state is S.CONNECTING:
-            if st.reset_first:
-                return "reset", codec.disconnect(), None
-            return "connect", codec.connect(), None
-        if state is S.PHASE2 and st.target is S.PHASE3:
-            self._set_state(st, S.SYNCING)
-            state = S.SYNCING
-        if state is S.SYNCING:
-            return "sync", codec.sync_set(), None
-        if state is S.ALARM:
-            return "clear", codec.alm_clr(), None
-        if st.main_q:
-            req = st.main_q[0]
-            busy_sub = st.sub_q[0] if st.sub_q and st.sub_q[0].attempts else None
-            if busy_sub is None or compatible(req.command, busy_sub.command):
-                return "request", req.body, req
-        return "cyclic", st.ctl_body, None
-
-    def _choose_sub(self, st: _Station, main_name: str) -> Request | None:
-        if not st.sub_q or st.state not in _UP or not st.enabled:
-            return None
-        req = st.sub_q[0]
-        return req if compatible(main_name, req.command) else None
-
     # ------------------------------------------------------------------ response: state machine
-    def _advance(self, st: _Station, sent: _Sent, reply: Reply, now: int) -> None:
+    def _advance(self, st: Slave, sent: Sent, reply: Reply, now: int) -> None:
+        """What the answer to *sent* means for the station: the event it is, fired when the state takes it
+        (a late answer may find the station elsewhere), and the requests it completes."""
         if sent.sub_req is not None:
-            self._complete(st, st.sub_q, sent.sub_req, reply.sub_code, reply.sub_ready, reply.sub_error,
-                           reply.sub_body)
-        kind = sent.kind
-        if kind == "probe":
+            requests.complete(st, st.sub_q, sent.sub_req, reply.sub_code, reply.sub_ready, reply.sub_error,
+                              reply.sub_body)
+        send = sent.send
+        if send is Send.PROBE:
             return
-        same = reply.code == sent.code
-        if kind == "connect":
-            if st.state is S.CONNECTING and same and (reply.ready or reply.error is not None):
+        answered = reply.code == sent.code and (reply.ready or reply.error is not None)
+        if send is Send.CONNECT:
+            if answered and expects(st.state, Ev.CONNECTED):
                 self._connected(st, sent, reply)
             return
-        if kind in ("reset", "disconnect"):
-            if same and (reply.ready or reply.error):
-                if kind == "reset":
-                    st.reset_first = False
-                else:
-                    self._set_state(st, S.PHASE1)
-                    for req in st.disconnect_waiters:
-                        req._finish(result=None)
-                    st.disconnect_waiters.clear()
+        if send is Send.RESET:
+            if answered:
+                st.reset_first = False
             return
-        # Phase-2/3 commands: sync | clear | cyclic | request
-        if st.codec.not_connected(sent.code, reply):
+        if send is Send.DISCONNECT:
+            if answered:
+                self._fire(st, Ev.DISCONNECTED)
+                for req in st.disconnect_waiters:
+                    req._finish(result=None)
+                st.disconnect_waiters.clear()
+            return
+        # Phase-2/3 commands: SYNC | CLEAR | CYCLIC | REQUEST
+        if reply.not_connected:
             if sent.req is not None:
-                self._complete(st, st.main_q, sent.req, reply.code, True, reply.error, reply.body)
+                requests.complete(st, st.main_q, sent.req, reply.code, True, reply.error, reply.body)
             self._fault(st, "phase 1", now)
-            self._set_state(st, S.PHASE1)
+            self._fire(st, Ev.NOT_CONNECTED)
             return
-        if reply.comm_alarm is not None and st.state in (S.PHASE2, S.SYNCING, S.PHASE3):
-            self._alarm(st, reply.comm_alarm, now)
-        elif kind == "sync":
-            if st.state is S.SYNCING and same and reply.error is not None:
-                self._alarm(st, reply.error, now)  # refused SYNC_SET: clear, then try again (escalates)
-            elif st.state is S.SYNCING and same and reply.ready:
-                self._set_state(st, S.PHASE3)
+        same = reply.code == sent.code
+        if reply.comm_alarm is not None and expects(st.state, Ev.COMM_ALARM):
+            self._alarm(st, Ev.COMM_ALARM, reply.comm_alarm, now)
+        elif send is Send.SYNC and same:
+            if reply.error is not None and expects(st.state, Ev.SYNC_REFUSED):
+                self._alarm(st, Ev.SYNC_REFUSED, reply.error, now)  # clear, then try again (escalates)
+            elif reply.ready and expects(st.state, Ev.SYNCED):
+                self._fire(st, Ev.SYNCED)
                 self._reached(st, now)
-        elif kind == "clear":
-            if st.state is S.ALARM and same and reply.error is not None:
-                self._alarm(st, reply.error, now)  # refused ALM_CLR: counts as a round (escalates)
-            elif st.state is S.ALARM and same and reply.ready:
-                self._set_state(st, S.SYNCING if st.target is S.PHASE3 else S.PHASE2)
+        elif send is Send.CLEAR and same:
+            if reply.error is not None and expects(st.state, Ev.CLEAR_REFUSED):
+                self._alarm(st, Ev.CLEAR_REFUSED, reply.error, now)  # counts as a round (escalates)
+            elif reply.ready and expects(st.state, Ev.CLEARED):
+                self._fire(st, Ev.CLEARED_TO_SYNC if st.target is S.PHASE3 else Ev.CLEARED)
                 if st.target is S.PHASE2:
                     self._reached(st, now)
-        if kind == "request" and sent.req is not None:
+        if send is Send.REQUEST and sent.req is not None:
             if reply.comm_alarm is not None and reply.warning and st.codec.link is not Link.ML3:
                 return  # SI-T3 Table 21: the alarm hides whether an A.94/A.95 came with it; ask again once cleared
-            self._complete(st, st.main_q, sent.req, reply.code, reply.ready, reply.error, reply.body)
+            requests.complete(st, st.main_q, sent.req, reply.code, reply.ready, reply.error, reply.body)
 
-    def _connected(self, st: _Station, sent: _Sent, reply: Reply) -> None:
-        error = st.codec.connect_refusal(reply)
-        echo_ok = reply.body == sent.body
-        if error is not None and error[1] in _PLAN_REFUSED:
+    def _connected(self, st: Slave, sent: Sent, reply: Reply) -> None:
+        """CONNECT answered in CONNECTING: connected, refused for the plan (back off), or not accepted."""
+        error = reply.connect_refusal
+        if error is not None and reply.plan_refused:
             # The station rejects the plan's VER/COM_MOD/COM_TIM: wait, then try again.
             st.last_error = f"CONNECT refused: {error[1]} ({error[0]:02X}H)"
             st.hold_until = self._cycle + self.plan.connect_backoff * st.period
-            self._set_state(st, S.PHASE1)
+            self._fire(st, Ev.PLAN_REFUSED)
             return
-        if error is not None or not echo_ok:
+        if error is not None or reply.body != sent.body:
             # Not in phase 1 (CONNECT ignored or refused): release the old connection first.
             st.last_error = f"CONNECT not accepted ({error[1] if error else 'echo differs'}); DISCONNECT first"
             st.reset_first = True
+            self._fire(st, Ev.NOT_ACCEPTED)
             return
         st.last_error = None
-        self._set_state(st, S.PHASE2)
+        self._fire(st, Ev.CONNECTED)
         if st.target is S.PHASE2:
             self._reached(st, self._now)
 
-    def _alarm(self, st: _Station, alarm: tuple[int, str], now: int) -> None:
+    def _alarm(self, st: Slave, event: Ev, alarm: tuple[int, str], now: int) -> None:
+        """A communication alarm, or a refused SYNC_SET / ALM_CLR: an ALM_CLR round, or after
+        ``clear_attempts`` rounds DISCONNECT + CONNECT."""
         self._fault(st, alarm[1], now)
         st.clear_rounds += 1
         if st.clear_rounds > self.plan.clear_attempts:
             st.clear_rounds = 0
             st.reset_first = True
             st.last_error = f"{alarm[1]} persists after {self.plan.clear_attempts} ALM_CLR; reconnecting"
-            self._set_state(st, S.CONNECTING)
+            self._fire(st, Ev.ESCALATED)
         else:
-            self._set_state(st, S.ALARM)
-
-    def _complete(self, st: _Station, queue: deque[Request], req: Request, code: int | None, ready: bool,
-                  error: tuple[int, str] | None, body: Any) -> None:
-        if req.done:
-            return  # already timed out
-        req.unanswered = 0
-        if error is None and code != req.code:
-            return  # the echo is of another command: send it again
-        if error is None and not ready:
-            req.busy += 1
-            return
-        if queue and queue[0] is req:
-            queue.popleft()
-        if error is not None:
-            where = "sub-command" if req.sub else "command"
-            req._finish(error=StationAlarmError(
-                st.address, error[0], error[1],
-                f"station {st.address:02X}H refused {req.command} {where}: {error[1]} ({error[0]:02X}H)"))
-        else:
-            req._finish(result=body)
-
-    def _expire(self, st: _Station, now: int) -> None:
-        for q in (st.main_q, st.sub_q):
-            if q and any(r.deadline_ns <= now for r in q):
-                for r in [r for r in q if r.deadline_ns <= now]:
-                    q.remove(r)
-                    r._finish(error=RequestTimeout(st.address, r.command, r.attempts, r.busy, r.unanswered))
-        waiters = st.disconnect_waiters
-        if waiters and any(r.deadline_ns <= now for r in waiters):
-            for r in [r for r in waiters if r.deadline_ns <= now]:
-                waiters.remove(r)
-                r._finish(error=RequestTimeout(st.address, r.command, r.attempts, r.busy))
+            self._fire(st, event)
 
     # ------------------------------------------------------------------ bookkeeping
-    def _observe(self, st: _Station, sent: _Sent, reply: Reply) -> None:
+    def _observe(self, st: Slave, reply: Reply) -> None:
         codec = st.codec
         if reply.alarm != st.alarm:
             st.alarm = reply.alarm
@@ -596,12 +432,11 @@ class MasterCore:
         if reply.cmd_alm != st.cmd_alm:
             st.cmd_alm = reply.cmd_alm
             self._alarm_edge(st, reply.cmd_alm, "command")
-        name = codec.name_of(reply.code)
-        if name == "PRM_RD" and codec.link is not Link.ML3:
+        if not reply.status_valid:
             return  # SI-T3 "STATUS Field" note: with PRM_RD only CMDRDY is valid
         st.fault = reply.fault
         st.warning = reply.warning
-        if name == "INV_CTL":
+        if reply.kind is Cmd.INV_CTL:
             b = reply.body
             st.status = reply.status or 0
             st.output_freq = b.output_freq
@@ -611,7 +446,7 @@ class MasterCore:
             if st.run_held or st.searching:
                 restart.watch(st, self._emit)
 
-    def _alarm_edge(self, st: _Station, code: int, source: str) -> None:
+    def _alarm_edge(self, st: Slave, code: int, source: str) -> None:
         if code:
             table: Any = CommAlm if source == "comm" else CmdAlm
             try:
@@ -622,12 +457,12 @@ class MasterCore:
         else:
             self._emit(AlarmCleared(st.address, source))
 
-    def _fault(self, st: _Station, reason: str, now: int) -> None:
+    def _fault(self, st: Slave, reason: str, now: int) -> None:
         if st.was_up and st.fault_since is None:
             st.fault_since = now
             st.fault_reason = reason
 
-    def _reached(self, st: _Station, now: int) -> None:
+    def _reached(self, st: Slave, now: int) -> None:
         st.was_up = True
         st.clear_rounds = 0
         if st.fault_since is not None:
@@ -636,8 +471,11 @@ class MasterCore:
             st.fault_since = None
             restart.begin(st, self._emit)
 
-    def _set_state(self, st: _Station, new: StationState) -> None:
+    def _fire(self, st: Slave, event: Ev) -> None:
+        """The one place a station's state changes: by the table (:func:`~.machine.next_state`, which raises
+        :class:`~.machine.IllegalTransition` for a pair it does not hold)."""
         old = st.state
+        new = next_state(old, event)
         if old is not new:
             st.state = new
             self._emit(StateChanged(st.address, old, new))
@@ -656,7 +494,7 @@ class MasterCore:
         base = self._now if now is None else now
         return base + (self.plan.request_timeout_ns if timeout_ns is None else timeout_ns)
 
-    def _station(self, station: int) -> _Station:
+    def _station(self, station: int) -> Slave:
         try:
             return self._by_addr[station]
         except KeyError:

@@ -75,10 +75,10 @@ def watch(st: Any, emit: Emit) -> None:
 def command(st: Any, emit: Emit) -> Any:
     """The INV_CTL body for a new application command while a restart is pending. Still waiting for standstill
     (the motor speed is seen): the new command is the one resumed then. Otherwise the application's command ends
-    the hold or the search."""
+    the hold (a run in it is :class:`RunResumed` "run command") or the search (the run went out all along)."""
     if st.run_held and _running(st) and sees_motor(st):
         return _body(st)
-    if _running(st) and (st.run_held or st.searching):
+    if _running(st) and st.run_held:  # a search input pending: the run was never held, so nothing resumes
         emit(RunResumed(st.address, "run command"))
     st.run_held = st.searching = False
     return _body(st)

@@ -5,7 +5,10 @@ from __future__ import annotations
 import enum
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .commands import Cmd
 
 __all__ = [
     "StationState",
@@ -217,7 +220,7 @@ class RunResumed:
     """The held (or searching) run command goes out again."""
 
     station: int
-    reason: str  #: "speed search", "standstill" or "run command"
+    reason: str  #: "speed search", "standstill" or "run command" (the application released a held run)
 
 
 Event = Rtt | Missing | Late | Dropped | StateChanged | AlarmRaised | AlarmCleared | Recovered | RunHeld | RunResumed
@@ -264,15 +267,17 @@ class Request:
 
     Not thread-safe: the core and its callbacks run in one thread (the event loop's)."""
 
-    __slots__ = ("station", "body", "sub", "command", "code", "deadline_ns", "attempts", "busy", "unanswered",
-                 "result", "error", "done", "_callbacks")
+    __slots__ = ("station", "body", "sub", "command", "code", "kind", "deadline_ns", "attempts", "busy",
+                 "unanswered", "result", "error", "done", "_callbacks")
 
-    def __init__(self, station: int, body: Any, sub: bool, command: str, code: int, deadline_ns: int) -> None:
+    def __init__(self, station: int, body: Any, sub: bool, command: str, code: int, deadline_ns: int,
+                 kind: Cmd | None = None) -> None:
         self.station = station
         self.body = body
         self.sub = sub
-        self.command = command
+        self.command = command  #: the command's name ("PRM_RD"; "30H" for a code the manuals do not define)
         self.code = code
+        self.kind = kind
         self.deadline_ns = deadline_ns
         self.attempts = 0  #: times sent
         self.busy = 0  #: answers with CMDRDY/SUBCMDRDY = 0

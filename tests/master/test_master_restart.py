@@ -10,6 +10,7 @@ from master_fakes import MS, Net
 
 from mlink_sim.cards import create_card, settings_for
 from mlink_sim.drive import LoadSpec
+from mlink_sim.master import restart
 from mlink_sim.master import MasterCore, NetworkPlan, Recovered, RunHeld, RunResumed, StationPlan, StationState
 from mlink_sim.wire import Link
 
@@ -97,3 +98,22 @@ def test_vs606v7_search_input_goes_with_the_run_until_speed_agree():
     assert net.core._station(0x21).searching
     net.run_until(lambda: not net.core._station(0x21).searching, limit=1500)
     assert card.station.drive.status.fault is None and card.station.drive.status.running
+
+
+@pytest.mark.parametrize(("speed_search", "events"), [
+    (True, [("RunResumed", "speed search")]),  # the run went out at once, with the search input: nothing held
+    (False, [("RunHeld", "the next run command"), ("RunResumed", "run command")]),
+])
+def test_a_run_command_resumes_only_a_held_run(speed_search, events):
+    """restart.command: a new run command while only the speed-search input is pending ends the search and
+    resumes nothing (no run was held); while a run is held (SI-T/V7: no motor speed monitor) it resumes it."""
+    station = StationPlan(0x21, Link.ML2, card="si-t-v7", speed_search=speed_search, search_input=1 << 4)
+    core = MasterCore(NetworkPlan(Link.ML2, 2 * MS, (station,)))
+    core.set_control(0x21, forward=True, speed_ref=3000)
+    st = core._station(0x21)
+    restart.begin(st, core._emit)  # back at its phase after a fault
+    assert st.searching is speed_search and st.run_held is not speed_search
+    core.set_control(0x21, forward=True, speed_ref=2000)
+    assert not st.searching and not st.run_held
+    got = [(type(e).__name__, getattr(e, "reason", getattr(e, "until", None))) for e in core.drain_events()]
+    assert got == events
