@@ -41,7 +41,7 @@ def _combos(rows: Mapping[int, str], columns: tuple[int, ...]) -> Combinations:
         marks = marks.replace(" ", "")
         if len(marks) != len(columns):
             raise ValueError(f"combination row {main:#04x}: {len(marks)} marks for {len(columns)} columns")
-        out[int(main)] = frozenset(int(c) for c, m in zip(columns, marks) if m == "O")
+        out[int(main)] = frozenset(int(c) for c, m in zip(columns, marks, strict=True) if m == "O")
     return MappingProxyType(out)
 
 
