@@ -8,8 +8,9 @@ time divided by its size, the median and p99 over the batches):
 * ``raw``            the master's socket as it is with no impairment in place: ``sock.sendto`` on loopback UDP.
                      The layer is not in this path at all (``Master.impair_with`` wraps the socket only while a
                      fault is in place), so an idle layer costs exactly nothing here.
-* ``wrapped-idle``   the same sends through an ``ImpairedSocket`` whose layer has no fault left (the moment
-                     between a fault's end and the unwrap): the worst an idle layer ever costs.
+* ``wrapped-other``  the same sends through an ``ImpairedSocket`` while another station is impaired (this one
+                     is not): the cost of the layer for a station it leaves alone, the most a datagram pays when
+                     it is not impaired itself.
 * ``fabric-check``   the virtual fabric's test ``impair is not None and impair.active`` alone (no socket).
 * ``other-station``  ``layer.process`` for a station that has no fault while another station has one (no socket).
 * ``active``         ``layer.process`` with loss 5 %, delay 200 µs ± 50 µs, duplicate 1 %, corrupt 1 % (no
@@ -91,6 +92,7 @@ async def bench(batch: int, batches: int) -> dict[str, dict[str, float]]:
     a, b = _pair()
     dest = b.getsockname()
     layer = ImpairmentLayer(seed=1)
+    layer.impair(Impairment(loss=0.05), 0x22, 0)  # another station: 21H's datagrams pass the layer untouched
     wrapped = ImpairedSocket(a, layer, loop, on_ready=lambda: None, on_error=lambda exc: None, on_idle=lambda: None)
     results: dict[str, dict[str, float]] = {}
 
@@ -110,10 +112,11 @@ async def bench(batch: int, batches: int) -> dict[str, dict[str, float]]:
         raw_s += timed(raw, batch, 1, lambda: _drain(b))
         wrapped_s += timed(through, batch, 1, lambda: _drain(b))
     results["raw"] = summary(raw_s)
-    results["wrapped-idle"] = summary(wrapped_s)
-    results["wrapped-idle-overhead"] = {"median_ns": round(statistics.median(wrapped_s) - statistics.median(raw_s), 1)}
+    results["wrapped-other"] = summary(wrapped_s)
+    results["wrapped-other-overhead"] = {"median_ns": round(statistics.median(wrapped_s) - statistics.median(raw_s),
+                                                            1)}
 
-    holder = type("Fabric", (), {"impair": layer})()
+    holder = type("Fabric", (), {"impair": ImpairmentLayer(seed=1)})()  # idle: no fault anywhere
 
     def check(n: int) -> None:
         for _ in range(n):
@@ -264,7 +267,9 @@ def main() -> int:
         print(f"up, 5 % loss to 21H for 10 s: {up['sent']} commands, {up['drops']} dropped "
               f"({up['drop_rate'] * 100:.2f} %), the card counted {up['reception_failures']} reception failures "
               f"({up['observed_rate'] * 100:.2f} %) ({'ok' if up['ok'] else 'FAIL'}: ±10 % relative)")
-    idle = results["wrapped-idle-overhead"]["median_ns"]
+    # idle (no fault anywhere): the real-time master's socket is not wrapped (0 ns by construction: ``raw`` is its
+    # path); the virtual fabric pays its one test
+    idle = results["fabric-check"]["median_ns"]
     ok = idle <= TARGET_NS and check["ok"] and (up is None or bool(up["ok"]))
     print(json.dumps({"results": results, "loss_check": check, "delay_check": late, "up_check": up, "target_idle_ns": TARGET_NS,
                       "ok": ok}))

@@ -109,6 +109,7 @@ class ImpairedSocket:
         self._on_error = on_error
         self._on_idle = on_idle
         self._line = DelayLine(loop, self._due)
+        self._idle = False  #: on_idle was called: the master has its own socket back
 
     # -- the socket interface the master uses -----------------------------------------------------------------
     def sendto(self, data: bytes, addr: Any) -> int:
@@ -167,6 +168,7 @@ class ImpairedSocket:
         self._maybe_idle()
 
     def _maybe_idle(self) -> None:
-        if not self.layer.active and not self._line and not self._ready:
+        if not self._idle and not self.layer.active and not self._line and not self._ready:
+            self._idle = True
             self._line.close()
             self._on_idle()
