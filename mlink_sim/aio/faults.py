@@ -21,7 +21,7 @@ from ..faults import Episode, FaultError, FaultSpec, fault_from_fields
 from ..faults.plant import PlantFaults
 from ..faults.spec import PLANT_FAULTS
 
-__all__ = ["FaultControl", "handle_plant_request", "PlantError"]
+__all__ = ["FaultControl", "handle_plant_request", "PlantError", "fault_ops", "parse_fault_text"]
 
 log = get_logger("mlink_sim.faults")
 
@@ -120,3 +120,79 @@ class FaultControl:
         if not reply.get("ok"):
             raise PlantError(str(reply.get("error")))
         return int(reply.get("handle", 0))
+
+
+def parse_fault_text(text: str) -> tuple[str, dict[str, Any]]:
+    """``"silence,for=200ms"`` / ``"bad-command,kind=phase"`` / ``"load,torque=5,for=1s"`` -> (action, fields), the
+    values as strings or numbers (:func:`~mlink_sim.faults.fault_from_fields` checks them)."""
+    action, *rest = [part.strip() for part in text.split(",") if part.strip()] or [""]
+    fields: dict[str, Any] = {}
+    for part in rest:
+        name, sep, value = part.partition("=")
+        if not sep:
+            raise FaultError(f"{part}: expected NAME=VALUE after the fault's name, e.g. 'silence,for=200ms'")
+        try:
+            fields[name.strip()] = int(value) if value.strip().lstrip("-").isdigit() else float(value)
+        except ValueError:
+            fields[name.strip()] = value.strip()
+    return action, fields
+
+
+def fault_ops(session: Any) -> dict[str, Any]:
+    """The control endpoint's operations for station, master and drive faults (aio/control.py, docs/faults.md):
+
+    * ``{"op": "fault", "station": "0x21", "fault": "silence,for=200ms"}`` (or the fields: ``"do": "silence",
+      "for": "200ms"``; ``"station": "all"`` for every station) → ``{"ok": true, "faults": [...]}``; a request
+      carrying an ``"id"`` already seen is answered again without injecting twice (UDP repeats);
+    * ``{"op": "recovery"}`` → every station's latest fault episode (its end, its recovery time)."""
+    from ..metrics.network import station_key
+
+    seen: dict[Any, dict[str, Any]] = {}
+
+    def stations(value: Any) -> list[int]:
+        if value in (None, "all"):
+            return [st.address for st in session.config.station]
+        from ..config import parse_address
+
+        address = parse_address(value)
+        if address not in session.net.by_station:
+            raise ValueError(f"station: {address:#04x} is not a station of this network")
+        return [address]
+
+    def fault(request: dict[str, Any]) -> dict[str, Any]:
+        rid = request.get("id")
+        if rid is not None and rid in seen:
+            return seen[rid]
+        fields = {k: v for k, v in request.items() if k not in ("op", "station", "fault", "id")}
+        action = fields.pop("do", None)
+        if isinstance(request.get("fault"), str):
+            action, parsed = parse_fault_text(request["fault"])
+            fields = {**parsed, **fields}
+        spec = fault_from_fields(str(action or ""), fields)
+        loop = asyncio.get_running_loop()
+        for address in stations(request.get("station")):
+            task = loop.create_task(session.net.fault(address, spec))
+            session.net.fault_control._tasks.add(task)
+            task.add_done_callback(_fault_done(session.net.fault_control, address))
+        reply = {"fault": spec.as_fields(), "describe": spec.describe}
+        if rid is not None:
+            seen[rid] = reply
+            if len(seen) > 64:
+                seen.pop(next(iter(seen)))
+        return reply
+
+    def recovery(request: dict[str, Any]) -> dict[str, Any]:
+        control = session.net.fault_control
+        latest = {a: control.stage(a).latest(a) for a in stations(request.get("station"))}
+        return {"episodes": {station_key(a): None if ep is None else ep.as_dict() for a, ep in latest.items()}}
+
+    return {"fault": fault, "recovery": recovery}
+
+
+def _fault_done(control: FaultControl, station: int) -> Any:
+    def done(task: asyncio.Task[Any]) -> None:
+        control._tasks.discard(task)
+        if not task.cancelled() and task.exception() is not None:
+            log.warning("fault_failed", station=f"{station:02X}H", error=str(task.exception()))
+
+    return done

@@ -143,10 +143,12 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
         assert net is not None
         if opts.control is not None:
             from .control import ControlServer, impairment_ops
+            from .faults import fault_ops
 
-            control = ControlServer(impairment_ops(session))
+            control = ControlServer({**impairment_ops(session), **fault_ops(session)})
             host, port = await control.start(*opts.control)
-            _notice(opts, "control", f"control: {host}:{port} (mlink-sim control {host}:{port} impair|heal|faults)")
+            _notice(opts, "control", f"control: {host}:{port} (mlink-sim control {host}:{port} "
+                                     "impair|heal|faults|fault|recovery)")
         # -- bring-up ----------------------------------------------------------------------------------------------
         bring = loop.create_task(session.bring_up(opts.bringup_timeout_s))
         stopper = loop.create_task(stop.wait())

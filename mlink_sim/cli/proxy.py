@@ -130,7 +130,7 @@ async def _serve(links: list[Any], spec: Any, seed: int, control_addr: tuple[str
 
 @click.command("control")
 @click.argument("address", metavar="HOST:PORT")
-@click.argument("op", type=click.Choice(["impair", "heal", "faults", "ping"]))
+@click.argument("op", type=click.Choice(["impair", "heal", "faults", "fault", "recovery", "ping"]))
 @click.argument("station", required=False)
 @click.argument("spec", required=False)
 @click.option("--timeout", default=3.0, show_default=True,
@@ -143,24 +143,37 @@ def control_cmd(address: str, op: str, station: str | None, spec: str | None, ti
       mlink-sim control 127.0.0.1:47100 impair all 'corrupt=1%'
       mlink-sim control 127.0.0.1:47100 heal [0x21]
       mlink-sim control 127.0.0.1:47100 faults
+      mlink-sim control 127.0.0.1:47100 fault 0x21 'silence,for=200ms'    (up only; docs/faults.md)
+      mlink-sim control 127.0.0.1:47100 recovery [0x21]
     Prints the answer (JSON); exit 0 if it was done, 1 if refused or unanswered, 2 for a bad request."""
+    import secrets
+
+    from ..aio.faults import parse_fault_text
     from ..aio.slave import query_control
+    from ..faults import FaultError, fault_from_fields
     from ..impair import ImpairError, parse_impair_text, target_station
 
     host, port = _endpoint(address, "HOST:PORT")
     fields: dict[str, Any] = {}
     try:
-        if op in ("impair", "heal") and station is not None:
+        if op in ("impair", "heal", "fault", "recovery") and station is not None:
             target_station(station)
             fields["station"] = station
-        if op == "impair":
+        if op == "fault":
+            if spec is None:
+                raise click.UsageError("fault needs STATION and SPEC, e.g. fault 0x21 'silence,for=200ms'")
+            action, values = parse_fault_text(spec)
+            fault_from_fields(action, values)
+            fields["fault"] = spec
+            fields["id"] = secrets.token_hex(8)  # a repeated request is not injected twice
+        elif op == "impair":
             if spec is None:
                 raise click.UsageError("impair needs STATION and SPEC, e.g. impair 0x21 'loss=10%,for=2s'")
             parse_impair_text(spec)
             fields["impair"] = spec
         elif spec is not None:
             raise click.UsageError(f"{op} takes no SPEC")
-    except ImpairError as exc:
+    except (ImpairError, FaultError) as exc:
         raise click.UsageError(str(exc)) from None
     reply = None
     for _ in range(_ATTEMPTS):  # UDP: a request can go unanswered; each operation can be repeated safely

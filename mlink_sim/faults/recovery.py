@@ -42,6 +42,11 @@ class Episode:
             return None
         return self.recovered_ns - self.end_ns
 
+    def as_dict(self) -> dict[str, object]:
+        """The episode as JSON (a control reply, the plugin's host)."""
+        return {"station": self.station, "what": self.what, "start_ns": self.start_ns, "end_ns": self.end_ns,
+                "recovered_ns": self.recovered_ns, "recovery_ns": self.recovery_ns, "notes": list(self.notes)}
+
     @property
     def settled(self) -> bool:
         """Recovered or given up: nothing more will change."""

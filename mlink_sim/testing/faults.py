@@ -41,10 +41,7 @@ class FaultEpisode:
 
 def episode_dict(ep: Episode | None) -> dict[str, Any] | None:
     """An episode as JSON (what the host process sends back)."""
-    if ep is None:
-        return None
-    return {"station": ep.station, "what": ep.what, "start_ns": ep.start_ns, "end_ns": ep.end_ns,
-            "recovered_ns": ep.recovered_ns, "recovery_ns": ep.recovery_ns, "notes": list(ep.notes)}
+    return None if ep is None else ep.as_dict()
 
 
 def _episode(d: dict[str, Any] | None) -> FaultEpisode | None:

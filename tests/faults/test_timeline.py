@@ -113,3 +113,43 @@ def test_plugin_methods_on_the_virtual_clock():
             net.skip_cycles(0x21, count=0)
         net.check("station[0x21].recovery.count >= 1", "station[0x21].injected.skips == 2",
                   "station[0x22].injected.drive_faults == 1")
+
+
+def test_control_requests_inject_faults_into_a_running_network():
+    """``{"op": "fault"}`` / ``{"op": "recovery"}`` on the control endpoint of a running ``up`` (aio/faults.py):
+    the same faults as the timeline, a repeated request (same ``id``) injected once, bad values refused."""
+    import asyncio
+
+    from mlink_sim.aio.control import ControlServer
+    from mlink_sim.aio.faults import fault_ops, parse_fault_text
+
+    assert parse_fault_text("load,torque=5,for=1s") == ("load", {"torque": 5, "for": "1s"})
+    with VirtualNetwork("faults-master", seed=3) as net:
+        server = ControlServer(fault_ops(net.session))
+
+        def ask(**request):
+            async def go():
+                reply = server.handle(__import__("json").dumps(request).encode())
+                await asyncio.sleep(0.002)
+                return reply
+            return net.call(go())
+
+        reply = ask(op="fault", station="0x21", fault="skip-cycles,count=2", id="a")
+        assert reply["ok"] and reply["fault"] == {"do": "skip-cycles", "count": 2}
+        assert ask(op="fault", station="0x21", fault="skip-cycles,count=2", id="a") == reply
+        net.advance(0.1)
+        episodes = ask(op="recovery", station="0x21")["episodes"]
+        assert episodes["0x21"]["what"] == "skip-cycles count=2" and episodes["0x21"]["recovery_ns"] < 50_000_000
+        assert net.report()["station"]["0x21"]["injected"]["skips"] == 2
+        bad = ask(op="fault", station="0x21", fault="skip-cycles,count=0")
+        assert not bad["ok"] and "count: expected a whole number" in bad["error"]
+        assert not ask(op="fault", station="0x99", fault="silence,for=1s")["ok"]
+
+
+def test_mlink_sim_control_fault_checks_the_spec_before_sending():
+    from mlink_sim.cli.proxy import control_cmd
+
+    for spec, why in (("silence", "for: required"), ("warp,for=1s", "do: expected one of"),
+                      ("silence,200ms", "expected NAME=VALUE")):
+        result = CliRunner().invoke(control_cmd, ["127.0.0.1:9", "fault", "0x21", spec])
+        assert result.exit_code == 2 and why in result.output, result.output
