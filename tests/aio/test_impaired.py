@@ -17,12 +17,15 @@ from mlink_sim.wire import Link
 MS = 1_000_000
 
 
+def _sock() -> socket.socket:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    s.setblocking(False)
+    return s
+
+
 def _pair() -> tuple[socket.socket, socket.socket]:
-    a, b = (socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2))
-    for s in (a, b):
-        s.bind(("127.0.0.1", 0))
-        s.setblocking(False)
-    return a, b
+    return _sock(), _sock()
 
 
 def _datagram(station: int = 0x21) -> bytes:
@@ -84,3 +87,41 @@ async def test_the_master_socket_is_wrapped_only_while_a_fault_is_in_place() -> 
     assert master._sock is raw
     raw.close()
     peer.close()
+
+
+async def test_the_proxy_forwards_both_ways_per_link_and_impairs_per_station() -> None:
+    from mlink_sim.aio.proxy import ImpairingProxy
+
+    loop = asyncio.get_running_loop()
+    slaves = [_sock() for _ in range(2)]  # echo "slaves" for 21H and 22H
+
+    def echo(sock: socket.socket) -> None:
+        while True:
+            try:
+                data, addr = sock.recvfrom(4096)
+            except BlockingIOError:
+                return
+            sock.sendto(data, addr)
+
+    for s in slaves:
+        loop.add_reader(s.fileno(), echo, s)
+    proxy = ImpairingProxy([(("127.0.0.1", 0), s.getsockname()) for s in slaves], ImpairmentLayer(seed=1))
+    await proxy.start()
+    master = _sock()
+    try:
+        proxy.impair(0x22, Impairment(loss=1.0, direction="to-master"))
+        for link, station in zip(proxy.links, (0x21, 0x22)):
+            master.sendto(_datagram(station), link.listen)
+        got = await _recv(master, 1.0)
+        assert got is not None and got[0] == _datagram(0x21)
+        assert await _recv(master, 0.1) is None  # 22H's answer was lost on the way back
+        totals = proxy.totals()
+        assert totals["to_station"] == 2 and totals["to_master"] == 2
+        assert proxy.impairments.injected() == {0x22: {"drops": 1}}
+        assert proxy.heal() == 1 and not proxy.impairments.active
+    finally:
+        proxy.close()
+        master.close()
+        for s in slaves:
+            loop.remove_reader(s.fileno())
+            s.close()
