@@ -221,8 +221,11 @@ class NetworkSession:
         return time.monotonic_ns()
 
     def impair(self, station: int | None, spec: Any) -> None:
-        """Start *spec* (an :class:`~mlink_sim.impair.Impairment`) on *station* (None: every station)."""
-        self.impairments.impair(spec, station, self._now_ns())
+        """Start *spec* (an :class:`~mlink_sim.impair.Impairment`) on *station* (None: every station, each on its
+        own, so that a later ``impair`` or ``heal`` of one station replaces or ends it there)."""
+        now = self._now_ns()
+        for address in [st.address for st in self.config.station] if station is None else [station]:
+            self.impairments.impair(spec, address, now)
         self._route_impairments()
 
     def heal(self, station: int | None = None) -> int:

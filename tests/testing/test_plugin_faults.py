@@ -34,3 +34,13 @@ def test_every_station_and_the_text_form(mlink_network):
         mlink_network.impair(0x21, loss=2)
     with pytest.raises(ImpairError, match="station"):
         mlink_network.impair("nowhere", loss=0.1)
+
+
+@pytest.mark.mlink_network("configs/faults-network.toml", clock="virtual")
+def test_healing_one_station_of_an_every_station_impairment(mlink_network):
+    net = mlink_network
+    net.impair("all", "delay=100us,direction=to-station")
+    assert net.heal(0x21) == 1  # 21H's own share of it
+    net.wait(0.2)
+    injected = {k: v["injected"]["delays"] for k, v in net.metrics.report["station"].items()}
+    assert injected["0x21"] == 0 and injected["0x22"] > 0 and injected["0x23"] > 0
