@@ -1,11 +1,14 @@
 """Write datagrams to a pcapng file off the hot path (``--capture FILE.pcapng``).
 
-The hot path only appends ``(ts_ns, datagram, src, dst)`` to a deque (:meth:`wrap`'s tapped socket: +0.4 µs per
-send, +1.4 µs per receive, which reads with ``recvfrom`` for the source address; docs/performance.md, "Capture");
-a writer thread wakes every ``flush_s`` (250 ms), wraps each datagram in an IPv4 (or IPv6) and UDP header
-and hands the batch to dpkt's pcapng ``Writer`` (Enhanced Packet Blocks, LINKTYPE_RAW, microsecond timestamps).
-The thread writes in chunks of :data:`_CHUNK` packets: each file write releases the GIL, so the event loop never
-waits behind the writer for longer than one chunk (~0.2 ms).
+The hot path only appends ``(ts_ns, datagram, src, dst)`` to a deque (:meth:`wrap`'s tapped socket, or
+:attr:`CaptureWriter.record` for a driver with its own clock). A writer thread wakes every ``flush_s`` (250 ms) and
+takes the whole queue as one batch: without notes in it, every per-datagram step on our side is a C-level
+``map``/``zip`` over the batch (the IPv4/IPv6 + UDP header comes from a cache keyed by flow and size, built with
+dpkt once per key; header + datagram; Unix time in s). dpkt's pcapng ``Writer.writepkts`` then makes the Enhanced
+Packet Blocks (LINKTYPE_RAW, microsecond timestamps) into a list, and the list goes to the unbuffered file in one
+``write`` per :data:`_CHUNK` packets: each such system call releases the GIL, so the event loop never waits behind
+the writer for longer than one chunk. What this costs per datagram is measured by ``scripts/bench_capture.py``
+(docs/performance.md, "Capture").
 
 Notes (:meth:`CaptureWriter.note`: alarms, phase changes, injected faults) travel in the same deque, so they keep
 their order with the datagrams; each becomes a pcapng ``opt_comment`` on the datagram recorded just before it
