@@ -108,14 +108,14 @@ def hot_path(n: int, repeat: int) -> dict[str, dict[str, float]]:
                 send, recv = s.sendto, r.recv
                 cpu["send" + name] += _cpu(lambda: [send(payload, dst) for _ in range(block)])  # noqa: B023
                 cpu["recv" + name] += _cpu(lambda: [recv(4096) for _ in range(block)])  # noqa: B023
-            writer._queue.clear()  # noqa: SLF001 - the records themselves are not the point here
+            writer._queue.clear()  # the records themselves are not the point here
         for k, v in cpu.items():
             out[k].append(v / (max(1, n // block) * block) * 1e6)
     a.close()
     b.close()
     result = {k: spread(v) for k, v in out.items()}
-    result["send_added"] = spread([t - p for t, p in zip(out["send_tapped"], out["send"])])
-    result["recv_added"] = spread([t - p for t, p in zip(out["recv_tapped"], out["recv"])])
+    result["send_added"] = spread([t - p for t, p in zip(out["send_tapped"], out["send"], strict=True)])
+    result["recv_added"] = spread([t - p for t, p in zip(out["recv_tapped"], out["recv"], strict=True)])
     return result
 
 
@@ -139,7 +139,7 @@ def writer_cost(n: int, repeat: int) -> dict[str, float]:
                     else:
                         w.record((start + i) * 1_000, datagrams[i], master, slave)
                 t = time.thread_time()
-                w._drain()  # noqa: SLF001
+                w._drain()
                 cpu += time.thread_time() - t
             t = time.thread_time()
             stats = w.close()

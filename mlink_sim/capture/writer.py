@@ -163,7 +163,7 @@ class CaptureWriter:
     def start(self) -> CaptureWriter:
         """Open the file (OSError when it cannot be created) and start the writer thread."""
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed in close(); one write per chunk
+        self._file = open(self.path, "wb", buffering=0)  # closed in close(); one write per chunk
         shb = pcapng.SectionHeaderBlockLE(opts=[
             pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_SHB_USERAPPL, data=b"mlink-sim"),
             pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_ENDOFOPT)])
@@ -219,7 +219,7 @@ class CaptureWriter:
             cpu = time.thread_time()
             try:
                 self._drain()
-            except Exception as exc:  # disk full, file gone: stop recording, say so once, keep the run going
+            except Exception as exc:  # noqa: BLE001 - disk full, file gone: stop, say so, run on
                 self._write_failed(exc)
             self.stats.writer_cpu_s += time.thread_time() - cpu
 
@@ -243,9 +243,9 @@ class CaptureWriter:
             if noted != self._notes_taken:
                 self._take_with_notes(batch)
             else:
-                stamps, datas, srcs, dsts = zip(*batch)
+                stamps, datas, srcs, dsts = zip(*batch, strict=True)
                 self._pending.extend(zip(map(mul, map(add, stamps, repeat(self.epoch_offset_ns)), repeat(1e-9)),
-                                         map(add, self._headers_of(srcs, dsts, datas), datas)))
+                                         map(add, self._headers_of(srcs, dsts, datas), datas), strict=True))
         pending = len(self._pending)
         if final and pending:
             self._write(pending)
@@ -256,11 +256,11 @@ class CaptureWriter:
         """The IP + UDP header of each datagram: one dict lookup per datagram, built once per flow and size."""
         headers = self._headers
         try:
-            return list(map(headers.__getitem__, zip(srcs, dsts, map(len, datas))))
+            return list(map(headers.__getitem__, zip(srcs, dsts, map(len, datas), strict=True)))
         except KeyError:
-            for key in set(zip(srcs, dsts, map(len, datas))).difference(headers):
+            for key in set(zip(srcs, dsts, map(len, datas), strict=True)).difference(headers):
                 headers[key] = self._header(*key)
-            return list(map(headers.__getitem__, zip(srcs, dsts, map(len, datas))))
+            return list(map(headers.__getitem__, zip(srcs, dsts, map(len, datas), strict=True)))
 
     def _take_with_notes(self, batch: list[tuple[int, Any, Any, Any]]) -> None:
         """A batch with notes in it, one item at a time: each note becomes a comment on the datagram before it."""

@@ -173,3 +173,29 @@ def test_reader_takes_classic_pcap_on_ethernet(tmp_path: Path) -> None:
     cap = read_capture(tmp_path / "c.pcap")
     assert [(d.src, d.dst, d.data, d.ts_ns) for d in cap.datagrams] == [(A, B, b"\x4d" * 31, 1_500_000_000)]
     assert cap.skipped == 1
+
+
+def test_batches_chunks_and_notes_between_drains(tmp_path: Path) -> None:
+    """The writer's wake-ups fall anywhere: a note right after a drain still lands on the datagram before it, and
+    batches longer than a chunk (128 packets) keep their order and headers per flow and size."""
+    path = tmp_path / "c.pcapng"
+    w = CaptureWriter(path, epoch_offset_ns=0, flush_s=3600).start()  # its thread sleeps: the drains are ours
+    try:
+        for i in range(300):
+            src, dst = (A, B) if i % 2 else (B, A)
+            w.record(i * 1_000, bytes([i % 256]) * (31 + i % 3), src, dst)
+        w._drain()  # writes 299, holds the last back for the notes that may follow
+        w.note(300_000, "after the 300th")
+        for i in range(300, 310):
+            w.record(i * 1_000, bytes([i % 256]) * 31, A, B)
+        w.note(310_000, "after the last")
+        w._drain()
+    finally:
+        stats = w.close()
+    cap = read_capture(path)
+    assert [d.ts_ns for d in cap.datagrams] == [i * 1_000 for i in range(310)]
+    assert [len(d.data) for d in cap.datagrams[:3]] == [31, 32, 33]
+    assert all((d.src, d.dst) == ((A, B) if i % 2 else (B, A)) for i, d in enumerate(cap.datagrams[:300]))
+    assert {i: d.comments for i, d in enumerate(cap.datagrams) if d.comments} == {299: ("after the 300th",),
+                                                                                309: ("after the last",)}
+    assert stats.datagrams == 310 and stats.notes == 2 and stats.bytes == path.stat().st_size
