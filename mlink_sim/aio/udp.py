@@ -9,7 +9,7 @@ from typing import Any
 
 from .._log import get_logger
 
-__all__ = ["new_event_loop", "DatagramEndpoint", "open_endpoint", "BatchEndpoint", "open_batch_endpoint", "loop_name",
+__all__ = ["new_event_loop", "stop_on_signals", "DatagramEndpoint", "open_endpoint", "BatchEndpoint", "open_batch_endpoint", "loop_name",
            "resolve", "bind_address_for", "bound_socket", "close_watched", "BindError"]
 
 log = get_logger("mlink_sim.aio.udp")
@@ -22,6 +22,23 @@ def new_event_loop() -> asyncio.AbstractEventLoop:
     except ImportError:  # pragma: no cover - uvloop is a dependency on Linux/macOS
         return asyncio.new_event_loop()
     return uvloop.new_event_loop()
+
+
+def stop_on_signals(loop: asyncio.AbstractEventLoop) -> tuple[asyncio.Event, list[int]]:
+    """SIGINT and SIGTERM set the returned event (a server's orderly stop); the list gets each signal caught
+    (exit status 128 + its number)."""
+    import signal
+
+    stop = asyncio.Event()
+    caught: list[int] = []
+
+    def on_signal(sig: signal.Signals) -> None:
+        caught.append(sig)
+        stop.set()
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, on_signal, sig)
+    return stop, caught
 
 
 def loop_name(loop: asyncio.AbstractEventLoop) -> str:

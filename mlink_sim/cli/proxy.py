@@ -11,7 +11,7 @@ from typing import Any
 
 import click
 
-from ..aio.udp import new_event_loop
+from ..aio.udp import new_event_loop, stop_on_signals
 from ..config import parse_endpoint
 from .capture_opts import capture_options, open_capture_or_exit
 from .logs import configure_logging
@@ -95,15 +95,7 @@ async def _serve(links: list[Any], spec: Any, seed: int, control_addr: tuple[str
     from ..metrics.network import station_key
 
     loop = asyncio.get_running_loop()
-    stop = asyncio.Event()
-    caught: list[int] = []
-
-    def on_signal(sig: signal.Signals) -> None:
-        caught.append(sig)
-        stop.set()
-
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        loop.add_signal_handler(sig, on_signal, sig)
+    stop, caught = stop_on_signals(loop)
     proxy = ImpairingProxy(links, ImpairmentLayer(seed=seed), capture=capture)
     server = ControlServer(impairment_ops(proxy))
     try:

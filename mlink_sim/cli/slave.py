@@ -16,7 +16,7 @@ from ..aio import realtime
 from ..aio.heap import settle_heap
 from ..aio.slave import HostedStation, SlaveServer
 from ..aio.stations import StationSpec, build_station, spec_for
-from ..aio.udp import BindError, loop_name, new_event_loop
+from ..aio.udp import BindError, loop_name, new_event_loop, stop_on_signals
 from ..config import ConfigError, load_config, parse_address, parse_duration_ns, parse_endpoint
 from ..wire import Link
 from .capture_opts import capture_options, open_capture_or_exit
@@ -60,15 +60,7 @@ def station_specs_from_config(
 async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool = False) -> int:
     """Serve until SIGINT / SIGTERM; the exit status, 128 + the signal's number (130 / 143)."""
     loop = asyncio.get_running_loop()
-    stop = asyncio.Event()
-    caught: list[int] = []
-
-    def on_signal(sig: signal.Signals) -> None:
-        caught.append(sig)
-        stop.set()
-
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        loop.add_signal_handler(sig, on_signal, sig)
+    stop, caught = stop_on_signals(loop)
     await server.start()
     settle_heap()  # before the first command arrives: no full collection of the start-up heap mid-cycle
     info = server.ready_info()
