@@ -133,7 +133,7 @@ def set_thread_timer_slack(slack_ns: int) -> bool:
 
 
 
-def _bind_clock_nanosleep():
+def _bind_clock_nanosleep() -> Callable[..., int] | None:
     if _libc is None:
         return None
     try:
@@ -156,11 +156,11 @@ def make_abs_sleeper() -> Callable[[int], None]:
         mono = time.monotonic_ns
         sleep = time.sleep
 
-        def sleep_until(deadline_ns: int) -> None:
+        def sleep_until_portable(deadline_ns: int) -> None:
             dt = deadline_ns - mono()
             if dt > 0:
                 sleep(dt / 1e9)
-        return sleep_until
+        return sleep_until_portable
 
     ts = _Timespec()
     ref = ctypes.byref(ts)

@@ -22,14 +22,14 @@ from __future__ import annotations
 
 import asyncio
 import threading
-from collections.abc import Coroutine, Sequence
+from collections.abc import Awaitable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
 from ..config import Config, load_config
 from .scenario import CheckResult, Scenario, StationControls, speed_scales
-from .session import build_report
+from .session import NetworkApi, build_report
 from .vclock import VirtualEventLoop
 from .virtual import VirtualSession
 
@@ -78,7 +78,9 @@ class VirtualNetwork(StationControls):
         self._lock = threading.Lock()  # one caller at a time (``net.aio`` calls come from worker threads)
         self.session: VirtualSession = self.call(VirtualSession.open(
             self.config, path, seed=seed, state_dir=Path(state_dir) if state_dir else None))
-        self.net = self.session.net
+        net = self.session.net
+        assert net is not None  # open() builds it
+        self.net: NetworkApi = net
         self._scenario: tuple[Scenario, asyncio.Task[None]] | None = None
         self._closed = False
         self.final_report: dict[str, Any] | None = None
@@ -105,7 +107,7 @@ class VirtualNetwork(StationControls):
         """The transmission cycle in seconds."""
         return self.config.network.transmission_cycle / 1e9
 
-    def call(self, coro: Coroutine[Any, Any, T]) -> T:
+    def call(self, coro: Awaitable[T]) -> T:
         """Run *coro* (anything of the async API) to completion on simulated time and return its result."""
         with self._lock:
             return self.loop.run_until_complete(coro)

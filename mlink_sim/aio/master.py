@@ -411,7 +411,7 @@ class Master:
         wrapper: ImpairedSocket
 
         def unwrap() -> None:
-            if self._sock is wrapper:
+            if self._sock is wrapper:  # type: ignore[comparison-overlap]  # the wrapper stands in for the socket
                 self._sock = wrapper.sock
 
         wrapper = ImpairedSocket(sock, layer, self._loop, on_ready=self.read_responses, on_error=self._on_error,
@@ -437,6 +437,7 @@ class Master:
             pending = self._pending_missing
             log = self._log
             note = self._note
+            ev: Any  # dispatched on its exact type below (`t is Rtt` ...: cheaper than isinstance, not narrowed)
             for ev in self.core.drain_events():
                 t = type(ev)
                 if note is not None and t in _NOTED:

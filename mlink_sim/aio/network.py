@@ -231,6 +231,9 @@ def cut_by_duration(config: Config, duration_ns: int | None) -> list[TimelineSte
     return [s for s in sorted(config.timeline, key=lambda s: s.at) if s.at >= duration_ns]
 
 
+_Signal = signal.Signals  # for the annotations inside Verdict, whose field `signal` hides the module there
+
+
 @dataclasses.dataclass(frozen=True)
 class Verdict:
     """The run's outcome in one place, so the summary line and the exit status can never disagree."""
@@ -244,7 +247,7 @@ class Verdict:
     signal: signal.Signals | None
 
     @classmethod
-    def of(cls, scenario: Scenario, report: dict[str, Any], problems: list[str], sig: signal.Signals | None,
+    def of(cls, scenario: Scenario, report: dict[str, Any], problems: list[str], sig: _Signal | None,
            cut: list[TimelineStep]) -> Verdict:
         asserts = report.get("assertions", [])
         not_run = scenario.not_run()

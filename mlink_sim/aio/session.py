@@ -18,7 +18,7 @@ import time
 from collections.abc import Sequence
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 
 from .._log import get_logger
@@ -55,7 +55,7 @@ def build_plans(config: Config) -> dict[Link, Any]:
             data_size=st.frame_size or 0,
             com_tim=st.com_tim or 0,
             sync=st.sync,
-            subcmd=st.subcmd,
+            subcmd=bool(st.subcmd),  # the config's validation fills it in
             name=st.name or "",
             card=st.card,
             et3_syncmode_table19=bool(st.options.get("et3_syncmode_table19", False)),
@@ -80,7 +80,8 @@ class NetworkApi:
         self.network_config = config
         self.masters = masters
         self.workers = workers
-        self.by_station = {st.address: masters[st.link] for st in config.station}
+        # the config's validation fills every station's link in
+        self.by_station = {st.address: masters[st.link] for st in config.station}  # type: ignore[index]
         self._controls: dict[int, dict[str, Any]] = {st.address: {} for st in config.station}
         self.fault_control = FaultControl(self)  #: station, master and drive faults (docs/faults.md)
 
@@ -246,7 +247,7 @@ class NetworkSession:
     # ------------------------------------------------------------------ life cycle
     @classmethod
     async def open(cls, config: Config, config_path: Path | str, *,
-                   endpoints: dict[int, tuple[str, int]] | None = None, **kwargs: Any) -> NetworkSession:
+                   endpoints: dict[int, tuple[str, int]] | None = None, **kwargs: Any) -> Self:
         """Start the slaves (unless *endpoints* is given) and one cycling master per link.
 
         Raises :class:`~mlink_sim.aio.supervisor.WorkerError` (a slave did not start) or :class:`EndpointError`

@@ -19,6 +19,7 @@ import json
 import os
 import resource
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -161,7 +162,7 @@ class SlaveServer:
 
     # -- datagrams --------------------------------------------------------------------------------------------
 
-    def _receiver(self, hs: HostedStation):  # noqa: ANN202 - closure for the hot path
+    def _receiver(self, hs: HostedStation) -> Callable[..., None]:  # a closure, for the hot path
         """The batch handler of one station's socket. More than ``_KEEP_BEHIND`` datagrams from one source waiting
         means the worker fell that many cycles behind: the oldest are counted as ``SUPERSEDED`` drops and only the
         newest ``_KEEP_BEHIND`` are processed (with the host-stall policy "absorb", as many as a stall of the

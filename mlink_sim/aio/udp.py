@@ -213,7 +213,7 @@ async def resolve(host: str, port: int) -> tuple[str, int]:
     loop = asyncio.get_running_loop()
     infos = await loop.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
     infos.sort(key=lambda info: info[0] != socket.AF_INET)  # IPv4 first: the master socket is IPv4 by default
-    return infos[0][4][0], port
+    return str(infos[0][4][0]), port
 
 
 def bind_address_for(targets: list[tuple[str, int]]) -> tuple[str, int]:

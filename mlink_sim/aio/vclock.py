@@ -116,7 +116,8 @@ class VirtualEventLoop(asyncio.SelectorEventLoop):
         self.clock = clock if clock is not None else VirtualClock()
         selector = _VirtualSelector(self.clock)
         super().__init__(selector)
-        selector.ready = self._ready  # asyncio's queue of callbacks to run now (BaseEventLoop)
+        # asyncio's queue of callbacks to run now: BaseEventLoop's private deque, not in the type stubs
+        selector.ready = self._ready  # type: ignore[attr-defined]
 
     def time(self) -> float:
         return self.clock.now / 1e9

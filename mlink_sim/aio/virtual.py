@@ -47,11 +47,14 @@ class VirtualMaster(Master):
     """A :class:`Master` whose socket is a :class:`FabricPort` and whose clock is the fabric's: its cycle, fast
     path and request API are the real master's."""
 
+    _fabric: Fabric
+
     @classmethod
     def attach(cls, plan: NetworkPlan, fabric: Fabric, cycle: VirtualCycle, *, metrics: MetricsSink | None = None,
                loop: asyncio.AbstractEventLoop | None = None) -> VirtualMaster:
         """A master for *plan* on *fabric*, cycled by *cycle* (which calls :meth:`on_cycle`; shared by the links)."""
-        self = cls(MasterCore(plan), {sp.address: sp.address for sp in plan.stations},
+        # the fabric's ends are the station addresses, where a UDP master has (host, port)
+        self = cls(MasterCore(plan), {sp.address: sp.address for sp in plan.stations},  # type: ignore[misc]
                    metrics if metrics is not None else NullMetrics(), loop or asyncio.get_running_loop())
         add_stations = getattr(self.metrics, "add_stations", None)
         if callable(add_stations):

@@ -457,8 +457,8 @@ class Config(BaseModel):
                     f"{where}.address: {st.address:#04x} is outside {st.card}'s range {lo:02X}H–{hi:02X}H"
                 )
             if link not in CARD_LINKS[st.card]:
-                links = "/".join(lk.label for lk in CARD_LINKS[st.card])
-                raise ValueError(f"{where}.link: {st.card} speaks {links}, not {link.label}")
+                spoken = "/".join(lk.label for lk in CARD_LINKS[st.card])
+                raise ValueError(f"{where}.link: {st.card} speaks {spoken}, not {link.label}")
             if st.frame_size is None:
                 st.frame_size = DEFAULT_FRAME[(st.card, link)]
             if st.frame_size not in link.data_sizes:

@@ -398,8 +398,8 @@ def _from_a1000(values: Mapping[str, int], current_unit_a: float | None,
     poles = g("E2-04")
     cu = current_unit_a if current_unit_a is not None else 0.01
     t_unit = 0.1 if g("C1-10") == 1 else 0.01  # C1-10: 1 -> 0.1 s (default)
-    settings_tmp = dict(ref_mode=ref_mode, ref_unit=ref_unit, ref_full_scale=ref_fs,
-                        max_freq_hz=fmax, motor_poles=poles)
+    settings_tmp = _RefUnits(ref_mode=ref_mode, ref_unit=ref_unit, ref_full_scale=ref_fs,
+                             max_freq_hz=fmax, motor_poles=poles)
     to_hz = lambda raw: _ref_to_hz(settings_tmp, raw)  # noqa: E731
     i_rated = g("E2-01") * cu
     i0 = g("E2-03") * cu
@@ -454,8 +454,8 @@ def _from_v7(values: Mapping[str, int], drive_rated_current_a: float | None,
     if motor_poles is None:
         motor_poles = n035 if 2 <= n035 <= 39 else 4
     ref_mode, ref_unit, ref_fs = _v7_ref_units(n035)
-    tmp = dict(ref_mode=ref_mode, ref_unit=ref_unit, ref_full_scale=ref_fs, max_freq_hz=fmax,
-               motor_poles=motor_poles)
+    tmp = _RefUnits(ref_mode=ref_mode, ref_unit=ref_unit, ref_full_scale=ref_fs, max_freq_hz=fmax,
+                    motor_poles=motor_poles)
     to_hz = lambda raw: _ref_to_hz(tmp, raw)  # noqa: E731
     t_unit = 0.01 if g("n018") == 1 else 0.1  # n018: 0 -> 0.1 s (default)
     s = (0.0, 0.2, 0.5, 1.0)[min(max(g("n023"), 0), 3)]  # n023: S-curve 0 / 0.2 / 0.5 / 1.0 s
@@ -553,17 +553,23 @@ def _v7_ref_units(n035: int) -> tuple[str, float, float]:
     return "hz", 0.01, 0.0
 
 
-def _ref_to_hz(s: Mapping[str, object] | DriveSettings, raw: int) -> float:
+class _RefUnits(NamedTuple):
+    """The reference units while the settings are being built (the step references are converted then)."""
+
+    ref_mode: str
+    ref_unit: float
+    ref_full_scale: float
+    max_freq_hz: float
+    motor_poles: int
+
+
+def _ref_to_hz(s: _RefUnits | DriveSettings, raw: int) -> float:
     """Raw reference (o1-03 / n035 units) -> Hz; sign ignored (direction comes from the run bits)."""
-    if isinstance(s, DriveSettings):
-        mode, unit, fs, fmax, poles = (s.ref_mode, s.ref_unit, s.ref_full_scale, s.max_freq_hz,
-                                       s.motor_poles)
-    else:
-        mode, unit, fs, fmax, poles = (s["ref_mode"], s["ref_unit"], s["ref_full_scale"],
-                                       s["max_freq_hz"], s["motor_poles"])
+    mode = s.ref_mode
     r = abs(int(raw))
     if mode == "hz":
-        return r * unit  # type: ignore[operator]
+        return r * s.ref_unit
     if mode == "pct" or mode == "user":
-        return r / fs * fmax if fs else 0.0  # type: ignore[operator]
-    return r * poles / 120.0  # type: ignore[operator]
+        fs = s.ref_full_scale
+        return r / fs * s.max_freq_hz if fs else 0.0
+    return r * s.motor_poles / 120.0

@@ -84,9 +84,11 @@ class Loss(Stage):
             if self.enter_bad is None:
                 lost = self._stratified(path)
             else:
+                leave_bad = self.leave_bad
+                assert leave_bad is not None  # set together with enter_bad
                 bad = path.scratch.get(self, False)
                 random = path.rng.random()
-                bad = (random >= self.leave_bad) if bad else (random < self.enter_bad)
+                bad = (random >= leave_bad) if bad else (random < self.enter_bad)
                 path.scratch[self] = lost = bad
             if lost:
                 path.count(self.counter)

@@ -68,7 +68,9 @@ def rules_of(prefix: str, ipt: str | None = None) -> list[list[str]]:
 def remove_rules(prefix: str, ipt: str | None = None) -> list[str]:
     """Delete every FORWARD rule of *prefix* (idempotent); a description of each one removed."""
     ipt = ipt or iptables()
-    removed = []
+    removed: list[str] = []
+    if ipt is None:  # no iptables: no rule of ours either (rules_of says so too)
+        return removed
     for spec in rules_of(prefix, ipt):
         if _run([ipt, "-w", "-D", "FORWARD", *spec]).returncode == 0:
             removed.append(f"iptables FORWARD rule {_COMMENT}{prefix}")

@@ -119,9 +119,10 @@ def _parse(argv: list[str]) -> tuple[str, int, int, tuple[tuple[str, int], ...],
         name, eq, value = arg.partition("=")
         if name in ("--station", "--link", "--frame-size", "--timeout"):
             if not eq:
-                value = next(args, None)  # type: ignore[arg-type]
-                if value is None:
+                following = next(args, None)
+                if following is None:
                     raise _Usage(f"{name} needs a value")
+                value = following
             opts[name] = value
         elif arg.startswith("-") or target is not None:
             raise _Usage(f"unexpected argument {arg!r}")

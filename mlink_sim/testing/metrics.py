@@ -83,7 +83,7 @@ class _Stations(Mapping[int, StationMetricsView]):
             station = int(station.rstrip("Hh"), 16) if station.upper().endswith("H") else int(station, 0)
         return f"0x{station:02x}"
 
-    def __getitem__(self, station: int | str) -> StationMetricsView:  # type: ignore[override]
+    def __getitem__(self, station: int | str) -> StationMetricsView:
         try:
             return StationMetricsView(self._d[self._key(station)])
         except KeyError:

@@ -37,13 +37,13 @@ class VirtualRunningNetwork(ReportChecks, FaultMethods):
                  run_dir: Any = None, log_level: Any = None) -> None:
         self.config_path = resolve_config_path(config)  # a path, or the name of a shipped example
         self.config = load_config(self.config_path)
-        self._options = {"seed": seed, "bringup_timeout": bringup_timeout,
-                         "reset_after_bringup": reset_after_bringup, "state_dir": state_dir}
+        self._options: dict[str, Any] = {"seed": seed, "bringup_timeout": bringup_timeout,
+                                         "reset_after_bringup": reset_after_bringup, "state_dir": state_dir}
         self._timeline = timeline
         self.network: VirtualNetwork | None = None
         self.problems: list[str] = []
         self.final_report: dict[str, Any] | None = None
-        self.aio = _AsyncApi(self)
+        self.aio = _AsyncApi(self)  # type: ignore[arg-type]  # duck-typed: the same request methods
 
     def start(self) -> VirtualRunningNetwork:
         """Power the stations up and bring them up (:class:`~mlink_sim.testing.NetworkNotUp` if one does not)."""

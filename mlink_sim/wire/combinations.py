@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from types import MappingProxyType
+from typing import TypeVar
 
 from .codes import M2Cmd, M3Cmd
 
@@ -32,9 +33,10 @@ __all__ = [
 ]
 
 Combinations = Mapping[int, frozenset[int]]
+_Code = TypeVar("_Code", bound=int)  # M2Cmd or M3Cmd
 
 
-def _combos(rows: Mapping[int, str], columns: tuple[int, ...]) -> Combinations:
+def _combos(rows: Mapping[_Code, str], columns: tuple[int, ...]) -> Combinations:
     """Rows of 'O'/'-' marks per sub-command column -> main code -> allowed sub-command codes."""
     out: dict[int, frozenset[int]] = {}
     for main, marks in rows.items():

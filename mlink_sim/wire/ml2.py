@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, final
 
 from construct import Bytes, Int8ul, Int16sl, Int16ul, Padding, Struct
 
@@ -306,6 +306,7 @@ class InvIoResponse:
 # --- messages ---------------------------------------------------------------------------------------------------
 
 
+@final  # mypy narrows `type(message) is M2Command` in both branches
 @dataclass(frozen=True, slots=True)
 class M2Command:
     """A MECHATROLINK-I/II command. ``sub is None`` means a 17-byte frame; otherwise a 32-byte one."""
@@ -323,6 +324,7 @@ class M2Command:
         return 17 if self.sub is None else 32
 
 
+@final  # mypy narrows `type(message) is M2Response` in both branches
 @dataclass(frozen=True, slots=True)
 class M2Response:
     """A MECHATROLINK-I/II response: ALARM byte, STATUS bits (:class:`~mlink_sim.wire.codes.M2Status`), RWDT."""

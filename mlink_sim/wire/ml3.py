@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, final
 
 from construct import Bytes, Int8ul, Int16sl, Int16ul, Int32ul, Padding, Struct
 
@@ -400,6 +400,7 @@ class SubStat:
 # --- messages ---------------------------------------------------------------------------------------------------
 
 
+@final  # mypy narrows `type(message) is M3Command` in both branches
 @dataclass(frozen=True, slots=True)
 class M3Command:
     """A MECHATROLINK-III command. ``sub is None`` means a 32-byte frame; otherwise a 64-byte one.
@@ -424,6 +425,7 @@ class M3Command:
         return CmdCtrl.from_int(self.cmd_ctrl)
 
 
+@final  # mypy narrows `type(message) is M3Response` in both branches
 @dataclass(frozen=True, slots=True)
 class M3Response:
     """A MECHATROLINK-III response; :attr:`stat`/:attr:`substat` are typed views of the raw status fields."""

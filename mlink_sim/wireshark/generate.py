@@ -63,7 +63,7 @@ def _slot(slot: Slot) -> dict[int, list[tuple[str, int, int, str]]]:
 
 
 def _names(enum_type: type[enum.Enum]) -> dict[int, str]:
-    return {int(m.value): m.name for m in enum_type}  # type: ignore[misc]
+    return {int(m.value): m.name for m in enum_type}
 
 
 def _bits(flag_type: type[enum.IntFlag]) -> list[tuple[int, str]]:
