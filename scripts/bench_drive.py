@@ -29,7 +29,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mlink_sim.drive import Drive, DriveCommand, DriveSettings, Family, LoadSpec  # noqa: E402
+from mlink_sim.drive import Drive, DriveCommand, DriveSettings, Family, LoadSpec
 
 MS = 1_000_000
 VALUES: dict[str, int] = {

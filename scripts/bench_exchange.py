@@ -18,10 +18,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mlink_sim.cards import create_card, settings_for  # noqa: E402
-from mlink_sim.cli.logs import configure_logging  # noqa: E402
-from mlink_sim.master import MasterCore, NetworkPlan, StationPlan  # noqa: E402
-from mlink_sim.wire import Link  # noqa: E402
+from mlink_sim.cards import create_card, settings_for
+from mlink_sim.cli.logs import configure_logging
+from mlink_sim.master import MasterCore, NetworkPlan, StationPlan
+from mlink_sim.wire import Link
 
 MS = 1_000_000
 

@@ -44,9 +44,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import structlog  # noqa: E402
+import structlog
 
-from mlink_sim.aio import CycleTimer, available_strategies  # noqa: E402
+from mlink_sim.aio import CycleTimer, available_strategies
 
 try:
     import uvloop
@@ -293,7 +293,7 @@ def main(argv: list[str] | None = None) -> int:
     elapsed = time.monotonic() - t0
     print(f"# done in {elapsed:.0f} s", flush=True)
     if args.json is not None:
-        meta = {"date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        meta = {"date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
                 "command": " ".join([Path(sys.executable).name, *sys.argv]), "cpus": os.cpu_count(),
                 "platform": platform.platform(), "python": platform.python_version(),
                 "uvloop": getattr(uvloop, "__version__", None), "elapsed_s": round(elapsed, 1), "args": {

@@ -228,7 +228,7 @@ class Master:
         """Wait until every station is at its target phase (3, or 2 without ``sync``)."""
         try:
             await self.wait_until(self.core.all_at_target, timeout)
-        except (TimeoutError, asyncio.TimeoutError):
+        except TimeoutError:
             stuck = {f"{a:02X}H": (v.state.value, v.last_error) for a, v in self.core.views().items()
                      if not v.at_target}
             raise TimeoutError(f"bring-up not complete after {timeout} s: {stuck}") from None

@@ -20,7 +20,7 @@ from .._log import get_logger
 from ..config import Config, TimelineStep, format_ns
 from ..metrics import write_report
 from .scenario import CheckResult, Scenario, speed_scales
-from .session import EndpointError, NetworkApi, NetworkSession, build_plans
+from .session import EndpointError, NetworkSession, build_plans
 from .status import LiveStatus, StatusInfo, WorstP99, render_lines
 from .supervisor import resolve_workers
 

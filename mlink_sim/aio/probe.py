@@ -41,7 +41,7 @@ async def probe(host: str, port: int, station: int, attempts: list[tuple[Link, i
             while (left := end - loop.time()) > 0:
                 try:
                     data = await asyncio.wait_for(answers.get(), left)
-                except asyncio.TimeoutError:
+                except TimeoutError:
                     break
                 try:
                     frame = decode(data, kind=Kind.RESPONSE)

@@ -16,7 +16,7 @@ import asyncio
 import tempfile
 import time
 from collections.abc import Sequence
-from datetime import datetime, timezone
+from datetime import datetime, UTC
 from pathlib import Path
 from typing import Any, Self
 
@@ -199,7 +199,7 @@ class NetworkSession:
         self.net: NetworkApi | None = None
         self._clock: CycleTimer | None = None
         self._cycle_callbacks: list[Any] = []
-        self.started_wall = datetime.now(timezone.utc)
+        self.started_wall = datetime.now(UTC)
         self._cpu0 = time.process_time()
         self._wall0 = time.monotonic()
         self._span0, self._span_wall, self._measured_from = self._clock_s(), self.started_wall, "start"
@@ -443,7 +443,7 @@ class NetworkSession:
         self.metrics.reset()
         self.metrics.stalls.reset(time.monotonic_ns())
         self._span0 = self._clock_s()
-        self._span_wall = datetime.now(timezone.utc)
+        self._span_wall = datetime.now(UTC)
         self._measured_from = "bring-up done"
 
     async def snapshot(self, *, extra_meta: dict[str, Any] | None = None,

@@ -325,7 +325,7 @@ async def query_control(host: str, port: int, op: str = "stats", timeout: float 
         ep.sendto(json.dumps({"op": op, **fields}).encode(), (host, port))
         data = await asyncio.wait_for(fut, timeout)
         return json.loads(data)
-    except (asyncio.TimeoutError, ValueError):
+    except (TimeoutError, ValueError):
         return None
     finally:
         ep.close()

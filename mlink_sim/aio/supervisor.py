@@ -176,7 +176,7 @@ class Worker:
         assert self.proc.stdout is not None
         try:
             line = await asyncio.wait_for(self.proc.stdout.readline(), timeout)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             await self.stop()
             raise WorkerError(f"worker {self.spec.index} was not ready after {timeout:g}s (log: {self.spec.log_path})")
         try:
@@ -227,7 +227,7 @@ class Worker:
             return
         try:
             await asyncio.wait_for(proc.wait(), grace)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             log.warning("worker_kill", worker=self.spec.index, pid=proc.pid)
             try:
                 proc.kill()
@@ -237,7 +237,7 @@ class Worker:
         if self._watch is not None:
             try:
                 await asyncio.wait_for(self._watch, 1.0)
-            except (asyncio.TimeoutError, asyncio.CancelledError):
+            except (TimeoutError, asyncio.CancelledError):
                 self._watch.cancel()
 
     def kill(self) -> None:

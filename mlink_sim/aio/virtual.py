@@ -141,7 +141,7 @@ class VirtualSession(NetworkSession):
         for link, plan in build_plans(self.config).items():
             master = VirtualMaster.attach(plan, self.fabric, cycle, metrics=self.metrics, loop=loop)
             if self.capture is not None:
-                master._note = self.capture.note  # noqa: SLF001 - the master's events as the capture's comments
+                master._note = self.capture.note
             master.record_lateness = not self.masters
             self.masters[link] = master
         self._cycle_callbacks = [m.on_cycle for m in self.masters.values()]

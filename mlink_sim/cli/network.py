@@ -126,7 +126,7 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
 @_with_stalls
 def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, report, asserts, status,
            bringup_timeout, include_bringup, control, log_json, log_level, host_stalls, stall_bound, rt, capture_path,
-           capture_max) -> None:  # noqa: ANN001
+           capture_max) -> None:
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held.
 
     CONFIG is a TOML file or the name of a shipped example (quickstart, ml2-mixed-2ms, …)."""
@@ -174,7 +174,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, repo
 @_with_common
 @_with_stalls
 def master_cmd(config_path, endpoints, seed, duration, report, asserts, status, bringup_timeout, include_bringup,
-               control, log_json, log_level, host_stalls, stall_bound, rt, capture_path, capture_max) -> None:  # noqa: ANN001
+               control, log_json, log_level, host_stalls, stall_bound, rt, capture_path, capture_max) -> None:
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
     config, path = load_checked(config_path)

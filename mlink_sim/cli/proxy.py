@@ -61,7 +61,7 @@ def _impairment(text: str | None) -> Any:
               type=click.Choice(["debug", "info", "warning", "error"]))
 @capture_options
 def proxy_cmd(listens, targets, impair_text, seed, control, log_json, log_level, capture_path,
-              capture_max) -> None:  # noqa: ANN001
+              capture_max) -> None:
     """Forward datagrams between any master and any slaves through the impairment layer, until SIGINT/SIGTERM.
 
     The master sends to --listen; each datagram goes to the paired --to, and the answers come back to the master.

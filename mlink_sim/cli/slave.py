@@ -128,7 +128,7 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
 @capture_options
 def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_path, only, endpoints, state_dir,
               control, log_json, log_level, ready_json, host_stalls, stall_bound, rt, capture_path,
-              capture_max) -> None:  # noqa: ANN001
+              capture_max) -> None:
     """Serve one station over UDP until SIGINT/SIGTERM (or several stations of a --config)."""
     configure_logging(json=log_json, level=log_level)
     state = Path(state_dir) if state_dir else None

@@ -337,7 +337,7 @@ class DriveSettings:
 
         Needs the ``mlink_sim.params`` package (ImportError otherwise).
         """
-        from mlink_sim.params import FAMILIES  # noqa: PLC0415 - optional dependency
+        from mlink_sim.params import FAMILIES
 
         table = FAMILIES[family.value]
         values = dict(table.defaults())

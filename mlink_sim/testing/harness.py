@@ -242,7 +242,7 @@ class RunningNetwork(StationControls, ReportChecks, FaultMethods):
                 self._sock.sendall(json.dumps({"id": rid, "method": method, "args": args,
                                                "kwargs": kwargs}).encode() + b"\n")
                 line = self._rfile.readline()
-            except socket.timeout:
+            except TimeoutError:
                 raise TimeoutError(f"{method}: no answer from the network host after {rpc_timeout} s") from None
             finally:
                 if self._sock is not None:

@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import dataclasses
 import struct
-from typing import Any, Callable, Generic, TypeVar
+from typing import Any, Generic, TypeVar
+from collections.abc import Callable
 
 import construct as cs
 

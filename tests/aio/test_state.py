@@ -50,12 +50,12 @@ def test_plan_workers_round_robin() -> None:
     (4, 62, 2, 4),
     ("4", 3, 2, 4),
 ])
-def test_resolve_workers_auto_leaves_the_master_a_cpu(spec, stations, cpus, expected) -> None:  # noqa: ANN001
+def test_resolve_workers_auto_leaves_the_master_a_cpu(spec, stations, cpus, expected) -> None:
     assert resolve_workers(spec, stations, cpus) == expected
 
 
 @pytest.mark.parametrize("bad", ["0", "-1", "two", "", 0, "1.5"])
-def test_parse_workers_rejects_with_what_is_expected(bad) -> None:  # noqa: ANN001
+def test_parse_workers_rejects_with_what_is_expected(bad) -> None:
     with pytest.raises(ValueError, match="expected a number of processes"):
         parse_workers(bad)
     assert parse_workers(" AUTO ") == "auto" and parse_workers(3) == 3 and parse_workers(None) == "auto"

@@ -72,7 +72,7 @@ def test_slave_rejects_bad_input_with_exit_2() -> None:
     assert r.returncode == 2 and "No such option" in r.stderr
 
 
-def test_probe_answers_from_a_live_slave_and_fails_on_a_dead_port(slave) -> None:  # noqa: ANN001
+def test_probe_answers_from_a_live_slave_and_fails_on_a_dead_port(slave) -> None:
     s = slave("--card", "si-t3", "--station", "0x21", "--listen", "127.0.0.1:0")
     ok = run_cli("probe", f"127.0.0.1:{s.port}", "--station", "0x21", "--timeout", "3")
     assert ok.returncode == 0, ok.stderr
@@ -123,7 +123,7 @@ def test_up_bad_workers_is_exit_2_and_says_what_is_expected(config: Path) -> Non
     assert "expected a number of processes (≥ 1), 'auto' or 'station', got 'two'" in r.stderr
 
 
-def test_master_alone_against_slaves_started_elsewhere(config: Path, slave) -> None:  # noqa: ANN001
+def test_master_alone_against_slaves_started_elsewhere(config: Path, slave) -> None:
     # the master is ours, as in a compose testbed: the slaves forgive its stalls (docs/timing.md, "Host stalls")
     a = slave("--config", str(config), "--only", "0x21", "--host-stalls", "absorb")
     b = slave("--config", str(config), "--only", "0x23", "--host-stalls", "absorb")

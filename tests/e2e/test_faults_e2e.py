@@ -46,7 +46,7 @@ def _stop(proc: subprocess.Popen[str]) -> tuple[int, str]:
     return proc.returncode, out
 
 
-def test_proxy_between_a_master_and_a_slave_impaired_while_it_runs(tmp_path: Path, slave) -> None:  # noqa: ANN001
+def test_proxy_between_a_master_and_a_slave_impaired_while_it_runs(tmp_path: Path, slave) -> None:
     cfg = tmp_path / "one.toml"
     cfg.write_text(ONE)
     s = slave("--config", str(cfg), "--host-stalls", "absorb")

@@ -211,7 +211,7 @@ def test_command_line_errors_are_one_line_exit_2(tmp_path: Path) -> None:
         assert time.monotonic() - t0 < 15, args  # refused before the run, not after it
 
 
-def test_address_already_in_use_names_the_address(slave) -> None:  # noqa: ANN001
+def test_address_already_in_use_names_the_address(slave) -> None:
     s = slave("--card", "si-t3", "--station", "0x21", "--listen", "127.0.0.1:0")
     r = run_cli("slave", "--card", "si-t3", "--station", "0x21", "--listen", f"127.0.0.1:{s.port}")
     assert r.returncode == 2, r.stderr

@@ -21,7 +21,7 @@ pytestmark = pytest.mark.e2e
 CARDS = ["si-t3", "si-t-v7", "si-et3"]
 
 
-def _wait(predicate, timeout: float = 5.0) -> bool:  # noqa: ANN001
+def _wait(predicate, timeout: float = 5.0) -> bool:
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         if predicate():
@@ -72,7 +72,7 @@ def _params_saved(state: Path) -> dict:
 
 @pytest.mark.parametrize("card", CARDS)
 def test_flood_then_foreign_writes_and_a_probe_change_nothing_and_the_master_gets_its_station_back(
-        card: str, slave, tmp_path: Path) -> None:  # noqa: ANN001
+        card: str, slave, tmp_path: Path) -> None:
     """Items 1 and 2: a flood cuts the master off until the station declares bUS and releases the connection; the
     flooder's PRM_WR (77.7 s acceleration) and CONFIG to EEPROM change nothing, a probe binds nothing, and the
     master's next command tells it to CONNECT again, after which it owns the station and reads the old value."""
@@ -118,7 +118,7 @@ def test_flood_then_foreign_writes_and_a_probe_change_nothing_and_the_master_get
 
 
 @pytest.mark.parametrize("card", ["si-t3", "si-et3"])
-def test_probe_never_changes_station_state(card: str, slave, tmp_path: Path) -> None:  # noqa: ANN001
+def test_probe_never_changes_station_state(card: str, slave, tmp_path: Path) -> None:
     """``mlink-sim probe`` in phase 1 and against a connected station: the station looks the same afterwards
     (phase, owner, alarms, CMD_ALM, LED colours, drive). SI-ET3 answers the phase-1 NOP with CMD_ALM 0."""
     # the scripted master pauses while the probe runs: no silence verdict in this test (60 s tolerance)
@@ -148,7 +148,7 @@ def test_probe_never_changes_station_state(card: str, slave, tmp_path: Path) -> 
 
 @pytest.mark.parametrize("card", CARDS)
 def test_eeprom_write_acknowledged_only_once_durable_survives_kill_9(
-        card: str, slave, tmp_path: Path) -> None:  # noqa: ANN001
+        card: str, slave, tmp_path: Path) -> None:
     """Item 3: CONFIG to EEPROM answers CMDRDY = 0 until the image is written, fsync'd and renamed; kill -9 right
     after the completed answer, restart: the value is there. Stale temporary files are gone after a start."""
     state = tmp_path / "state"
@@ -166,7 +166,7 @@ def test_eeprom_write_acknowledged_only_once_durable_survives_kill_9(
         answer = master.prm_wr(reg, 777)
         assert answer is not None and not master.refused(answer)
 
-        def store():  # noqa: ANN202
+        def store():
             return master.send(master.m.Nop(), master.m.Config(1)) if sub else master.send(master.m.Config(1))
 
         answer = store()

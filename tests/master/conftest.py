@@ -21,7 +21,7 @@ if "master_fakes" not in sys.modules:
     sys.modules["master_fakes"] = _module
     _spec.loader.exec_module(_module)
 
-from master_fakes import Net, card_factory, fake_factory  # noqa: E402
+from master_fakes import Net, card_factory, fake_factory
 
 from mlink_sim.master import MasterCore, NetworkPlan, StationPlan
 from mlink_sim.wire import Link

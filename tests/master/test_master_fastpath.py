@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from master_fakes import MS, Net
 
-from mlink_sim.master import NetworkPlan, StationPlan
+from mlink_sim.master import StationPlan
 from mlink_sim.master.fastpath import CyclicFrames
 from mlink_sim.wire import Link, ml2, ml3
 

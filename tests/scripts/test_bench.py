@@ -8,11 +8,11 @@ from .scripts_loader import load_script
 
 
 @pytest.fixture(scope="module")
-def bench():  # noqa: ANN201 - a script, loaded as a module
+def bench():
     yield from load_script("bench.py", "mlink_bench")
 
 
-def _cells(bench, **per_target):  # noqa: ANN001, ANN202
+def _cells(bench, **per_target):
     cells = []
     for t in bench.TARGETS:
         cell = bench.Cell(t.link, t.stations, 0, 1)
@@ -22,13 +22,13 @@ def _cells(bench, **per_target):  # noqa: ANN001, ANN202
     return cells
 
 
-def test_targets_cover_the_issue_cells(bench) -> None:  # noqa: ANN001
+def test_targets_cover_the_issue_cells(bench) -> None:
     assert [(t.link, t.stations, t.cycle) for t in bench.TARGETS] == [
         ("ML2", 30, "1ms"), ("ML3", 62, "1ms"), ("ML3", 8, "250us")]
     assert bench.TARGETS[0].duration == "60s"
 
 
-def test_verdict_tells_platform_floor_from_cpu_bound(bench) -> None:  # noqa: ANN001
+def test_verdict_tells_platform_floor_from_cpu_bound(bench) -> None:
     cells = _cells(
         bench,
         ML230={"missed": 50, "echo_missed": 30, "ratio_p99": 1.2},           # both miss: floor; ratio met
@@ -50,7 +50,7 @@ def test_verdict_tells_platform_floor_from_cpu_bound(bench) -> None:  # noqa: AN
     assert "platform floor" in text and "verdict" in text.splitlines()[0]
 
 
-def test_far_beyond_the_floor_names_both_bounds(bench) -> None:  # noqa: ANN001
+def test_far_beyond_the_floor_names_both_bounds(bench) -> None:
     cells = _cells(bench, ML362={"missed_rate": 0.4979, "echo_missed_rate": 0.0011})  # measured 2026-11-23
     _, rows = bench.verdicts(cells)
     row = next(r for r in rows if r["bound"] == "missed < 0.1 %")
@@ -58,14 +58,14 @@ def test_far_beyond_the_floor_names_both_bounds(bench) -> None:  # noqa: ANN001
     assert (row["measured"], row["echo"]) == ("49.79 %", "0.11 %")
 
 
-def test_failed_cell_is_reported_not_judged(bench) -> None:  # noqa: ANN001
+def test_failed_cell_is_reported_not_judged(bench) -> None:
     cells = _cells(bench)
     cells[1].status = "failed: OSError: boom"
     _, rows = bench.verdicts(cells)
     assert [r["verdict"] for r in rows if r["target"].startswith("62")] == ["failed: OSError: boom"]
 
 
-def test_table_shows_the_echo_floor_columns(bench) -> None:  # noqa: ANN001
+def test_table_shows_the_echo_floor_columns(bench) -> None:
     cell = bench.Cell("ML3", 8, 250_000, 1, missed_rate=0.29, rtt_p99_ns=1_620_000, echo_p99_ns=186_000,
                       echo_missed_rate=0.0037, echo_lateness_p99_ns=12_000)
     out = bench.table([cell])
@@ -73,7 +73,7 @@ def test_table_shows_the_echo_floor_columns(bench) -> None:  # noqa: ANN001
     assert "0.37%" in out and "12us" in out.replace("µs", "us")
 
 
-def test_markdown_is_the_docs_table(bench) -> None:  # noqa: ANN001
+def test_markdown_is_the_docs_table(bench) -> None:
     cells = [
         bench.Cell("ML2", 1, 250_000, 1, status="n/a: MECHATROLINK-II's shortest cycle is 0.5 ms"),
         bench.Cell("ML3", 8, 250_000, 1, missed_rate=0.29, rtt_p50_ns=662_000, rtt_p99_ns=1_620_000,
@@ -90,7 +90,7 @@ def test_markdown_is_the_docs_table(bench) -> None:  # noqa: ANN001
     assert all(line.count("|") == lines[0].count("|") for line in lines)
 
 
-def test_render_prints_an_earlier_run_without_running_it(bench, tmp_path, capsys) -> None:  # noqa: ANN001
+def test_render_prints_an_earlier_run_without_running_it(bench, tmp_path, capsys) -> None:
     import json
     from dataclasses import asdict
 
@@ -102,7 +102,7 @@ def test_render_prints_an_earlier_run_without_running_it(bench, tmp_path, capsys
     assert "| ML2 | 9 | 1 ms | 0.26 % |" in out and "1.38 ms" in out
 
 
-def test_render_of_a_file_that_is_not_a_run_exits_2(bench, tmp_path, capsys) -> None:  # noqa: ANN001
+def test_render_of_a_file_that_is_not_a_run_exits_2(bench, tmp_path, capsys) -> None:
     path = tmp_path / "other.json"
     path.write_text('{"cells": [{"nope": 1}]}')
     assert bench.render(path, False, None) == 2

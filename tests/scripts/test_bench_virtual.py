@@ -8,7 +8,7 @@ from .scripts_loader import load_script
 
 
 @pytest.fixture(scope="module")
-def bench():  # noqa: ANN201 - a script, loaded as a module
+def bench():
     yield from load_script("bench_virtual.py", "mlink_bench_virtual")
 
 

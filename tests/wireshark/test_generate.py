@@ -36,7 +36,7 @@ def test_crc_table_checks_against_the_catalogue_value() -> None:
     assert crc ^ 0xFFFF == 0x906E  # CRC-16/X-25 check value (docs/wire-format.md §2)
 
 
-def test_wireshark_path_and_install(tmp_path) -> None:  # noqa: ANN001
+def test_wireshark_path_and_install(tmp_path) -> None:
     result = CliRunner().invoke(wireshark_cmd, ["--path"])
     assert result.exit_code == 0 and result.output.strip() == str(shipped_path())
     result = CliRunner().invoke(wireshark_cmd, ["--install", "--dest", str(tmp_path / "plugins")])
@@ -44,14 +44,14 @@ def test_wireshark_path_and_install(tmp_path) -> None:  # noqa: ANN001
     assert (tmp_path / "plugins" / "mlink.lua").read_bytes() == shipped_path().read_bytes()
 
 
-def test_wireshark_install_into_the_personal_folder(tmp_path, monkeypatch) -> None:  # noqa: ANN001
+def test_wireshark_install_into_the_personal_folder(tmp_path, monkeypatch) -> None:
     monkeypatch.setenv("HOME", str(tmp_path))
     result = CliRunner().invoke(wireshark_cmd, ["--install"])
     assert result.exit_code == 0, result.output
     assert (tmp_path / ".local" / "lib" / "wireshark" / "plugins" / "mlink.lua").is_file()
 
 
-def test_wireshark_usage_errors(tmp_path) -> None:  # noqa: ANN001
+def test_wireshark_usage_errors(tmp_path) -> None:
     assert CliRunner().invoke(wireshark_cmd, []).exit_code == 2
     assert CliRunner().invoke(wireshark_cmd, ["--path", "--dest", str(tmp_path)]).exit_code == 2
     blocker = tmp_path / "file"
