@@ -107,7 +107,7 @@ class ImpairingProxy:
             self._forward(link, data, Direction.TO_STATION, link.up, link.to)
 
     def _from_slave(self, link: ProxyLink) -> None:
-        for data, addr in self._read(link.up, link):
+        for data, _addr in self._read(link.up, link):
             link.counts["to_master"] += 1
             if link.master is None:
                 link.counts["no_master"] += 1  # an answer before any command: nowhere to send it

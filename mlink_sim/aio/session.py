@@ -16,7 +16,7 @@ import asyncio
 import tempfile
 import time
 from collections.abc import Sequence
-from datetime import datetime, UTC
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Self
 

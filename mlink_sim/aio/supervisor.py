@@ -178,7 +178,8 @@ class Worker:
             line = await asyncio.wait_for(self.proc.stdout.readline(), timeout)
         except TimeoutError:
             await self.stop()
-            raise WorkerError(f"worker {self.spec.index} was not ready after {timeout:g}s (log: {self.spec.log_path})")
+            raise WorkerError(
+                f"worker {self.spec.index} was not ready after {timeout:g}s (log: {self.spec.log_path})") from None
         try:
             ready = json.loads(line)
             if ready.get("event") != "ready":

@@ -124,9 +124,9 @@ class VirtualSession(NetworkSession):
     # ------------------------------------------------------------------ life cycle
     async def _start_workers(self) -> dict[int, tuple[str, int]]:
         """Power up every station on the fabric (``ValueError`` for settings a card refuses)."""
+        state_dir = self._state_dir
         for st in self.config.station:
             spec = spec_for(st)
-            state_dir = self._state_dir
 
             def factory(now: int, eeprom: bytes | None, spec: Any = spec) -> Any:
                 return build_station(spec, state_dir, now, eeprom=eeprom)

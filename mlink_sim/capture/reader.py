@@ -134,7 +134,7 @@ class CaptureFile:
             raise
         except OSError as exc:
             raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
-        except Exception as exc:  # the libraries raise assorted errors on a damaged file
+        except Exception as exc:  # noqa: BLE001 - the libraries raise assorted errors on a damaged file
             raise CaptureError(f"{path}: not a readable capture ({type(exc).__name__}: {exc})") from None
 
 

@@ -21,7 +21,6 @@ from __future__ import annotations
 import enum
 import struct
 from dataclasses import dataclass
-from typing import Union
 
 from construct import Int8ul, Int16ul, Int32ul, Struct
 
@@ -75,7 +74,7 @@ def fcs_ok(datagram: bytes) -> bool:
     """The datagram's trailing FCS matches its contents (callers check the length first)."""
     return crc16_x25(datagram[:-FCS_SIZE]) == _FCS.unpack_from(datagram, len(datagram) - FCS_SIZE)[0]
 
-Message = Union[ml2.M2Command, ml2.M2Response, ml3.M3Command, ml3.M3Response]
+Message = ml2.M2Command | ml2.M2Response | ml3.M3Command | ml3.M3Response
 
 
 class DropReason(enum.Enum):

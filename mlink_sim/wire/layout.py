@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import dataclasses
 import struct
-from typing import Any, Generic, TypeVar
 from collections.abc import Callable
+from typing import Any, Generic, TypeVar
 
 import construct as cs
 
