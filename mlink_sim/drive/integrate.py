@@ -13,8 +13,8 @@ Per sub-step ``h`` (:func:`substep`; docs/drive-model.md, "Numerics"), one funct
    limited to ``E1-04 / C1-0x`` and jerk ``rate / C2-0x`` (S-curve); the landing follows
    ``q = sqrt(2 j e)`` so the end jerk is exact; stall prevention holds ``q = 0``;
 2. :func:`motor_torque`: ``T = K phi^2 (w_s - w)`` (or a held torque value), the synchronous speed
-   ``w_s`` linear in time across the step; after step 3 :func:`motor_outputs` gives the torque,
-   current, power and output frequency at the step's end;
+   ``w_s`` linear in time across the step; after step 3, :func:`substep` takes the torque, current,
+   power and output frequency at the step's end;
 3. :func:`mechanics`: ``J dw/dt = T - T_c - B w`` integrated exactly (exponential integrator) with the
    load linearised at the start of the step (exact for inertia, constant, friction loads);
 4. :func:`dc_bus`: the bus energy ``E = C V^2 / 2`` takes ``-(P_out + P_ctrl) h`` above the rectified
@@ -48,7 +48,6 @@ __all__ = [
     "begin_search",
     "dc_bus",
     "mechanics",
-    "motor_outputs",
     "motor_torque",
     "protections",
     "restart_watch",
@@ -186,7 +185,22 @@ def substep(x: IntegratorState, h: float) -> int:
         m1, q, d = soft_starter(x, h, m0, w)
         ws0, ws1, phi, k, kk, aT, limited = motor_torque(x, d, m0, m1, w)
         w1 = mechanics(x, h, w, kk, aT, ws0, ws1)
-        T1, I1, P, m1, q = motor_outputs(x, d, m0, m1, q, w, w1, ws0, ws1, phi, k, kk, aT, limited)
+        # step 2 at the step's end: torque, current, output power (air gap, trapezoidal, plus copper losses);
+        # the soft starter follows the rotor while the torque is limited (inline: the hot loop)
+        T0 = aT + kk * (ws0 - w)
+        T1 = aT + kk * (ws1 - w1)
+        if limited:
+            fel = (w1 + T1 / k) / x.wph
+            if x.tmode == 1:
+                m1, q = (fel * d if fel * d > 0.0 else 0.0), 0.0
+            x.fout = fel
+        else:
+            x.fout = d * m1
+        it = T1 / x.Tr * x.IT / phi
+        i0 = x.I0 * phi
+        I1 = math.sqrt(i0 * i0 + it * it)
+        P = 0.5 * (T0 * (w + T0 / k) + T1 * (w1 + T1 / k)) + x.R3 * I1 * I1
+        x.m, x.q = m1, q
     else:
         m1 = q = T1 = 0.0
         limited = False
@@ -318,30 +332,6 @@ def mechanics(x: IntegratorState, h: float, w: float, kk: float, aT: float, ws0:
     if kind == 1 and (w * w1 < 0.0 or (w == 0.0 and Tc == td)):
         w1 = 0.0  # a passive load stops the shaft and holds it
     return w1
-
-
-def motor_outputs(x: IntegratorState, d: int, m0: float, m1: float, q: float, w: float, w1: float,
-                  ws0: float, ws1: float, phi: float, k: float, kk: float, aT: float, limited: bool
-                  ) -> tuple[float, float, float, float, float]:
-    """Step 2, at the step's end: ``(T1, I1, P, m1, q)`` -- torque, current, output power (air gap,
-    trapezoidal, plus copper losses); the soft starter follows the rotor while the torque is limited.
-    Sets the output frequency and the soft starter's state."""
-    T0 = aT + kk * (ws0 - w)
-    T1 = aT + kk * (ws1 - w1)
-    wph = x.wph
-    if limited:
-        fel = (w1 + T1 / k) / wph
-        if x.tmode == 1:
-            m1, q = (fel * d if fel * d > 0.0 else 0.0), 0.0
-        x.fout = fel
-    else:
-        x.fout = d * m1
-    pag = 0.5 * (T0 * (w + T0 / k) + T1 * (w1 + T1 / k))
-    it = T1 / x.Tr * x.IT / phi
-    i0 = x.I0 * phi
-    I1 = math.sqrt(i0 * i0 + it * it)
-    x.m, x.q = m1, q
-    return T1, I1, pag + x.R3 * I1 * I1, m1, q
 
 
 def dc_bus(x: IntegratorState, h: float, P: float, E: float, out: bool) -> tuple[float, float]:
