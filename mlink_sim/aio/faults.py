@@ -42,7 +42,8 @@ def handle_plant_request(request: Mapping[str, Any], stations: Mapping[int, Any]
     try:
         if request.get("op") == "release":
             handle = request.get("handle")
-            if not isinstance(handle, int) or not plants.release(address, station, handle, now):
+            # address is an int here: station is None otherwise
+            if not isinstance(handle, int) or not plants.release(address, station, handle, now):  # type: ignore[arg-type]
                 return {"ok": False, "error": f"no drive fault {handle!r} in force on station {address:#04x}"}
             return {"ok": True}
         fields = dict(request.get("fault") or {})
@@ -68,7 +69,7 @@ class FaultControl:
         """Start *fault* on *station* now; returns its episode (its recovery is measured once it has ended)."""
         master = self.net.master(station)
         if fault.action not in PLANT_FAULTS:
-            return master.inject_fault(station, fault)  # type: ignore[arg-type]
+            return master.inject_fault(station, fault)
         handle = await self._plant(station, {"op": "plant", "station": station, "fault": fault.as_fields()})
         episode = master.begin_fault(station, fault)
         if fault.for_ns is None:

@@ -22,12 +22,12 @@ answers with CMDRDY = 0 and executes nothing else.
 from __future__ import annotations
 
 import abc
-from collections.abc import Hashable, Mapping
+from collections.abc import Callable, Hashable, Mapping
 from types import MappingProxyType
 from typing import Any, ClassVar
 
 from mlink_sim.params import ParamError
-from mlink_sim.wire import DropReason, Kind, Link, WireError, decode, ml2, ml3
+from mlink_sim.wire import DropReason, Frame, Kind, Link, WireError, decode, ml2, ml3
 from mlink_sim.wire.frame import HEADER_SIZE
 from mlink_sim.wire.layout import field_offset
 
@@ -98,6 +98,8 @@ class Station(abc.ABC):
     address: int
     link: Link
     data_size: int
+    #: the answer to a status query from another source (each generation's own; SI-T3 / SI-ET3 NOP)
+    _status_reply: Callable[[Frame], bytes]
 
     def __init__(self, *, settings: CardSettings, now: int, eeprom: bytes | None = None) -> None:
         self.label = CARD_NAMES[self.card]

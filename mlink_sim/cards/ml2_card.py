@@ -108,7 +108,8 @@ class Ml2Station(Station):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        self.alarms = Ml2Alarms(_CodeTable(self.drive.fault_code), _CodeTable(self.drive.minor_code))
+        # mapping-like: Ml2Alarms only calls get()
+        self.alarms = Ml2Alarms(_CodeTable(self.drive.fault_code), _CodeTable(self.drive.minor_code))  # type: ignore[arg-type]
         self._subcmd = self.data_size == 32
         self._status_seen: object = None  # the DriveStatus self._status_word was computed from
         self._status_word = 0
@@ -123,7 +124,7 @@ class Ml2Station(Station):
         code = body.code if btype is Unknown else _MAIN_CODE[btype]
         phase, subcmd = self._arrival_phase(), self._subcmd  # the state the command arrived in rules the sub-command
         row = self.main_phases.get(code)
-        hold = self.eeprom.hold(False, code)
+        hold: Any = self.eeprom.hold(False, code)  # None, BUSY (a sentinel) or an Err
         if hold is not None:  # a CONFIG waits for the EEPROM (eeprom.EepromWriteBack)
             rbody, err = echo_main(body), (Err.OK if hold is BUSY else hold)
         elif row is None:
@@ -232,7 +233,7 @@ class Ml2Station(Station):
         if not subcmd:  # CONNECT with SUBCMD = 0: the sub-command area is not used
             return echo_sub(sub), _SUBRDY
         row = self.sub_phases.get(scode)
-        hold = self.eeprom.hold(True, scode)
+        hold: Any = self.eeprom.hold(True, scode)  # None, BUSY (a sentinel) or an Err
         if hold is BUSY:  # the SI-T/V7 CONFIG sub-command waits for the EEPROM: "SUBCMDRDY 0 Busy"
             return echo_sub(sub), 0
         if hold is Err.OK:

@@ -157,7 +157,7 @@ class SiEt3(Station):
         code = body.code if btype is Unknown else _MAIN_CODE[btype]
         phase, subcmd = self._arrival_phase(), self._subcmd  # the state the command arrived in rules the sub-command
         row = ML3_MAIN_PHASES.get(code)
-        hold = self.eeprom.hold(False, code)
+        hold: Any = self.eeprom.hold(False, code)  # None, BUSY (a sentinel) or an Err
         if hold is not None:  # a CONFIG waits for the EEPROM (eeprom.EepromWriteBack)
             rbody, err = _echo_main(body), (Err.OK if hold is BUSY else hold)
         elif row is None:
@@ -331,6 +331,7 @@ class SiEt3(Station):
     def _alm_data(self, mod: int, index: int) -> tuple[bytes, Err]:
         """ALM_DATA from byte 8, two bytes per code: modes per Table 16 (ALM_RD_MOD), data per Table 17 (ALM_DATA)."""
         drive = self.drive
+        names: tuple[str, ...]
         if mod == 0:
             names = ("U2-01", "U2-02")
         elif mod == 1:
@@ -382,7 +383,7 @@ class SiEt3(Station):
     def _alarm_view(self) -> tuple[int, str | None, tuple[str, ...], int]:
         code = self.alarms.comm_alm
         name = CommAlm(code).name if code in CommAlm._value2member_map_ and code else None
-        warnings = (f"COMM_ALM {code:X}H",) if 0 < code < 8 else ()
+        warnings: tuple[str, ...] = (f"COMM_ALM {code:X}H",) if 0 < code < 8 else ()
         warnings += tuple(sorted(f.display for f in self.drive.status.minors))
         return code, name, warnings, self._last_cmd_alm
 

@@ -33,7 +33,7 @@ class StationCounters:
         self.dropped_by_reason[reason] = self.dropped_by_reason.get(reason, 0) + 1
 
     def as_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {name: getattr(self, name) for name in self.__slots__}  # type: ignore[attr-defined]
+        out: dict[str, Any] = {name: getattr(self, name) for name in self.__slots__}
         out["dropped_by_reason"] = dict(self.dropped_by_reason)
         return out
 

@@ -110,6 +110,7 @@ def bad_command(datagram: bytes, kind: str, *, subcmd: bool, family: str) -> byt
     has_sub = msg.sub is not None
     if sub is None and has_sub:
         sub = mod.Nop()
+    message: ml3.M3Command | ml2.M2Command
     if ml3_link:
         message = ml3.M3Command(main, 0 if kind == "phase" else msg.wdt, msg.cmd_ctrl, sub, msg.sub_ctrl)
     else:
@@ -162,6 +163,6 @@ def read_answer(datagram: bytes) -> Answer | None:
 
 def _name(table: type, code: int) -> str:
     try:
-        return table(code).name  # type: ignore[call-arg]
+        return table(code).name
     except ValueError:
         return f"{code:X}H"

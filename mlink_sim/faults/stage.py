@@ -211,10 +211,10 @@ class FaultStage:
                 st.freeze_until = st.freeze_ep = None
                 self._refresh()
             else:
-                count = frames.wdt_count(datagram)
-                if count is not None:
+                wdt = frames.wdt_count(datagram)
+                if wdt is not None:
                     if st.frozen is None:
-                        st.frozen = (count - 1) & 0xF  # it stops: the first frozen command repeats the last count
+                        st.frozen = (wdt - 1) & 0xF  # it stops: the first frozen command repeats the last count
                     self._count(station, "wdt_freezes")
                     datagram = frames.set_wdt_count(datagram, st.frozen)
         if st.bad is not None and frames.is_cyclic(datagram):

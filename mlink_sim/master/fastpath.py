@@ -129,7 +129,7 @@ class CyclicFrames:
         if self._ml3:
             if cstat & _ML3_ALARMS or cstat >> 12 != comm_alm:
                 return None
-        elif cstat & _ML2_TROUBLE or head[self._alarm_at]:
+        elif cstat & _ML2_TROUBLE or head[self._alarm_at]:  # type: ignore[index]  # an int on II (None: III)
             return None
         if not fcs_ok(dg):
             return None

@@ -83,7 +83,7 @@ class VirtualRunningNetwork(ReportChecks, FaultMethods):
     # ------------------------------------------------------------------ waiting, in simulated time
     def _fault(self, station: int, action: str, fields: dict[str, Any]) -> dict[str, Any]:
         net = self._net()
-        return episode_dict(net.call(net.net.fault(station, fault_from_fields(action, fields))))  # type: ignore
+        return episode_dict(net.call(net.net.fault(station, fault_from_fields(action, fields))))  # type: ignore[return-value]
 
     def _fault_episode(self, station: int) -> dict[str, Any] | None:
         return episode_dict(self._net().net.fault_control.stage(station).latest(station))
