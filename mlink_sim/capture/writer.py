@@ -163,7 +163,7 @@ class CaptureWriter:
     def start(self) -> CaptureWriter:
         """Open the file (OSError when it cannot be created) and start the writer thread."""
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "wb", buffering=0)  # closed in close(); one write per chunk
+        self._file = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed in close(); one write per chunk
         shb = pcapng.SectionHeaderBlockLE(opts=[
             pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_SHB_USERAPPL, data=b"mlink-sim"),
             pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_ENDOFOPT)])
