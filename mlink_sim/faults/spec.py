@@ -67,7 +67,17 @@ def _number(value: Any, name: str, unit: str) -> float | None:
 @dataclass(frozen=True)
 class _Fault:
     action: ClassVar[str] = ""
+    #: the fault needs ``for``: what it measures, for the message when it is missing (None: optional or not taken)
+    needs_for: ClassVar[str | None] = None
+    #: the fault takes no ``for``: why (None: it takes one)
+    no_for: ClassVar[str | None] = None
     for_ns: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.needs_for and self.for_ns is None:
+            raise FaultError(f"for: required, e.g. for = \"200ms\" ({self.needs_for})")
+        if self.no_for and self.for_ns is not None:
+            raise FaultError(f"for: {self.no_for}; it takes no 'for'")
 
     def as_fields(self) -> dict[str, Any]:
         """The fields as a timeline step or a control request spells them (``for`` as ``"…ms"``)."""
@@ -91,10 +101,7 @@ class Silence(_Fault):
     itself keeps running its state machine, as a card whose transmitter is mute does."""
 
     action: ClassVar[str] = "silence"
-
-    def __post_init__(self) -> None:
-        if self.for_ns is None:
-            raise FaultError("for: required, e.g. for = \"500ms\" (how long the station stays silent)")
+    needs_for: ClassVar[str | None] = "how long the station stays silent"
 
 
 @dataclass(frozen=True)
@@ -103,28 +110,25 @@ class SkipCycles(_Fault):
     failures, 96 then E6; SI-ET3 COMM_ALM 2/3 then 9/A; bUS after F6-26 of them)."""
 
     action: ClassVar[str] = "skip-cycles"
+    no_for: ClassVar[str | None] = "skip-cycles lasts 'count' cycles"
     count: int | None = None
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         if self.count is None:
             raise FaultError("count: required, e.g. count = 3 (transmission cycles the master sends nothing)")
         if isinstance(self.count, bool) or not isinstance(self.count, int) or not 1 <= self.count <= MAX_SKIP_CYCLES:
             raise FaultError(f"count: expected a whole number of transmission cycles 1…{MAX_SKIP_CYCLES}, "
                              f"got {self.count!r}")
-        if self.for_ns is not None:
-            raise FaultError("for: skip-cycles lasts 'count' cycles; it takes no 'for'")
 
 
 @dataclass(frozen=True)
 class FreezeWdt(_Fault):
-    """The master's WDT count (command WDT bits 4–7) stops advancing for ``for_ns``, then advances again from where
-    it stopped (SI-T3 Tables 23/24 E5 "WDT Error"; SI-ET3 COMM_ALM CH)."""
+    """The master's WDT count (command WDT bits 4–7) stops advancing for ``for_ns``; then the commands carry the
+    master's own count again, which ran on underneath (SI-T3 Tables 23/24 E5 "WDT Error"; SI-ET3 COMM_ALM CH)."""
 
     action: ClassVar[str] = "freeze-wdt"
-
-    def __post_init__(self) -> None:
-        if self.for_ns is None:
-            raise FaultError("for: required, e.g. for = \"100ms\" (how long the WDT stays frozen)")
+    needs_for: ClassVar[str | None] = "how long the WDT stays frozen"
 
 
 @dataclass(frozen=True)
@@ -138,16 +142,16 @@ class BadCommand(_Fault):
       (SI-T3 INV_CTL "If not in phase 2 or 3"), CMD_ALM CH (SI-ET3 Table 9 "–")."""
 
     action: ClassVar[str] = "bad-command"
+    no_for: ClassVar[str | None] = "a bad command is one command"
     kind: str | None = None
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         if self.kind is None:
             raise FaultError(f"kind: required, one of {', '.join(repr(k) for k in BAD_COMMAND_KINDS)}")
         if self.kind not in BAD_COMMAND_KINDS:
             raise FaultError(f"kind: expected one of {', '.join(repr(k) for k in BAD_COMMAND_KINDS)}, "
                              f"got {self.kind!r}")
-        if self.for_ns is not None:
-            raise FaultError("for: a bad command is one command; it takes no 'for'")
 
 
 @dataclass(frozen=True)
@@ -160,6 +164,7 @@ class LoadStep(_Fault):
     inertia: float | None = None
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         torque = _number(self.torque, "torque", "N·m")
         inertia = _number(self.inertia, "inertia", "kg·m²")
         if not (torque or inertia):
@@ -183,10 +188,7 @@ class MainsLoss(_Fault):
     (docs/drive-model.md §5): Uv1 while running, the Uv minor fault while stopped."""
 
     action: ClassVar[str] = "mains-loss"
-
-    def __post_init__(self) -> None:
-        if self.for_ns is None:
-            raise FaultError("for: required, e.g. for = \"200ms\" (how long the mains are gone)")
+    needs_for: ClassVar[str | None] = "how long the mains are gone"
 
 
 MasterFault = Silence | SkipCycles | FreezeWdt | BadCommand
