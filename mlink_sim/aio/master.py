@@ -308,7 +308,8 @@ class Master:
             core, metrics = self.core, self.metrics
             self.faults = FaultStage(
                 [StationTraits(sp.address, "v7" if sp.is_v7 else "a1000", sp.subcmd) for sp in core.plan.stations],
-                healthy=lambda a: is_healthy(core.view(a)), on_recovery=getattr(metrics, "record_recovery", None),
+                healthy=lambda a, since: is_healthy(core.view(a), since),
+                on_recovery=getattr(metrics, "record_recovery", None),
                 on_unrecovered=getattr(metrics, "record_unrecovered", None))
         return self.faults
 

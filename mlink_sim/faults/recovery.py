@@ -78,8 +78,9 @@ class RecoveryLog:
         if episode.end_ns is None or episode.end_ns > now:
             episode.end_ns = now
 
-    def poll(self, now: int, healthy: Callable[[int], bool]) -> None:
-        """Check every ended, unsettled episode at *now*: recovered when *healthy(station)*."""
+    def poll(self, now: int, healthy: Callable[[int, int], bool]) -> None:
+        """Check every ended, unsettled episode at *now*: recovered when *healthy(station, end_ns)* – healthy on
+        the evidence of an answer received after the fault's end (a view not yet updated proves nothing)."""
         if not self._open:
             return
         still: list[Episode] = []
@@ -87,7 +88,7 @@ class RecoveryLog:
             end = ep.end_ns
             if end is None or now < end:
                 still.append(ep)
-            elif healthy(ep.station):
+            elif healthy(ep.station, end):
                 if ep.healthy_since is None:
                     ep.healthy_since = now
                 ep.healthy_polls += 1

@@ -80,11 +80,13 @@ class _State:
                 or self.bad is not None or self.watch is not None)
 
 
-def is_healthy(view: Any) -> bool:
+def is_healthy(view: Any, since_ns: int = 0) -> bool:
     """The master's view of a station says it has recovered: at its target phase (3, or 2 without ``sync``), no
-    alarm (ML-II STATUS.ALM, ML-III D_ALM) and no communication alarm (COMM_ALM 8 and up). Warnings do not count,
-    as in the timeline's ``expect = "no-alarm"``."""
-    return bool(view.at_target and not view.fault and view.comm_alm < 8)
+    alarm (ML-II STATUS.ALM, ML-III D_ALM) and no communication alarm (COMM_ALM 8 and up), as of an answer received
+    after *since_ns* (the fault's end: a view no answer has updated since says nothing of the recovery). Warnings do
+    not count, as in the timeline's ``expect = "no-alarm"``."""
+    last = view.last_response_ns
+    return bool(view.at_target and not view.fault and view.comm_alm < 8 and last is not None and last > since_ns)
 
 
 def _cycle(datagram: bytes) -> int:
@@ -94,12 +96,13 @@ def _cycle(datagram: bytes) -> int:
 class FaultStage:
     """The master-side faults of a set of stations (see the module docstring)."""
 
-    def __init__(self, stations: Iterable[StationTraits] = (), *, healthy: Callable[[int], bool] | None = None,
+    def __init__(self, stations: Iterable[StationTraits] = (), *, healthy: Callable[[int, int], bool] | None = None,
                  on_recovery: Callable[[int, int], None] | None = None,
                  on_unrecovered: Callable[[int], None] | None = None) -> None:
         self._st = {t.address: _State(t) for t in stations}
-        #: whether a station is back at its target phase with no alarm (the master's view), for the recoveries
-        self.healthy = healthy or (lambda station: True)
+        #: ``healthy(station, since_ns)``: back at its target phase with no alarm, as of an answer received after
+        #: *since_ns* (:func:`is_healthy` of the master's view), for the recoveries
+        self.healthy = healthy or (lambda station, since_ns: True)
         self.log = RecoveryLog(on_recovery, on_unrecovered)
         self._counts: dict[int, dict[str, int]] = {}
         #: some fault acts on datagrams: only then must they pass through :meth:`to_station` / :meth:`to_master`

@@ -30,7 +30,7 @@ class Bench:
         self.core = MasterCore(NetworkPlan(link, tcycle_ns, (StationPlan(address, link, data_size=size,
                                                                           subcmd=subcmd, card=card, **plan),)))
         self.stage = FaultStage([StationTraits(address, FAMILY[card], subcmd)],
-                                healthy=lambda a: is_healthy(self.core.view(a)))
+                                healthy=lambda a, since: is_healthy(self.core.view(a), since))
         self.layer: Any = None  #: an impairment layer to put the datagrams through instead (mlink_sim.impair)
         self.cycle = 0
         self.events: list[Any] = []
