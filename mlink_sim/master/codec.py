@@ -71,11 +71,9 @@ def compatible(main: str, sub: str) -> bool:
 
 
 def command_name(link: Link, code: int) -> str:
-    enum_type = M3Cmd if link is Link.ML3 else M2Cmd
-    try:
-        return enum_type(code).name
-    except ValueError:
-        return f"{code:02X}H"
+    """The name of command *code* on *link* ("PRM_RD"), or its code for one the manuals do not define ("30H")."""
+    kind = cmd_of(link, code)
+    return kind.value if kind is not None else f"{code:02X}H"
 
 
 @dataclass(frozen=True, slots=True)

@@ -11,6 +11,7 @@ from collections import deque
 from typing import Any
 
 from ..wire import Unknown
+from .codec import command_name
 from .commands import Cmd
 from .slave import Sent, Slave
 from .types import Request, RequestTimeout, StationAlarmError
@@ -39,8 +40,7 @@ def build(st: Slave, body: Any, sub: bool | None, deadline_ns: int) -> Request:
     kind = codec.kind_of(code)
     if kind in MANAGED:
         raise ValueError(f"{kind.value} is sent by the master core itself (bring-up and recovery)")
-    name = kind.value if kind is not None else f"{code:02X}H"
-    return Request(st.address, body, bool(sub), name, code, deadline_ns, kind)
+    return Request(st.address, body, bool(sub), command_name(plan.link, code), code, deadline_ns, kind)
 
 
 def complete(st: Slave, queue: deque[Request], req: Request, code: int | None, ready: bool,
