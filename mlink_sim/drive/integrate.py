@@ -7,29 +7,28 @@ calls the plain functions below on it; this module does not know the :class:`Dri
 act on -- a trip, an event for its log -- the functions put in :attr:`IntegratorState.pending` and say so
 in their return value (:data:`CHANGED`); the drive then applies them in order and re-derives its mode.
 
-Per sub-step ``h`` (:func:`substep`; docs/drive-model.md, "Numerics"), one function each:
+Per sub-step ``h`` (:func:`substep`; docs/drive-model.md, "Numerics"), one marked section each:
 
-1. :func:`soft_starter`: the output frequency magnitude ``m`` moves toward the target with rate ``q``
+1. soft starter: the output frequency magnitude ``m`` moves toward the target with rate ``q``
    limited to ``E1-04 / C1-0x`` and jerk ``rate / C2-0x`` (S-curve); the landing follows
    ``q = sqrt(2 j e)`` so the end jerk is exact; stall prevention holds ``q = 0``;
-2. :func:`motor_torque`: ``T = K phi^2 (w_s - w)`` (or a held torque value), the synchronous speed
-   ``w_s`` linear in time across the step; after step 3, :func:`substep` takes the torque, current,
-   power and output frequency at the step's end;
-3. :func:`mechanics`: ``J dw/dt = T - T_c - B w`` integrated exactly (exponential integrator) with the
+2. motor: ``T = K phi^2 (w_s - w)`` (or a held torque value), the synchronous speed ``w_s``
+   linear in time across the step; after step 3 the torque, current, power and output frequency
+   at the step's end;
+3. mechanics ``J dw/dt = T - T_c - B w`` integrated exactly (exponential integrator) with the
    load linearised at the start of the step (exact for inertia, constant, friction loads);
-4. :func:`dc_bus`: the bus energy ``E = C V^2 / 2`` takes ``-(P_out + P_ctrl) h`` above the rectified
-   level;
-5. :func:`protections`: oL1 thermal state, oC / ov / Uv1 checks, stall-prevention flags; then
-   :func:`substep` detects a steady state.
+4. DC bus energy ``E = C V^2 / 2`` takes ``-(P_out + P_ctrl) h`` above the rectified level;
+5. oL1 thermal state, oC / ov / Uv1 checks, stall-prevention flags, steady-state detection.
 
 While a speed search runs (:func:`search_step`) the drive applies no torque (its search voltage is
 reduced; the shaft coasts through steps 2-3) and the sweep frequency and the search current replace
 step 1; after it, :func:`restart_watch` restarts a search whose current stays above b3-17 (SEr when
 b3-19 is exceeded).
 
-The functions are the hot loop of every simulated station: locals over attributes, no allocation
-beyond small tuples, the same floating-point operations in the same order (the determinism tests,
-tests/drive/test_determinism_and_integration.py, and scripts/bench_drive.py guard it).
+:func:`substep` is the hot loop of every simulated station and stays one function: its constants are
+unpacked from one tuple (``IntegratorState.hot``), and five calls, one per step, cost 11-17 % more per
+integrated step in scripts/bench_drive.py (measured 2026-12-01).  The determinism tests
+(tests/drive/test_determinism_and_integration.py) and scripts/bench_drive.py guard it.
 """
 
 from __future__ import annotations
@@ -46,13 +45,8 @@ __all__ = [
     "STEADY",
     "IntegratorState",
     "begin_search",
-    "dc_bus",
-    "mechanics",
-    "motor_torque",
-    "protections",
     "restart_watch",
     "search_step",
-    "soft_starter",
     "steady_to",
     "substep",
 ]
@@ -93,7 +87,7 @@ class IntegratorState:
         # constants: motor (MotorConstants), load (LoadSpec.resolve), bus, protections, search settings
         "K", "wph", "Tr", "I0", "IT", "Ir", "R3", "fb", "J", "kind", "Tl", "B", "kf",
         "En", "Vn", "C", "Pc", "ov", "uv", "oc", "acc_lvl", "dec_lvl", "dec_raise", "tau", "ol1",
-        "fmax", "slip", "search", "i_drive",
+        "fmax", "slip", "search", "i_drive", "hot",
         # for the drive: trips and events, in the order they happened
         "pending",
     )
@@ -141,6 +135,10 @@ class IntegratorState:
         self.dec_raise = s.stall_decel_intelligent
         self.tau, self.ol1 = s.ol1_tau_s, s.ol1_enabled and s.ol1_tau_s > 0
         self.fmax, self.slip, self.search = s.max_freq_hz, s.motor_rated_slip_hz, s.search
+        # the constants of the hot loop, unpacked in one go by substep()
+        self.hot = (self.K, self.wph, self.fb, self.Tr, self.IT, self.I0, self.R3, self.J, self.B, self.kind,
+                    self.Tl, self.kf, self.En, self.Pc, self.C, self.Vn, self.ov, self.uv, self.oc, self.acc_lvl,
+                    self.dec_lvl, self.dec_raise, self.ol1, self.tau, self.Ir)
 
     def output_off(self) -> None:
         """Baseblock: no output frequency, torque or current; no search, no stall or torque limit."""
@@ -174,136 +172,95 @@ def steady_to(x: IntegratorState, span: int) -> int:
 
 # ---------------------------------------------------------------------------------------------- sub-step
 def substep(x: IntegratorState, h: float) -> int:
-    """Integrate ``h`` seconds (steps 1-5 of the module docstring).  0, :data:`CHANGED` (apply
-    :attr:`~IntegratorState.pending`, re-derive the mode) or :data:`STEADY` (the state came to rest)."""
+    """Integrate ``h`` seconds: steps 1-5 of the module docstring, one marked section each (one function on
+    purpose: split into five calls it cost 11-17 % more per integrated step, scripts/bench_drive.py).  0,
+    :data:`CHANGED` (apply :attr:`~IntegratorState.pending`, re-derive the mode) or :data:`STEADY` (the state
+    came to rest)."""
     if h <= 0.0:
         return 0
-    w, E, srch = x.w, x.E, x.ss
+    (K, wph, fb, Tr, IT, I0, R3, J, B, kind, Tl, kf, En, Pc, C, Vn, ov, uv, oc, acc_lvl,
+     dec_lvl, dec_raise, ol1, tau, Ir) = x.hot
+    mains = x.mains
+    w = x.w
+    E = x.E
+    srch = x.ss
     out = x.out and not srch
-    m0 = x.m
+    m0 = m1 = x.m
+    q = 0.0
+    T1 = I1 = pag = 0.0
+    limited = False
     if out:
-        m1, q, d = soft_starter(x, h, m0, w)
-        ws0, ws1, phi, k, kk, aT, limited = motor_torque(x, d, m0, m1, w)
-        w1 = mechanics(x, h, w, kk, aT, ws0, ws1)
-        # step 2 at the step's end: torque, current, output power (air gap, trapezoidal, plus copper losses);
-        # the soft starter follows the rotor while the torque is limited (inline: the hot loop)
+        # ---- soft starter (ramp with S-curve) ------------------------------------------
+        q, d, mt = x.q, x.dir, x.mt
+        if x.dt != d:
+            if m0 == 0.0:
+                d = x.dir = x.dt
+            else:
+                mt = 0.0
+        if m0 != mt or q != 0.0:
+            if mt > m0:
+                if x.hold_acc:
+                    q = 0.0
+                else:
+                    je, js, a = x.Je, x.Js, x.A
+                    qlim = a if je == INF else min(a, math.sqrt(2.0 * je * (mt - m0)))
+                    if js == INF:
+                        q = qlim
+                        m1 = m0 + q * h
+                    else:
+                        q1 = min(q + js * h, qlim)
+                        m1 = m0 + 0.5 * (q + q1) * h
+                        q = q1
+                    if m1 >= mt:
+                        m1, q = mt, 0.0
+            elif mt < m0:
+                if x.hold_dec:
+                    q = 0.0
+                    if dec_raise:  # L3-04 = 2: no frequency below the rotor's
+                        fr = d * w / wph
+                        if fr > m1:
+                            m1 = fr
+                else:
+                    je, js, a = x.Jde, x.Jds, x.D
+                    qd = -q
+                    qlim = a if je == INF else min(a, math.sqrt(2.0 * je * (m0 - mt)))
+                    if js == INF:
+                        qd = qlim
+                        m1 = m0 - qd * h
+                    else:
+                        q1 = min(qd + js * h, qlim)
+                        m1 = m0 - 0.5 * (qd + q1) * h
+                        qd = q1
+                    q = -qd
+                    if m1 <= mt:
+                        m1, q = mt, 0.0
+            else:
+                q = 0.0
+        # ---- motor torque: T = K phi^2 (w_s - w), or held at the torque value --------------
+        ws0 = d * m0 * wph
+        ws1 = d * m1 * wph
+        phi = fb / m1 if m1 > fb else 1.0
+        k = K * phi * phi
+        kk, aT = k, 0.0
+        tmode = x.tmode
+        if tmode:
+            tv = x.tval
+            if tmode == 2:  # torque control, speed limit = soft-starter output
+                wl = ws1 if tv >= 0.0 else -ws1
+                ws0 = ws1 = wl
+                tf = k * (wl - w)
+                if (tv >= 0.0 and tf > tv) or (tv < 0.0 and tf < tv):
+                    kk, aT, limited = 0.0, tv, True
+            else:
+                tf = k * (ws1 - w)
+                if tf > tv or tf < -tv:
+                    kk, aT, limited = 0.0, (tv if tf > 0 else -tv), True
         T0 = aT + kk * (ws0 - w)
-        T1 = aT + kk * (ws1 - w1)
-        if limited:
-            fel = (w1 + T1 / k) / x.wph
-            if x.tmode == 1:
-                m1, q = (fel * d if fel * d > 0.0 else 0.0), 0.0
-            x.fout = fel
-        else:
-            x.fout = d * m1
-        it = T1 / x.Tr * x.IT / phi
-        i0 = x.I0 * phi
-        I1 = math.sqrt(i0 * i0 + it * it)
-        P = 0.5 * (T0 * (w + T0 / k) + T1 * (w1 + T1 / k)) + x.R3 * I1 * I1
-        x.m, x.q = m1, q
     else:
-        m1 = q = T1 = 0.0
-        limited = False
-        w1 = mechanics(x, h, w, 0.0, 0.0, 0.0, 0.0)
-        if -_STOP_W < w1 < _STOP_W:
-            w1 = 0.0
-        I1 = search_step(x, h, w1) if srch else 0.0
-        P = x.R3 * I1 * I1
-    E1, V = dc_bus(x, h, P, E, out)
-    x.w, x.T, x.I, x.P, x.E, x.V = w1, T1, I1, P, E1, V
-    changed = srch != 0 and x.ss == 0  # a speed search found the motor speed
-    if protections(x, h, I1, V, m1, q, limited, out, changed):
-        return CHANGED
-    if not srch and E1 == E and (w1 == w or -1e-9 * (1.0 + abs(w)) <= w1 - w <= 1e-9 * (1.0 + abs(w))):
-        if not out or (m1 == m0 and q == 0.0 and x.dt == x.dir):
-            x.steady = True
-            return STEADY
-    return 0
-
-
-def soft_starter(x: IntegratorState, h: float, m0: float, w: float) -> tuple[float, float, int]:
-    """Step 1, the ramp with S-curve: ``(m1, q, direction)`` at the step's end."""
-    q, d, mt = x.q, x.dir, x.mt
-    m1 = m0
-    if x.dt != d:
-        if m0 == 0.0:
-            d = x.dir = x.dt
-        else:
-            mt = 0.0  # reversing: down to 0 Hz first
-    if m0 == mt and q == 0.0:
-        return m1, q, d
-    if mt > m0:
-        if x.hold_acc:
-            return m1, 0.0, d
-        je, js, a = x.Je, x.Js, x.A
-        qlim = a if je == INF else min(a, math.sqrt(2.0 * je * (mt - m0)))
-        if js == INF:
-            q = qlim
-            m1 = m0 + q * h
-        else:
-            q1 = min(q + js * h, qlim)
-            m1 = m0 + 0.5 * (q + q1) * h
-            q = q1
-        if m1 >= mt:
-            m1, q = mt, 0.0
-    elif mt < m0:
-        if x.hold_dec:
-            if x.dec_raise:  # L3-04 = 2: no frequency below the rotor's
-                fr = d * w / x.wph
-                if fr > m1:
-                    m1 = fr
-            return m1, 0.0, d
-        je, js, a = x.Jde, x.Jds, x.D
-        qd = -q
-        qlim = a if je == INF else min(a, math.sqrt(2.0 * je * (m0 - mt)))
-        if js == INF:
-            qd = qlim
-            m1 = m0 - qd * h
-        else:
-            q1 = min(qd + js * h, qlim)
-            m1 = m0 - 0.5 * (qd + q1) * h
-            qd = q1
-        q = -qd
-        if m1 <= mt:
-            m1, q = mt, 0.0
-    else:
-        q = 0.0
-    return m1, q, d
-
-
-def motor_torque(x: IntegratorState, d: int, m0: float, m1: float, w: float
-                 ) -> tuple[float, float, float, float, float, float, bool]:
-    """Step 2, the torque law ``T = aT + kk (w_s - w)`` over the step: ``(ws0, ws1, phi, k, kk, aT,
-    limited)`` -- synchronous speed at the step's start and end, flux ratio, stiffness ``K phi^2``, and
-    either ``kk = k, aT = 0`` (V/f) or ``kk = 0, aT`` the held torque (limit or control reached)."""
-    wph = x.wph
-    ws0 = d * m0 * wph
-    ws1 = d * m1 * wph
-    fb = x.fb
-    phi = fb / m1 if m1 > fb else 1.0
-    k = x.K * phi * phi
-    tmode = x.tmode
-    if tmode:
-        tv = x.tval
-        if tmode == 2:  # torque control, speed limit = soft-starter output
-            wl = ws1 if tv >= 0.0 else -ws1
-            tf = k * (wl - w)
-            if (tv >= 0.0 and tf > tv) or (tv < 0.0 and tf < tv):
-                return wl, wl, phi, k, 0.0, tv, True
-            return wl, wl, phi, k, k, 0.0, False
-        tf = k * (ws1 - w)
-        if tf > tv or tf < -tv:
-            return ws0, ws1, phi, k, 0.0, (tv if tf > 0 else -tv), True
-    return ws0, ws1, phi, k, k, 0.0, False
-
-
-def mechanics(x: IntegratorState, h: float, w: float, kk: float, aT: float, ws0: float, ws1: float) -> float:
-    """Step 3: ``J dw/dt = aT + kk (ws(t) - w) - Tc - B w``, exact for linear loads; the shaft speed at the
-    step's end."""
-    kind, B = x.kind, x.B
-    Tc = td = 0.0
+        m1 = kk = aT = T0 = ws0 = ws1 = 0.0
+    # ---- mechanics: J dw/dt = aT + kk (ws(t) - w) - Tc - B w, exact for linear loads -----
+    Tc = 0.0
     if kind == 1:  # constant (passive) torque
-        Tl = x.Tl
         if w > 0.0:
             Tc = Tl
         elif w < 0.0:
@@ -312,11 +269,9 @@ def mechanics(x: IntegratorState, h: float, w: float, kk: float, aT: float, ws0:
             td = aT + kk * 0.5 * (ws0 + ws1)
             Tc = td if -Tl <= td <= Tl else (Tl if td > 0 else -Tl)
     elif kind == 2:  # fan, linearised around w
-        kf = x.kf
         aw = w if w >= 0.0 else -w
         B = B + 2.0 * kf * aw
         Tc = -kf * w * aw
-    J = x.J
     lam = (kk + B) / J
     u0 = (aT + kk * ws0 - Tc) / J
     y = lam * h
@@ -331,49 +286,59 @@ def mechanics(x: IntegratorState, h: float, w: float, kk: float, aT: float, ws0:
     w1 = w * e + u0 * a1 + kk * (ws1 - ws0) / (h * J) * a2
     if kind == 1 and (w * w1 < 0.0 or (w == 0.0 and Tc == td)):
         w1 = 0.0  # a passive load stops the shaft and holds it
-    return w1
-
-
-def dc_bus(x: IntegratorState, h: float, P: float, E: float, out: bool) -> tuple[float, float]:
-    """Step 4, ``C V dV/dt = -P - P_ctrl`` above the rectified level: ``(E1, V)`` at the step's end."""
-    mains = x.mains
-    En = x.En
+    if not out and -_STOP_W < w1 < _STOP_W:
+        w1 = 0.0
+    if srch:
+        I1 = search_step(x, h, w1)
+    # ---- electrical ---------------------------------------------------------------------
+    if out:
+        T1 = aT + kk * (ws1 - w1)
+        if limited:
+            fel = (w1 + T1 / k) / wph
+            if tmode == 1:
+                m1, q = (fel * d if fel * d > 0.0 else 0.0), 0.0
+            x.fout = fel
+        else:
+            x.fout = d * m1
+        pag = 0.5 * (T0 * (w + T0 / k) + T1 * (w1 + T1 / k))
+        it = T1 / Tr * IT / phi
+        i0 = I0 * phi
+        I1 = math.sqrt(i0 * i0 + it * it)
+        x.m, x.q = m1, q
+    P = pag + R3 * I1 * I1
+    # ---- DC bus: C V dV/dt = -P - P_ctrl above the rectified level ------------------------
     if out or E > En or not mains:
-        E1 = E - (P + x.Pc) * h
+        E1 = E - (P + Pc) * h
         if mains and E1 < En:
             E1 = En
         if E1 < 0.0:
             E1 = 0.0
-        return E1, (x.Vn if E1 == En else math.sqrt(2.0 * E1 / x.C))
-    return E, x.V
-
-
-def protections(x: IntegratorState, h: float, I1: float, V: float, m1: float, q: float, limited: bool,
-                out: bool, changed: bool) -> bool:
-    """Step 5: oL1 thermal state, oC / ov / Uv1 trips, stall-prevention and torque-limit flags, the end of a
-    stop, the b3-17 restart watch, the Uv / ov minors.  True when the drive must re-derive its mode
-    (``changed`` on entry: it must already)."""
-    if x.ol1:
-        i2 = I1 / x.Ir
+        V = Vn if E1 == En else math.sqrt(2.0 * E1 / C)
+    else:
+        E1, V = E, x.V
+    # ---- state, protections --------------------------------------------------------------
+    x.w, x.T, x.I, x.P, x.E, x.V = w1, T1, I1, P, E1, V
+    changed = srch != 0 and x.ss == 0  # a speed search found the motor speed
+    if ol1:
+        i2 = I1 / Ir
         i2 *= i2
         th = x.theta
-        th += (i2 - th) * h / x.tau
+        th += (i2 - th) * h / tau
         x.theta = th
         if th >= OL1_TRIP_LEVEL and out:
             x.pending.append(Fault.OL1)
             changed = True
-    mains = x.mains
     if out:
-        if I1 >= x.oc:
+        if I1 >= oc:
             x.pending.append(Fault.OC)
             changed = True
-        if V >= x.ov:
+        if V >= ov:
             x.pending.append(Fault.OV)
             changed = True
-        if not mains and V < x.uv:
+        if not mains and V < uv:
             x.pending.append(Fault.UV1)
             changed = True
-        ha, hd = I1 >= x.acc_lvl, V >= x.dec_lvl
+        ha, hd = I1 >= acc_lvl, V >= dec_lvl
         if ha != x.hold_acc or hd != x.hold_dec or limited != x.tlimited:
             x.hold_acc, x.hold_dec, x.tlimited = ha, hd, limited
         if not x.run and m1 == 0.0 and q == 0.0:
@@ -381,16 +346,22 @@ def protections(x: IntegratorState, h: float, I1: float, V: float, m1: float, q:
         if x.ss_hi is not None and not changed:
             changed = restart_watch(x, h, I1)
     dyn = x.dyn
-    if dyn or V >= x.ov or (not mains and V < x.uv):
-        nd = set()
-        if V >= x.ov and not out:
+    if dyn or V >= ov or (not mains and V < uv):
+        nd: set[Fault] = set()
+        if V >= ov and not out:
             nd.add(Fault.OV)
-        if not mains and V < x.uv and not out:
+        if not mains and V < uv and not out:
             nd.add(Fault.UV)
         if frozenset(nd) != dyn:
             x.dyn = frozenset(nd)
             changed = True
-    return changed
+    if changed:
+        return CHANGED
+    if not srch and E1 == E and (w1 == w or -1e-9 * (1.0 + abs(w)) <= w1 - w <= 1e-9 * (1.0 + abs(w))):
+        if not out or (m1 == m0 and q == 0.0 and x.dt == x.dir):
+            x.steady = True
+            return STEADY
+    return 0
 
 
 # ---------------------------------------------------------------------------------------------- speed search
