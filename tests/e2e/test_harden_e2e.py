@@ -49,7 +49,8 @@ class _Lines:
     def __init__(self, pipe: object) -> None:
         self.lines: list[str] = []
         self._cond = threading.Condition()
-        threading.Thread(target=self._read, args=(pipe,), daemon=True).start()
+        self._thread = threading.Thread(target=self._read, args=(pipe,), daemon=True)
+        self._thread.start()
 
     def _read(self, pipe: object) -> None:
         for line in pipe:  # type: ignore[attr-defined]
@@ -64,6 +65,12 @@ class _Lines:
     @property
     def text(self) -> str:
         return "".join(self.lines)
+
+    def rest(self, timeout: float = 10.0) -> str:
+        """All the text, once the process has exited: waits for the reader to reach the end of the pipe (the
+        process may be gone while its last lines are still unread)."""
+        self._thread.join(timeout)
+        return self.text
 
 
 def _start_up(args: list[str], **kw: object) -> tuple[subprocess.Popen[str], _Lines, _Lines]:
@@ -92,11 +99,11 @@ def test_signal_during_up_disconnects_and_exits_128_plus_n(tmp_path: Path, sig: 
     finally:
         if proc.poll() is None:
             proc.kill()
-    time.sleep(0.2)
-    assert proc.returncode == code, out.text + err.text
-    assert f"interrupted by {sig.name}" in out.text and "all checks held" not in out.text
-    assert "30s all stations: expect running: not run" in out.text
-    assert "Traceback" not in err.text
+    stdout, stderr = out.rest(), err.rest()
+    assert proc.returncode == code, stdout + stderr
+    assert f"interrupted by {sig.name}" in stdout and "all checks held" not in stdout
+    assert "30s all stations: expect running: not run" in stdout
+    assert "Traceback" not in stderr
     doc = json.loads(report.read_text())
     assert doc["meta"]["interrupted"] == sig.name
     assert doc["meta"]["not_run"] == ["30s all stations: expect running"]
@@ -121,8 +128,8 @@ def test_slave_and_master_exit_128_plus_n_on_signals(tmp_path: Path, sig: signal
         mout = _Lines(master.stdout)
         assert merr.wait_for("network_up", 60), merr.text
         master.send_signal(sig)
-        assert master.wait(30) == code, mout.text + merr.text
-        assert f"interrupted by {sig.name}" in mout.text and "Traceback" not in merr.text
+        assert master.wait(30) == code, mout.rest() + merr.rest()
+        assert f"interrupted by {sig.name}" in mout.rest() and "Traceback" not in merr.rest()
         slave.send_signal(sig)
         assert slave.wait(10) == code
         assert slave.stderr is not None and "Traceback" not in slave.stderr.read()
