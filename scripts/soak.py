@@ -92,7 +92,7 @@ def summarise(rows: list[dict[str, Any]], base: dict[str, Any]) -> dict[str, Any
     within = [r for r in rows if "bound_ms" in r and r["stall_max_ms"] < r["bound_ms"]]
     return {
         "runs": len(rows), "passed": passed, "baseline": base,
-        "stall_max_ms": {"p50": statistics.median(maxes) if maxes else 0.0, "p90": _pct(maxes, 0.9),
+        "stall_max_ms": {"p50": round(statistics.median(maxes), 2) if maxes else 0.0, "p90": _pct(maxes, 0.9),
                          "max": max(maxes, default=0.0)},
         "stalls_per_run_p50": statistics.median([r.get("stalls", 0) for r in rows]) if rows else 0,
         "cycles_run_late": sum(r.get("cycles_run_late", 0) for r in rows),
