@@ -116,7 +116,7 @@ class VirtualEventLoop(asyncio.SelectorEventLoop):
         self.clock = clock if clock is not None else VirtualClock()
         selector = _VirtualSelector(self.clock)
         super().__init__(selector)
-        # asyncio's queue of callbacks to run now: BaseEventLoop's private deque, not in the type stubs
+        # asyncio's queue of callbacks to run now: BaseEventLoop's private deque, which typeshed does not declare
         selector.ready = self._ready  # type: ignore[attr-defined]
 
     def time(self) -> float:

@@ -13,6 +13,7 @@ and hand instances to :meth:`~mlink_sim.impair.layer.ImpairmentLayer.add`.
 
 from __future__ import annotations
 
+import abc
 from typing import TYPE_CHECKING, ClassVar
 
 from ..wire.frame import FCS_SIZE, HEADER_SIZE
@@ -40,15 +41,16 @@ LOSS_BLOCK = 1000
 DEFAULT_HOLD_NS = 1_000_000
 
 
-class Stage:
-    """One step of the pipeline (see the module docstring)."""
+class Stage(abc.ABC):
+    """One step of the pipeline (see the module docstring): each stage implements :meth:`apply`."""
 
     order: ClassVar[int]
     counter: ClassVar[str]  #: the ``injected`` key it counts under
     __slots__ = ()
 
+    @abc.abstractmethod
     def apply(self, items: Items, path: PathState) -> Items:
-        raise NotImplementedError
+        """The datagrams (delay, bytes) that leave this stage for those that came in."""
 
 
 class Loss(Stage):
@@ -128,8 +130,9 @@ class _Chance(Stage):
                 out.append(item)
         return out
 
+    @abc.abstractmethod
     def hit(self, item: tuple[int, bytes], path: PathState) -> Items:
-        raise NotImplementedError
+        """What becomes of a datagram the chance fell on (each subclass: corrupt, duplicate, reorder)."""
 
 
 class Corrupt(_Chance):

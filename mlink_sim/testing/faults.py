@@ -18,6 +18,7 @@ fault's episode as a :class:`FaultEpisode` (as of when it was applied; :meth:`Fa
 
 from __future__ import annotations
 
+import abc
 from dataclasses import dataclass
 from typing import Any
 
@@ -48,15 +49,16 @@ def _episode(d: dict[str, Any] | None) -> FaultEpisode | None:
     return None if d is None else FaultEpisode(**{**d, "notes": tuple(d.get("notes", ()))})
 
 
-class FaultMethods:
-    """The fault methods; a class using it implements ``_fault(station, action, fields) -> dict`` and
-    ``_fault_episode(station) -> dict | None``."""
+class FaultMethods(abc.ABC):
+    """The fault methods over both clocks; each network class implements the two ways in below."""
 
-    def _fault(self, station: int, action: str, fields: dict[str, Any]) -> dict[str, Any]:  # pragma: no cover
-        raise NotImplementedError
+    @abc.abstractmethod
+    def _fault(self, station: int, action: str, fields: dict[str, Any]) -> dict[str, Any]:
+        """Apply one fault to *station* (its action and fields as in the timeline); its episode as JSON."""
 
-    def _fault_episode(self, station: int) -> dict[str, Any] | None:  # pragma: no cover
-        raise NotImplementedError
+    @abc.abstractmethod
+    def _fault_episode(self, station: int) -> dict[str, Any] | None:
+        """The station's latest fault episode as JSON, or None."""
 
     def _apply(self, station: int, action: str, **fields: Any) -> FaultEpisode:
         fields = {("for" if k == "for_" else k): v for k, v in fields.items() if v is not None}
