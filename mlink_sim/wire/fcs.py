@@ -12,16 +12,19 @@ under a microsecond for a 78-byte datagram, where a bitwise Python loop costs se
 from __future__ import annotations
 
 import binascii
+from typing import Any
 
 __all__ = ["crc16_x25", "crc16_x25_reference"]
 
 _REVERSE_BYTE = bytes(int(f"{i:08b}"[::-1], 2) for i in range(256))
 
 
-def crc16_x25(data: bytes | bytearray | memoryview) -> int:
+def crc16_x25(data: bytes | bytearray | memoryview, _rev: bytes = _REVERSE_BYTE, _crc: Any = binascii.crc_hqx) -> int:
     """CRC-16/X-25 of *data* (the FCS of the wire contract)."""
-    crc = binascii.crc_hqx(bytes(data).translate(_REVERSE_BYTE), 0xFFFF)
-    return ((_REVERSE_BYTE[crc & 0xFF] << 8) | _REVERSE_BYTE[crc >> 8]) ^ 0xFFFF
+    if type(data) is not bytes and type(data) is not bytearray:  # bytes(b) costs ~0.3 µs even when b is bytes
+        data = bytes(data)
+    crc = _crc(data.translate(_rev), 0xFFFF)
+    return ((_rev[crc & 0xFF] << 8) | _rev[crc >> 8]) ^ 0xFFFF
 
 
 def crc16_x25_reference(data: bytes | bytearray | memoryview) -> int:
