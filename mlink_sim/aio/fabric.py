@@ -16,6 +16,7 @@ unchanged. Responses reach ``MasterCore.on_response`` at their arrival time: RTT
 from __future__ import annotations
 
 import random
+from heapq import heappush as _push
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -149,14 +150,15 @@ class Fabric:
     # ------------------------------------------------------------------ datagrams
     def send(self, port: FabricPort, address: int, data: bytes) -> None:
         """A command from *port* to station *address*, leaving now."""
+        clock = self.clock
+        now = clock.now
         if self._record is not None:
-            self._record(self.clock.now, data, virtual_address(port.name), virtual_address(address))
+            self._record(now, data, virtual_address(port.name), virtual_address(address))
         node = self.nodes.get(address)
         if node is None or node.station is None:
             self.undeliverable += 1
             return
-        clock = self.clock
-        t = clock.now + self._base
+        t = now + self._base
         if self._span:
             t += int(self._random() * self._span)
         if t < node.down_free:
@@ -164,10 +166,10 @@ class Fabric:
         node.down_free = t
         impair = self.impair
         if impair is not None and impair.active:
-            for extra, out in impair.process(data, Direction.TO_STATION, address, clock.now):
+            for extra, out in impair.process(data, Direction.TO_STATION, address, now):
                 clock.at(t + extra, self._to_station, (node, node.epoch, port, out))
             return
-        clock.at(t, self._to_station, (node, node.epoch, port, data))
+        _push(clock.queue, (t, next(clock.seq), self._to_station, (node, node.epoch, port, data)))  # clock.at
 
     def _to_station(self, arg: tuple[_Node, int, FabricPort, bytes]) -> None:
         node, epoch, port, data = arg
@@ -180,8 +182,12 @@ class Fabric:
         response = station.receive(data, port.name, now)
         if station.eeprom_pending:
             self._save(node, station)
-        if node.armed is None or node.armed > now:
-            self._arm(node)
+        armed = node.armed
+        if armed is None or armed > now:  # self._arm(node), spelt out
+            due = station.next_deadline()
+            if due is not None and (armed is None or due < armed):
+                node.armed = due
+                clock.at(due, self._poll, node)
         if response is not None:
             t = now + self._base
             if self._span:
@@ -194,7 +200,7 @@ class Fabric:
                 for extra, out in impair.process(response, Direction.TO_MASTER, node.address, now):
                     clock.at(t + extra, self._to_master, (port, out))
                 return
-            clock.at(t, self._to_master, (port, response))
+            _push(clock.queue, (t, next(clock.seq), self._to_master, (port, response)))  # clock.at
 
     def _to_master(self, arg: tuple[FabricPort, bytes]) -> None:
         port, data = arg
@@ -237,7 +243,9 @@ class Fabric:
                 node.armed = now + _TICK_NS
                 self.clock.at(node.armed, self._poll, node)
                 return
-        self._arm(node)
+        if due is not None:  # self._arm(node), spelt out: nothing is armed now
+            node.armed = due
+            self.clock.at(due, self._poll, node)
 
     def _save(self, node: _Node, station: Any) -> None:
         image = station.take_eeprom()

@@ -36,12 +36,16 @@ class VirtualTimeStalled(RuntimeError):
 class VirtualClock:
     """Simulated monotonic time in ns and the callbacks due at given times (``at``), run by :meth:`run_until`."""
 
-    __slots__ = ("now", "_queue", "_seq")
+    __slots__ = ("now", "_queue", "_seq", "queue", "seq")
 
     def __init__(self, start_ns: int = 0) -> None:
         self.now = start_ns
         self._queue: list[tuple[int, int, Callable[[Any], None], Any]] = []
         self._seq = itertools.count()
+        #: the queue itself, a heap of ``(when, next(seq), fn, arg)`` with ``when >= now``: the in-memory network
+        #: (:mod:`.fabric`) pushes its deliveries onto it directly, which is what :meth:`at` does, one call fewer
+        self.queue = self._queue
+        self.seq = self._seq
 
     def now_ns(self) -> int:
         return self.now

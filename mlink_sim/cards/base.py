@@ -240,10 +240,10 @@ class Station(abc.ABC):
 
     def next_deadline(self) -> int | None:
         """Absolute time (ns) when :meth:`poll` is next due, or None when nothing is pending."""
-        due = self._silence_deadline()
-        if not self.drive.is_steady():
+        due = self.reception.deadline() if self.phase > 1 else None  # self._silence_deadline(), spelt out
+        if not self.drive.drive.is_steady:
             tick = self._now + DRIVE_TICK_NS
-            due = tick if due is None else min(due, tick)
+            due = tick if due is None or tick < due else due
         return due
 
     def _silence_deadline(self) -> int | None:
@@ -348,7 +348,7 @@ class Station(abc.ABC):
         if self._source is not None and source != self._source:
             self._foreign(source)
             return False
-        self.drive.advance(now)
+        self.drive.drive.advance(now)  # the model itself: DriveLink.advance is only this
         if self._source is not None:  # connected (phase 2/3): failures found by poll() are counted; the gap the rest
             seen = self.reception.on_command(cycle, now)
             if seen is None:

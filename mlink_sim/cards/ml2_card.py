@@ -20,8 +20,7 @@ from typing import Any, ClassVar
 from mlink_sim.wire import (
     MAGIC, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, Unknown, encode, ml2,
 )
-from mlink_sim.wire.frame import FCS_SIZE, HEADER, HEADER_SIZE, fcs_ok, with_fcs
-from mlink_sim.wire.layout import fast_struct
+from mlink_sim.wire.frame import FCS_SIZE, HEADER_SIZE, datagram_struct, fcs_ok, with_fcs
 
 from . import commands
 from .alarms import Ml2Alarms, ml2_failure_code
@@ -44,15 +43,20 @@ _ALLOWED, _IGNORED = Admit.ALLOWED, Admit.IGNORED
 
 
 # The fast path's formats, offsets and codes, derived from the wire declarations (so they cannot drift from them),
-# as master/fastpath.py does. Offsets are datagram offsets: the envelope, then the data frame.
-_INV_CTL = fast_struct(ml2.COMMAND_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.COMMAND_MAIN.size)
-_INV_CTL_R = fast_struct(ml2.RESPONSE_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.RESPONSE_MAIN.size)
-_RF17 = fast_struct(ml2.RESPONSE_FRAME_17, 17)
-_RF32 = fast_struct(ml2.RESPONSE_FRAME_32, 32)
-_FRAMES = (ml2.COMMAND_FRAME_17, ml2.COMMAND_FRAME_32)  # both frame sizes: the fields below sit alike
-_CODE_AT = datagram_offset("code", *_FRAMES)
-_MAIN_AT = datagram_offset("main", *_FRAMES)
-_WDT_AT = datagram_offset("wdt", *_FRAMES)
+# as master/fastpath.py does: whole datagrams (envelope, frame and INV_CTL body) in one struct each, the command's
+# first 17 data bytes (alike in both frame sizes) and the response of each frame size.
+_CMD_DG, _CMD_NAMES = datagram_struct(ml2.COMMAND_FRAME_17, 17, main=(
+    ml2.COMMAND_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.COMMAND_MAIN.size))
+_RSP_DG = {size: datagram_struct(frame, size, main=(ml2.RESPONSE_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon,
+                                                    ml2.RESPONSE_MAIN.size))
+           for size, frame in ((17, ml2.RESPONSE_FRAME_17), (32, ml2.RESPONSE_FRAME_32))}
+if _CMD_NAMES != ("magic", "link", "kind", "station", "cycle", "tcycle_ns", "code", "signals", "speed_ref",
+                  "torque_ref", "sel_ref", "sel_mon", "ref1", "ref2", "wdt"):
+    raise ImportError(f"MECHATROLINK-II fast path: the INV_CTL command fields are {_CMD_NAMES}")
+if _RSP_DG[32][1][-3:] != ("subcode", "substatus", "sub") or _RSP_DG[17][1] != _RSP_DG[32][1][:-3] or \
+        _RSP_DG[17][1][6:] != ("code", "alarm", "status", "output_freq", "output_current", "sel_ref", "sel_mon",
+                               "mon1", "mon2", "rwdt"):
+    raise ImportError(f"MECHATROLINK-II fast path: the INV_CTL response fields are {_RSP_DG[32][1]}")
 _SUBCODE_AT = datagram_offset("subcode", ml2.COMMAND_FRAME_32)
 _CMD_INV_CTL = int(M2Cmd.INV_CTL)
 _KIND_COMMAND = int(Kind.COMMAND)
@@ -115,6 +119,8 @@ class Ml2Station(Station):
         self._status_word = 0
         self._deferred_cyc = False
         self._fast_len = HEADER_SIZE + self.data_size + FCS_SIZE
+        self._frame32 = self.data_size == 32
+        self._rsp_dg = _RSP_DG[self.data_size][0]
 
     # -- the command ---------------------------------------------------------------------------
     def _process(self, frame: Frame, source: Hashable, now: int) -> bytes:
@@ -185,27 +191,31 @@ class Ml2Station(Station):
         path (tests/cards/test_fast_path.py)."""
         if len(dg) != self._fast_len:
             return SLOW
-        magic, link, kind, stn, cycle, tcycle = HEADER.unpack_from(dg)
+        (magic, link, kind, stn, cycle, tcycle, code, sig, speed, torque, sel_ref, sel_mon, ref1, ref2,
+         wdt) = _CMD_DG.unpack_from(dg)
         if (magic != MAGIC or link != self.link or kind != _KIND_COMMAND or stn != self.address
-                or dg[_CODE_AT] != _CMD_INV_CTL
-                or (self.data_size == 32 and dg[_SUBCODE_AT] != 0)
+                or code != _CMD_INV_CTL
+                or (self._frame32 and dg[_SUBCODE_AT] != 0)
                 or not fcs_ok(dg)):
             return SLOW
-        if not self._accept(cycle, tcycle, dg[_WDT_AT], _CMD_INV_CTL, source, now):
+        if not self._accept(cycle, tcycle, wdt, _CMD_INV_CTL, source, now):
             return None
         if self._source is None:  # this command's gap lost the connection
             return self._answer_after_loss(dg, source, now)
-        sig, speed, torque, sel_ref, sel_mon, ref1, ref2 = _INV_CTL.unpack_from(dg, _MAIN_AT)
         ofreq, cur, mon1, mon2 = self._inv_ctl(sig, speed, torque, sel_ref, sel_mon, ref1, ref2, now)
         alarm, word = self._alarm_status(False)
-        main = _INV_CTL_R.pack(ofreq, cur, sel_ref, sel_mon, mon1, mon2)
-        if self.data_size == 32:
-            data = _RF32.pack(_CMD_INV_CTL, alarm, word, main, self.watchdog.rwdt(), 0, _SUBRDY, _ZERO_SUB)
-        else:
-            data = _RF17.pack(_CMD_INV_CTL, alarm, word, main, self.watchdog.rwdt())
+        rwdt = self.watchdog.rwdt()
         self.alarms.reported()
-        self._sent(now)
-        return with_fcs(HEADER.pack(MAGIC, link, _KIND_RESPONSE, stn, cycle, tcycle) + data)
+        self.counters.tx += 1  # self._sent(now), spelt out
+        self._tx_at = now
+        if self.drive.status.fault is not self._seen_fault:
+            self._watch_history()
+        if self._frame32:
+            return with_fcs(self._rsp_dg.pack(MAGIC, link, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, alarm,
+                                              word, ofreq, cur, sel_ref, sel_mon, mon1, mon2, rwdt, 0, _SUBRDY,
+                                              _ZERO_SUB))
+        return with_fcs(self._rsp_dg.pack(MAGIC, link, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, alarm,
+                                          word, ofreq, cur, sel_ref, sel_mon, mon1, mon2, rwdt))
 
     def _inv_ctl(self, sig: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,
                  now: int) -> tuple[int, int, int, int]:

@@ -24,8 +24,7 @@ from typing import Any, ClassVar
 from mlink_sim.wire import (
     MAGIC, PROFILE_TYPE_INVERTER, CommAlm, Frame, Kind, Link, M3Cmd, Unknown, encode, ml3,
 )
-from mlink_sim.wire.frame import FCS_SIZE, HEADER, HEADER_SIZE, fcs_ok, with_fcs
-from mlink_sim.wire.layout import fast_struct
+from mlink_sim.wire.frame import FCS_SIZE, HEADER_SIZE, datagram_struct, fcs_ok, with_fcs
 
 from . import commands
 from .alarms import Ml3Alarms, ml3_failure_code
@@ -50,16 +49,20 @@ _ALLOWED, _IGNORED, _PHASE = Admit.ALLOWED, Admit.IGNORED, Admit.PHASE_ERROR
 
 
 # The fast path's formats, offsets and codes, derived from the wire declarations (so they cannot drift from them),
-# as master/fastpath.py does. Offsets are datagram offsets: the envelope, then the data frame.
-_INV_CTL = fast_struct(ml3.COMMAND_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.COMMAND_MAIN.size)
-_INV_CTL_R = fast_struct(ml3.RESPONSE_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.RESPONSE_MAIN.size)
-_RF32 = fast_struct(ml3.RESPONSE_FRAME_32, 32)
-_RF64 = fast_struct(ml3.RESPONSE_FRAME_64, 64)
-_FRAMES = (ml3.COMMAND_FRAME_32, ml3.COMMAND_FRAME_64)  # both frame sizes: the fields below sit alike
-_CODE_AT = datagram_offset("code", *_FRAMES)
-_WDT_AT = datagram_offset("wdt", *_FRAMES)
-_CTRL_AT = datagram_offset("cmd_ctrl", *_FRAMES)  # CMD_CTRL's low byte: ALM_CLR (bit 3), CMD_ID (bits 6-7)
-_MAIN_AT = datagram_offset("main", *_FRAMES)
+# as master/fastpath.py does: whole datagrams (envelope, frame and INV_CTL body) in one struct each, the command's
+# first 32 data bytes (alike in both frame sizes) and the response of each frame size.
+_CMD_DG, _CMD_NAMES = datagram_struct(ml3.COMMAND_FRAME_32, 32, main=(
+    ml3.COMMAND_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.COMMAND_MAIN.size))
+_RSP_DG = {size: datagram_struct(frame, size, main=(ml3.RESPONSE_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon,
+                                                    ml3.RESPONSE_MAIN.size))
+           for size, frame in ((32, ml3.RESPONSE_FRAME_32), (64, ml3.RESPONSE_FRAME_64))}
+if _CMD_NAMES != ("magic", "link", "kind", "station", "cycle", "tcycle_ns", "code", "wdt", "cmd_ctrl", "invcmd_ctrl",
+                  "invcmd_io", "speed_ref", "torque_ref", "sel_ref", "sel_mon", "ref1", "ref2"):
+    raise ImportError(f"SI-ET3 fast path: the INV_CTL command fields are {_CMD_NAMES}")
+if _RSP_DG[64][1][-3:] != ("subcode", "sub_stat", "sub") or _RSP_DG[32][1] != _RSP_DG[64][1][:-3] or \
+        _RSP_DG[32][1][6:] != ("code", "rwdt", "cmd_stat", "invcmd_stat", "invcmd_io", "output_freq",
+                               "output_current", "sel_ref", "sel_mon", "mon1", "mon2"):
+    raise ImportError(f"SI-ET3 fast path: the INV_CTL response fields are {_RSP_DG[64][1]}")
 _SUBCODE_AT = datagram_offset("subcode", ml3.COMMAND_FRAME_64)
 _CMD_INV_CTL = int(M3Cmd.INV_CTL)
 _LINK = int(Link.ML3)
@@ -128,6 +131,9 @@ class SiEt3(Station):
         self._last_cmd_alm = 0
         self._last_sub_alm = 0
         self._fast_len = HEADER_SIZE + self.data_size + FCS_SIZE
+        self._frame64 = self.data_size == 64
+        self._rsp_dg = _RSP_DG[self.data_size][0]
+        self._sel_mon_bits: dict[int, int] = {}  # SEL_MON -> INVCMD_STAT bits 24/25, filled as codes are seen
 
     def _power_up(self, values: Mapping[str, int], settings: CardSettings) -> None:
         self.address = values["F6-20"]
@@ -204,36 +210,42 @@ class SiEt3(Station):
 
     def _fast_receive(self, dg: bytes, source: Hashable, now: int) -> object:
         """INV_CTL with a NOP (or no) sub-command in phase 2/3 straight from and to bytes (``struct`` formats
-        derived from the wire declarations; identical responses to the general path, tests/cards/test_fast_path.py)."""
+        derived from the wire declarations, one unpack and one pack per datagram; identical responses to the
+        general path, tests/cards/test_fast_path.py)."""
         if len(dg) != self._fast_len:
             return SLOW
-        magic, link, kind, stn, cycle, tcycle = HEADER.unpack_from(dg)
-        if (magic != MAGIC or link != _LINK or kind != _KIND_COMMAND or stn != self.address
-                or dg[_CODE_AT] != _CMD_INV_CTL
-                or (self.data_size == 64 and dg[_SUBCODE_AT] != 0)
+        (magic, link, kind, stn, cycle, tcycle, code, wdt, ctrl, ictrl, _io, speed, torque, sel_ref, sel_mon, ref1,
+         ref2) = _CMD_DG.unpack_from(dg)
+        if (magic != MAGIC or link != _LINK or kind != _KIND_COMMAND or stn != self.address or code != _CMD_INV_CTL
+                or (self._frame64 and dg[_SUBCODE_AT] != 0)
                 or not fcs_ok(dg)):
             return SLOW
-        if not self._accept(cycle, tcycle, dg[_WDT_AT], _CMD_INV_CTL, source, now):
+        if not self._accept(cycle, tcycle, wdt, _CMD_INV_CTL, source, now):
             return None
         if self._source is None:  # this command's gap lost the connection
             return self._answer_after_loss(dg, source, now)
         alarms = self.alarms
-        ctrl = dg[_CTRL_AT]
-        if alarms.alm_clr_edge(bool(ctrl & 0x08)):
+        if alarms.alm_clr_edge(bool(ctrl & 0x08)):  # CMD_CTRL.ALM_CLR (bit 3 of its low byte)
             self.alarm_clear(now)
             alarms.alm_clr_cmp = True
-        ictrl, _io, speed, torque, sel_ref, sel_mon, ref1, ref2 = _INV_CTL.unpack_from(dg, _MAIN_AT)
         invcmd_stat, ofreq, cur, mon1, mon2 = self._inv_ctl(ictrl, speed, torque, sel_ref, sel_mon, ref1, ref2, now)
-        main = _INV_CTL_R.pack(invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2)
         self._last_cmd_alm = 0
-        stat = cmd_stat(self.drive.status, alarms, True, ctrl, 0)
-        if self.data_size == 64:
+        status = self.drive.status
+        # cmd_stat(status, alarms, True, ctrl, 0), spelt out
+        stat = (status.faulted | status.minor_fault << 1 | 4 | alarms.alm_clr_cmp << 3 | (ctrl & 0xC0)
+                | alarms.comm_alm << 12)
+        rwdt = self.watchdog.rwdt()
+        self.counters.tx += 1  # self._sent(now), spelt out
+        self._tx_at = now
+        if status.fault is not self._seen_fault:
+            self._watch_history()
+        if self._frame64:
             self._last_sub_alm = 0
-            data = _RF64.pack(_CMD_INV_CTL, self.watchdog.rwdt(), stat, main, 0, _SUBCMDRDY, _ZERO_SUB)
-        else:
-            data = _RF32.pack(_CMD_INV_CTL, self.watchdog.rwdt(), stat, main)
-        self._sent(now)
-        return with_fcs(HEADER.pack(MAGIC, _LINK, _KIND_RESPONSE, stn, cycle, tcycle) + data)
+            return with_fcs(self._rsp_dg.pack(MAGIC, _LINK, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, rwdt,
+                                              stat, invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2, 0,
+                                              _SUBCMDRDY, _ZERO_SUB))
+        return with_fcs(self._rsp_dg.pack(MAGIC, _LINK, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, rwdt,
+                                          stat, invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2))
 
     def _inv_ctl(self, ctrl: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,
                  now: int) -> tuple[int, int, int, int, int]:
@@ -253,15 +265,17 @@ class SiEt3(Station):
                 self._watch_history()
         if sel_ref:
             self.select_refs(sel_ref, ref1, ref2)
-        drive = self.drive
-        status = drive.status
+        status = self.drive.status
         if status is not self._status_seen:
             self._status_seen = status
             self._status_word = ml3_invcmd_stat_bits(status)
-        m1, m2 = sel_mon & 0xF, sel_mon >> 4
-        invcmd_stat = self._status_word | sel_mon_enabled(drive, m1) << 24 | sel_mon_enabled(drive, m2) << 25
+        enabled = self._sel_mon_bits.get(sel_mon)
+        if enabled is None:  # INVCMD_STAT bits 24/25 "SEL_MONx enabled" of this SEL_MON (constant per card)
+            drive = self.drive
+            enabled = self._sel_mon_bits[sel_mon] = (sel_mon_enabled(drive, sel_mon & 0xF) << 24
+                                                     | sel_mon_enabled(drive, sel_mon >> 4) << 25)
         ofreq, cur, mon1, mon2 = self._outputs(sel_mon)
-        return invcmd_stat, ofreq, cur, mon1, mon2
+        return self._status_word | enabled, ofreq, cur, mon1, mon2
 
     def _process_sub(self, main_code: int, sub: Any, phase: int, subcmd: bool, now: int) -> tuple[Any, Err]:
         """The sub-command: admission (Table 10), combination (Table 13), handler; SUB_CTRL (Table 23) is reserved

@@ -27,7 +27,7 @@ from construct import Int8ul, Int16ul, Int32ul, Struct
 from . import ml2, ml3
 from .codes import Kind, Link
 from .fcs import crc16_x25
-from .layout import fast_struct
+from .layout import fast_format, fast_format_inlined, fast_struct
 
 __all__ = [
     "MAGIC",
@@ -44,6 +44,7 @@ __all__ = [
     "HEADER",
     "with_fcs",
     "fcs_ok",
+    "datagram_struct",
 ]
 
 MAGIC = 0x4D
@@ -78,6 +79,16 @@ class _Sealed(bytes):
 def with_fcs(body: bytes | bytearray) -> bytes:
     """*body* (envelope + data) with its FCS appended: the datagram."""
     return _Sealed(body + _FCS.pack(crc16_x25(body)))
+
+
+def datagram_struct(frame: Struct, size: int, **inline: tuple[Struct, int]) -> tuple[struct.Struct, tuple[str, ...]]:
+    """``(struct, field names)`` of a whole datagram but its FCS: the envelope, then the data frame *frame* of
+    *size* bytes with the regions named in *inline* laid out by their body's declaration
+    (:func:`~mlink_sim.wire.layout.fast_format_inlined`). The per-cycle fast paths pack or unpack a datagram in
+    one call with it."""
+    head, head_names = fast_format(ENVELOPE, HEADER_SIZE)
+    body, body_names = fast_format_inlined(frame, size, inline)
+    return struct.Struct(head + body[1:]), head_names + body_names
 
 
 def fcs_ok(datagram: bytes) -> bool:

@@ -17,12 +17,12 @@ from __future__ import annotations
 
 import dataclasses
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any, Generic, TypeVar
 
 import construct as cs
 
-__all__ = ["Layout", "Slot", "Unknown", "fast_format", "fast_struct", "field_offset"]
+__all__ = ["Layout", "Slot", "Unknown", "fast_format", "fast_format_inlined", "fast_struct", "field_offset"]
 
 T = TypeVar("T")
 
@@ -51,6 +51,35 @@ def fast_format(declaration: cs.Struct, size: int) -> tuple[str, tuple[str, ...]
             names.append(sub.name)
         else:
             fmt.append(_subcon_format(sub))
+    used = struct.calcsize("".join(fmt))
+    if used > size:
+        raise ValueError(f"layout of {used} bytes does not fit its {size}-byte region")
+    if used < size:
+        fmt.append(f"{size - used}x")
+    return "".join(fmt), tuple(names)
+
+
+def fast_format_inlined(declaration: cs.Struct, size: int,
+                        inline: Mapping[str, tuple[cs.Struct, int]]) -> tuple[str, tuple[str, ...]]:
+    """:func:`fast_format` with each bytes field named in *inline* (``name: (declaration, size)``, e.g. a frame's
+    ``main`` region and the command body that fills it) laid out by that declaration's own fields: one format
+    for a frame and its body, so a hot path packs or unpacks them in one call."""
+    fmt = ["<"]
+    names: list[str] = []
+    for sub in declaration.subcons:
+        con = sub.subcon if isinstance(sub, cs.Renamed) else sub
+        part = _subcon_format(con)
+        if isinstance(sub, cs.Renamed) and sub.name in inline:
+            body, body_size = inline[sub.name]
+            if struct.calcsize("<" + part) != body_size:
+                raise ValueError(f"field {sub.name!r} is {struct.calcsize('<' + part)} bytes, not {body_size}")
+            body_fmt, body_names = fast_format(body, body_size)
+            fmt.append(body_fmt[1:])
+            names.extend(body_names)
+        else:
+            fmt.append(part)
+            if isinstance(sub, cs.Renamed):
+                names.append(sub.name)
     used = struct.calcsize("".join(fmt))
     if used > size:
         raise ValueError(f"layout of {used} bytes does not fit its {size}-byte region")
