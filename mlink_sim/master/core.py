@@ -128,10 +128,13 @@ class MasterCore:
         st = self._by_addr.get(datagram[3]) if len(datagram) >= HEADER_SIZE else None
         if st is None or st.state not in _UP or st.alarm or st.cmd_alm or st.comm_alm >= 8:
             return False
-        sent = self._answer_to(st, cycle_of(datagram))
+        cycle = cycle_of(datagram)
+        sent = st.outstanding  # the common answer, on time (_answer_to's first case)
+        if sent is None or sent.cycle != cycle:
+            sent = self._answer_to(st, cycle)
         if sent is None or sent.send is not Send.CYCLIC or sent.sub_req is not None:
             return False
-        r = st.frames.response(datagram, sent.cycle, st.comm_alm)
+        r = st.frames.response(datagram, cycle, st.comm_alm)
         if r is None:
             return False
         self._take(st, sent, now)
@@ -282,19 +285,27 @@ class MasterCore:
         if st.inflight:
             self._age(st, now)
         codec = st.codec
-        due = st.due(cycle)
-        if due is not None:
-            self._fire(st, due)
-        send, body, req = st.choose_main(cycle)
-        code = codec.main_slot.code_of(body)
-        sub_body = sub_req = None
-        if st.plan.has_sub:
-            sub_req = st.choose_sub(code)
-            sub_body = sub_req.body if sub_req is not None else None
-            if sub_req is not None:
-                sub_req.attempts += 1
-        if req is not None:
-            req.attempts += 1
+        if (st.state is S.PHASE3 and st.enabled and not st.main_q and not st.sub_q and cycle >= st.hold_until
+                and self.fast_path):
+            # the steady state, what the general lane below gives for it: no event falls due (Slave.due), the
+            # cyclic INV_CTL (Slave.choose_main), no sub-command request (Slave.choose_sub)
+            send, body, req = Send.CYCLIC, st.ctl_body, None
+            code = codec.main_slot.code_of(body)
+            sub_body = sub_req = None
+        else:
+            due = st.due(cycle)
+            if due is not None:
+                self._fire(st, due)
+            send, body, req = st.choose_main(cycle)
+            code = codec.main_slot.code_of(body)
+            sub_body = sub_req = None
+            if st.plan.has_sub:
+                sub_req = st.choose_sub(code)
+                sub_body = sub_req.body if sub_req is not None else None
+                if sub_req is not None:
+                    sub_req.attempts += 1
+            if req is not None:
+                req.attempts += 1
         # WDT bits 4-7: the station's communication-cycle count (advances by one per communication cycle, also
         # over cycles the timer skipped); bits 0-3: echo of the slave's count, RWDT bits 0-3 (docs/master.md).
         st.wdt = wdt = ((((cycle - st.offset) // st.period) & 0xF) << 4) | (st.rwdt & 0x0F)

@@ -13,8 +13,8 @@ declarations. Nothing here is declared a second time:
   (:func:`mlink_sim.wire.encode`) with cycle 0 and WDT 0. Each slot copies it, patches the cycle number
   (envelope bytes 4–7) and the WDT byte (data byte 15 on ML-I/II, byte 1 on ML-III; offsets from
   ``COMMAND_FRAME_*``) and appends the FCS.
-* **response**: one ``unpack_from`` of the envelope, one of the data frame (``RESPONSE_FRAME_*``) and one of the
-  INV_CTL response body (``RESPONSE_MAIN``).
+* **response**: one ``unpack_from`` of the whole datagram: the envelope, the data frame (``RESPONSE_FRAME_*``)
+  and the INV_CTL response body (``RESPONSE_MAIN``) in one format (:func:`~mlink_sim.wire.frame.datagram_struct`).
 
 :meth:`CyclicFrames.response` returns ``None`` for anything that is not a clean INV_CTL answer, e.g. a
 non-zero ALARM byte or STATUS.ALM/WARNG (ML-II), CMD_STAT ALM or CMD_ALM or a COMM_ALM edge (ML-III), another
@@ -27,12 +27,13 @@ give the same bytes, views and events.
 from __future__ import annotations
 
 import struct
+from operator import itemgetter
 from typing import Any
 
 from ..wire import Frame, Kind, Link, encode, ml2, ml3
 from ..wire.codes import M2Cmd, M2Status, M3Cmd
-from ..wire.frame import ENVELOPE, FCS_SIZE, HEADER, HEADER_SIZE, MAGIC, fcs_ok, with_fcs
-from ..wire.layout import fast_format, field_offset
+from ..wire.frame import ENVELOPE, FCS_SIZE, HEADER_SIZE, MAGIC, datagram_struct, fcs_ok, with_fcs
+from ..wire.layout import field_offset
 from .codec import Codec
 from .plan import StationPlan
 
@@ -56,26 +57,26 @@ _ML2_TROUBLE = int(M2Status.ALM | M2Status.WARNG)
 _ML3_ALARMS = 0x0F01
 
 
-def _frames(link: Link, size: int) -> tuple[Any, Any, int, Any, int]:
-    """(command frame declaration, response frame declaration, INV_CTL code, response body layout, main offset)."""
+def _frames(link: Link, size: int) -> tuple[Any, Any, int, Any]:
+    """(command frame declaration, response frame declaration, INV_CTL code, response body layout)."""
     if link is Link.ML3:
         cmd = ml3.COMMAND_FRAME_32 if size == 32 else ml3.COMMAND_FRAME_64
         rsp = ml3.RESPONSE_FRAME_32 if size == 32 else ml3.RESPONSE_FRAME_64
-        return cmd, rsp, M3Cmd.INV_CTL, ml3.RESPONSE_MAIN.by_code[M3Cmd.INV_CTL], field_offset(rsp, "main")
+        return cmd, rsp, M3Cmd.INV_CTL, ml3.RESPONSE_MAIN.by_code[M3Cmd.INV_CTL]
     cmd = ml2.COMMAND_FRAME_17 if size == 17 else ml2.COMMAND_FRAME_32
     rsp = ml2.RESPONSE_FRAME_17 if size == 17 else ml2.RESPONSE_FRAME_32
-    return cmd, rsp, M2Cmd.INV_CTL, ml2.RESPONSE_MAIN.by_code[M2Cmd.INV_CTL], field_offset(rsp, "main")
+    return cmd, rsp, M2Cmd.INV_CTL, ml2.RESPONSE_MAIN.by_code[M2Cmd.INV_CTL]
 
 
 class CyclicFrames:
     """Encode the cyclic INV_CTL command and decode its clean response for one station (see module docstring)."""
 
-    __slots__ = ("link", "address", "size", "_codec", "_tcycle", "_wdt_at", "_body", "_template", "_frame",
-                 "_main", "_main_at", "_code", "_status_at", "_alarm_at", "_rwdt_at", "_ml3", "_pick")
+    __slots__ = ("link", "address", "size", "_codec", "_tcycle", "_wdt_at", "_body", "_template", "_dg", "_code",
+                 "_status_at", "_alarm_at", "_ml3", "_pick")
 
     def __init__(self, plan: StationPlan, tcycle_ns: int, codec: Codec) -> None:
         link, size = plan.link, plan.data_size
-        cmd, rsp, code, main, main_at = _frames(link, size)
+        cmd, rsp, code, main = _frames(link, size)
         self.link = link
         self.address = plan.address
         self.size = HEADER_SIZE + size + FCS_SIZE
@@ -84,19 +85,16 @@ class CyclicFrames:
         self._wdt_at = HEADER_SIZE + field_offset(cmd, "wdt")
         self._body: Any = None
         self._template = bytearray()
-        fmt, names = fast_format(rsp, size)
-        self._frame = struct.Struct(fmt)
-        body_fmt, body_names = fast_format(main.struct.subcon, main.size)
-        self._main = struct.Struct(body_fmt)
-        self._main_at = HEADER_SIZE + main_at
+        # the whole response (envelope, frame, INV_CTL body) in one struct: one unpack per datagram
+        self._dg, names = datagram_struct(rsp, size, main=(main.struct.subcon, main.size))
         self._code = int(code)
         self._ml3 = link is Link.ML3
         self._status_at = names.index("cmd_stat" if self._ml3 else "status")
         self._alarm_at = None if self._ml3 else names.index("alarm")
-        self._rwdt_at = names.index("rwdt")
-        # The station's STATUS as the general path keeps it: ML-III INVCMD_STAT of the body, ML-II the STATUS word.
-        self._pick = tuple(body_names.index(n) for n in ("output_freq", "output_current", "mon1", "mon2"))
-        self._pick += (body_names.index("invcmd_stat"),) if self._ml3 else ()
+        # (rwdt, STATUS, output_freq, output_current, mon1, mon2): the station's STATUS as the general path keeps
+        # it, ML-III INVCMD_STAT of the body, ML-II the STATUS word
+        self._pick = itemgetter(*(names.index(n) for n in ("rwdt", "invcmd_stat" if self._ml3 else "status",
+                                                           "output_freq", "output_current", "mon1", "mon2")))
 
     # ------------------------------------------------------------------ command
     def command(self, body: Any, cycle: int, wdt: int) -> bytes:
@@ -120,21 +118,16 @@ class CyclicFrames:
         warning (COMM_ALM 1-7, latched until ALM_CLR) is still clean, any change goes the general way."""
         if len(dg) != self.size:
             return None
-        magic, link, kind, station, c, _ = HEADER.unpack_from(dg)
-        if (magic != MAGIC or link != self.link or kind != 2 or station != self.address or c != cycle
-                or dg[HEADER_SIZE] != self._code):
+        f = self._dg.unpack_from(dg)
+        if (f[0] != MAGIC or f[1] != self.link or f[2] != 2 or f[3] != self.address or f[4] != cycle
+                or f[6] != self._code):
             return None
-        head = self._frame.unpack_from(dg, HEADER_SIZE)
-        cstat = head[self._status_at]
+        cstat = f[self._status_at]
         if self._ml3:
             if cstat & _ML3_ALARMS or cstat >> 12 != comm_alm:
                 return None
-        elif cstat & _ML2_TROUBLE or head[self._alarm_at]:  # type: ignore[index]  # an int on II (None: III)
+        elif cstat & _ML2_TROUBLE or f[self._alarm_at]:  # type: ignore[index]  # an int on II (None: III)
             return None
         if not fcs_ok(dg):
             return None
-        body = self._main.unpack_from(dg, self._main_at)
-        pick = self._pick
-        status = body[pick[4]] if self._ml3 else cstat
-        return (head[self._rwdt_at], status, body[pick[0]], body[pick[1]], body[pick[2]], body[pick[3]],
-                bool(cstat & 2))
+        return self._pick(f) + (bool(cstat & 2),)  # type: ignore[no-any-return]

@@ -285,11 +285,16 @@ class NetworkMetrics:
         return on_stall
 
     def record_sent(self, station: int) -> None:
-        self.station(station).sent += 1
+        sm = self.stations.get(station)  # self.station(station), one call fewer on the per-datagram path
+        if sm is None:
+            sm = self.station(station)
+        sm.sent += 1
 
     def record_rtt(self, station: int, ns: int) -> None:
         """A response matched to its command, ``ns`` after the command was sent (counts as answered)."""
-        sm = self.station(station)
+        sm = self.stations.get(station)
+        if sm is None:
+            sm = self.station(station)
         sm.rtt.record(ns)
         sm.answered += 1
 
