@@ -13,7 +13,6 @@ missing only because the loop was busy with the clock. Transport errors (``sendt
 from __future__ import annotations
 
 import asyncio
-import socket
 import time
 from collections import Counter
 from collections.abc import Callable, Coroutine
@@ -41,6 +40,7 @@ from ..master import (
 from ..faults import Episode, FaultSpec, FaultStage, MasterFault, StationTraits
 from ..faults.stage import is_healthy
 from ..wire import Link, ml2, ml3
+from . import mmsg
 from .ticker import CycleTimer
 from .udp import bound_socket, close_watched
 
@@ -104,7 +104,9 @@ class Master:
         self.metrics = metrics
         self.transport_errors: Counter[str] = Counter()
         self._loop = loop
-        self._sock: socket.socket | None = None
+        #: a socket.socket, or what stands in for it: a BurstSocket (batched calls), a capture's TappedSocket, an
+        #: ImpairedSocket, a FabricPort (the virtual clock); only the first has send_burst/recv_burst
+        self._sock: Any = None
         self._timer: CycleTimer | None = None
         self._owns_timer = True
         self.record_lateness = True  #: False for the 2nd+ master on a shared clock (counted once)
@@ -150,9 +152,11 @@ class Master:
         add_stations = getattr(self.metrics, "add_stations", None)
         if callable(add_stations):
             add_stations(self.core.addresses)
-        sock = self._sock = bound_socket(local[0], local[1], rcvbuf)
+        sock = bound_socket(local[0], local[1], rcvbuf)
         if capture is not None:
             self._sock, self._note = capture.wrap(sock), capture.note
+        else:
+            self._sock = mmsg.wrap(sock)  # sendmmsg/recvmmsg where supported (docs/performance.md)
         loop.add_reader(sock.fileno(), self.read_responses)
         if clock is None:
             recorder = getattr(self.metrics, "stall_recorder", None)
@@ -365,17 +369,24 @@ class Master:
             return
         self.read_responses()  # answers already here belong to the cycle that just ended
         endpoints = self.endpoints
-        sendto = sock.sendto
         out = self.core.on_cycle(cycle, now_ns)
         faults = self.faults
         if faults is not None and faults.active:
             out = [(s, d) for s, d in ((s, faults.to_station(s, d, now_ns)) for s, d in out) if d is not None]
-        for station, datagram in out:
-            try:
-                sendto(datagram, endpoints[station])
-            except OSError as exc:  # BlockingIOError (send buffer full) included: that datagram is lost
-                self._on_error(exc)
-            metrics.record_sent(station)
+        send_burst = getattr(sock, "send_burst", None)
+        if send_burst is not None and len(out) > 1:  # the burst in one sendmmsg (mlink_sim.aio.mmsg)
+            for _, exc in send_burst([(datagram, endpoints[station]) for station, datagram in out]):
+                self._on_error(exc)  # that datagram is lost, the others went
+            for station, _ in out:
+                metrics.record_sent(station)
+        else:
+            sendto = sock.sendto
+            for station, datagram in out:
+                try:
+                    sendto(datagram, endpoints[station])
+                except OSError as exc:  # BlockingIOError (send buffer full) included: that datagram is lost
+                    self._on_error(exc)
+                metrics.record_sent(station)
         self._pump()
         if faults is not None and faults.watching:
             faults.after_cycle(now_ns)
@@ -384,13 +395,31 @@ class Master:
 
     def read_responses(self, limit: int = _READ_BURST) -> None:
         """Hand the datagrams waiting on the socket (at most *limit*) to the core, each stamped as it is read:
-        the reader callback and the start of each cycle read them all, the clock's spin one at a time."""
+        the reader callback and the start of each cycle read them all, the clock's spin one at a time. On a
+        :class:`~mlink_sim.aio.mmsg.BurstSocket` one ``recvmmsg`` reads them all, and they share its time."""
         sock = self._sock
         if sock is None:
             return
-        recv = sock.recv
         faults = self.faults
         on_response = self.core.on_response if faults is None or not faults.active else self.deliver
+        burst = getattr(sock, "recv_burst", None)
+        if burst is not None:  # recvmmsg: what is waiting in one call, each stamped with the time it was read
+            while limit > 0:
+                want = min(limit, mmsg.CAPACITY)
+                try:
+                    batch = burst(want)
+                except OSError as exc:
+                    self._on_error(exc)
+                    limit -= 1
+                    continue
+                now = _mono()
+                for data in batch:
+                    on_response(data, now)
+                if len(batch) < want:  # the socket is empty: no second call to learn it
+                    return
+                limit -= want
+            return
+        recv = sock.recv
         for _ in range(limit):
             try:
                 data = recv(4096)
@@ -412,12 +441,12 @@ class Master:
         wrapper: ImpairedSocket
 
         def unwrap() -> None:
-            if self._sock is wrapper:  # type: ignore[comparison-overlap]  # the wrapper stands in for the socket
+            if self._sock is wrapper:  # the wrapper stands in for the socket
                 self._sock = wrapper.sock
 
         wrapper = ImpairedSocket(sock, layer, self._loop, on_ready=self.read_responses, on_error=self._on_error,
                                  on_idle=unwrap)
-        self._sock = wrapper  # type: ignore[assignment]
+        self._sock = wrapper
 
     def read_one(self) -> None:
         """The clock's ``idle`` hook: one datagram at most, so the spin ends close to its deadline."""

@@ -8,6 +8,7 @@ from collections.abc import Callable
 from typing import Any
 
 from .._log import get_logger
+from . import mmsg
 
 __all__ = ["new_event_loop", "stop_on_signals", "DatagramEndpoint", "open_endpoint", "BatchEndpoint", "open_batch_endpoint", "loop_name",
            "resolve", "bind_address_for", "bound_socket", "close_watched", "BindError"]
@@ -138,13 +139,15 @@ async def open_endpoint(
 class BatchEndpoint:
     """A non-blocking UDP socket watched with ``loop.add_reader``: each wake-up reads every datagram waiting (at most
     *burst*) and hands them over at once, ``on_batch([(data, addr), …])``, so the receiver can see that it fell
-    behind (a slave keeps only the newest command per source, see :mod:`mlink_sim.aio.slave`).
+    behind (a slave keeps only the newest command per source, see :mod:`mlink_sim.aio.slave`). On a
+    :class:`~mlink_sim.aio.mmsg.BurstSocket` a wake-up reads them with one ``recvmmsg`` (and a second only when
+    the first filled all its slots), else with one ``recvfrom`` per datagram and one more that finds none.
 
     ``sendto`` never raises: a full send buffer or an ICMP error reported on the socket is counted in
     :attr:`errors`, like :class:`DatagramEndpoint`."""
 
-    def __init__(self, sock: socket.socket, on_batch: Callable[[list[tuple[bytes, Any]]], None], burst: int) -> None:
-        self._sock: socket.socket | None = sock
+    def __init__(self, sock: Any, on_batch: Callable[[list[tuple[bytes, Any]]], None], burst: int) -> None:
+        self._sock: Any = sock  #: a socket.socket, a BurstSocket (recvmmsg) or a capture's TappedSocket
         self._on_batch = on_batch
         self._burst = burst
         self.errors = 0
@@ -159,8 +162,14 @@ class BatchEndpoint:
         sock = self._sock
         if sock is None:
             return
+        burst = getattr(sock, "recvfrom_burst", None)
+        if burst is not None:  # recvmmsg (mlink_sim.aio.mmsg): one system call for what is waiting
+            batch = self._read_bursts(burst)
+            if batch:
+                self._on_batch(batch)
+            return
         recvfrom = sock.recvfrom
-        batch: list[tuple[bytes, Any]] = []
+        batch = []
         for _ in range(self._burst):
             try:
                 batch.append(recvfrom(4096))
@@ -170,6 +179,23 @@ class BatchEndpoint:
                 self.errors += 1
         if batch:
             self._on_batch(batch)
+
+    def _read_bursts(self, burst: Callable[[int], list[tuple[bytes, Any]]]) -> list[tuple[bytes, Any]]:
+        batch: list[tuple[bytes, Any]] = []
+        left = self._burst
+        while left > 0:
+            want = min(left, mmsg.CAPACITY)
+            try:
+                got = burst(want)
+            except OSError:  # e.g. ConnectionRefusedError after an ICMP port unreachable
+                self.errors += 1
+                left -= 1
+                continue
+            batch += got
+            if len(got) < want:  # the socket is empty: no second call to learn it
+                break
+            left -= want
+        return batch
 
     def sendto(self, data: bytes, addr: Any) -> None:
         sock = self._sock
@@ -193,12 +219,16 @@ class BatchEndpoint:
 
 async def open_batch_endpoint(on_batch: Callable[[list[tuple[bytes, Any]]], None], host: str = "127.0.0.1",
                               port: int = 0, *, rcvbuf: int = 1 << 20, burst: int = 64,
-                              wrap: Callable[[socket.socket], Any] | None = None) -> BatchEndpoint:
+                              wrap: Callable[[socket.socket], Any] | None = None,
+                              batched: bool | None = None) -> BatchEndpoint:
     """Bind a UDP socket on *host*:*port* (0 = any free port) and read it in batches (:class:`BatchEndpoint`).
-    *wrap*: wraps the socket (a capture's tap, ``CaptureWriter.wrap``)."""
-    sock = bound_socket(host, port, rcvbuf)
+    *wrap*: wraps the socket (a capture's tap, ``CaptureWriter.wrap``; its reads are one ``recvfrom`` each).
+    *batched*: read with ``recvmmsg`` (:mod:`mlink_sim.aio.mmsg`); None = where it is supported, False = never."""
+    sock: Any = bound_socket(host, port, rcvbuf)
     if wrap is not None:
         sock = wrap(sock)
+    elif batched or (batched is None and mmsg.supported()):
+        sock = mmsg.BurstSocket(sock)
     try:
         return BatchEndpoint(sock, on_batch, burst)
     except BaseException:

@@ -60,7 +60,7 @@ class VirtualMaster(Master):
         if callable(add_stations):
             add_stations(self.core.addresses)
         self._fabric = fabric
-        self._sock = FabricPort(fabric, f"master:{plan.link.name}", self.deliver)  # type: ignore[assignment]
+        self._sock = FabricPort(fabric, f"master:{plan.link.name}", self.deliver)
         self._timer, self._owns_timer = cycle, False  # type: ignore[assignment]
         return self
 

@@ -153,3 +153,21 @@ async def test_events_feed_network_metrics_with_its_counting_rules():
     assert (sm.answered, sm.late, sm.missing) == (2, 1, 1)
     await master.close()
     assert sm.missing == 2  # cycle 8 never answered
+
+
+@pytest.mark.parametrize("batched", [True, False], ids=["sendmmsg", "sendto"])
+async def test_master_over_loopback_with_and_without_batched_calls(batched, monkeypatch):
+    """The transport with and without sendmmsg/recvmmsg (mlink_sim.aio.mmsg): the same scenario passes either way;
+    the socket is a BurstSocket exactly where the calls are supported and not switched off."""
+    from mlink_sim.aio import mmsg
+
+    if batched and mmsg._calls is None:
+        pytest.skip("sendmmsg/recvmmsg not available here")
+    monkeypatch.setenv("MLINK_MMSG", "1" if batched else "0")
+    plan = NetworkPlan(Link.ML3, TCYCLE, (StationPlan(0x03, Link.ML3),))
+    master = await Master.start(plan, {0x03: ("127.0.0.1", 9)})
+    try:
+        assert isinstance(master._sock, mmsg.BurstSocket) is batched
+    finally:
+        await master.close(timeout=0.01)
+    await asyncio.wait_for(loopback_scenario(Link.ML3), timeout=20)

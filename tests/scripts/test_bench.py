@@ -1,6 +1,10 @@
-"""scripts/bench.py: the capacity targets' verdicts (no network: synthetic cells)."""
+"""scripts/bench.py and scripts/bench_targets.py: issue 21's targets judged against the floor of the same run, the
+tables and the rendering of earlier runs (no network: synthetic cells)."""
 
 from __future__ import annotations
+
+import json
+from dataclasses import asdict
 
 import pytest
 
@@ -12,99 +16,124 @@ def bench():
     yield from load_script("bench.py", "mlink_bench")
 
 
-def _cells(bench, **per_target):
-    cells = []
-    for t in bench.TARGETS:
-        cell = bench.Cell(t.link, t.stations, 0, 1)
-        for k, v in per_target.get(f"{t.link}{t.stations}", {}).items():
-            setattr(cell, k, v)
-        cells.append(cell)
-    return cells
+def _floor(**kw):
+    base = {"batched": True, "missed_rate": 0.0005, "rtt_p99_ns": 500_000, "lateness_p99_ns": 2_000,
+            "cpu_per_exchange_us": 20.0, "wakeups_client": 1.0, "wakeups_server": 1.0}
+    return {**base, **kw}
+
+
+def _cell(bench, link, n, cycle_ns, **kw):
+    cell = bench.Cell(link, n, cycle_ns, 1, duration_s=60.0, floor=_floor(batched=False, cpu_per_exchange_us=25.0),
+                      floor_batched=_floor())
+    for k, v in kw.items():
+        setattr(cell, k, v)
+    return cell
+
+
+def _good(bench, link, n, cycle_ns, **kw):
+    figures = {"missed_rate": 0.0007, "rtt_p99_ns": 700_000, "lateness_p99_ns": 30_000, "cpu_per_exchange_us": 35.0}
+    return _cell(bench, link, n, cycle_ns, **{**figures, **kw})
+
+
+def _all_good(bench):
+    return [_good(bench, link, n, int(cycle.replace("us", "000").replace("ms", "000000")))
+            for link, n, cycle, _ in bench.bench_targets.CELLS]
 
 
 def test_targets_cover_the_issue_cells(bench) -> None:
-    assert [(t.link, t.stations, t.cycle) for t in bench.TARGETS] == [
-        ("ML2", 30, "1ms"), ("ML3", 62, "1ms"), ("ML3", 8, "250us")]
-    assert bench.TARGETS[0].duration == "60s"
+    assert [c[:3] for c in bench.bench_targets.CELLS[:3]] == [
+        ("ML3", 62, "1ms"), ("ML2", 30, "1ms"), ("ML3", 8, "250us")]
+    assert [c[3] for c in bench.bench_targets.CELLS[:3]] == ["60s", "60s", "30s"]
 
 
-def test_verdict_tells_platform_floor_from_cpu_bound(bench) -> None:
-    cells = _cells(
-        bench,
-        ML230={"missed": 50, "echo_missed": 30, "ratio_p99": 1.2},           # both miss: floor; ratio met
-        ML362={"missed_rate": 0.004, "echo_missed_rate": 0.0002},           # echo holds: ours
-        ML38={"lateness_p99_ns": 40_000, "echo_lateness_p99_ns": 9_000},    # met
-    )
-    text, rows = bench.verdicts(cells)
-    by_bound = {r["bound"]: r for r in rows}
-    assert by_bound["missed cycles == 0 over 60 s"]["met"] is False
-    assert by_bound["missed cycles == 0 over 60 s"]["verdict"] == (
-        "not met: platform floor (the bare echo breaks it too)")
-    assert by_bound["missed cycles == 0 over 60 s"]["measured"] == "50"
-    assert by_bound["RTT p99 ≤ 1.5 × echo p99"]["verdict"] == "met"
-    assert by_bound["RTT p99 ≤ 1.5 × echo p99"]["echo"] == "—"
-    assert by_bound["missed < 0.1 %"]["met"] is False
-    assert by_bound["missed < 0.1 %"]["verdict"] == "not met: CPU per exchange (the bare echo holds it)"
-    assert by_bound["missed < 0.1 %"]["measured"] == "0.40 %"
-    assert by_bound["lateness p99 ≤ 50 µs"]["met"] is True
-    assert "platform floor" in text and "verdict" in text.splitlines()[0]
+def test_all_five_targets_met(bench) -> None:
+    text, rows = bench.bench_targets.verdicts(_all_good(bench))
+    assert all(r["met"] for r in rows), rows
+    bounds = [(r["target"].split(",")[0], r["bound"]) for r in rows]
+    assert bounds == [
+        ("62 ML3 @ 1ms", "missed ≤ floor + 0.05 points"), ("62 ML3 @ 1ms", "RTT p99 ≤ 2 × floor p99"),
+        ("30 ML2 @ 1ms", "missed ≤ floor + 0.05 points"), ("30 ML2 @ 1ms", "RTT p99 ≤ 2 × floor p99"),
+        ("8 ML3 @ 250us", "lateness p99 ≤ 50 µs"), ("8 ML3 @ 250us", "missed ≤ floor + 0.05 points"),
+        ("62 ML3 @ 1ms", "CPU per exchange ≤ 2 × floor"), ("30 ML2 @ 1ms", "CPU per exchange ≤ 2 × floor"),
+        ("8 ML3 @ 250us", "CPU per exchange ≤ 2 × floor"), ("1 ms knee (ML3)", "reaches 62 stations")]
+    assert text.splitlines()[-1] == "10 of 10 bounds met"
 
 
-def test_far_beyond_the_floor_names_both_bounds(bench) -> None:
-    cells = _cells(bench, ML362={"missed_rate": 0.4979, "echo_missed_rate": 0.0011})  # measured 2026-11-23
-    _, rows = bench.verdicts(cells)
-    row = next(r for r in rows if r["bound"] == "missed < 0.1 %")
-    assert row["verdict"] == "not met: platform floor (the bare echo breaks it too), and CPU per exchange"
-    assert (row["measured"], row["echo"]) == ("49.79 %", "0.11 %")
+def test_not_met_says_what_bounds_it(bench) -> None:
+    cells = _all_good(bench)
+    cells[0].missed_rate, cells[0].cpu_master, cells[0].cpu_slaves = 0.0138, 99.0, 97.0  # 62 @ 1 ms
+    cells[0].cpu_per_exchange_us, cells[0].notes = 48.0, ["3 station(s) not up"]
+    cells[2].lateness_p99_ns = 206_000  # 8 @ 250 µs, the floor at 2 µs
+    _, rows = bench.bench_targets.verdicts(cells)
+    missed = rows[0]
+    assert (missed["measured"], missed["floor"], missed["limit"], missed["met"]) == ("1.38 %", "0.05 %", "0.10 %",
+                                                                                    False)
+    assert missed["verdict"].startswith("not met: CPU: master 99 %, workers 97 % of a CPU; 48.0 µs per exchange "
+                                        "= 2.4 × the floor's 20.0")
+    assert missed["verdict"].endswith("3 station(s) not up")
+    late = next(r for r in rows if r["bound"] == "lateness p99 ≤ 50 µs")
+    assert late["met"] is False and "floor breaks it too" not in late["verdict"]
+    cpu = next(r for r in rows if r["bound"].startswith("CPU") and r["target"].startswith("62"))
+    assert (cpu["measured"], cpu["floor"], cpu["limit"], cpu["met"]) == ("48.0 µs", "20.0 µs", "40.0 µs", False)
+    knee = rows[-1]
+    assert (knee["measured"], knee["met"]) == ("45", False) and "at 62:" in knee["verdict"]
 
 
-def test_failed_cell_is_reported_not_judged(bench) -> None:
-    cells = _cells(bench)
+def test_the_knee_stops_at_the_first_cell_that_fails(bench) -> None:
+    cells = _all_good(bench)
+    next(c for c in cells if c.stations == 30 and c.link == "ML3").missed_rate = 0.05
+    assert bench.bench_targets.knee(cells)[0] == 15
+
+
+def test_the_floor_with_the_simulators_own_system_calls_is_the_reference(bench) -> None:
+    cell = _cell(bench, "ML3", 8, 1_000_000, cpu_per_exchange_us=50.0)
+    assert cell.ref is cell.floor_batched and cell.ratio("cpu_per_exchange_us", 50.0) == 2.5
+    cell.io = "plain"
+    assert cell.ref is cell.floor and cell.ratio("cpu_per_exchange_us", 50.0) == 2.0
+    cell.floor = None
+    assert cell.ref is cell.floor_batched
+
+
+def test_failed_or_missing_cells_are_reported_not_judged(bench) -> None:
+    cells = _all_good(bench)
     cells[1].status = "failed: OSError: boom"
-    _, rows = bench.verdicts(cells)
-    assert [r["verdict"] for r in rows if r["target"].startswith("62")] == ["failed: OSError: boom"]
+    cells[2].floor = cells[2].floor_batched = None
+    _, rows = bench.bench_targets.verdicts(cells[:3])
+    assert [r["verdict"] for r in rows if r["target"].startswith("30")] == ["failed: OSError: boom"]
+    assert [r["verdict"] for r in rows if r["target"].startswith("8")] == ["no floor measured"]
 
 
-def test_table_shows_the_echo_floor_columns(bench) -> None:
-    cell = bench.Cell("ML3", 8, 250_000, 1, missed_rate=0.29, rtt_p99_ns=1_620_000, echo_p99_ns=186_000,
-                      echo_missed_rate=0.0037, echo_lateness_p99_ns=12_000)
-    out = bench.table([cell])
-    assert "echo missed" in out and "echo late p99" in out
-    assert "0.37%" in out and "12us" in out.replace("µs", "us")
-
-
-def test_markdown_is_the_docs_table(bench) -> None:
-    cells = [
-        bench.Cell("ML2", 1, 250_000, 1, status="n/a: MECHATROLINK-II's shortest cycle is 0.5 ms"),
-        bench.Cell("ML3", 8, 250_000, 1, missed_rate=0.29, rtt_p50_ns=662_000, rtt_p99_ns=1_620_000,
-                   lateness_p99_ns=246_000, cpu_master=99.6, cpu_slaves=98.7, echo_p99_ns=186_000, ratio_p99=8.71,
-                   echo_missed_rate=0.0011, echo_lateness_p99_ns=139, notes=["6 station(s) not up"]),
-        bench.Cell("ML3", 62, 250_000, 1, status="failed: OSError: boom"),
-    ]
+def test_tables_show_the_floor_and_the_ratios(bench) -> None:
+    cells = [bench.Cell("ML2", 1, 250_000, 1, status="n/a: MECHATROLINK-II's shortest cycle is 0.5 ms"),
+             _cell(bench, "ML3", 8, 250_000, missed_rate=0.0029, rtt_p50_ns=662_000, rtt_p99_ns=1_620_000,
+                   lateness_p99_ns=246_000, cpu_master=99.6, cpu_slaves=98.7, cpu_per_exchange_us=41.0,
+                   notes=["6 station(s) not up"]),
+             bench.Cell("ML3", 62, 250_000, 1, status="failed: OSError: boom")]
+    text = bench.table(cells)
+    assert "µs/exch" in text and "41.0" in text and "2.05" in text  # 41 / 20 µs
     lines = bench.markdown(cells).splitlines()
-    assert lines[0].startswith("| gen | stations | cycle | missed |") and lines[0].endswith("| echo lateness p99 |")
-    assert len(lines) == 4  # header, rule, two rows: the n/a cell is left out
-    assert lines[2] == ("| ML3 | 8 | 250 µs | 29.00 % (6 not up) | 662 µs | 1.62 ms | 246 µs | 100 / 99 | 186 µs "
-                        "| 8.71 | 0.11 % | 139 ns |")
-    assert lines[3].startswith("| ML3 | 62 | 250 µs | failed: OSError: boom |")
+    assert lines[0] == bench.MD_HEAD and len(lines) == 4  # the n/a cell is left out
+    assert lines[2] == ("| ML3 | 8 | 250 µs | batched | 0.29 % (6 not up) | 662 µs | 1.62 ms | 246 µs | 100 / 99 "
+                        "| 41.0 µs | 0.05 % | 500 µs | 2 µs | 25.0 / 20.0 µs | 2.05 | 3.24 |")
+    assert lines[3].startswith("| ML3 | 62 | 250 µs | batched | failed: OSError: boom |")
     assert all(line.count("|") == lines[0].count("|") for line in lines)
 
 
-def test_render_prints_an_earlier_run_without_running_it(bench, tmp_path, capsys) -> None:
-    import json
-    from dataclasses import asdict
-
-    cell = bench.Cell("ML2", 9, 1_000_000, 1, missed_rate=0.0026, rtt_p99_ns=1_380_000, echo_p99_ns=410_000)
-    path = tmp_path / "bench.json"
-    path.write_text(json.dumps({"host": {}, "duration_s": 5.0, "cells": [asdict(cell)]}))
-    assert bench.render(path, True, None) == 0
+def test_render_prints_earlier_runs_without_running_them(bench, tmp_path, capsys) -> None:
+    old = {"link": "ML2", "stations": 9, "cycle_ns": 1_000_000, "workers": 1, "missed_rate": 0.0026,
+           "rtt_p99_ns": 1_380_000, "echo_p99_ns": 410_000}  # a file of the per-station echo's days
+    new = asdict(_cell(bench, "ML3", 62, 1_000_000, cpu_per_exchange_us=30.0))
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    a.write_text(json.dumps({"host": {}, "cells": [old]}))
+    b.write_text(json.dumps({"host": {}, "cells": [new]}))
+    assert bench.render([a, b], True, None) == 0
     out = capsys.readouterr().out
-    assert "| ML2 | 9 | 1 ms | 0.26 % |" in out and "1.38 ms" in out
+    assert "| ML2 | 9 | 1 ms | batched | 0.26 % |" in out and "1.38 ms" in out and "| ML3 | 62 | 1 ms |" in out
 
 
 def test_render_of_a_file_that_is_not_a_run_exits_2(bench, tmp_path, capsys) -> None:
     path = tmp_path / "other.json"
     path.write_text('{"cells": [{"nope": 1}]}')
-    assert bench.render(path, False, None) == 2
+    assert bench.render([path], False, None) == 2
     assert "not a bench.py --json file" in capsys.readouterr().err
-    assert bench.render(tmp_path / "missing.json", False, None) == 2
+    assert bench.render([tmp_path / "missing.json"], False, None) == 2

@@ -1,0 +1,282 @@
+"""Batched UDP system calls: ``sendmmsg(2)`` and ``recvmmsg(2)`` for a burst of datagrams (Linux; issue 21).
+
+:class:`BurstSocket` stands in for a non-blocking UDP ``socket.socket`` (``sendto``, ``recv``, ``recvfrom``,
+``fileno``, ``getsockname``, ``close`` are the socket's own) and adds three batched calls:
+
+* ``send_burst([(datagram, addr), …])``: the whole burst in one ``sendmmsg`` (the master's N commands);
+* ``recv_burst(limit)``: every datagram waiting, up to *limit*, in one ``recvmmsg`` (the master's answers);
+* ``recvfrom_burst(limit)``: the same with each source address (a slave station's commands).
+
+Each returns what it did without raising for "nothing waiting": an empty list, not ``BlockingIOError``, so a
+read needs no second system call to learn that the socket is empty. Other socket errors raise ``OSError`` as
+``recv``/``sendto`` do.
+
+**Why ctypes.** Python 3.11's ``socket`` module has ``sendmsg``/``recvmsg`` but neither ``sendmmsg`` nor
+``recvmmsg``, and the package index has no well-kept wrapper (the one found, ``pysockmmsg`` 0.0.2 of 2021, is a
+0.0 release with no activity since). A compiled extension would need a compiler on every machine that installs
+the package. ctypes on libc needs nothing: a ctypes call costs about a microsecond more than a method of
+``socket.socket``, and one call per burst spreads that over the burst. Buffers, ``iovec`` and ``mmsghdr``
+arrays are allocated once per socket; a burst copies its datagrams into the buffer with one slice assignment
+and rewrites the message headers only when the burst's layout (sizes, destinations) changes.
+
+Where the calls are missing (not Linux, no libc, a platform ctypes cannot load) :func:`supported` is False and
+callers keep the per-datagram calls: the transport works the same either way (``mlink_sim.aio.master``,
+``mlink_sim.aio.udp.BatchEndpoint``).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import errno
+import os
+import socket
+import struct
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+__all__ = ["BurstSocket", "CAPACITY", "supported", "wrap"]
+
+_MSG_DONTWAIT = 0x40  # <bits/socket.h>, the same on every Linux architecture CPython supports
+_EAGAIN = (errno.EAGAIN, errno.EWOULDBLOCK)
+_NAME_SIZE = 128  # sizeof(struct sockaddr_storage)
+CAPACITY = 64  #: messages per system call (a burst of more is sent, or read, in several calls)
+_BUFSIZE = 4096  # bytes per received datagram, as the per-datagram reads (``recv(4096)``)
+
+
+class _IoVec(ctypes.Structure):
+    _fields_ = [("iov_base", ctypes.c_void_p), ("iov_len", ctypes.c_size_t)]
+
+
+class _MsgHdr(ctypes.Structure):
+    _fields_ = [("msg_name", ctypes.c_void_p), ("msg_namelen", ctypes.c_uint32), ("msg_iov", ctypes.c_void_p),
+                ("msg_iovlen", ctypes.c_size_t), ("msg_control", ctypes.c_void_p),
+                ("msg_controllen", ctypes.c_size_t), ("msg_flags", ctypes.c_int)]
+
+
+class _MMsgHdr(ctypes.Structure):
+    _fields_ = [("msg_hdr", _MsgHdr), ("msg_len", ctypes.c_uint)]
+
+
+def _load() -> tuple[Any, Any] | None:
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        send, recv = libc.sendmmsg, libc.recvmmsg
+    except (OSError, AttributeError):
+        return None
+    send.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_uint, ctypes.c_int]
+    send.restype = ctypes.c_int
+    recv.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_uint, ctypes.c_int, ctypes.c_void_p]
+    recv.restype = ctypes.c_int
+    return send, recv
+
+
+_calls = _load()
+
+
+def supported() -> bool:
+    """True where ``sendmmsg``/``recvmmsg`` can be called (Linux with glibc or musl) and ``MLINK_MMSG=0`` is not
+    set in the environment (that switch keeps the per-datagram calls, to compare or to rule the batching out; the
+    slave workers inherit it). Read whenever a socket is opened."""
+    return _calls is not None and os.environ.get("MLINK_MMSG", "").strip().lower() not in ("0", "off", "no", "false")
+
+
+def wrap(sock: socket.socket) -> Any:
+    """*sock* as a :class:`BurstSocket` where the batched calls are :func:`supported`, else *sock* itself."""
+    return BurstSocket(sock) if supported() and sock.type == socket.SOCK_DGRAM else sock
+
+
+def _encode(addr: Any) -> bytes | None:
+    """The ``struct sockaddr`` of a numeric ``(host, port)`` (IPv4) or ``(host, port[, flowinfo, scope_id])``
+    (IPv6); None for anything else (a name: the caller sends that datagram with ``sendto``)."""
+    try:
+        host, port = str(addr[0]), int(addr[1])
+        if ":" in host:
+            flow = int(addr[2]) if len(addr) > 2 else 0
+            scope = int(addr[3]) if len(addr) > 3 else 0
+            return struct.pack("=HHI16sI", socket.AF_INET6, socket.htons(port), flow,
+                               socket.inet_pton(socket.AF_INET6, host.split("%")[0]), scope)
+        return struct.pack("=HH4s8x", socket.AF_INET, socket.htons(port), socket.inet_pton(socket.AF_INET, host))
+    except (OSError, TypeError, ValueError, IndexError, OverflowError, struct.error):
+        return None
+
+
+def _decode(name: bytes) -> Any:
+    """A source address as ``socket.recvfrom`` gives it."""
+    family = int.from_bytes(name[:2], sys.byteorder)
+    port = int.from_bytes(name[2:4], "big")
+    if family == socket.AF_INET:
+        return socket.inet_ntop(socket.AF_INET, name[4:8]), port
+    if family == socket.AF_INET6:
+        flow, raw, scope = struct.unpack_from("=I16sI", name, 4)
+        host = socket.inet_ntop(socket.AF_INET6, raw)
+        if scope:
+            try:
+                host = f"{host}%{socket.if_indextoname(scope)}"
+            except OSError:
+                host = f"{host}%{scope}"
+        return host, port, flow, scope
+    return name  # pragma: no cover - a UDP/IP socket receives from IP addresses only
+
+
+class BurstSocket:
+    """A non-blocking UDP socket with batched sends and reads (see the module docstring)."""
+
+    __slots__ = ("sock", "sendto", "recv", "recvfrom", "fileno", "getsockname", "close", "setsockopt", "_fd",
+                 "_cap", "_smsgs", "_siov", "_sdata", "_sview", "_slayout", "_names", "_rmsgs", "_riov", "_rbuf",
+                 "_rview", "_rnames", "_rnview", "_rwords", "_stride", "_len_at", "_namelen_at", "_bufsize",
+                 "_sources")
+
+    def __init__(self, sock: socket.socket, capacity: int = CAPACITY, bufsize: int = _BUFSIZE) -> None:
+        if _calls is None:
+            raise OSError(errno.ENOSYS, "sendmmsg/recvmmsg are not available on this platform")
+        self.sock = sock
+        self.sendto, self.recv, self.recvfrom = sock.sendto, sock.recv, sock.recvfrom
+        self.fileno, self.getsockname, self.close, self.setsockopt = (sock.fileno, sock.getsockname, sock.close,
+                                                                       sock.setsockopt)
+        self._fd = sock.fileno()
+        self._cap = capacity
+        # sending: headers and iovecs, rewritten when the burst's layout changes; the datagrams in one buffer
+        self._smsgs = (_MMsgHdr * capacity)()
+        self._siov = (_IoVec * capacity)()
+        self._sdata = ctypes.create_string_buffer(capacity * 128)
+        self._sview = memoryview(self._sdata).cast("B")
+        self._slayout: list[tuple[int, Any]] = []
+        self._names: dict[Any, Any] = {}  # addr -> its struct sockaddr (a ctypes buffer), None: not numeric
+        # reading: one fixed slot (datagram buffer, source address) per message
+        self._bufsize = bufsize
+        self._rmsgs = (_MMsgHdr * capacity)()
+        self._riov = (_IoVec * capacity)()
+        self._rbuf = ctypes.create_string_buffer(capacity * bufsize)
+        self._rview = memoryview(self._rbuf).cast("B")
+        self._rnames = ctypes.create_string_buffer(capacity * _NAME_SIZE)
+        self._rnview = memoryview(self._rnames).cast("B")
+        base, names, iov = ctypes.addressof(self._rbuf), ctypes.addressof(self._rnames), ctypes.addressof(self._riov)
+        for i in range(capacity):
+            self._riov[i].iov_base, self._riov[i].iov_len = base + i * bufsize, bufsize
+            hdr = self._rmsgs[i].msg_hdr
+            hdr.msg_iov, hdr.msg_iovlen = iov + i * ctypes.sizeof(_IoVec), 1
+            hdr.msg_name, hdr.msg_namelen = names + i * _NAME_SIZE, _NAME_SIZE
+        # msg_len and msg_namelen of message i, as indices into the headers seen as 32-bit words
+        self._rwords = memoryview(self._rmsgs).cast("B").cast("I")
+        self._stride = ctypes.sizeof(_MMsgHdr) // 4
+        self._len_at = _MMsgHdr.msg_len.offset // 4
+        self._namelen_at = (_MMsgHdr.msg_hdr.offset + _MsgHdr.msg_namelen.offset) // 4
+        self._sources: dict[bytes, Any] = {}
+
+    # ------------------------------------------------------------------ sending
+    def send_burst(self, items: Sequence[tuple[bytes, Any]]) -> list[tuple[int, OSError]]:
+        """Send every ``(datagram, addr)`` of *items* in order, in one ``sendmmsg`` per :data:`CAPACITY`
+        datagrams. Returns the datagrams that were not sent, ``[(index, OSError), …]`` (empty when all went)."""
+        failures: list[tuple[int, OSError]] = []
+        cap = self._cap
+        if len(items) <= cap:
+            self._send_chunk(items, 0, failures)
+        else:
+            for start in range(0, len(items), cap):
+                self._send_chunk(items[start:start + cap], start, failures)
+        return failures
+
+    def _send_chunk(self, items: Sequence[tuple[bytes, Any]], first: int,
+                    failures: list[tuple[int, OSError]]) -> None:
+        layout = [(len(d), a) for d, a in items]
+        if layout != self._slayout and not self._lay_out(layout):
+            for i, (data, addr) in enumerate(items):  # a destination given by name: the datagrams one by one
+                try:
+                    self.sendto(data, addr)
+                except OSError as exc:
+                    failures.append((first + i, exc))
+            return
+        blob = b"".join([d for d, _ in items])
+        self._sview[:len(blob)] = blob
+        send = _calls[0]  # type: ignore[index]  # not None: checked in __init__
+        fd, msgs, size, n = self._fd, ctypes.addressof(self._smsgs), ctypes.sizeof(_MMsgHdr), len(items)
+        i = 0
+        while i < n:
+            sent = send(fd, msgs + i * size, n - i, 0)
+            if sent > 0:
+                i += sent
+                continue
+            err = ctypes.get_errno() if sent < 0 else errno.EIO
+            if err == errno.EINTR:
+                continue
+            failures.append((first + i, OSError(err, os.strerror(err))))  # that datagram is lost; go on after it
+            i += 1
+
+    def _lay_out(self, layout: list[tuple[int, Any]]) -> bool:
+        """Point the send headers at the datagrams of *layout* (sizes, destinations); False when a destination is
+        not a numeric address."""
+        total = sum(n for n, _ in layout)
+        if total > len(self._sview):
+            self._sdata = ctypes.create_string_buffer(max(total, 2 * len(self._sview)))
+            self._sview = memoryview(self._sdata).cast("B")
+        base, iov, off = ctypes.addressof(self._sdata), ctypes.addressof(self._siov), 0
+        for i, (n, addr) in enumerate(layout):
+            name = self._names.get(addr, False)
+            if name is False:
+                raw = _encode(addr)
+                name = self._names[addr] = None if raw is None else ctypes.create_string_buffer(raw, len(raw))
+            if name is None:
+                self._slayout = []
+                return False
+            self._siov[i].iov_base, self._siov[i].iov_len = base + off, n
+            hdr = self._smsgs[i].msg_hdr
+            hdr.msg_iov, hdr.msg_iovlen = iov + i * ctypes.sizeof(_IoVec), 1
+            hdr.msg_name, hdr.msg_namelen = ctypes.addressof(name), len(name)
+            off += n
+        self._slayout = layout
+        return True
+
+    # ------------------------------------------------------------------ reading
+    def _receive(self, limit: int) -> int:
+        """How many datagrams one ``recvmmsg`` read (0: none waiting); raises OSError for a socket error."""
+        recv = _calls[1]  # type: ignore[index]  # not None: checked in __init__
+        vlen = min(limit, self._cap)
+        while True:
+            n = recv(self._fd, ctypes.addressof(self._rmsgs), vlen, _MSG_DONTWAIT, None)
+            if n >= 0:
+                return n
+            err = ctypes.get_errno()
+            if err in _EAGAIN:
+                return 0
+            if err != errno.EINTR:
+                raise OSError(err, os.strerror(err))
+
+    def recv_burst(self, limit: int = CAPACITY) -> list[bytes]:
+        """Every datagram waiting, at most *limit* (and at most :data:`CAPACITY`), in one system call; [] when
+        none is waiting. A datagram longer than 4096 bytes is cut there, as ``recv(4096)`` cuts it."""
+        n = self._receive(limit)
+        if not n:
+            return []
+        view, words, stride, at, nl, size = (self._rview, self._rwords, self._stride, self._len_at,
+                                             self._namelen_at, self._bufsize)
+        out = []
+        for i in range(n):
+            w = i * stride
+            words[w + nl] = _NAME_SIZE
+            out.append(view[i * size:i * size + words[w + at]].tobytes())
+        return out
+
+    def recvfrom_burst(self, limit: int = CAPACITY) -> list[tuple[bytes, Any]]:
+        """As :meth:`recv_burst`, each datagram with its source address as ``recvfrom`` gives it."""
+        n = self._receive(limit)
+        if not n:
+            return []
+        view, names, words, stride, at, nl, size = (self._rview, self._rnview, self._rwords, self._stride,
+                                                    self._len_at, self._namelen_at, self._bufsize)
+        sources = self._sources
+        out = []
+        for i in range(n):
+            w = i * stride
+            raw = names[i * _NAME_SIZE:i * _NAME_SIZE + words[w + nl]].tobytes()
+            words[w + nl] = _NAME_SIZE
+            addr = sources.get(raw)
+            if addr is None:
+                if len(sources) > 4096:  # a flood of sources: keep the cache bounded
+                    sources.clear()
+                addr = sources[raw] = _decode(raw)
+            out.append((view[i * size:i * size + words[w + at]].tobytes(), addr))
+        return out

@@ -1,0 +1,291 @@
+#!/usr/bin/env python3
+"""The honest floor of a capacity cell (issue 21 item 1): the simulator's I/O with no protocol work in it.
+
+**Server** (a subprocess): ONE process serving N station sockets, as a packed slave worker does: the same
+``BatchEndpoint`` per station (``mlink_sim.aio.udp``, watched with ``loop.add_reader``, every waiting datagram read
+in one wake-up), each datagram sent straight back to its source from the station's own socket. No card, no
+decode, no 1 ms tick.
+
+**Client** (in the calling process): the master's I/O with no core. One UDP socket, the same ``CycleTimer``
+(timerfd + adaptive spin, the spin reading one answer at a time), and at each cycle: read the answers waiting,
+count the ones still missing, send the burst of N datagrams of the stations' frame size. RTT is measured as the
+master measures it: from the cycle's start (the time the core stamps its commands with) to the time the answer
+is read, stamped as the master's ``read_responses`` stamps it.
+
+Two variants, both measured by the caller in the same run: **plain** (``recvfrom``/``recv`` until the socket is
+empty, one ``sendto`` per datagram) and **batched** (``mlink_sim.aio.mmsg``: the client's burst in one
+``sendmmsg``, its answers and each station socket's commands in one ``recvmmsg``; the echo's answers stay one
+``sendto`` each, because each goes out from its own station's socket).
+
+CPU per exchange = (client CPU + server CPU) / datagrams sent, both from the kernel's accounting
+(``getrusage``, ``/proc/PID/stat``) over the measuring window; wake-ups = voluntary context switches
+(``/proc/PID/status``) per cycle.
+
+    scripts/bench_floor.py --stations 62 --cycle 1ms --duration 10s          # both variants, one table
+    flock -x /tmp/mlink-cpu.lock .venv/bin/python scripts/bench_floor.py …    # as every timing on the shared machine
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from mlink_sim.aio import mmsg  # noqa: E402
+from mlink_sim.aio.ticker import CycleTimer  # noqa: E402
+from mlink_sim.aio.udp import bound_socket, close_watched, new_event_loop, open_batch_endpoint  # noqa: E402
+from mlink_sim.config import format_ns, parse_duration_ns  # noqa: E402
+from mlink_sim.metrics import LatencyHistogram  # noqa: E402
+
+__all__ = ["Floor", "measure_floor", "proc_cpu_s", "proc_wakeups", "self_wakeups"]
+
+HEADER = 12 + 2  # envelope + FCS (docs/wire-format.md): a datagram is HEADER + the frame size
+_WARM_UP_S = 0.5
+_TICK = os.sysconf("SC_CLK_TCK")
+
+
+@dataclass
+class Floor:
+    """One floor measurement (one variant of one cell)."""
+
+    batched: bool
+    stations: int
+    cycle_ns: int
+    duration_s: float
+    cycles: int = 0
+    missed: int = 0            #: cycles the clock skipped (as the master's ``missed``, same host-stall policy)
+    missed_rate: float = 0.0
+    missing: int = 0           #: answers not back when the next cycle started
+    exchanges: int = 0         #: datagrams sent
+    rtt_p50_ns: int = 0
+    rtt_p99_ns: int = 0
+    lateness_p99_ns: int = 0
+    cpu_client_pct: float = 0.0
+    cpu_server_pct: float = 0.0
+    cpu_per_exchange_us: float = 0.0  #: (client + server CPU) / exchanges
+    wakeups_client: float = 0.0       #: voluntary context switches per cycle
+    wakeups_server: float = 0.0
+
+
+def proc_cpu_s(pid: int) -> float:
+    """User + system CPU seconds of process *pid* (``/proc/PID/stat``, clock ticks); 0.0 when it is gone."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / _TICK  # utime, stime: fields 14 and 15 of proc(5)
+
+
+def proc_wakeups(pid: int | str) -> int:
+    """Voluntary context switches of *pid*'s main thread so far (a sleep on the socket or the clock)."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("voluntary_ctxt_switches:"):
+                return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
+def self_wakeups() -> int:
+    return proc_wakeups("self")
+
+
+def _self_cpu_s() -> float:
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    return ru.ru_utime + ru.ru_stime
+
+
+# ----------------------------------------------------------------------------------------------- the server
+def serve(count: int, batched: bool) -> None:
+    """``--serve N``: N station sockets in this one process, each echoing; prints ``{"ports": […]}``, runs until
+    SIGTERM."""
+    loop = new_event_loop()
+
+    async def main() -> None:
+        endpoints = []
+
+        def echo_to(index: int) -> Any:
+            def on_batch(batch: list[tuple[bytes, Any]]) -> None:
+                sendto = endpoints[index].sendto
+                for data, addr in batch:
+                    sendto(data, addr)
+            return on_batch
+
+        for i in range(count):
+            endpoints.append(await open_batch_endpoint(echo_to(i), batched=batched))
+        print(json.dumps({"ports": [ep.local_address[1] for ep in endpoints]}), flush=True)
+        stop = asyncio.Event()
+        loop.add_signal_handler(signal.SIGTERM, stop.set)
+        await stop.wait()
+        for ep in endpoints:
+            ep.close()
+
+    loop.run_until_complete(main())
+
+
+# ----------------------------------------------------------------------------------------------- the client
+async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: float, batched: bool,
+                        catch_up_ns: int = 100_000_000) -> Floor:
+    """The floor of *stations* stations of frame size *size* at *cycle_ns*, measured for *duration_s* after a
+    0.5 s warm-up; the server runs in a subprocess of this script. *catch_up_ns*: the clock's host-stall policy,
+    as the network's (default: "absorb" up to 100 ms, the default of ``[network] stall_bound``)."""
+    result = Floor(batched, stations, cycle_ns, duration_s)
+    proc = subprocess.Popen([sys.executable, __file__, "--serve", str(stations)] + ([] if batched else ["--plain"]),
+                            stdout=subprocess.PIPE)
+    loop = asyncio.get_running_loop()
+    sock: Any = None
+    timer: CycleTimer | None = None
+    try:
+        ports = json.loads(proc.stdout.readline())["ports"]  # type: ignore[union-attr]
+        raw = bound_socket("127.0.0.1", 0)
+        sock = mmsg.BurstSocket(raw) if batched else raw
+        targets = [("127.0.0.1", p) for p in ports]
+        pad = bytes(max(0, HEADER + size - 6))
+        suffixes = [i.to_bytes(2, "little") + pad for i in range(stations)]
+        rtt, lateness = LatencyHistogram(), LatencyHistogram()
+        pending: dict[bytes, int] = {}
+        counts = {"missed": 0, "missing": 0, "sent": 0, "cycles": 0}
+        mono = time.monotonic_ns
+
+        if batched:
+            recv_burst = sock.recv_burst
+
+            def read(limit: int = 512) -> None:
+                while limit > 0:
+                    want = min(limit, mmsg.CAPACITY)
+                    batch = recv_burst(want)
+                    now = mono()
+                    for data in batch:
+                        t = pending.pop(data[:6], None)
+                        if t is not None:
+                            rtt.record(now - t)
+                    if len(batch) < want:
+                        return
+                    limit -= want
+        else:
+            recv = sock.recv
+
+            def read(limit: int = 512) -> None:
+                for _ in range(limit):
+                    try:
+                        data = recv(4096)
+                    except BlockingIOError:
+                        return
+                    t = pending.pop(data[:6], None)
+                    if t is not None:
+                        rtt.record(mono() - t)
+
+        def read_one() -> None:
+            read(1)
+
+        def on_cycle(k: int, deadline: int, now: int, skipped: int) -> None:
+            counts["missed"] += skipped
+            counts["cycles"] += 1
+            lateness.record(now - deadline)
+            read()
+            counts["missing"] += len(pending)
+            pending.clear()  # answers later than a cycle do not count, as for the master
+            head = k.to_bytes(4, "little")
+            burst = [head + s for s in suffixes]
+            for d in burst:
+                pending[d[:6]] = now
+            if batched:
+                sock.send_burst(list(zip(burst, targets)))
+            else:
+                sendto = sock.sendto
+                for d, a in zip(burst, targets):
+                    try:
+                        sendto(d, a)
+                    except OSError:
+                        pass
+            counts["sent"] += stations
+
+        loop.add_reader(raw.fileno(), read)
+        timer = CycleTimer(cycle_ns, on_cycle, loop=loop, idle=read_one, catch_up_ns=catch_up_ns)
+        timer.start()
+        await asyncio.sleep(_WARM_UP_S)
+        rtt.reset()
+        lateness.reset()
+        counts.update(missed=0, missing=0, sent=0, cycles=0)
+        wall0, cpu0, scpu0 = time.monotonic(), _self_cpu_s(), proc_cpu_s(proc.pid)
+        wake0, swake0 = self_wakeups(), proc_wakeups(proc.pid)
+        await asyncio.sleep(duration_s)
+        wall = time.monotonic() - wall0
+        cpu, scpu = _self_cpu_s() - cpu0, proc_cpu_s(proc.pid) - scpu0
+        wake, swake = self_wakeups() - wake0, proc_wakeups(proc.pid) - swake0
+        timer.stop()
+    finally:
+        if timer is not None:
+            timer.stop()
+        if sock is not None:
+            close_watched(loop, sock)
+        proc.terminate()
+        proc.wait(5)
+    cycles = counts["cycles"] + counts["missed"]
+    result.cycles, result.missed, result.missing = cycles, counts["missed"], counts["missing"]
+    result.missed_rate = counts["missed"] / cycles if cycles else 0.0
+    result.exchanges = counts["sent"]
+    r, lt = rtt.summary(), lateness.summary()
+    result.rtt_p50_ns, result.rtt_p99_ns, result.lateness_p99_ns = r["p50"], r["p99"], lt["p99"]
+    result.cpu_client_pct, result.cpu_server_pct = round(cpu / wall * 100, 1), round(scpu / wall * 100, 1)
+    result.cpu_per_exchange_us = round((cpu + scpu) / counts["sent"] * 1e6, 2) if counts["sent"] else 0.0
+    result.wakeups_client = round(wake / max(1, counts["cycles"]), 2)
+    result.wakeups_server = round(swake / max(1, counts["cycles"]), 2)
+    return result
+
+
+def describe(f: Floor) -> str:
+    return (f"floor {'batched' if f.batched else 'plain':<7} {f.stations:>3} × {format_ns(f.cycle_ns):>6}: "
+            f"missed {f.missed_rate * 100:.2f}% ({f.missed}), missing {f.missing}, "
+            f"RTT p50 {format_ns(f.rtt_p50_ns)} p99 {format_ns(f.rtt_p99_ns)}, "
+            f"lateness p99 {format_ns(f.lateness_p99_ns)}, CPU client/server {f.cpu_client_pct:.0f}/"
+            f"{f.cpu_server_pct:.0f} %, {f.cpu_per_exchange_us:.1f} µs/exchange, wake-ups/cycle "
+            f"{f.wakeups_client:.2f}/{f.wakeups_server:.2f}")
+
+
+def main() -> int:
+    if len(sys.argv) >= 3 and sys.argv[1] == "--serve":
+        serve(int(sys.argv[2]), batched="--plain" not in sys.argv[3:])
+        return 0
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--stations", type=int, default=62)
+    ap.add_argument("--cycle", default="1ms")
+    ap.add_argument("--size", type=int, default=32, help="frame size (ML-III 32/48/64, ML-II 17/32)")
+    ap.add_argument("--duration", default="10s")
+    ap.add_argument("--json", action="store_true", help="print the results as JSON")
+    args = ap.parse_args()
+    try:
+        cycle = parse_duration_ns(args.cycle, default_unit="us")
+        duration = parse_duration_ns(args.duration, default_unit="s") / 1e9
+        if args.stations < 1 or duration <= 0:
+            raise ValueError("--stations ≥ 1, --duration > 0")
+    except ValueError as exc:
+        print(f"bench_floor.py: {exc}", file=sys.stderr)
+        return 2
+    loop = new_event_loop()
+    results = [loop.run_until_complete(measure_floor(args.stations, args.size, cycle, duration, batched))
+               for batched in (False, True)]
+    loop.close()
+    if args.json:
+        print(json.dumps([asdict(r) for r in results], indent=1))
+    else:
+        for r in results:
+            print(describe(r))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

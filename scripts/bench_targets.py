@@ -1,0 +1,148 @@
+"""Issue 21's capacity targets, each judged against the floor measured in the same run (``scripts/bench.py
+--targets``; the cells are ``bench.Cell``, the floor ``scripts/bench_floor.py``).
+
+The targets (ratios in one run on the 2-vCPU machine):
+
+1. 62 ML-III stations @ 1 ms for 60 s: missed ≤ the floor's missed + 0.05 percentage points; RTT p99 ≤ 2 × the
+   floor's p99;
+2. 30 ML-II stations @ 1 ms for 60 s: the same bounds;
+3. 8 ML-III stations @ 250 µs for 30 s: cycle lateness p99 ≤ 50 µs; missed ≤ the floor's + 0.05 points;
+4. CPU per exchange (master and workers, all costs in) ≤ 2 × the floor's, in each of the cells above;
+5. the 1 ms knee, the most ML-III stations at 1 ms with missed ≤ floor + 0.05 points (every smaller cell of the
+   run holding too), reaches 62 (cells of 15, 30 and 45 stations, 10 s each, and the 62 of target 1).
+
+"The floor" of a cell is the floor with the simulator's own system calls (``Cell.ref``). Where a bound is not met
+the verdict says what bounds it, from the same run: the CPU of the master and the workers, CPU per exchange
+against the floor's, wake-ups per cycle, stations that did not come up, or the floor itself breaking the bound.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from mlink_sim.config import format_ns, parse_duration_ns
+
+__all__ = ["CELLS", "verdicts", "knee"]
+
+#: (link, stations, cycle, duration): the targets' cells, then the knee's
+CELLS = (("ML3", 62, "1ms", "60s"), ("ML2", 30, "1ms", "60s"), ("ML3", 8, "250us", "30s"),
+         ("ML3", 15, "1ms", "10s"), ("ML3", 30, "1ms", "10s"), ("ML3", 45, "1ms", "10s"))
+MISSED_MARGIN = 0.0005  # 0.05 percentage points
+RTT_FACTOR = 2.0
+LATENESS_NS = 50_000
+CPU_FACTOR = 2.0
+KNEE_GOAL = 62
+
+
+def _cell(cells: list[Any], link: str, stations: int, cycle: str) -> Any:
+    cycle_ns = parse_duration_ns(cycle)
+    for c in cells:
+        if (c.link, c.stations, c.cycle_ns) == (link, stations, cycle_ns):
+            return c
+    return None
+
+
+def _name(c: Any) -> str:
+    return f"{c.stations} {c.link} @ {format_ns(c.cycle_ns)}, {c.duration_s:g}s"
+
+
+def _pct(rate: float) -> str:
+    return f"{rate * 100:.2f} %"
+
+
+def bounded_by(c: Any) -> str:
+    """What holds the cell back, in figures of the same run."""
+    ref = c.ref or {}
+    fl = ref.get("cpu_per_exchange_us", 0.0)
+    x = f" = {c.cpu_per_exchange_us / fl:.1f} × the floor's {fl:.1f}" if fl else ""
+    busy = max(c.cpu_master, c.cpu_slaves) >= 90
+    text = (f"{'CPU: ' if busy else ''}master {c.cpu_master:.0f} %, workers {c.cpu_slaves:.0f} % of a CPU; "
+            f"{c.cpu_per_exchange_us:.1f} µs per exchange{x}; wake-ups per cycle {c.wakeups_master:.1f} / "
+            f"{c.wakeups_slaves:.1f} (floor {ref.get('wakeups_client', 0):.1f} / {ref.get('wakeups_server', 0):.1f})")
+    return text + (f"; {'; '.join(c.notes)}" if c.notes else "")
+
+
+def _missed_ok(c: Any) -> bool:
+    ref = c.ref
+    return ref is not None and c.missed_rate <= ref["missed_rate"] + MISSED_MARGIN
+
+
+def knee(cells: list[Any], goal: int = KNEE_GOAL) -> tuple[int, list[Any]]:
+    """The most ML-III stations at 1 ms that hold (missed ≤ floor + 0.05 points) with every smaller measured cell
+    holding as well (0: none), and the cells it was read from, by station count."""
+    run = sorted((c for c in cells if c.link == "ML3" and c.cycle_ns == 1_000_000 and c.status == "ok"
+                  and c.stations <= goal), key=lambda c: c.stations)
+    best = 0
+    for c in run:
+        if not _missed_ok(c):
+            break
+        best = c.stations
+    return best, run
+
+
+def verdicts(cells: list[Any]) -> tuple[str, list[dict[str, Any]]]:
+    """The targets' table and its rows as data: each bound, the figure measured, the floor's, the limit, met or
+    not and, where not, what bounds it."""
+    rows: list[dict[str, Any]] = []
+
+    def row(c: Any, bound: str, measured: str, floor: str, limit: str, met: bool, why: str = "") -> None:
+        rows.append({"target": _name(c), "bound": bound, "measured": measured, "floor": floor, "limit": limit,
+                     "met": met, "verdict": "met" if met else f"not met: {why or bounded_by(c)}"})
+
+    def failed(c: Any, target: str) -> bool:
+        if c is not None and c.status == "ok" and c.ref is not None:
+            return False
+        status = "not run" if c is None else (c.status if c.status != "ok" else "no floor measured")
+        rows.append({"target": target, "bound": "—", "met": False, "verdict": status})
+        return True
+
+    judged = []
+    for link, n, cycle, dur in CELLS[:3]:
+        c = _cell(cells, link, n, cycle)
+        if failed(c, f"{n} {link} @ {cycle}, {dur}"):
+            continue
+        judged.append(c)
+        ref = c.ref
+        if c.cycle_ns == 250_000:
+            floor_late = ref["lateness_p99_ns"]
+            row(c, "lateness p99 ≤ 50 µs", format_ns(c.lateness_p99_ns), format_ns(floor_late),
+                format_ns(LATENESS_NS), c.lateness_p99_ns <= LATENESS_NS,
+                "" if floor_late <= LATENESS_NS else f"the floor breaks it too; {bounded_by(c)}")
+        row(c, "missed ≤ floor + 0.05 points", _pct(c.missed_rate), _pct(ref["missed_rate"]),
+            _pct(ref["missed_rate"] + MISSED_MARGIN), _missed_ok(c))
+        if c.cycle_ns == 1_000_000:
+            limit = RTT_FACTOR * ref["rtt_p99_ns"]
+            row(c, "RTT p99 ≤ 2 × floor p99", format_ns(c.rtt_p99_ns), format_ns(ref["rtt_p99_ns"]),
+                format_ns(int(limit)), c.rtt_p99_ns <= limit)
+    for c in judged:
+        fl = c.ref["cpu_per_exchange_us"]
+        row(c, "CPU per exchange ≤ 2 × floor", f"{c.cpu_per_exchange_us:.1f} µs", f"{fl:.1f} µs",
+            f"{CPU_FACTOR * fl:.1f} µs", 0 < c.cpu_per_exchange_us <= CPU_FACTOR * fl)
+    best, run = knee(cells)
+    if run:
+        steps = ", ".join(f"{c.stations}: {_pct(c.missed_rate)} vs {_pct(c.ref['missed_rate']) if c.ref else '—'}"
+                          for c in run)
+        beyond = next((c for c in run if c.stations > best), None)
+        why = f"missed vs floor per cell {steps}"
+        if beyond is not None:
+            why += f"; at {beyond.stations}: {bounded_by(beyond)}"
+        rows.append({"target": "1 ms knee (ML3)", "bound": f"reaches {KNEE_GOAL} stations", "measured": str(best),
+                     "floor": "—", "limit": str(KNEE_GOAL), "met": best >= KNEE_GOAL,
+                     "verdict": "met" if best >= KNEE_GOAL else f"not met: {why}"})
+    else:
+        rows.append({"target": "1 ms knee (ML3)", "bound": f"reaches {KNEE_GOAL} stations", "met": False,
+                     "verdict": "not run"})
+    return _text(rows), rows
+
+
+def _text(rows: list[dict[str, Any]]) -> str:
+    w = max(len(r["target"]) for r in rows)
+    wb = max(len(r["bound"]) for r in rows)
+    lines = [f"{'target':<{w}}  {'bound':<{wb}}  {'measured':>10}  {'floor':>10}  {'limit':>10}  verdict",
+             "-" * (w + wb + 60)]
+    for r in rows:
+        lines.append(f"{r['target']:<{w}}  {r['bound']:<{wb}}  {r.get('measured', '—'):>10}  "
+                     f"{r.get('floor', '—'):>10}  {r.get('limit', '—'):>10}  {r['verdict']}")
+    met = sum(1 for r in rows if r["met"])
+    lines.append(f"{met} of {len(rows)} bounds met")
+    return "\n".join(lines)
