@@ -5,7 +5,9 @@ The I/O here only moves bytes and timestamps; the core decides everything. The m
 socket watched with ``loop.add_reader``: each wake-up reads every datagram waiting (up to a bound), each stamped
 with ``time.monotonic_ns()`` as it is read. The socket is also read just before each cycle's commands go out and
 while the :class:`CycleTimer` spins before a deadline, so an answer that arrived in time is never counted
-missing only because the loop was busy with the clock. Transport errors (``sendto``/``recv`` raising
+missing only because the loop was busy with the clock. Where :mod:`~mlink_sim.aio.mmsg` is supported the socket
+is a ``BurstSocket``: the cycle's burst goes out in one ``sendmmsg`` and a read takes what is waiting with one
+``recvmmsg``; wrapped sockets (a capture's tap, an impairment, the virtual fabric) take the per-datagram path. Transport errors (``sendto``/``recv`` raising
 ``OSError``, e.g. ``ConnectionRefusedError`` after an ICMP port unreachable) are counted in
 :attr:`Master.transport_errors`, never raised.
 """
