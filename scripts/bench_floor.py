@@ -75,6 +75,8 @@ class Floor:
     cpu_client_pct: float = 0.0
     cpu_server_pct: float = 0.0
     cpu_per_exchange_us: float = 0.0  #: (client + server CPU) / exchanges
+    spin_pct: float = 0.0             #: the client clock's spin before each deadline, % of the wall time
+    cpu_per_exchange_nospin_us: float = 0.0  #: the same without the spin
     wakeups_client: float = 0.0       #: voluntary context switches per cycle
     wakeups_server: float = 0.0
 
@@ -220,12 +222,13 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
         rtt.reset()
         lateness.reset()
         counts.update(missed=0, missing=0, sent=0, cycles=0)
-        wall0, cpu0, scpu0 = time.monotonic(), _self_cpu_s(), proc_cpu_s(proc.pid)
+        wall0, cpu0, scpu0, spun0 = time.monotonic(), _self_cpu_s(), proc_cpu_s(proc.pid), timer.spun_ns
         wake0, swake0 = self_wakeups(), proc_wakeups(proc.pid)
         await asyncio.sleep(duration_s)
         wall = time.monotonic() - wall0
         cpu, scpu = _self_cpu_s() - cpu0, proc_cpu_s(proc.pid) - scpu0
         wake, swake = self_wakeups() - wake0, proc_wakeups(proc.pid) - swake0
+        spun = (timer.spun_ns - spun0) / 1e9
         timer.stop()
     finally:
         if timer is not None:
@@ -241,7 +244,10 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
     r, lt = rtt.summary(), lateness.summary()
     result.rtt_p50_ns, result.rtt_p99_ns, result.lateness_p99_ns = r["p50"], r["p99"], lt["p99"]
     result.cpu_client_pct, result.cpu_server_pct = round(cpu / wall * 100, 1), round(scpu / wall * 100, 1)
-    result.cpu_per_exchange_us = round((cpu + scpu) / counts["sent"] * 1e6, 2) if counts["sent"] else 0.0
+    result.spin_pct = round(spun / wall * 100, 1)
+    if counts["sent"]:
+        result.cpu_per_exchange_us = round((cpu + scpu) / counts["sent"] * 1e6, 2)
+        result.cpu_per_exchange_nospin_us = round((cpu - spun + scpu) / counts["sent"] * 1e6, 2)
     result.wakeups_client = round(wake / max(1, counts["cycles"]), 2)
     result.wakeups_server = round(swake / max(1, counts["cycles"]), 2)
     return result
@@ -252,7 +258,8 @@ def describe(f: Floor) -> str:
             f"missed {f.missed_rate * 100:.2f}% ({f.missed}), missing {f.missing}, "
             f"RTT p50 {format_ns(f.rtt_p50_ns)} p99 {format_ns(f.rtt_p99_ns)}, "
             f"lateness p99 {format_ns(f.lateness_p99_ns)}, CPU client/server {f.cpu_client_pct:.0f}/"
-            f"{f.cpu_server_pct:.0f} %, {f.cpu_per_exchange_us:.1f} µs/exchange, wake-ups/cycle "
+            f"{f.cpu_server_pct:.0f} %, {f.cpu_per_exchange_us:.1f} µs/exchange "
+            f"({f.cpu_per_exchange_nospin_us:.1f} without the spin, {f.spin_pct:.0f} %), wake-ups/cycle "
             f"{f.wakeups_client:.2f}/{f.wakeups_server:.2f}")
 
 

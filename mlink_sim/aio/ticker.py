@@ -150,6 +150,7 @@ class CycleTimer:
         self._skipped_total = 0
         self._caught_up_total = 0
         self._errors = 0
+        self._spun_ns = 0
         # lazy proxy with bound context: resolved per call, so it follows later structlog.configure()
         self._log = get_logger(__name__, strategy=self._strategy, period_ns=period_ns)
         # per-source resources
@@ -191,6 +192,12 @@ class CycleTimer:
     def caught_up_total(self) -> int:
         """Cycles run late, after a stall within ``catch_up_ns``, instead of being skipped."""
         return self._caught_up_total
+
+    @property
+    def spun_ns(self) -> int:
+        """Time spent in the spin before the deadlines so far (ns, the ``idle`` calls included): busy CPU that
+        keeps the clock's precision, for a benchmark to tell apart from the work per exchange."""
+        return self._spun_ns
 
     @property
     def errors(self) -> int:
@@ -321,6 +328,7 @@ class CycleTimer:
             self._q = q
             self._spin = self._clamp_spin(q + _SPIN_MARGIN_NS)
         idle = self.idle
+        spin_from = now
         if idle is None:
             while now < d:
                 now = mono()
@@ -328,6 +336,7 @@ class CycleTimer:
             while now < d:
                 idle()
                 now = mono()
+        self._spun_ns += now - spin_from
         period = self._period
         k = self._next_k
         skipped = 0

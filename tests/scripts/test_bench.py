@@ -18,7 +18,8 @@ def bench():
 
 def _floor(**kw):
     base = {"batched": True, "missed_rate": 0.0005, "rtt_p99_ns": 500_000, "lateness_p99_ns": 2_000,
-            "cpu_per_exchange_us": 20.0, "wakeups_client": 1.0, "wakeups_server": 1.0}
+            "cpu_per_exchange_us": 20.0, "cpu_per_exchange_nospin_us": 10.0, "wakeups_client": 1.0,
+            "wakeups_server": 1.0}
     return {**base, **kw}
 
 
@@ -107,14 +108,15 @@ def test_tables_show_the_floor_and_the_ratios(bench) -> None:
     cells = [bench.Cell("ML2", 1, 250_000, 1, status="n/a: MECHATROLINK-II's shortest cycle is 0.5 ms"),
              _cell(bench, "ML3", 8, 250_000, missed_rate=0.0029, rtt_p50_ns=662_000, rtt_p99_ns=1_620_000,
                    lateness_p99_ns=246_000, cpu_master=99.6, cpu_slaves=98.7, cpu_per_exchange_us=41.0,
-                   notes=["6 station(s) not up"]),
+                   cpu_per_exchange_nospin_us=30.0, notes=["6 station(s) not up"]),
              bench.Cell("ML3", 62, 250_000, 1, status="failed: OSError: boom")]
     text = bench.table(cells)
     assert "µs/exch" in text and "41.0" in text and "2.05" in text  # 41 / 20 µs
     lines = bench.markdown(cells).splitlines()
     assert lines[0] == bench.MD_HEAD and len(lines) == 4  # the n/a cell is left out
     assert lines[2] == ("| ML3 | 8 | 250 µs | batched | 0.29 % (6 not up) | 662 µs | 1.62 ms | 246 µs | 100 / 99 "
-                        "| 41.0 µs | 0.05 % | 500 µs | 2 µs | 25.0 / 20.0 µs | 2.05 | 3.24 |")
+                        "| 41.0 (30.0) µs | 0.05 % | 500 µs | 2 µs | 25.0 (10.0) / 20.0 (10.0) µs | 2.05 (3.00) "
+                        "| 3.24 |")
     assert lines[3].startswith("| ML3 | 62 | 250 µs | batched | failed: OSError: boom |")
     assert all(line.count("|") == lines[0].count("|") for line in lines)
 
