@@ -324,9 +324,8 @@ def chart(cells: list[Cell], path: Path) -> None:
     axes[0].set(xscale="log", yscale="log", xlabel="stations", ylabel="missed cycles % (0 drawn at 0.001)",
                 title="missed-cycle rate")
     axes[1].set(xscale="log", yscale="log", xlabel="stations", ylabel="RTT p99 (µs)", title="round trip p99")
-    axes[2].set(xscale="log", xlabel="stations", ylabel="µs of CPU per exchange (both sides)",
+    axes[2].set(xscale="log", yscale="log", xlabel="stations", ylabel="µs of CPU per exchange (both sides)",
                 title="CPU per exchange: simulator vs floor")
-    axes[2].set_ylim(bottom=0)
     for ax in axes:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=6)
