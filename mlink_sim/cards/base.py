@@ -558,7 +558,14 @@ class Station(abc.ABC):
 
     def monitor(self, code: int) -> int:
         """The 16-bit value SEL_MON *code* selects (SI-T3 Table 18, SI-ET3 Table 22, SI-T/V7 Table 5)."""
-        return sel_mon_value(self.drive, self.store, self._mon_regs, code)
+        drive = self.drive
+        read = drive.mon_readers[code & 0xF]
+        if read is not None:  # a plain monitor: sel_mon_value -> DriveLink.monitor -> read_monitor, spelt out
+            try:
+                return int(read(drive.drive)) & 0xFFFF
+            except Exception:  # noqa: BLE001 - a monitor the model cannot compute reads 0 (DriveLink.monitor)
+                return 0
+        return sel_mon_value(drive, self.store, self._mon_regs, code)
 
     def log_refused(self, **fields: Any) -> None:
         """"connect_refused", once per distinct refused CONNECT (a master may retry it every cycle)."""

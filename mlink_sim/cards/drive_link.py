@@ -26,7 +26,7 @@ from mlink_sim.drive import (
     ml3_invcmd_stat_bits,
 )
 
-from mlink_sim.drive.monitors import read_monitor
+from mlink_sim.drive.monitors import monitor_reader, read_monitor
 from mlink_sim.wire.selections import SEL_MON_TABLES
 
 from .eeprom import HISTORY_DEPTH
@@ -54,7 +54,7 @@ def fault_by_name(name: str) -> Fault | None:
 class DriveLink:
     """A drive of *family* ("a1000" / "v7") driven by one card."""
 
-    __slots__ = ("family", "drive", "_restored", "_sel_mon", "_card_label", "_mon_static")
+    __slots__ = ("family", "drive", "_restored", "_sel_mon", "_card_label", "_mon_static", "mon_readers")
 
     def __init__(self, family: str, card_label: str, values: Mapping[str, int], load: LoadSpec | None,
                  now: int, history: Iterable[str] = ()) -> None:
@@ -71,6 +71,12 @@ class DriveLink:
         # not the fault history (U2-xx, U3-xx, U-09) nor a parameter (F6-23/F6-24).
         self._mon_static = tuple(
             name in ("", "ALARM", "WARNING") or name.startswith(("U1-", "U-")) and name != "U-09"
+            for name in self._sel_mon)
+        #: by SEL_MON code, the drive model's own reader of a plain monitor (U1-xx, U-xx but U-09: what
+        #: :meth:`monitor` reads through :func:`read_monitor`), resolved once; None for what the card resolves
+        #: (nothing selected, ALARM, WARNING, F6-23/F6-24, the fault history)
+        self.mon_readers = tuple(
+            monitor_reader(self.family, name) if name.startswith(("U1-", "U-")) and name != "U-09" else None
             for name in self._sel_mon)
 
     # -- time and commands ------------------------------------------------------------------------

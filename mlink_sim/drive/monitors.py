@@ -46,7 +46,7 @@ from .faults import Fault, fault_code, minor_code
 from .settings import DriveSettings, Family, _ref_to_hz
 from .status import DriveStatus
 
-__all__ = ["DriveView", "hz_to_ref", "ref_to_hz", "read_monitor", "read_sel_mon", "sel_mon_readers",
+__all__ = ["DriveView", "hz_to_ref", "ref_to_hz", "read_monitor", "monitor_reader", "read_sel_mon", "sel_mon_readers",
            "SEL_MON_TABLES", "MONITOR_REGISTERS", "MONITOR_NAMES"]
 
 
@@ -191,6 +191,12 @@ _V7: dict[str, Callable[[DriveView], int]] = {
 
 #: Monitor names each family answers (others read 0).
 MONITOR_NAMES: dict[Family, tuple[str, ...]] = {Family.A1000: tuple(_A1000), Family.V7: tuple(_V7)}
+
+
+def monitor_reader(family: Family, name: str) -> Callable[[DriveView], int]:
+    """The function :func:`read_monitor` calls for monitor ``name`` of ``family`` (reads 0 for an unknown name):
+    a caller that reads the same monitor every cycle resolves it once."""
+    return (_V7 if family is Family.V7 else _A1000).get(name, _zero)
 
 
 def read_monitor(drive: DriveView, name: str) -> int:
