@@ -130,4 +130,4 @@ class CyclicFrames:
             return None
         if not fcs_ok(dg):
             return None
-        return self._pick(f) + (bool(cstat & 2),)  # type: ignore[no-any-return]
+        return self._pick(f) + (bool(cstat & 2),)

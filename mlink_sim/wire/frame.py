@@ -27,7 +27,7 @@ from construct import Int8ul, Int16ul, Int32ul, Struct
 from . import ml2, ml3
 from .codes import Kind, Link
 from .fcs import crc16_x25
-from .layout import fast_format, fast_format_inlined, fast_struct
+from .layout import fast_format, fast_struct
 
 __all__ = [
     "MAGIC",
@@ -84,10 +84,10 @@ def with_fcs(body: bytes | bytearray) -> bytes:
 def datagram_struct(frame: Struct, size: int, **inline: tuple[Struct, int]) -> tuple[struct.Struct, tuple[str, ...]]:
     """``(struct, field names)`` of a whole datagram but its FCS: the envelope, then the data frame *frame* of
     *size* bytes with the regions named in *inline* laid out by their body's declaration
-    (:func:`~mlink_sim.wire.layout.fast_format_inlined`). The per-cycle fast paths pack or unpack a datagram in
+    (:func:`~mlink_sim.wire.layout.fast_format`). The per-cycle fast paths pack or unpack a datagram in
     one call with it."""
     head, head_names = fast_format(ENVELOPE, HEADER_SIZE)
-    body, body_names = fast_format_inlined(frame, size, inline)
+    body, body_names = fast_format(frame, size, inline)
     return struct.Struct(head + body[1:]), head_names + body_names
 
 

@@ -22,7 +22,7 @@ from typing import Any, Generic, TypeVar
 
 import construct as cs
 
-__all__ = ["Layout", "Slot", "Unknown", "fast_format", "fast_format_inlined", "fast_struct", "field_offset"]
+__all__ = ["Layout", "Slot", "Unknown", "fast_format", "fast_struct", "field_offset"]
 
 T = TypeVar("T")
 
@@ -41,35 +41,19 @@ def _subcon_format(sub: cs.Construct) -> str:
     raise TypeError(f"unsupported field in a layout: {sub!r}")
 
 
-def fast_format(declaration: cs.Struct, size: int) -> tuple[str, tuple[str, ...]]:
-    """Derive ``(struct format, field names)`` from a construct ``Struct`` and pad it to *size* bytes."""
-    fmt = ["<"]
-    names: list[str] = []
-    for sub in declaration.subcons:
-        if isinstance(sub, cs.Renamed):
-            fmt.append(_subcon_format(sub.subcon))
-            names.append(sub.name)
-        else:
-            fmt.append(_subcon_format(sub))
-    used = struct.calcsize("".join(fmt))
-    if used > size:
-        raise ValueError(f"layout of {used} bytes does not fit its {size}-byte region")
-    if used < size:
-        fmt.append(f"{size - used}x")
-    return "".join(fmt), tuple(names)
+def fast_format(declaration: cs.Struct, size: int,
+                inline: Mapping[str, tuple[cs.Struct, int]] | None = None) -> tuple[str, tuple[str, ...]]:
+    """Derive ``(struct format, field names)`` from a construct ``Struct`` and pad it to *size* bytes.
 
-
-def fast_format_inlined(declaration: cs.Struct, size: int,
-                        inline: Mapping[str, tuple[cs.Struct, int]]) -> tuple[str, tuple[str, ...]]:
-    """:func:`fast_format` with each bytes field named in *inline* (``name: (declaration, size)``, e.g. a frame's
-    ``main`` region and the command body that fills it) laid out by that declaration's own fields: one format
-    for a frame and its body, so a hot path packs or unpacks them in one call."""
+    *inline* (``name: (declaration, size)``, e.g. a frame's ``main`` region and the command body that fills it)
+    lays out each bytes field it names by that declaration's own fields: one format for a frame and its body, so
+    a hot path packs or unpacks them in one call."""
     fmt = ["<"]
     names: list[str] = []
     for sub in declaration.subcons:
         con = sub.subcon if isinstance(sub, cs.Renamed) else sub
         part = _subcon_format(con)
-        if isinstance(sub, cs.Renamed) and sub.name in inline:
+        if inline and isinstance(sub, cs.Renamed) and sub.name in inline:
             body, body_size = inline[sub.name]
             if struct.calcsize("<" + part) != body_size:
                 raise ValueError(f"field {sub.name!r} is {struct.calcsize('<' + part)} bytes, not {body_size}")
