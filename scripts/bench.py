@@ -10,7 +10,7 @@ but with no protocol work on either side; once with the per-datagram system call
 ``sendmmsg``/``recvmmsg`` (**batched**, ``mlink_sim.aio.mmsg``).
 
 Figures per cell: missed-cycle rate, RTT p50/p99, cycle-start lateness p99, CPU % of the master and the workers,
-**CPU per exchange** (master + workers CPU time over the commands sent, from the kernel's accounting), wake-ups
+**CPU per exchange** (master + workers CPU time over the commands answered, from the kernel's accounting), wake-ups
 per cycle (voluntary context switches), and the same figures of both floors. The ratios (CPU per exchange, RTT
 p99) are taken against the floor that uses the same system calls as the simulator in that run (``io``: batched
 where ``sendmmsg``/``recvmmsg`` are available, unless ``--io plain``, which runs the simulator with
@@ -86,7 +86,8 @@ class Cell:
     late: int = 0
     cpu_master: float = 0.0
     cpu_slaves: float = 0.0
-    exchanges: int = 0              #: commands sent in the measuring window
+    sent: int = 0                   #: commands sent in the measuring window
+    exchanges: int = 0              #: commands answered in it: a command the worker superseded is no exchange
     cpu_per_exchange_us: float = 0.0  #: (master + workers CPU time) / exchanges
     spin_pct: float = 0.0           #: the master clock's spin before each deadline, % of the wall time
     cpu_per_exchange_nospin_us: float = 0.0  #: the same without the spin (the work an exchange itself costs)
@@ -173,7 +174,7 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
     cpu_slaves_s = sum(slaves1.get(k, 0.0) - v for k, v in slaves0.items())
     cell.cpu_master = round(cpu_master_s / wall * 100, 1)
     cell.cpu_slaves = round(cpu_slaves_s / wall * 100, 1)
-    cell.exchanges = report["sent"]
+    cell.sent, cell.exchanges = report["sent"], report["answered"]
     cell.spin_pct = round(spun_s / wall * 100, 1)
     if cell.exchanges:
         cell.cpu_per_exchange_us = round((cpu_master_s + cpu_slaves_s) / cell.exchanges * 1e6, 2)

@@ -17,7 +17,7 @@ empty, one ``sendto`` per datagram) and **batched** (``mlink_sim.aio.mmsg``: the
 ``sendmmsg``, its answers and each station socket's commands in one ``recvmmsg``; the echo's answers stay one
 ``sendto`` each, because each goes out from its own station's socket).
 
-CPU per exchange = (client CPU + server CPU) / datagrams sent, both from the kernel's accounting
+CPU per exchange = (client CPU + server CPU) / datagrams answered within their cycle, both from the kernel's accounting
 (``getrusage``, ``/proc/PID/stat``) over the measuring window; wake-ups = voluntary context switches
 (``/proc/PID/status``) per cycle.
 
@@ -68,7 +68,8 @@ class Floor:
     missed: int = 0            #: cycles the clock skipped (as the master's ``missed``, same host-stall policy)
     missed_rate: float = 0.0
     missing: int = 0           #: answers not back when the next cycle started
-    exchanges: int = 0         #: datagrams sent
+    sent: int = 0              #: datagrams sent
+    exchanges: int = 0         #: datagrams answered within their cycle
     rtt_p50_ns: int = 0
     rtt_p99_ns: int = 0
     lateness_p99_ns: int = 0
@@ -240,14 +241,14 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
     cycles = counts["cycles"] + counts["missed"]
     result.cycles, result.missed, result.missing = cycles, counts["missed"], counts["missing"]
     result.missed_rate = counts["missed"] / cycles if cycles else 0.0
-    result.exchanges = counts["sent"]
+    result.sent, result.exchanges = counts["sent"], rtt.count
     r, lt = rtt.summary(), lateness.summary()
     result.rtt_p50_ns, result.rtt_p99_ns, result.lateness_p99_ns = r["p50"], r["p99"], lt["p99"]
     result.cpu_client_pct, result.cpu_server_pct = round(cpu / wall * 100, 1), round(scpu / wall * 100, 1)
     result.spin_pct = round(spun / wall * 100, 1)
-    if counts["sent"]:
-        result.cpu_per_exchange_us = round((cpu + scpu) / counts["sent"] * 1e6, 2)
-        result.cpu_per_exchange_nospin_us = round((cpu - spun + scpu) / counts["sent"] * 1e6, 2)
+    if result.exchanges:
+        result.cpu_per_exchange_us = round((cpu + scpu) / result.exchanges * 1e6, 2)
+        result.cpu_per_exchange_nospin_us = round((cpu - spun + scpu) / result.exchanges * 1e6, 2)
     result.wakeups_client = round(wake / max(1, counts["cycles"]), 2)
     result.wakeups_server = round(swake / max(1, counts["cycles"]), 2)
     return result
