@@ -30,7 +30,7 @@ RUN python3 -m venv /opt/mlink-sim \
       /opt/mlink-sim/bin/pip install --no-index --find-links /tmp/deps -r /tmp/deps/requirements.txt; \
     fi
 COPY pyproject.toml ${WHEELS:+$WHEELS/project} /tmp/project/
-COPY pyproject.toml README.md /tmp/src/
+COPY pyproject.toml README.md setup.py /tmp/src/
 COPY mlink_sim /tmp/src/mlink_sim
 # mlink-health, the health check: the stdlib-only probe of mlink_sim/testbed/health.py run without site (-IS) and
 # imported from the .pyc pip compiled, so a probe costs little more than the interpreter's start-up (~15 ms of CPU,

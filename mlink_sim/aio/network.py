@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 
+from .. import _accel
 from .._log import get_logger
 from ..config import Config, TimelineStep, format_ns
 from ..metrics import write_report
@@ -98,6 +99,7 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
     loop = asyncio.get_running_loop()
     stop = asyncio.Event()
     caught: list[signal.Signals] = []
+    log.info("cores", mode=_accel.MODE, detail=_accel.REASON)  # compiled or pure (docs/performance.md)
 
     def on_signal(sig: signal.Signals) -> None:
         if not caught:

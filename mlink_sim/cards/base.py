@@ -22,7 +22,7 @@ answers with CMDRDY = 0 and executes nothing else.
 from __future__ import annotations
 
 import abc
-from collections.abc import Callable, Hashable, Mapping
+from collections.abc import Hashable, Mapping
 from types import MappingProxyType
 from typing import Any, ClassVar
 
@@ -98,8 +98,6 @@ class Station(abc.ABC):
     address: int
     link: Link
     data_size: int
-    #: the answer to a status query from another source (each generation's own; SI-T3 / SI-ET3 NOP)
-    _status_reply: Callable[[Frame], bytes]
 
     def __init__(self, *, settings: CardSettings, now: int, eeprom: bytes | None = None) -> None:
         self.label = CARD_NAMES[self.card]
@@ -164,10 +162,16 @@ class Station(abc.ABC):
         self._out_key: tuple[int, int] | None = None
         self._out: tuple[int, int, int, int] = (0, 0, 0, 0)
         self._last_refused: tuple[Any, ...] = ()
+        self._show_station_error(now)
+        self._log.info("power_up", link=self.link.name, data_size=self.data_size)
+
+    def _show_station_error(self, now: int) -> None:
+        """AEr (an invalid station address) as the drive's minor fault. A method of its own: in ``__init__``,
+        mypy takes ``station_error`` for the None it was set to before ``_power_up`` set it, and the compiled
+        code (mypyc) would check it for None."""
         if self.station_error is not None:
             self.drive.minor(Fault.AER, True, now)
             self._log.warning("station_address_error", address=self.address)
-        self._log.info("power_up", link=self.link.name, data_size=self.data_size)
 
     # -- hooks -----------------------------------------------------------------------------------
     @abc.abstractmethod
@@ -187,6 +191,12 @@ class Station(abc.ABC):
 
     @abc.abstractmethod
     def _report_wdt(self) -> None:
+        ...
+
+    @abc.abstractmethod
+    def _status_reply(self, frame: Frame) -> bytes:
+        """The answer to a status query from another source (each generation's own; SI-T3 / SI-ET3 NOP).
+        A method, not a declared attribute: compiled (mypyc), a declared attribute is a slot of its own."""
         ...
 
     @abc.abstractmethod
@@ -280,12 +290,12 @@ class Station(abc.ABC):
             fault_history=tuple(f.display for f in self.drive.history()),
         )
         leds, colors = self._leds()
-        code, name, warnings, cmd_alm = self._alarm_view()
+        code, name, warnings, cmd_alm = self._alarm_view()  # code: an int (an M2Alarm loses its enum compiled)
         return StationSnapshot(
             card=self.card, address=self.address, link=self.link.name, data_size=self.data_size,
             phase=self.phase, connected_source=self._source, tcycle_ns=self.tcycle_ns, com_tim=self.com_tim,
             comm_cycle_ns=self.comm_cycle_ns, subcommands=self._subcommands_active(),
-            leds=MappingProxyType(leds), led_colors=MappingProxyType(colors), alarm_code=code,
+            leds=MappingProxyType(leds), led_colors=MappingProxyType(colors), alarm_code=int(code),
             alarm_name=name, warnings=warnings, cmd_alm=cmd_alm, station_error=self.station_error,
             drive=drive, counters=MappingProxyType(self.counters.as_dict()), eeprom_error=self.eeprom_error,
         )

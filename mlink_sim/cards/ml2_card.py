@@ -32,6 +32,7 @@ from .idinfo import ML2_ID_AREAS, ml2_id_window
 from .phases import ML2_COMBINATIONS, ML2_MAIN_PHASES, ML2_SUB_PHASES, Admit, combination_ok
 from .reception import FailureKind
 from .results import Err
+from .settings import CardSettings
 
 __all__ = ["Ml2Station", "MAIN_HANDLERS", "SUB_HANDLERS", "echo_main", "echo_sub"]
 
@@ -110,8 +111,10 @@ class Ml2Station(Station):
     v7: ClassVar[bool] = False
     mfi_mask: ClassVar[int] = 0x3F  #: operation signals bits 2–7 -> S3–S8 (SI-T3 Table 16); V7: S3–S7
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
+    def __init__(self, *, settings: CardSettings, now: int, eeprom: bytes | None = None) -> None:
+        # the parameters spelled out: mypyc (docs/performance.md, "Compiled cores") passes a **kwargs dict on
+        # as one positional argument
+        super().__init__(settings=settings, now=now, eeprom=eeprom)
         # mapping-like: Ml2Alarms only calls get()
         self.alarms = Ml2Alarms(_CodeTable(self.drive.fault_code), _CodeTable(self.drive.minor_code))  # type: ignore[arg-type]
         self._subcmd = self.data_size == 32

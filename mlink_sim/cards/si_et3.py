@@ -121,8 +121,10 @@ class SiEt3(Station):
     handlers: ClassVar[Mapping[int, Handler]]
     sub_handlers: ClassVar[Mapping[int, SubHandler]]
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
+    def __init__(self, *, settings: CardSettings, now: int, eeprom: bytes | None = None) -> None:
+        # the parameters spelled out: mypyc (docs/performance.md, "Compiled cores") passes a **kwargs dict on
+        # as one positional argument
+        super().__init__(settings=settings, now=now, eeprom=eeprom)
         self.alarms = Ml3Alarms()
         self._subcmd = False
         self._profile = 0

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Hashable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 __all__ = ["StationCounters", "StationSnapshot", "DriveSnapshot"]
@@ -33,9 +33,13 @@ class StationCounters:
         self.dropped_by_reason[reason] = self.dropped_by_reason.get(reason, 0) + 1
 
     def as_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {name: getattr(self, name) for name in self.__slots__}
+        out: dict[str, Any] = {name: getattr(self, name) for name in _COUNTER_NAMES}
         out["dropped_by_reason"] = dict(self.dropped_by_reason)
         return out
+
+
+#: the counters' names in their order (not ``__slots__``: a compiled class has none, docs/performance.md)
+_COUNTER_NAMES = tuple(f.name for f in fields(StationCounters))
 
 
 @dataclass(frozen=True)

@@ -9,14 +9,15 @@ import sys
 
 import click
 
-from .. import __version__
+from .. import __version__, _accel
 from .decode import decode_cmd
 
 __all__ = ["main", "cli"]
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 110})
-@click.version_option(__version__, prog_name="mlink-sim")
+@click.version_option(__version__, prog_name="mlink-sim",
+                      message=f"%(prog)s, version %(version)s; cores: {_accel.describe()}")
 def cli() -> None:
     """mlink-sim – a real-time MECHATROLINK-I/II/III master/slave simulator (SI-T3, SI-ET3, SI-T/V7) over UDP."""
 

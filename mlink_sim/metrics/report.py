@@ -20,6 +20,7 @@ import platform
 from collections.abc import Mapping
 from typing import Any
 
+from .. import _accel
 from .._files import write_atomically
 
 __all__ = ["REPORT_SCHEMA", "SCHEMA_ID", "INJECTED_KINDS", "write_report", "dumps_report", "host_info"]
@@ -136,7 +137,8 @@ REPORT_SCHEMA: dict[str, Any] = {
                 "generation": {"type": "string",
                                "description": "the links in use, comma-separated: MECHATROLINK-I, -II, -III"},
                 "stations": {"type": "integer", "minimum": 0, "description": "number of slave stations"},
-                "host": {"type": "object", "description": "host_info(): machine and interpreter"},
+                "host": {"type": "object",
+                         "description": "host_info(): machine, interpreter, compiled or pure-Python cores"},
                 "problems": {"type": "array", "items": {"type": "string"},
                              "description": "what went wrong outside the checks (stations not up, slaves exited)"},
                 "interrupted": {"enum": [None, "SIGINT", "SIGTERM"],
@@ -252,4 +254,5 @@ def _host_info() -> dict[str, Any]:
         "machine": platform.machine(),
         "cpus": os.cpu_count() or 0,
         "python": f"{platform.python_implementation()} {platform.python_version()}",
+        "cores": _accel.describe(),  # compiled (mypyc) or pure-Python cores (docs/performance.md)
     }

@@ -21,6 +21,7 @@ from __future__ import annotations
 import enum
 import struct
 from dataclasses import dataclass
+from typing import Any
 
 from construct import Int8ul, Int16ul, Int32ul, Struct
 
@@ -173,7 +174,8 @@ def encode(frame: Frame) -> bytes:
     return with_fcs(head + data)
 
 
-def decode(datagram: bytes, *, data_size: int | None = None, kind: Kind | None = None) -> Frame:
+def decode(datagram: bytes | bytearray | memoryview, *, data_size: int | None = None,
+           kind: Kind | None = None) -> Frame:
     """Decode and check one datagram.
 
     *data_size* is the station's configured frame size, if known: a datagram of any other size is rejected.
@@ -210,7 +212,7 @@ def decode(datagram: bytes, *, data_size: int | None = None, kind: Kind | None =
     knd = Kind.COMMAND if kind_b == 1 else Kind.RESPONSE
     if kind is not None and knd is not kind:
         raise WireError(DropReason.WRONG_KIND, f"got a {knd.name.lower()}, expected a {kind.name.lower()}")
-    data = datagram[HEADER_SIZE : n - FCS_SIZE]
+    data: Any = datagram[HEADER_SIZE : n - FCS_SIZE]  # bytes, bytearray or memoryview, as given
     if link is Link.ML3:
         msg: Message = ml3.decode_command(data) if knd is Kind.COMMAND else ml3.decode_response(data)
     else:

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from collections.abc import Hashable
+from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 from mlink_sim.cards import CardOptions, Station, create_card, settings_for
@@ -115,3 +117,13 @@ def comm_alm(frame: Frame) -> int:
 
 def sub_alm(frame: Frame) -> int:
     return frame.message.substat.subcmd_alm
+
+
+def module_source(module: ModuleType) -> str:
+    """A module's source text, read from its .py file: ``inspect.getsource`` has none for a compiled (mypyc)
+    module, whose ``__file__`` is the extension module next to the .py."""
+    assert module.__file__ is not None
+    path = Path(module.__file__)
+    if not path.name.startswith("__init__."):
+        path = path.with_name(module.__name__.rpartition(".")[2] + ".py")
+    return path.read_text(encoding="utf-8")

@@ -4,17 +4,19 @@ place (SI-T3 Tables 5/6, SI-T/V7 Tables 1/2, SI-ET3 Tables 11/12)."""
 from __future__ import annotations
 
 import ast
-import inspect
-from types import SimpleNamespace
+from dataclasses import replace
 
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from .helpers import module_source
+
 from mlink_sim.cards import CARDS, commands
 from mlink_sim.cards.alarms import Ml3Alarms
 from mlink_sim.cards.phases import ML2_MAIN_PHASES, ML3_MAIN_PHASES, ML3_SUB_PHASES, V7_SUB_PHASES, Admit
 from mlink_sim.cards.si_et3 import cmd_stat
+from mlink_sim.drive import Drive, DriveSettings, Family, LoadSpec
 from mlink_sim.wire import M2Cmd, M3Cmd, ml2, ml3
 
 
@@ -55,7 +57,7 @@ def test_sub_handlers_shared_by_both_generations(name: str) -> None:
 
 def test_shared_handlers_use_only_the_public_station_operations() -> None:
     """The shared handlers see a station through its public operations, never its private members."""
-    tree = ast.parse(inspect.getsource(commands))
+    tree = ast.parse(module_source(commands))
     private = [f"{node.value.id}.{node.attr}" for node in ast.walk(tree)
                if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
                and node.value.id in ("station", "sub", "body") and node.attr.startswith("_")]
@@ -69,16 +71,21 @@ def test_response_of_pairs_each_request_with_the_response_of_its_code() -> None:
                 assert commands.RESPONSE_OF[layout.cls] is response.by_code[code].cls
 
 
+#: a drive's status at power-up, for test_cmd_stat_is_the_wire_cmd_stat
+_STATUS = Drive(Family.A1000, DriveSettings.from_defaults(Family.A1000), LoadSpec()).status
+
+
 @given(faulted=st.booleans(), minor=st.booleans(), ready=st.booleans(), clr_cmp=st.booleans(),
        ctrl=st.integers(0, 0xFFFF), cmd_alm=st.integers(0, 0xF), comm_alm=st.integers(0, 0xF),
        handshake=st.booleans())
 def test_cmd_stat_is_the_wire_cmd_stat(faulted: bool, minor: bool, ready: bool, clr_cmp: bool, ctrl: int,
                                        cmd_alm: int, comm_alm: int, handshake: bool) -> None:
     """SI-ET3 "Command Status (CMD_STAT)": the cards' builder agrees bit for bit with ``ml3.CmdStat``."""
-    status = SimpleNamespace(faulted=faulted, minor_fault=minor)  # the two DriveStatus fields CMD_STAT reads
+    # the two DriveStatus fields CMD_STAT reads, on a real DriveStatus (a compiled cmd_stat checks the type)
+    status = replace(_STATUS, faulted=faulted, minor_fault=minor)
     alarms = Ml3Alarms()
     alarms.comm_alm, alarms.alm_clr_cmp = comm_alm, clr_cmp
     expected = ml3.CmdStat(d_alm=faulted, d_war=minor, cmdrdy=ready, alm_clr_cmp=clr_cmp and handshake,
                            rcmd_id=ml3.CmdCtrl.from_int(ctrl).cmd_id, cmd_alm=cmd_alm, comm_alm=comm_alm)
-    built = cmd_stat(status, alarms, ready, ctrl, cmd_alm, handshake)  # type: ignore[arg-type]
+    built = cmd_stat(status, alarms, ready, ctrl, cmd_alm, handshake)
     assert built == expected.to_int()

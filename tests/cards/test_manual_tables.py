@@ -5,12 +5,13 @@ table by its own number, so grepping "SI-T3 Table 22" finds it."""
 from __future__ import annotations
 
 import importlib
-import inspect
 import re
 from pathlib import Path
 from typing import Any
 
 import pytest
+
+from .helpers import module_source
 
 from mlink_sim.cards import si_et3, si_t3, si_t_v7
 
@@ -64,7 +65,7 @@ def test_each_table_is_cited_by_its_own_number_where_it_is_implemented(card: str
         if target is None:
             continue
         where, _obj = _resolve(target)
-        text = inspect.getsource(where)
+        text = module_source(where)
         cites = [rf"{re.escape(p)} Table {n}\b" for p in prefixes]
         if where is module:
             cites.append(rf"\bTable {n}\b")

@@ -11,12 +11,17 @@ from typing import Any
 import pytest
 from master_fakes import MS, Net
 
+from mlink_sim import _accel
 from mlink_sim.master import StationPlan
 from mlink_sim.master.fastpath import CyclicFrames
 from mlink_sim.wire import Link, ml2, ml3
 
 CASES = [(Link.ML2, 17), (Link.ML2, 32), (Link.ML3, 32), (Link.ML3, 64)]
 IDS = ["ML-II-17B", "ML-II-32B", "ML-III-32B", "ML-III-64B"]
+#: Whether the fast path's hits can be counted: a compiled (mypyc) core takes no wrapper object in place of its
+#: CyclicFrames, so the count runs on the pure-Python cores (scripts/test's MLINK_PURE=1 pass; tests/test_accel.py
+#: pins the compiled cores to them byte for byte). Everything else here runs on both.
+COUNTED = _accel.MODE != "compiled"
 
 
 class _Counting:
@@ -63,8 +68,9 @@ def _pair(net_of: Callable[..., Net], link: Link, size: int) -> tuple[Net, Net, 
         net.fault = fault
         nets.append(net)
         sent.append(log)
-    for st in nets[0].core._stations:
-        st.frames = _Counting(st.frames)  # type: ignore[assignment]
+    if COUNTED:
+        for st in nets[0].core._stations:
+            st.frames = _Counting(st.frames)  # type: ignore[assignment]
     return nets[0], nets[1], sent[0], sent[1]
 
 
@@ -94,8 +100,9 @@ def test_fast_path_matches_general_path_table16_table21(net_of: Callable[..., Ne
     assert dict(fast.core.drops) == dict(slow.core.drops)
     assert [r.done for r in reqs] == [True, True] and reqs[0].result == reqs[1].result
     assert fast_sent == slow_sent
-    hits = sum(st.frames.hits for st in fast.core._stations)
-    assert hits > 0.5 * sum(st.responses for st in fast.core._stations)  # the fast path carried the steady state
+    if COUNTED:
+        hits = sum(st.frames.hits for st in fast.core._stations)
+        assert hits > 0.5 * sum(st.responses for st in fast.core._stations)  # the fast path carried the steady state
 
 
 
@@ -115,7 +122,7 @@ def test_late_answers_to_the_cyclic_inv_ctl_take_the_fast_path_too(net_of: Calla
 
     for n in (fast, slow):
         n.fault = late
-    hits0 = sum(st.frames.hits for st in fast.core._stations)
+    hits0 = sum(st.frames.hits for st in fast.core._stations) if COUNTED else 0
     late0 = sum(v.late for v in fast.core.views().values())
     _both(fast, slow, lambda n: n.run(200))
 
@@ -127,4 +134,5 @@ def test_late_answers_to_the_cyclic_inv_ctl_take_the_fast_path_too(net_of: Calla
     assert all(v.state.value == "phase3" for v in views)
     late_answers = sum(v.late for v in views) - late0
     assert late_answers >= 2 * 190  # nearly every answer of the 200 cycles, both stations
-    assert sum(st.frames.hits for st in fast.core._stations) - hits0 >= late_answers
+    if COUNTED:
+        assert sum(st.frames.hits for st in fast.core._stations) - hits0 >= late_answers

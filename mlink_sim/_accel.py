@@ -1,0 +1,161 @@
+"""Which cores run: the mypyc-compiled modules or the pure-Python ones (docs/performance.md, "Compiled cores").
+
+The install compiles the hot modules of the sans-I/O cores (:data:`COMPILED_MODULES`) with mypyc, each into an
+extension module next to its ``.py`` file (setup.py). The ``.py`` files are the one source and the fallback.
+:func:`select` runs once, when ``mlink_sim`` is imported, before any core module is, and decides for the whole
+process (and the processes it starts, through the environment):
+
+* ``MLINK_PURE=1`` in the environment: pure Python, whatever was built;
+* every compiled module built, loadable and not older than its ``.py``: compiled;
+* else pure Python, with the reason (not built: no compiler at install time or ``MLINK_BUILD_PURE=1``; a
+  ``.py`` edited after the build: rebuild with ``pip install -e .``; the native library failed to load).
+
+When the choice is pure, a finder placed first on ``sys.meta_path`` loads those modules from their ``.py``
+files, so a stale or partial build is never mixed with the source. :data:`MODE` and :data:`REASON` say what was
+chosen; ``mlink-sim --version``, the report's ``meta.host.cores`` and the ``cores`` log line show it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.machinery
+import os
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from types import ModuleType
+
+__all__ = ["COMPILED_MODULES", "MODE", "NATIVE_LIBRARY", "REASON", "describe", "pure_requested", "select"]
+
+#: The modules mypyc compiles (setup.py reads this tuple): the steady-state paths of the master core, the cards
+#: and the drive model, and the wire helpers they call per datagram. Not here: modules whose classes derive from
+#: RuntimeError (mypyc cannot compile them: cards.phases, master.machine, master.types), the declaration tables
+#: (construct layouts, codes, parameter tables) and everything above the cores.
+COMPILED_MODULES: tuple[str, ...] = (
+    "mlink_sim.wire.fcs",
+    "mlink_sim.wire.frame",
+    "mlink_sim.wire.layout",
+    "mlink_sim.drive.faults",
+    "mlink_sim.drive.search",
+    "mlink_sim.drive.motor",
+    "mlink_sim.drive.status",
+    "mlink_sim.drive.monitors",
+    "mlink_sim.drive.integrate",
+    "mlink_sim.drive.drive",
+    "mlink_sim.cards.results",
+    "mlink_sim.cards.reception",
+    "mlink_sim.cards.watchdog",
+    "mlink_sim.cards.alarms",
+    "mlink_sim.cards.drive_link",
+    "mlink_sim.cards.monitors",
+    "mlink_sim.cards.paramstore",
+    "mlink_sim.cards.snapshot",
+    "mlink_sim.cards.commands",
+    "mlink_sim.cards.base",
+    "mlink_sim.cards.ml2_card",
+    "mlink_sim.cards.si_t3",
+    "mlink_sim.cards.si_t_v7",
+    "mlink_sim.cards.si_et3",
+    "mlink_sim.master.plan",
+    "mlink_sim.master.codec",
+    "mlink_sim.master.commands",
+    "mlink_sim.master.requests",
+    "mlink_sim.master.restart",
+    "mlink_sim.master.slave",
+    "mlink_sim.master.fastpath",
+    "mlink_sim.master.core",
+)
+#: mypyc's shared library of the group (setup.py: ``group_name="mlink_sim_native"``), a top-level module.
+NATIVE_LIBRARY = "mlink_sim_native__mypyc"
+
+_PACKAGE_DIR = Path(__file__).resolve().parent
+_SOURCE_LOADER = (importlib.machinery.SourceFileLoader, importlib.machinery.SOURCE_SUFFIXES)
+
+#: "compiled" or "pure", set by :func:`select`.
+MODE = "pure"
+#: Why :data:`MODE` is what it is (one line).
+REASON = "not selected yet"
+
+
+def pure_requested(environ: Mapping[str, str] | None = None) -> bool:
+    """``MLINK_PURE`` set to anything but empty or ``0``."""
+    return (os.environ if environ is None else environ).get("MLINK_PURE", "") not in ("", "0")
+
+
+class _SourceFinder:
+    """Loads the compiled modules' ``.py`` files instead of their extension modules (pure mode)."""
+
+    names = frozenset(COMPILED_MODULES)
+
+    @classmethod
+    def find_spec(cls, fullname: str, path: Sequence[str] | None = None,
+                  target: ModuleType | None = None) -> importlib.machinery.ModuleSpec | None:
+        if fullname not in cls.names or not path:
+            return None
+        for entry in path:
+            spec = importlib.machinery.FileFinder(entry, _SOURCE_LOADER).find_spec(fullname)
+            if spec is not None:
+                return spec
+        return None
+
+    @classmethod
+    def invalidate_caches(cls) -> None:
+        return None
+
+
+def _extension(name: str) -> Path | None:
+    """The built extension module of ``name`` next to its ``.py`` file, if there is one."""
+    stem = _PACKAGE_DIR.joinpath(*name.split(".")[1:])
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        candidate = stem.with_name(stem.name + suffix)
+        if candidate.exists():
+            return candidate
+    return None
+
+
+def _why_not_compiled() -> str | None:
+    """None when every compiled module is built and current and the native library loads; else the reason."""
+    missing, stale = [], []
+    for name in COMPILED_MODULES:
+        ext = _extension(name)
+        if ext is None:
+            missing.append(name)
+            continue
+        source = _PACKAGE_DIR.joinpath(*name.split(".")[1:]).with_suffix(".py")
+        if source.exists() and source.stat().st_mtime > ext.stat().st_mtime:
+            stale.append(name)
+    if len(missing) == len(COMPILED_MODULES):
+        return "not built (no C compiler or mypyc at install time, or MLINK_BUILD_PURE=1)"
+    if missing:
+        return f"partly built ({len(missing)} of {len(COMPILED_MODULES)} modules missing, e.g. {missing[0]})"
+    if stale:
+        return f"{stale[0]} and {len(stale) - 1} more changed after the build (rebuild: pip install -e .)" \
+            if len(stale) > 1 else f"{stale[0]} changed after the build (rebuild: pip install -e .)"
+    try:
+        importlib.import_module(NATIVE_LIBRARY)
+    except ImportError as exc:
+        return f"the native library {NATIVE_LIBRARY} does not load ({exc})"
+    return None
+
+
+def select() -> str:
+    """Decide compiled or pure for this process (once; later calls return :data:`MODE`)."""
+    global MODE, REASON
+    if REASON != "not selected yet":
+        return MODE
+    if pure_requested():
+        why: str | None = "MLINK_PURE is set"
+    else:
+        why = _why_not_compiled()
+    if why is None:
+        MODE, REASON = "compiled", f"mypyc, {len(COMPILED_MODULES)} modules"
+    else:
+        MODE, REASON = "pure", why
+        if _SourceFinder not in sys.meta_path:
+            sys.meta_path.insert(0, _SourceFinder)  # a finder class, as importlib allows
+    return MODE
+
+
+def describe() -> str:
+    """One line: ``compiled (mypyc, 32 modules)`` or ``pure Python (<reason>)``."""
+    return f"compiled ({REASON})" if MODE == "compiled" else f"pure Python ({REASON})"
