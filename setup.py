@@ -11,6 +11,7 @@ says so; the package then runs the pure-Python modules and reports it (``mlink-s
 from __future__ import annotations
 
 import ast
+import hashlib
 import os
 import shutil
 import sys
@@ -63,6 +64,14 @@ class OptionalBuildExt(build_ext):
         if self.extensions and not self._failed:
             stamp.parent.mkdir(parents=True, exist_ok=True)
             stamp.write_text(_mypy_version(), encoding="utf-8")
+            # what the extensions were built from, for mlink_sim._accel (next to it, in the wheel and the tree)
+            targets = [Path(self.build_lib) / "mlink_sim"]
+            if self.inplace or self.editable_mode:
+                targets.append(ROOT / "mlink_sim")
+            text = _source_stamp()
+            for folder in targets:
+                folder.mkdir(parents=True, exist_ok=True)
+                (folder / BUILD_STAMP).write_text(text, encoding="utf-8")
 
     def build_extension(self, ext: Any) -> None:
         built = ROOT / self.get_ext_filename(ext.name)
@@ -89,6 +98,18 @@ def _current(built: Path, sources: list[str]) -> bool:
     mtime = built.stat().st_mtime
     own = [Path(src) for src in sources if (ROOT / src).resolve().is_relative_to(ROOT / "build")]
     return bool(own) and all((ROOT / src).stat().st_mtime < mtime for src in own)
+
+
+#: The sources the compiled modules were built from: one line "module sha256" each (mlink_sim._accel reads it).
+BUILD_STAMP = "_accel_build.txt"
+
+
+def _source_stamp() -> str:
+    lines = []
+    for path in _modules():
+        name = path[: -len(".py")].replace("/", ".")
+        lines.append(f"{name} {hashlib.sha256((ROOT / path).read_bytes()).hexdigest()}\n")
+    return "".join(lines)
 
 
 def _mypy_version() -> str:

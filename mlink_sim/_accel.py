@@ -6,7 +6,8 @@ extension module next to its ``.py`` file (setup.py). The ``.py`` files are the 
 process (and the processes it starts, through the environment):
 
 * ``MLINK_PURE=1`` in the environment: pure Python, whatever was built;
-* every compiled module built, loadable and not older than its ``.py``: compiled;
+* every compiled module built from the ``.py`` next to it (by content: setup.py records each one's sha256 in
+  :data:`BUILD_STAMP`) and the native library loadable: compiled;
 * else pure Python, with the reason (not built: no compiler at install time or ``MLINK_BUILD_PURE=1``; a
   ``.py`` edited after the build: rebuild with ``pip install -e .``; the native library failed to load).
 
@@ -17,6 +18,7 @@ chosen; ``mlink-sim --version``, the report's ``meta.host.cores`` and the ``core
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import importlib.machinery
 import os
@@ -25,7 +27,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 
-__all__ = ["COMPILED_MODULES", "MODE", "NATIVE_LIBRARY", "REASON", "describe", "pure_requested", "select"]
+__all__ = ["BUILD_STAMP", "COMPILED_MODULES", "MODE", "NATIVE_LIBRARY", "REASON", "describe", "pure_requested", "select"]
 
 #: The modules mypyc compiles (setup.py reads this tuple): the steady-state paths of the master core, the cards
 #: and the drive model, and the wire helpers they call per datagram. Not here: modules whose classes derive from
@@ -65,6 +67,8 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.master.fastpath",
     "mlink_sim.master.core",
 )
+#: setup.py's record of the sources it compiled (one "module sha256" line each), next to this file
+BUILD_STAMP = "_accel_build.txt"
 #: mypyc's shared library of the group (setup.py: ``group_name="mlink_sim_native"``), a top-level module.
 NATIVE_LIBRARY = "mlink_sim_native__mypyc"
 
@@ -113,21 +117,35 @@ def _extension(name: str) -> Path | None:
     return None
 
 
+def _built_from() -> dict[str, str]:
+    """setup.py's record of the sources the extensions were built from: module -> sha256 (empty: none)."""
+    try:
+        text = (_PACKAGE_DIR / BUILD_STAMP).read_text(encoding="utf-8")
+    except OSError:
+        return {}
+    return dict(line.split(" ", 1) for line in text.splitlines() if " " in line)
+
+
 def _why_not_compiled() -> str | None:
-    """None when every compiled module is built and current and the native library loads; else the reason."""
-    missing, stale = [], []
-    for name in COMPILED_MODULES:
-        ext = _extension(name)
-        if ext is None:
-            missing.append(name)
-            continue
-        source = _PACKAGE_DIR.joinpath(*name.split(".")[1:]).with_suffix(".py")
-        if source.exists() and source.stat().st_mtime > ext.stat().st_mtime:
-            stale.append(name)
+    """None when every compiled module is built from the .py next to it and the native library loads; else the
+    reason. "Built from" is by content (sha256; ≈ 1 ms for all), not by file times, which an install resets."""
+    missing = [name for name in COMPILED_MODULES if _extension(name) is None]
     if len(missing) == len(COMPILED_MODULES):
         return "not built (no C compiler or mypyc at install time, or MLINK_BUILD_PURE=1)"
     if missing:
         return f"partly built ({len(missing)} of {len(COMPILED_MODULES)} modules missing, e.g. {missing[0]})"
+    built = _built_from()
+    if not built:
+        return f"no record of what was built ({BUILD_STAMP} missing; rebuild: pip install -e .)"
+    stale = []
+    for name in COMPILED_MODULES:
+        source = _PACKAGE_DIR.joinpath(*name.split(".")[1:]).with_suffix(".py")
+        try:
+            digest = hashlib.sha256(source.read_bytes()).hexdigest()
+        except OSError:
+            continue  # an install without the .py files: nothing to be stale against
+        if built.get(name) != digest:
+            stale.append(name)
     if stale:
         return f"{stale[0]} and {len(stale) - 1} more changed after the build (rebuild: pip install -e .)" \
             if len(stale) > 1 else f"{stale[0]} changed after the build (rebuild: pip install -e .)"

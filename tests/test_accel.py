@@ -9,6 +9,8 @@ it when the build compiled), which turns the skip into a failure.
 
 from __future__ import annotations
 
+import hashlib
+import importlib.machinery
 import json
 import os
 import shutil
@@ -207,3 +209,33 @@ def test_an_install_without_a_compiler_runs_pure(tmp_path):
                          text=True, check=True, cwd=tmp_path)
     assert out.stdout.startswith("pure Python (not built"), out.stdout
     assert out.stdout.rstrip().endswith(str(site / "mlink_sim" / "drive" / "integrate.py")), out.stdout
+
+
+def _fake_build(root: Path, names: tuple[str, ...], stamp: bool = True) -> None:
+    """A package folder with a .py and an extension module for each of *names*, and the build's record."""
+    lines = []
+    for name in _accel.COMPILED_MODULES:
+        source = root.joinpath(*name.split(".")[1:]).with_suffix(".py")
+        source.parent.mkdir(parents=True, exist_ok=True)
+        source.write_text(f"# {name}\n")
+        lines.append(f"{name} {hashlib.sha256(source.read_bytes()).hexdigest()}\n")
+        if name in names:
+            source.with_name(source.stem + importlib.machinery.EXTENSION_SUFFIXES[0]).write_bytes(b"")
+    if stamp:
+        (root / _accel.BUILD_STAMP).write_text("".join(lines))
+
+
+@pytest.mark.parametrize("case, reason", [
+    ("none", "not built (no C compiler or mypyc at install time, or MLINK_BUILD_PURE=1)"),
+    ("part", "partly built (1 of 32 modules missing, e.g. mlink_sim.master.core)"),
+    ("no stamp", "no record of what was built (_accel_build.txt missing; rebuild: pip install -e .)"),
+    ("edited", "mlink_sim.cards.base changed after the build (rebuild: pip install -e .)"),
+])
+def test_why_the_cores_run_pure(tmp_path, monkeypatch, case, reason):
+    names = {"none": (), "part": _accel.COMPILED_MODULES[:-1]}.get(case, _accel.COMPILED_MODULES)
+    _fake_build(tmp_path, names, stamp=case != "no stamp")
+    if case == "edited":
+        (tmp_path / "cards" / "base.py").write_text("# changed\n")
+    monkeypatch.setattr(_accel, "_PACKAGE_DIR", tmp_path)
+    assert len(_accel.COMPILED_MODULES) == 32
+    assert _accel._why_not_compiled() == reason

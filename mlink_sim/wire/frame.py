@@ -29,6 +29,7 @@ from . import ml2, ml3
 from .codes import Kind, Link
 from .fcs import crc16_x25
 from .layout import fast_format, fast_struct
+from .sealed import Sealed as _Sealed
 
 __all__ = [
     "MAGIC",
@@ -65,16 +66,6 @@ ENVELOPE = Struct(
 #: tcycle_ns). The per-cycle fast paths (cards, master) use it with :func:`with_fcs` and :func:`fcs_ok`.
 HEADER = fast_struct(ENVELOPE, HEADER_SIZE)
 _FCS = fast_struct(Struct("fcs" / Int16ul), FCS_SIZE)
-
-
-class _Sealed(bytes):
-    """A datagram :func:`with_fcs` made in this process: its FCS was computed over these very bytes, and bytes do
-    not change, so :func:`fcs_ok` (and :func:`decode`) know it is right without computing it again. In the virtual
-    clock's in-memory network a datagram reaches its receiver as the object its sender made, so the FCS is
-    computed once per datagram, not twice; a datagram read from a socket, or changed on the way (an impairment
-    copies what it corrupts), is plain ``bytes`` and checked in full. It is ``bytes`` in every other respect."""
-
-    __slots__ = ()
 
 
 def with_fcs(body: bytes | bytearray) -> bytes:
