@@ -15,6 +15,7 @@ unchanged. Responses reach ``MasterCore.on_response`` at their arrival time: RTT
 
 from __future__ import annotations
 
+import functools
 import random
 from heapq import heappush as _push
 from collections.abc import Callable
@@ -77,6 +78,7 @@ class FabricPort:
         self.closed = True
 
 
+@functools.cache  # called for every datagram a capture records: built once per end
 def virtual_address(end: int | str) -> tuple[str, int]:
     """The IPv4 address a capture shows for an end of the fabric (documentation range 192.0.2.0/24, RFC 5737):
     station *n* is 192.0.2.*n*:47001, the master of link ``ML2``/``ML3`` (a port named ``master:ML2``) is

@@ -36,6 +36,8 @@ __all__ = ["VirtualMaster", "VirtualSession", "WALL_META", "without_wall_clock"]
 WALL_META: tuple[str, ...] = ("started", "host", "wall")
 #: A killed station powers up again after this long, as ``mlink-sim up`` restarts a dead slave worker.
 RESTART_AFTER_NS = 500_000_000
+#: The capture (``--capture``) is written in place, in the loop, this often in simulated time (``CaptureWriter.flush``).
+CAPTURE_FLUSH_NS = 250_000_000
 
 
 def without_wall_clock(report: dict[str, Any]) -> dict[str, Any]:
@@ -145,10 +147,25 @@ class VirtualSession(NetworkSession):
             master.record_lateness = not self.masters
             self.masters[link] = master
         self._cycle_callbacks = [m.on_cycle for m in self.masters.values()]
+        if self.capture is not None:
+            self._cycle_callbacks.append(self._capture_flusher(cycle.period_ns))
         workers = {st.address: _VirtualWorker(self, st.address) for st in self.config.station}
         self.net = NetworkApi(self.config, self.masters, workers)  # type: ignore[arg-type]
         self.net.faults = self
         cycle.start()
+
+    def _capture_flusher(self, period_ns: int) -> Any:
+        """The cycle callback that writes the capture in place every :data:`CAPTURE_FLUSH_NS` of simulated time
+        (a writer thread would fight this loop, which never sleeps, for the GIL). Where the flushes fall does not
+        change the file: runs with the same seed still give the same capture."""
+        every = max(1, CAPTURE_FLUSH_NS // period_ns)
+        flush = self.capture.flush
+
+        def on_cycle(cycle: int, deadline_ns: int, now_ns: int, skipped: int) -> None:
+            if cycle % every == 0:
+                flush()
+
+        return on_cycle
 
     def _now_ns(self) -> int:
         return self.clock.now

@@ -8,6 +8,13 @@ it when ``--capture`` is given; otherwise nothing changes on their hot path.
 A driver that keeps its own time (a virtual clock) calls ``record`` itself with its simulated timestamps and the
 addresses the datagram would carry; the capture does not care where the time comes from.
 
+``recv`` needs the datagram's real source address. On a socket that is ``connect()``-ed when it is wrapped, the
+kernel delivers only datagrams from its peer, so the source is ``getpeername()`` and a plain ``recv`` suffices. On
+an unconnected socket (the master's and the slaves' sockets are: one master socket talks to every station, a
+station answers whoever sent the command) ``recv`` is served by ``recvfrom``, about 1 µs more in CPython
+(docs/performance.md, "Capture"): the source is never guessed. A tapped socket must not be connected again to
+another peer behind the tap's back (:class:`TappedSocket` has no ``connect``).
+
 A socket bound to a wildcard address (``0.0.0.0``, ``::``) has no address of its own: the writer records the
 address the kernel would send from to reach each peer (a route lookup with a connected UDP socket, once per flow,
 in the writer thread).
@@ -56,6 +63,10 @@ class TappedSocket:
 
     def __init__(self, sock: socket.socket, sink: Sink) -> None:
         send, receive, local, mono = sock.sendto, sock.recvfrom, sock.getsockname()[:2], _mono
+        try:
+            peer = sock.getpeername()  # connected: the kernel delivers only what its peer sends
+        except OSError:  # ENOTCONN
+            peer = None
 
         def sendto(data: bytes, addr: Any) -> int:
             n = send(data, addr)  # raises OSError when not sent: then nothing is recorded
@@ -71,6 +82,14 @@ class TappedSocket:
             data, addr = receive(bufsize)
             sink((mono(), data, addr, local))
             return data
+
+        if peer is not None:
+            plain = sock.recv
+
+            def recv(bufsize: int) -> bytes:
+                data = plain(bufsize)
+                sink((mono(), data, peer, local))
+                return data
 
         self.sendto, self.recvfrom, self.recv = sendto, recvfrom, recv
         self.fileno = sock.fileno

@@ -2,12 +2,16 @@
 
 The hot path only appends ``(ts_ns, datagram, src, dst)`` to a deque (:meth:`wrap`'s tapped socket, or
 :attr:`CaptureWriter.record` for a driver with its own clock). A writer thread wakes every ``flush_s`` (250 ms) and
-takes the whole queue as one batch: without notes in it, every per-datagram step on our side is a C-level
-``map``/``zip`` over the batch (the IPv4/IPv6 + UDP header comes from a cache keyed by flow and size, built with
-dpkt once per key; header + datagram; Unix time in s). dpkt's pcapng ``Writer.writepkts`` then makes the Enhanced
-Packet Blocks (LINKTYPE_RAW, microsecond timestamps) into a list, and the list goes to the unbuffered file in one
-``write`` per :data:`_CHUNK` packets: each such system call releases the GIL, so the event loop never waits behind
-the writer for longer than one chunk. What this costs per datagram is measured by ``scripts/bench_capture.py``
+takes the whole queue as one batch (without a thread, ``start(background=False)``, the driver calls :meth:`flush`
+itself: the virtual clock does, every 250 ms of simulated time). Without notes in the batch, every per-datagram
+step is a C-level ``map``/``zip`` over the batch: the Enhanced Packet Block template of the datagram's flow and size
+(dpkt's block header with the IPv4/IPv6 + UDP header built by dpkt appended, made once per flow and size), and
+its Unix time in integer µs. :class:`~mlink_sim.capture.epb.EpbPacker` then packs :data:`_CHUNK` blocks at a time
+in the layout dpkt declares, and each chunk goes to the unbuffered file in one ``write``: that system call releases
+the GIL, so the event loop never waits behind the writer for longer than one chunk. dpkt writes the Section Header
+and Interface Description Blocks and every block with comments (``EnhancedPacketBlockLE`` with its options); how
+this reads issue 20's "use a well-kept library; do not write the blocks by hand", and why, is in
+:mod:`mlink_sim.capture.epb`. What this costs per datagram is measured by ``scripts/bench_capture.py``
 (docs/performance.md, "Capture").
 
 Notes (:meth:`CaptureWriter.note`: alarms, phase changes, injected faults) travel in the same deque, so they keep
@@ -16,7 +20,8 @@ their order with the datagrams; each becomes a pcapng ``opt_comment`` on the dat
 
 Timestamps are whatever clock the caller keeps, in ns: the real monotonic clock in ``up``/``master``/``slave``,
 a simulated clock in a virtual-time driver. ``epoch_offset_ns`` turns them into Unix time for the file (by default
-the offset between ``time.time_ns()`` and ``time.monotonic_ns()`` when the writer is created).
+the offset between ``time.time_ns()`` and ``time.monotonic_ns()`` when the writer is created), truncated to the
+microsecond (the file's resolution, pcapng's default ``if_tsresol``).
 
 The file is bounded: once it holds ``max_bytes``, the last datagram written carries a comment saying so and the
 rest of the run is counted in :attr:`CaptureStats.not_recorded`, never written.
@@ -29,8 +34,8 @@ import socket
 import threading
 import time
 from collections import deque
+from collections.abc import Iterator
 from itertools import repeat
-from operator import add, mul
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -38,16 +43,20 @@ import dpkt
 from dpkt import pcapng
 
 from .._log import get_logger
+from .epb import EpbPacker
 
 __all__ = ["CaptureWriter", "CaptureStats", "LINKTYPE_RAW", "ip_packet", "event_text"]
 
 log = get_logger("mlink_sim.capture")
 
 LINKTYPE_RAW = 101  #: pcapng link type "raw IP" (IPv4 or IPv6 by the version nibble), tcpdump.org/linktypes
-_CHUNK = 128  #: packets dpkt writes between two file writes (each releases the GIL): a GIL hold of ~0.15 ms
+_CHUNK = 128  #: blocks packed between two file writes (each releases the GIL): a GIL hold well under 0.1 ms
 _SNAPLEN = 65535
 _popleft = deque.popleft
-_MAX_BLOCK = 32 + 40 + 8 + 80  # the largest EPB of a datagram (78 bytes, padded) over IPv6 and UDP
+_MAX_OVERHEAD = 32 + 40 + 8 + 3  #: an EPB's bytes beyond its datagram at most: block fields, IPv6, UDP, padding
+_MAX_DATAGRAM = 4096  #: what the sockets read at most (the size bound keeps room for one more)
+#: a template of :class:`~mlink_sim.capture.epb.EpbPacker` for one flow and size, and the IP/UDP header alone
+_Flow = tuple[bytes, bytes, bytes, bytes]
 
 
 @dataclasses.dataclass
@@ -113,8 +122,8 @@ def event_text(event: Any) -> str:
 
 
 class _Blocks:
-    """What dpkt's pcapng ``Writer`` writes into: its blocks are collected in a list (``write`` is the list's
-    ``append``) and go to the file in one system call per chunk (:meth:`CaptureWriter._flush_blocks`)."""
+    """What dpkt's pcapng ``Writer`` writes its header blocks into: a list (``write`` is the list's ``append``),
+    written to the file by :meth:`CaptureWriter._flush_blocks`."""
 
     __slots__ = ("parts", "write")
 
@@ -124,8 +133,10 @@ class _Blocks:
 
 
 class CaptureWriter:
-    """A pcapng file being written by a background thread. ``start()``, then :meth:`record`/:meth:`note` from
-    the hot path, ``close()`` at the end (flushes everything recorded before it)."""
+    """A pcapng file being written off the hot path. ``start()``, then :meth:`record`/:meth:`note` from the hot
+    path, ``close()`` at the end (flushes everything recorded before it). ``start(background=False)`` writes
+    without a thread: the driver calls :meth:`flush` at points of its choosing (the virtual clock, every 250 ms of
+    simulated time)."""
 
     def __init__(self, path: str | Path, *, max_bytes: int = 100_000_000, epoch_offset_ns: int | None = None,
                  flush_s: float = 0.25) -> None:
@@ -146,31 +157,37 @@ class CaptureWriter:
         self.record = record
         self._file: BinaryIO | None = None
         self._blocks = _Blocks()
-        self._writer: Any = None
+        self._packer = EpbPacker()
         self._thread: threading.Thread | None = None
         self._wake = threading.Event()
         self._closing = False
-        self._headers: dict[tuple[Any, Any, int], bytes] = {}
-        #: datagrams read from the queue, not written yet: the last one waits for the notes that may follow it
-        self._pending: list[tuple[float, bytes]] = []
-        self._notes: dict[int, list[str]] = {}  #: index in _pending -> its comments
+        #: (src, dst, size) -> the EPB template of that flow and size, its IP/UDP header appended (EpbPacker)
+        self._templates: dict[tuple[Any, Any, int], _Flow] = {}
+        #: datagrams read from the queue, not written yet (time stamp in ns, template, datagram), in three lists:
+        #: the last one waits for the notes that may follow it
+        self._stamps: list[int] = []
+        self._flows: list[_Flow] = []
+        self._datas: list[bytes] = []
+        self._notes: dict[int, list[str]] = {}  #: index in the pending lists -> its comments
         self._noted = 0  #: notes queued by :meth:`note` (counted before they are queued)
         self._notes_taken = 0  #: notes the writer has taken from the queue
         self._full = False
-        self._limit_reserve = _epb_size(b"", [self._limit_text()]) - 32
+        self._limit_reserve = _epb_size(0, [self._limit_text()]) - 32
 
     # ------------------------------------------------------------------ life cycle
-    def start(self) -> CaptureWriter:
-        """Open the file (OSError when it cannot be created) and start the writer thread."""
+    def start(self, *, background: bool = True) -> CaptureWriter:
+        """Open the file (OSError when it cannot be created); start the writer thread unless *background* is
+        False (then :meth:`flush` writes, in the caller's thread)."""
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed in close(); one write per chunk
         shb = pcapng.SectionHeaderBlockLE(opts=[
             pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_SHB_USERAPPL, data=b"mlink-sim"),
             pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_ENDOFOPT)])
-        self._writer = pcapng.Writer(self._blocks, snaplen=_SNAPLEN, linktype=LINKTYPE_RAW, shb=shb)
+        pcapng.Writer(self._blocks, snaplen=_SNAPLEN, linktype=LINKTYPE_RAW, shb=shb)  # writes the SHB and IDB
         self._flush_blocks()
-        self._thread = threading.Thread(target=self._run, name="mlink-capture", daemon=True)
-        self._thread.start()
+        if background:
+            self._thread = threading.Thread(target=self._run, name="mlink-capture", daemon=True)
+            self._thread.start()
         return self
 
     def close(self) -> CaptureStats:
@@ -181,18 +198,19 @@ class CaptureWriter:
             self._thread.join()
             self._thread = None
         if self._file is not None:
-            cpu = time.thread_time()
-            try:
-                self._drain(final=True)
-            except OSError as exc:
-                self._write_failed(exc)
-            self.stats.writer_cpu_s += time.thread_time() - cpu
+            self._drain_timed(final=True)
             if self._notes:
                 log.warning("capture_notes_unwritten", notes=sum(map(len, self._notes.values())),
                             reason="no datagram to attach to")
             self._file.close()
             self._file = None
         return self.stats
+
+    def flush(self) -> None:
+        """Write what is queued now, in this thread (all but the last datagram, which waits for its notes): for
+        a writer started with ``background=False``; nothing when the writer thread runs (it writes)."""
+        if self._file is not None and self._thread is None:
+            self._drain_timed()
 
     def __enter__(self) -> CaptureWriter:
         return self.start()
@@ -212,16 +230,19 @@ class CaptureWriter:
 
         return TappedSocket(sock, self._queue.append)
 
-    # ------------------------------------------------------------------ writer thread
+    # ------------------------------------------------------------------ writer
     def _run(self) -> None:
         while not self._closing:
             self._wake.wait(self.flush_s)
-            cpu = time.thread_time()
-            try:
-                self._drain()
-            except Exception as exc:  # noqa: BLE001 - disk full, file gone: stop, say so, run on
-                self._write_failed(exc)
-            self.stats.writer_cpu_s += time.thread_time() - cpu
+            self._drain_timed()
+
+    def _drain_timed(self, final: bool = False) -> None:
+        cpu = time.thread_time()
+        try:
+            self._drain(final)
+        except Exception as exc:  # noqa: BLE001 - disk full, file gone: stop, say so, run on
+            self._write_failed(exc)
+        self.stats.writer_cpu_s += time.thread_time() - cpu
 
     def _write_failed(self, exc: Exception) -> None:
         if not self._full:
@@ -229,78 +250,77 @@ class CaptureWriter:
         self._full = True
 
     def _drain(self, final: bool = False) -> None:
-        """Take everything queued and turn it into packets, then write all but the last (all when *final*): the
-        last waits for the notes that may come next (its comments).
+        """Take everything queued, then write all but the last datagram (all when *final*): the last waits for
+        the notes that may come next (its comments).
 
-        Without notes in the batch every step is a C-level ``map``/``zip`` over the whole batch (header lookup,
-        header + datagram, Unix time in s); dpkt's ``writepkts`` then runs its own loop, :data:`_CHUNK` packets
-        per file write."""
+        Every step is a C-level ``map``/``zip``/slice over the batch (the template of each flow and size, the
+        timestamps); notes, when the batch holds any, are found with ``tuple.index`` and split it into runs.
+        :class:`~mlink_sim.capture.epb.EpbPacker` then packs :data:`_CHUNK` blocks per file write."""
         queue = self._queue
         count = len(queue)
         if count:
             batch = list(map(_popleft, repeat(queue, count)))
             noted = self._noted  # read after the pops: every note in the batch is counted in it
-            if noted != self._notes_taken:
-                self._take_with_notes(batch)
+            stamps, datas, srcs, dsts = zip(*batch, strict=True)
+            if noted == self._notes_taken:
+                self._take(stamps, datas, srcs, dsts)
             else:
-                stamps, datas, srcs, dsts = zip(*batch, strict=True)
-                self._pending.extend(zip(map(mul, map(add, stamps, repeat(self.epoch_offset_ns)), repeat(1e-9)),
-                                         map(add, self._headers_of(srcs, dsts, datas), datas), strict=True))
-        pending = len(self._pending)
+                start = 0
+                for i in _notes_in(srcs):
+                    if i > start:
+                        self._take(stamps[start:i], datas[start:i], srcs[start:i], dsts[start:i])
+                    self._notes_taken += 1
+                    self.stats.notes += 1
+                    self._notes.setdefault(max(len(self._datas) - 1, 0), []).append(event_text(datas[i]))
+                    start = i + 1
+                if start < count:
+                    self._take(stamps[start:], datas[start:], srcs[start:], dsts[start:])
+        pending = len(self._datas)
         if final and pending:
             self._write(pending)
         elif pending > 1:
             self._write(pending - 1)
 
-    def _headers_of(self, srcs: tuple[Any, ...], dsts: tuple[Any, ...], datas: tuple[bytes, ...]) -> list[bytes]:
-        """The IP + UDP header of each datagram: one dict lookup per datagram, built once per flow and size."""
-        headers = self._headers
+    def _take(self, stamps: tuple[int, ...], datas: tuple[bytes, ...], srcs: tuple[Any, ...],
+              dsts: tuple[Any, ...]) -> None:
+        """Datagrams (no notes) into the pending lists: their flows' templates, their stamps (ns), themselves."""
+        flows = self._templates
         try:
-            return list(map(headers.__getitem__, zip(srcs, dsts, map(len, datas), strict=True)))
-        except KeyError:
-            for key in set(zip(srcs, dsts, map(len, datas), strict=True)).difference(headers):
-                headers[key] = self._header(*key)
-            return list(map(headers.__getitem__, zip(srcs, dsts, map(len, datas), strict=True)))
+            got = list(map(flows.__getitem__, zip(srcs, dsts, map(len, datas), strict=True)))
+        except KeyError:  # a flow or size not seen before: made once
+            for key in set(zip(srcs, dsts, map(len, datas), strict=True)).difference(flows):
+                flows[key] = self._flow(*key)
+            got = list(map(flows.__getitem__, zip(srcs, dsts, map(len, datas), strict=True)))
+        self._flows.extend(got)
+        self._stamps.extend(stamps)
+        self._datas.extend(datas)
 
-    def _take_with_notes(self, batch: list[tuple[int, Any, Any, Any]]) -> None:
-        """A batch with notes in it, one item at a time: each note becomes a comment on the datagram before it."""
-        headers = self._headers
-        offset = self.epoch_offset_ns
-        pending = self._pending
-        append = pending.append
-        for ts_ns, data, src, dst in batch:
-            if src is None:  # a note (a str or an event)
-                self._notes_taken += 1
-                self.stats.notes += 1
-                self._notes.setdefault(max(len(pending) - 1, 0), []).append(event_text(data))
-                continue
-            key = (src, dst, len(data))
-            header = headers.get(key)
-            if header is None:
-                header = headers[key] = self._header(*key)
-            append(((ts_ns + offset) * 1e-9, header + data))
-
-    def _header(self, src: Any, dst: Any, size: int) -> bytes:
-        """IP + UDP header for a *size*-byte datagram; a wildcard source (a socket bound to 0.0.0.0 or ::) is
-        replaced by the address the kernel sends from to reach *dst*."""
+    def _flow(self, src: Any, dst: Any, size: int) -> _Flow:
+        """The EPB template of a *size*-byte datagram from *src* to *dst*, its IP + UDP header appended. A wildcard
+        source (a socket bound to 0.0.0.0 or ::) is replaced by the address the kernel sends from to reach
+        *dst*."""
         from .tap import WILDCARDS, source_address_for
 
         if src[0] in WILDCARDS:
             src = source_address_for(dst, src[1])
         elif dst[0] in WILDCARDS:
             dst = source_address_for(src, dst[1])
-        return ip_packet(bytes(size), src, dst)[:-size] if size else ip_packet(b"", src, dst)
+        header = ip_packet(bytes(size), src, dst)[:-size] if size else ip_packet(b"", src, dst)
+        return (*self._packer.template(len(header) + size, header), header)
 
     def _limit_text(self) -> str:
         return f"capture limit of {self.max_bytes} bytes reached: later datagrams are not recorded"
 
     def _flush_blocks(self) -> None:
-        """Write the blocks dpkt made since the last flush to the file: one system call (it releases the GIL)."""
+        """Write the blocks dpkt made since the last flush to the file."""
         parts = self._blocks.parts
-        if not parts:
-            return
-        data = b"".join(parts)
-        parts.clear()
+        if parts:
+            data = b"".join(parts)
+            parts.clear()
+            self._out(data)
+
+    def _out(self, data: bytes) -> None:
+        """*data* to the file: one system call (it releases the GIL)."""
         assert self._file is not None
         view = memoryview(data)
         while view:
@@ -308,10 +328,10 @@ class CaptureWriter:
         self.stats.bytes += len(data)
 
     def _write(self, count: int) -> None:
-        """Write the first *count* pending packets with their notes; keep the size bound."""
-        pending, notes = self._pending, self._notes
-        items = pending[:count]
-        del pending[:count]
+        """Write the first *count* pending datagrams with their notes; keep the size bound."""
+        stamps, flows, datas = self._stamps[:count], self._flows[:count], self._datas[:count]
+        del self._stamps[:count], self._flows[:count], self._datas[:count]
+        notes = self._notes
         mine: dict[int, list[str]] = {}
         if notes:
             mine = {i: notes.pop(i) for i in sorted(notes) if i < count}
@@ -319,65 +339,80 @@ class CaptureWriter:
         if self._full:
             self.stats.not_recorded += count
             return
-        bound = self.stats.bytes + count * _MAX_BLOCK + sum(_epb_size(b"", c) - 32 for c in mine.values())
-        if bound + self._limit_reserve + _MAX_BLOCK > self.max_bytes:
-            self._write_bounded(items, mine)
-            self._flush_blocks()
+        bound = (self.stats.bytes + count * _MAX_OVERHEAD + sum(map(len, datas))
+                 + sum(_epb_size(0, c) - 32 for c in mine.values()))
+        if bound + self._limit_reserve + _MAX_OVERHEAD + _MAX_DATAGRAM > self.max_bytes:
+            self._write_bounded(stamps, flows, datas, mine)
             return
-        writepkts, flush = self._writer.writepkts, self._flush_blocks
         start = 0
-        for i, comments in mine.items():  # commented packets one by one, the runs between them in chunks
-            for j in range(start, i, _CHUNK):
-                writepkts(items[j:min(j + _CHUNK, i)])
-                flush()
-            self._write_commented(items[i], comments)
+        for i, comments in mine.items():  # commented datagrams one by one, the runs between them in chunks
+            self._write_run(stamps, flows, datas, start, i)
+            self._write_commented(stamps[i], flows[i], datas[i], comments)
             start = i + 1
-        for j in range(start, count, _CHUNK):
-            writepkts(items[j:j + _CHUNK])
-            flush()
-        flush()
+        self._write_run(stamps, flows, datas, start, count)
         self.stats.datagrams += count
 
-    def _write_commented(self, item: tuple[float, bytes], comments: list[str]) -> None:
-        ts, packet = item
+    def _write_run(self, stamps: list[int], flows: list[_Flow], datas: list[bytes], start: int, end: int) -> None:
+        """Uncommented datagrams ``start:end``: packed by the EpbPacker, one file write per :data:`_CHUNK`."""
+        pack, out = self._packer.pack_parts, self._out
+        for j in range(start, end, _CHUNK):
+            k = min(j + _CHUNK, end)
+            out(pack(stamps[j:k], flows[j:k], datas[j:k], offset=self.epoch_offset_ns))
+
+    def _write_commented(self, ts_ns: int, flow: _Flow, data: bytes, comments: list[str]) -> None:
+        """One datagram with comments: dpkt's own Enhanced Packet Block with ``opt_comment`` options."""
+        us = (ts_ns + self.epoch_offset_ns) // 1000
         opts = [pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_COMMENT, text=c) for c in comments]
         opts.append(pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_ENDOFOPT))
-        self._writer.writepkt(pcapng.EnhancedPacketBlockLE(pkt_data=packet, caplen=len(packet), pkt_len=len(packet),
-                                                           opts=opts), ts=ts)
+        self._out(bytes(pcapng.EnhancedPacketBlockLE(pkt_data=flow[3] + data, opts=opts, ts_high=us >> 32,
+                                                     ts_low=us & 0xFFFFFFFF)))
 
-    def _write_bounded(self, items: list[tuple[float, bytes]], notes: dict[int, list[str]]) -> None:
-        """One packet at a time near ``max_bytes``: the last one that fits carries the limit comment."""
+    def _write_bounded(self, stamps: list[int], flows: list[_Flow], datas: list[bytes],
+                       notes: dict[int, list[str]]) -> None:
+        """One datagram at a time near ``max_bytes``: the last one that fits carries the limit comment."""
         size = self.stats.bytes
-        for i, item in enumerate(items):
+        for i, (ts_ns, flow, data) in enumerate(zip(stamps, flows, datas, strict=True)):
             comments = notes.get(i)
-            block = _epb_size(item[1], comments)
+            caplen = len(flow[3]) + len(data)
+            block = _epb_size(caplen, comments)
             if size + 2 * block + self._limit_reserve > self.max_bytes:  # another one would not fit after it
                 self._full = True
                 comments = [*(comments or ()), self._limit_text()]
                 log.warning("capture_limit_reached", path=str(self.path), max_bytes=self.max_bytes)
-                block = _epb_size(item[1], comments)
+                block = _epb_size(caplen, comments)
                 if size + block > self.max_bytes:  # not even this one fits with its comments
-                    self.stats.not_recorded += len(items) - i
+                    self.stats.not_recorded += len(datas) - i
                     return
             if comments:
-                self._write_commented(item, comments)
+                self._write_commented(ts_ns, flow, data, comments)
             else:
-                self._writer.writepkts([item])
+                self._out(self._packer.pack_parts([ts_ns], [flow], [data], offset=self.epoch_offset_ns))
             self.stats.datagrams += 1
             size += block
             if self._full:
-                self.stats.not_recorded += len(items) - i - 1
+                self.stats.not_recorded += len(datas) - i - 1
                 return
+
+
+def _notes_in(srcs: tuple[Any, ...]) -> Iterator[int]:
+    """Where the notes are in a batch (their source is None), by C-level scans."""
+    i = -1
+    while True:
+        try:
+            i = srcs.index(None, i + 1)
+        except ValueError:
+            return
+        yield i
 
 
 def _pad4(n: int) -> int:
     return (n + 3) & ~3
 
 
-def _epb_size(packet: bytes, comments: list[str] | None) -> int:
-    """Bytes of the Enhanced Packet Block dpkt writes for *packet* (pcapng §4.3: 32 + data padded to 4, then the
+def _epb_size(caplen: int, comments: list[str] | None) -> int:
+    """Bytes of the Enhanced Packet Block of a *caplen*-byte packet (pcapng §4.3: 32 + data padded to 4, then the
     options: each 4 + value padded, and an end-of-options)."""
-    size = 32 + _pad4(len(packet))
+    size = 32 + _pad4(caplen)
     if comments:
         size += sum(4 + _pad4(len(c.encode())) for c in comments) + 4
     return size

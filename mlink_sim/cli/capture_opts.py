@@ -46,14 +46,15 @@ def capture_options(fn: Any) -> Any:
                              "'mlink-sim wireshark --install').")(fn)
 
 
-def open_capture_or_exit(command: str, path: Path | None, max_bytes: int) -> Any:
-    """A started CaptureWriter (None without --capture); exit 2 with one line when the file cannot be created."""
+def open_capture_or_exit(command: str, path: Path | None, max_bytes: int, *, background: bool = True) -> Any:
+    """A started CaptureWriter (None without --capture); exit 2 with one line when the file cannot be created.
+    *background*: False on the virtual clock, whose session writes the capture in place (``CaptureWriter.flush``)."""
     if path is None:
         return None
     from ..capture import CaptureWriter
 
     try:
-        return CaptureWriter(path, max_bytes=max_bytes).start()
+        return CaptureWriter(path, max_bytes=max_bytes).start(background=background)
     except OSError as exc:
         click.echo(f"mlink-sim {command}: cannot write the capture {path}: {exc.strerror or exc}", err=True)
         raise SystemExit(2) from None

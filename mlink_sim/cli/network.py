@@ -152,7 +152,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, repo
         clock=clock,
         seed=seed,
         control=parse_control(control),
-        capture=open_capture_or_exit("up", capture_path, capture_max),
+        capture=open_capture_or_exit("up", capture_path, capture_max, background=clock != "virtual"),
     )
     from ..aio.supervisor import WorkerError
 

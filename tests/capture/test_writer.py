@@ -199,3 +199,25 @@ def test_batches_chunks_and_notes_between_drains(tmp_path: Path) -> None:
     assert {i: d.comments for i, d in enumerate(cap.datagrams) if d.comments} == {299: ("after the 300th",),
                                                                                 309: ("after the last",)}
     assert stats.datagrams == 310 and stats.notes == 2 and stats.bytes == path.stat().st_size
+
+
+def test_a_connected_socket_is_read_with_recv_and_recorded_from_its_peer() -> None:
+    """A connected UDP socket only gets its peer's datagrams (the kernel drops the rest): recv, source = peer."""
+    got: list[tuple] = []
+    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    other = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    for s in (peer, other, sock):
+        s.bind(("127.0.0.1", 0))
+    sock.connect(peer.getsockname())
+    tapped = TappedSocket(sock, got.append)
+    names = peer.getsockname(), sock.getsockname()
+    try:
+        other.sendto(b"not from the peer", sock.getsockname())  # dropped by the kernel
+        peer.sendto(b"from the peer", sock.getsockname())
+        sock.settimeout(2.0)
+        assert tapped.recv(100) == b"from the peer"
+    finally:
+        for s in (peer, other, sock):
+            s.close()
+    assert [(d, s, r) for _, d, s, r in got] == [(b"from the peer", *names)]
