@@ -10,7 +10,8 @@ from dpkt's ``EnhancedPacketBlockLE``. What this module replaces is only dpkt's 
 runs in Python for each block (rounding the timestamp, two helper calls for the padding, a ``struct.pack``, two
 slices, a join): 1.8–3.1 µs per block on the project's 2-vCPU VM, most of the 2 µs a datagram may cost in all
 (docs/performance.md, "Capture"). Here a whole batch goes through C-level operations (``map``/``zip`` over the
-batch, one ``struct`` call per block for its 8 timestamp bytes, one ``bytes.join``), about 0.3–0.5 µs per block.
+batch, one ``struct`` call per block for its 8 timestamp bytes, one ``bytes.join``): the whole writer's work is
+about half what it was with dpkt's loop (docs/performance.md, "Capture", has the figures).
 
 How: every block of a given captured length is the same bytes except its timestamp and its data. dpkt's own header
 struct packs that block once with a zero timestamp (:meth:`EpbPacker.template`); the template is cut around the
