@@ -23,13 +23,20 @@ PACKETS = st.lists(st.tuples(STAMPS, st.binary(min_size=0, max_size=90), st.list
 
 
 def _dpkt_file(items: list[tuple[int, bytes, list[str]]]) -> bytes:
-    """What dpkt's Writer writes: ``writepkts`` for uncommented packets, ``writepkt`` of an EPB for the others."""
+    """What dpkt's Writer writes: ``writepkts`` for uncommented packets, ``writepkt`` of an EPB for the others. dpkt
+    takes the time as float seconds; where ``us / 1e6`` does not round back to *us* (far-future stamps: its own
+    float limit), the EPB is given its two timestamp fields instead (dpkt's ``writepkt`` path without ``ts``)."""
     out = io.BytesIO()
     writer = dpkt_pcapng.Writer(out, snaplen=65535, linktype=101)
     for us, packet, comments in items:
+        exact = round(us / 1e6 * 1e6) == us
+        opts = None
         if comments:
             opts = [dpkt_pcapng.PcapngOptionLE(code=dpkt_pcapng.PCAPNG_OPT_COMMENT, text=c) for c in comments]
             opts.append(dpkt_pcapng.PcapngOptionLE(code=dpkt_pcapng.PCAPNG_OPT_ENDOFOPT))
+        if not exact:  # us > 0 here (0 is exact)
+            writer.writepkt(EPB(pkt_data=packet, opts=opts or [], ts_high=us >> 32, ts_low=us & 0xFFFFFFFF))
+        elif comments:
             writer.writepkt(EPB(pkt_data=packet, opts=opts), ts=us / 1e6)
         else:
             writer.writepkts([(us / 1e6, packet)])
@@ -51,7 +58,10 @@ def _packer_file(items: list[tuple[int, bytes, list[str]]], packer: EpbPacker) -
         if i < len(items):
             opts = [dpkt_pcapng.PcapngOptionLE(code=dpkt_pcapng.PCAPNG_OPT_COMMENT, text=c) for c in comments]
             opts.append(dpkt_pcapng.PcapngOptionLE(code=dpkt_pcapng.PCAPNG_OPT_ENDOFOPT))
-            writer.writepkt(EPB(pkt_data=packet, opts=opts), ts=us / 1e6)
+            if us:  # as the capture writer does: dpkt's EPB with its two timestamp fields
+                writer.writepkt(EPB(pkt_data=packet, opts=opts, ts_high=us >> 32, ts_low=us & 0xFFFFFFFF))
+            else:  # both 0 would make dpkt stamp it with the time of day
+                writer.writepkt(EPB(pkt_data=packet, opts=opts), ts=0.0)
     return out.getvalue()
 
 
