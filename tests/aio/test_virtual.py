@@ -117,7 +117,7 @@ def test_same_seed_same_report_with_impairments_and_another_seed_draws_other_fau
 
 
 @pytest.mark.skipif(_accel.MODE == "compiled", reason="counts by wrapping core methods, which compiled (mypyc) classes "
-                    "refuse; runs in scripts/test's pure pass (MLINK_PURE=1), tests/test_accel.py pins the two")
+                    "refuse; runs in CI's pure pass (MLINK_PURE=1), tests/test_accel.py pins the two")
 def test_the_real_time_fast_paths_carry_the_cyclic_traffic(monkeypatch):
     counts = {"card_fast": 0, "card_slow": 0, "master_fast": 0}
     from mlink_sim.cards.ml2_card import Ml2Station

@@ -19,8 +19,8 @@ from mlink_sim.wire import Link, ml2, ml3
 CASES = [(Link.ML2, 17), (Link.ML2, 32), (Link.ML3, 32), (Link.ML3, 64)]
 IDS = ["ML-II-17B", "ML-II-32B", "ML-III-32B", "ML-III-64B"]
 #: Whether the fast path's hits can be counted: a compiled (mypyc) core takes no wrapper object in place of its
-#: CyclicFrames, so the count runs on the pure-Python cores (scripts/test's MLINK_PURE=1 pass; tests/test_accel.py
-#: pins the compiled cores to them byte for byte). Everything else here runs on both.
+#: CyclicFrames, so the count runs on the pure-Python cores (CI's MLINK_PURE=1 pass; tests/test_accel.py pins the
+#: compiled cores to them byte for byte). Everything else here runs on both.
 COUNTED = _accel.MODE != "compiled"
 
 
