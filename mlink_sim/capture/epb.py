@@ -42,7 +42,7 @@ class EpbPacker:
     class, ``EnhancedPacketBlockLE`` (the byte order mlink-sim writes on every host, as dpkt's ``Writer`` does on a
     little-endian one)."""
 
-    def __init__(self, kls: type = pcapng.EnhancedPacketBlockLE) -> None:
+    def __init__(self, kls: Any = pcapng.EnhancedPacketBlockLE) -> None:  # a dpkt block class (untyped)
         proto = kls()
         self._pack_hdr = proto._pack_hdr  # dpkt's header struct: every field of the block but the data and options
         self._type, self._iface = proto.type, proto.iface_id
@@ -83,7 +83,7 @@ class EpbPacker:
             parts = list(map(templates.__getitem__, lens))
         return self.pack_parts(stamps_us, parts, packets, unit=1)
 
-    def pack_parts(self, stamps: Sequence[int], templates: Sequence[Template], datas: Sequence[Any], *,
+    def pack_parts(self, stamps: Sequence[int], templates: Sequence[tuple[bytes, ...]], datas: Sequence[Any], *,
                    offset: int = 0, unit: int = 1000) -> bytes:
         """The blocks of ``templates[i]``'s prefix + ``datas[i]`` stamped ``(stamps[i] + offset) // unit`` µs
         (by default *stamps* in ns): the writer's fast path, whose templates carry the IP/UDP header of their
