@@ -405,21 +405,11 @@ class Master:
         faults = self.faults
         on_response = self.core.on_response if faults is None or not faults.active else self.deliver
         burst = getattr(sock, "recv_burst", None)
-        if burst is not None:  # recvmmsg: what is waiting in one call, each stamped with the time it was read
-            while limit > 0:
-                want = min(limit, mmsg.CAPACITY)
-                try:
-                    batch = burst(want)
-                except OSError as exc:
-                    self._on_error(exc)
-                    limit -= 1
-                    continue
+        if burst is not None:  # recvmmsg: what is waiting in one call, each batch stamped with the time it was read
+            for batch in mmsg.drain(burst, limit, self._on_error):
                 now = _mono()
                 for data in batch:
                     on_response(data, now)
-                if len(batch) < want:  # the socket is empty: no second call to learn it
-                    return
-                limit -= want
             return
         recv = sock.recv
         for _ in range(limit):

@@ -33,10 +33,10 @@ import os
 import socket
 import struct
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
-__all__ = ["BurstSocket", "CAPACITY", "supported", "wrap"]
+__all__ = ["BurstSocket", "CAPACITY", "drain", "supported", "wrap"]
 
 _MSG_DONTWAIT = 0x40  # <bits/socket.h>, the same on every Linux architecture CPython supports
 _EAGAIN = (errno.EAGAIN, errno.EWOULDBLOCK)
@@ -89,6 +89,25 @@ def supported() -> bool:
 def wrap(sock: socket.socket) -> Any:
     """*sock* as a :class:`BurstSocket` where the batched calls are :func:`supported`, else *sock* itself."""
     return BurstSocket(sock) if supported() and sock.type == socket.SOCK_DGRAM else sock
+
+
+def drain(burst: Callable[[int], list[Any]], limit: int, on_error: Callable[[OSError], None]) -> Iterator[list[Any]]:
+    """What is waiting on a socket, at most *limit* datagrams in all, one batch per ``recvmmsg`` (*burst*: a
+    :class:`BurstSocket`'s ``recv_burst`` or ``recvfrom_burst``). A batch shorter than it asked for means the
+    socket is empty: no further call to learn it. A socket error (e.g. ``ConnectionRefusedError`` after an ICMP
+    port unreachable) goes to *on_error* and counts as one datagram read."""
+    while limit > 0:
+        want = min(limit, CAPACITY)
+        try:
+            got = burst(want)
+        except OSError as exc:
+            on_error(exc)
+            limit -= 1
+            continue
+        yield got
+        if len(got) < want:
+            return
+        limit -= want
 
 
 def _encode(addr: Any) -> bytes | None:

@@ -164,7 +164,7 @@ class BatchEndpoint:
             return
         burst = getattr(sock, "recvfrom_burst", None)
         if burst is not None:  # recvmmsg (mlink_sim.aio.mmsg): one system call for what is waiting
-            batch = self._read_bursts(burst)
+            batch = [item for got in mmsg.drain(burst, self._burst, self._count_error) for item in got]
             if batch:
                 self._on_batch(batch)
             return
@@ -180,22 +180,8 @@ class BatchEndpoint:
         if batch:
             self._on_batch(batch)
 
-    def _read_bursts(self, burst: Callable[[int], list[tuple[bytes, Any]]]) -> list[tuple[bytes, Any]]:
-        batch: list[tuple[bytes, Any]] = []
-        left = self._burst
-        while left > 0:
-            want = min(left, mmsg.CAPACITY)
-            try:
-                got = burst(want)
-            except OSError:  # e.g. ConnectionRefusedError after an ICMP port unreachable
-                self.errors += 1
-                left -= 1
-                continue
-            batch += got
-            if len(got) < want:  # the socket is empty: no second call to learn it
-                break
-            left -= want
-        return batch
+    def _count_error(self, exc: OSError) -> None:  # e.g. ConnectionRefusedError after an ICMP port unreachable
+        self.errors += 1
 
     def sendto(self, data: bytes, addr: Any) -> None:
         sock = self._sock
