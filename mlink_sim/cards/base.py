@@ -28,8 +28,6 @@ from typing import Any, ClassVar
 
 from mlink_sim.params import ParamError
 from mlink_sim.wire import DropReason, Frame, Kind, Link, WireError, decode, ml2, ml3
-from mlink_sim.wire.frame import HEADER_SIZE
-from mlink_sim.wire.layout import field_offset
 
 from .._log import get_logger
 from .drive_link import DriveCommand, DriveLink, Fault
@@ -43,8 +41,7 @@ from .settings import CARD_NAMES, CardOptions, CardSettings, param_table
 from .snapshot import DriveSnapshot, StationCounters, StationSnapshot
 from .watchdog import Watchdog
 
-__all__ = ["Station", "StationCounters", "StationSnapshot", "DriveSnapshot", "DEFAULT_TCYCLE_NS", "SLOW",
-           "datagram_offset"]
+__all__ = ["Station", "StationCounters", "StationSnapshot", "DriveSnapshot", "DEFAULT_TCYCLE_NS", "SLOW"]
 
 _LOG = get_logger("mlink_sim.cards")
 
@@ -58,15 +55,6 @@ _IDLE = DriveCommand()
 #: :meth:`Station._fast_receive` declines: take the general path.
 SLOW = object()
 
-
-def datagram_offset(name: str, *frames: Any) -> int:
-    """Datagram offset (after the envelope) of data-frame field *name*, which must sit at the same place in each of
-    *frames* (the wire's ``COMMAND_FRAME_*`` declarations): the fast paths' offsets, derived as master/fastpath.py
-    derives its own."""
-    offsets = {field_offset(frame, name) for frame in frames}
-    if len(offsets) != 1:
-        raise ValueError(f"field {name!r} is not at one place in every frame size: {sorted(offsets)}")
-    return HEADER_SIZE + offsets.pop()
 
 _MAX_LOGGED_SOURCES = 32
 #: Incidents that can repeat every cycle on an overloaded machine (reception failures, WDT errors, phase changes,

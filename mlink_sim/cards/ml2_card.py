@@ -20,11 +20,11 @@ from typing import Any, ClassVar
 from mlink_sim.wire import (
     MAGIC, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, Unknown, encode, ml2,
 )
-from mlink_sim.wire.frame import FCS_SIZE, HEADER_SIZE, datagram_struct, fcs_ok, with_fcs
+from mlink_sim.wire.frame import FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, with_fcs
 
 from . import commands
 from .alarms import Ml2Alarms, ml2_failure_code
-from .base import SLOW, Station, datagram_offset
+from .base import SLOW, Station
 from .commands import Handler, SubHandler
 from .drive_link import DriveCommand, Fault, ml2_status_bits
 from .eeprom import BUSY

@@ -24,11 +24,11 @@ from typing import Any, ClassVar
 from mlink_sim.wire import (
     MAGIC, PROFILE_TYPE_INVERTER, CommAlm, Frame, Kind, Link, M3Cmd, Unknown, encode, ml3,
 )
-from mlink_sim.wire.frame import FCS_SIZE, HEADER_SIZE, datagram_struct, fcs_ok, with_fcs
+from mlink_sim.wire.frame import FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, with_fcs
 
 from . import commands
 from .alarms import Ml3Alarms, ml3_failure_code
-from .base import SLOW, Station, datagram_offset
+from .base import SLOW, Station
 from .commands import Handler, SubHandler
 from .drive_link import DriveCommand, DriveStatus, Fault, ml3_invcmd_stat_bits
 from .eeprom import BUSY

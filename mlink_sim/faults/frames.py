@@ -9,8 +9,7 @@ from dataclasses import dataclass
 from ..params import FAMILIES
 from ..wire import CmdAlm, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, M3Cmd, SubCmdAlm, WireError, \
     decode, encode, ml2, ml3
-from ..wire.frame import FCS_SIZE, HEADER_SIZE, with_fcs
-from ..wire.layout import field_offset
+from ..wire.frame import FCS_SIZE, HEADER_SIZE, datagram_offset, with_fcs
 
 __all__ = ["Answer", "wdt_offset", "set_wdt_count", "is_cyclic", "bad_command", "read_answer", "station_of",
            "command_code", "wdt_count", "rearms"]
@@ -18,14 +17,14 @@ __all__ = ["Answer", "wdt_offset", "set_wdt_count", "is_cyclic", "bad_command", 
 _ML3 = int(Link.ML3)
 #: Offset of the WDT byte in a command datagram, by (link is ML-III, data size).
 _WDT_AT = {
-    (False, 17): HEADER_SIZE + field_offset(ml2.COMMAND_FRAME_17, "wdt"),
-    (False, 32): HEADER_SIZE + field_offset(ml2.COMMAND_FRAME_32, "wdt"),
-    (True, 32): HEADER_SIZE + field_offset(ml3.COMMAND_FRAME_32, "wdt"),
-    (True, 64): HEADER_SIZE + field_offset(ml3.COMMAND_FRAME_64, "wdt"),
+    (False, 17): datagram_offset("wdt", ml2.COMMAND_FRAME_17),
+    (False, 32): datagram_offset("wdt", ml2.COMMAND_FRAME_32),
+    (True, 32): datagram_offset("wdt", ml3.COMMAND_FRAME_32),
+    (True, 64): datagram_offset("wdt", ml3.COMMAND_FRAME_64),
 }
 _SUB_AT = {  # the sub-command code's offset, frames that have one
-    (False, 32): HEADER_SIZE + field_offset(ml2.COMMAND_FRAME_32, "subcode"),
-    (True, 64): HEADER_SIZE + field_offset(ml3.COMMAND_FRAME_64, "subcode"),
+    (False, 32): datagram_offset("subcode", ml2.COMMAND_FRAME_32),
+    (True, 64): datagram_offset("subcode", ml3.COMMAND_FRAME_64),
 }
 _LINK_AT = 1  # envelope: magic, link, kind, station (wire/frame.py ENVELOPE)
 _STATION_AT = 3

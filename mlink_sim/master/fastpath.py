@@ -32,7 +32,7 @@ from typing import Any
 
 from ..wire import Frame, Kind, Link, encode, ml2, ml3
 from ..wire.codes import M2Cmd, M2Status, M3Cmd
-from ..wire.frame import ENVELOPE, FCS_SIZE, HEADER_SIZE, MAGIC, datagram_struct, fcs_ok, with_fcs
+from ..wire.frame import ENVELOPE, FCS_SIZE, HEADER_SIZE, MAGIC, datagram_offset, datagram_struct, fcs_ok, with_fcs
 from ..wire.layout import field_offset
 from .codec import Codec
 from .plan import StationPlan
@@ -82,7 +82,7 @@ class CyclicFrames:
         self.size = HEADER_SIZE + size + FCS_SIZE
         self._codec = codec
         self._tcycle = tcycle_ns
-        self._wdt_at = HEADER_SIZE + field_offset(cmd, "wdt")
+        self._wdt_at = datagram_offset("wdt", cmd)
         self._body: Any = None
         self._template = bytearray()
         # the whole response (envelope, frame, INV_CTL body) in one struct: one unpack per datagram

@@ -28,7 +28,7 @@ from construct import Int8ul, Int16ul, Int32ul, Struct
 from . import ml2, ml3
 from .codes import Kind, Link
 from .fcs import crc16_x25
-from .layout import fast_format, fast_struct
+from .layout import fast_format, fast_struct, field_offset
 from .sealed import Sealed as _Sealed
 
 __all__ = [
@@ -47,6 +47,7 @@ __all__ = [
     "with_fcs",
     "fcs_ok",
     "datagram_struct",
+    "datagram_offset",
 ]
 
 MAGIC = 0x4D
@@ -65,6 +66,18 @@ ENVELOPE = Struct(
 #: ``struct`` codec of :data:`ENVELOPE`: ``HEADER.unpack_from(datagram)`` -> (magic, link, kind, station, cycle,
 #: tcycle_ns). The per-cycle fast paths (cards, master) use it with :func:`with_fcs` and :func:`fcs_ok`.
 HEADER = fast_struct(ENVELOPE, HEADER_SIZE)
+
+
+def datagram_offset(name: str, *frames: Any) -> int:
+    """Offset in the datagram (envelope included) of data-frame field *name*, which must sit at the same place in
+    each of *frames* (the ``COMMAND_FRAME_*`` / ``RESPONSE_FRAME_*`` declarations of ml2/ml3): the fast paths'
+    and the fault stage's byte offsets, derived from the one declaration."""
+    offsets = {field_offset(frame, name) for frame in frames}
+    if len(offsets) != 1:
+        raise ValueError(f"field {name!r} is not at one place in every frame size: {sorted(offsets)}")
+    return HEADER_SIZE + offsets.pop()
+
+
 _FCS = fast_struct(Struct("fcs" / Int16ul), FCS_SIZE)
 
 
