@@ -9,8 +9,10 @@ by a client that sends the same bursts on the same ``CycleTimer`` as the master 
 but with no protocol work on either side; once with the per-datagram system calls (**plain**), once with
 ``sendmmsg``/``recvmmsg`` (**batched**, ``mlink_sim.aio.mmsg``).
 
-Figures per cell: missed-cycle rate, RTT p50/p99, cycle-start lateness p99, CPU % of the master and the workers,
-**CPU per exchange** (master + workers CPU time over the commands answered, from the kernel's accounting), wake-ups
+Figures per cell, the network's and the floors' by one definition (``scripts/bench_figures.py``): missed (the
+exchanges due but not answered within a cycle, over the exchanges due), RTT p50/p99 (every answer read, late ones
+included), cycle-start lateness p99, CPU % of the master and the workers, **CPU per exchange** (master + workers
+CPU time over the answers read, from the kernel's accounting), wake-ups
 per cycle (voluntary context switches), and the same figures of both floors. The ratios (CPU per exchange, RTT
 p99) are taken against the floor that uses the same system calls as the simulator in that run (``io``: batched
 where ``sendmmsg``/``recvmmsg`` are available, unless ``--io plain``, which runs the simulator with
@@ -53,6 +55,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 
 import bench_targets  # noqa: E402
+from bench_figures import exchange_figures  # noqa: E402
 from bench_floor import measure_floor, proc_wakeups, self_wakeups  # noqa: E402
 
 from mlink_sim.aio import mmsg  # noqa: E402
@@ -76,9 +79,11 @@ class Cell:
     io: str = "batched"         #: the simulator's system calls: batched (sendmmsg/recvmmsg) or plain
     status: str = "ok"          #: ok / n/a (reason) / failed (reason)
     frame_size: int = 0
-    missed_rate: float = 0.0
-    missed: int = 0
-    cycles: int = 0
+    missed_rate: float = 0.0        #: exchanges due but not answered within a cycle / exchanges due (bench_figures)
+    missed: int = 0                 #: cycles the clock skipped
+    cycles: int = 0                 #: cycles due (started + skipped)
+    due: int = 0                    #: exchanges due: sent + what the skipped cycles would have sent
+    on_time: int = 0                #: answers read within a cycle of their cycle's start
     rtt_p50_ns: int = 0
     rtt_p99_ns: int = 0
     lateness_p99_ns: int = 0
@@ -87,7 +92,7 @@ class Cell:
     cpu_master: float = 0.0
     cpu_slaves: float = 0.0
     sent: int = 0                   #: commands sent in the measuring window
-    exchanges: int = 0              #: commands answered in it: a command the worker superseded is no exchange
+    exchanges: int = 0              #: answers read (late ones included): a command the worker superseded is none
     cpu_per_exchange_us: float = 0.0  #: (master + workers CPU time) / exchanges
     spin_pct: float = 0.0           #: the master clock's spin before each deadline, % of the wall time
     cpu_per_exchange_nospin_us: float = 0.0  #: the same without the spin (the work an exchange itself costs)
@@ -167,18 +172,19 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
             os.environ["MLINK_MMSG"] = saved
     report = metrics.report(meta=meta)
     cell.cycles, cell.missed = report["cycles"], report["missed"]
-    cell.missed_rate = report["missed_rate"]
-    cell.rtt_p50_ns, cell.rtt_p99_ns = report["rtt"]["p50"], report["rtt"]["p99"]
     cell.lateness_p99_ns = report["lateness"]["p99"]
     cell.missing, cell.late = report["missing"], report["late"]
     cpu_slaves_s = sum(slaves1.get(k, 0.0) - v for k, v in slaves0.items())
     cell.cpu_master = round(cpu_master_s / wall * 100, 1)
     cell.cpu_slaves = round(cpu_slaves_s / wall * 100, 1)
-    cell.sent, cell.exchanges = report["sent"], report["answered"]
+    cell.sent = report["sent"]
     cell.spin_pct = round(spun_s / wall * 100, 1)
-    if cell.exchanges:
-        cell.cpu_per_exchange_us = round((cpu_master_s + cpu_slaves_s) / cell.exchanges * 1e6, 2)
-        cell.cpu_per_exchange_nospin_us = round((cpu_master_s - spun_s + cpu_slaves_s) / cell.exchanges * 1e6, 2)
+    fig = exchange_figures(cycle_ns=cell.cycle_ns, started=cell.cycles - cell.missed, skipped=cell.missed,
+                           sent=cell.sent, rtt=metrics.rtt, cpu_s=cpu_master_s + cpu_slaves_s, spin_s=spun_s)
+    cell.due, cell.on_time, cell.exchanges, cell.missed_rate = fig.due, fig.on_time, fig.answered, fig.missed_rate
+    cell.rtt_p50_ns, cell.rtt_p99_ns = fig.rtt_p50_ns, fig.rtt_p99_ns
+    cell.cpu_per_exchange_us, cell.cpu_per_exchange_nospin_us = fig.cpu_per_exchange_us, \
+        fig.cpu_per_exchange_nospin_us
     ran = max(1, cell.cycles - cell.missed)
     cell.wakeups_master, cell.wakeups_slaves = round(wake / ran, 2), round(swake / ran, 2)
 

@@ -8,18 +8,21 @@ decode, no 1 ms tick.
 
 **Client** (in the calling process): the master's I/O with no core. One UDP socket, the same ``CycleTimer``
 (timerfd + adaptive spin, the spin reading one answer at a time), and at each cycle: read the answers waiting,
-count the ones still missing, send the burst of N datagrams of the stations' frame size. RTT is measured as the
-master measures it: from the cycle's start (the time the core stamps its commands with) to the time the answer
-is read, stamped as the master's ``read_responses`` stamps it.
+count the ones given up (older than the answer window), send the burst of N datagrams of the stations' frame
+size. RTT is measured as the master measures it: from the cycle's start (the time the core stamps its commands
+with) to the time the answer is read, stamped as the master's ``read_responses`` stamps it; an answer is awaited
+as long as the master awaits one (its answer window, the network's ``stall_bound``), so a late answer is in the
+RTT tail, not dropped from it.
 
 Two variants, both measured by the caller in the same run: **plain** (``recvfrom``/``recv`` until the socket is
 empty, one ``sendto`` per datagram) and **batched** (``mlink_sim.aio.mmsg``: the client's burst in one
 ``sendmmsg``, its answers and each station socket's commands in one ``recvmmsg``; the echo's answers stay one
 ``sendto`` each, because each goes out from its own station's socket).
 
-CPU per exchange = (client CPU + server CPU) / datagrams answered within their cycle, both from the kernel's accounting
-(``getrusage``, ``/proc/PID/stat``) over the measuring window; wake-ups = voluntary context switches
-(``/proc/PID/status``) per cycle.
+Missed, RTT and CPU per exchange are ``bench_figures.exchange_figures``, the simulator's own definition: missed =
+exchanges due but not answered within a cycle, over the exchanges due; CPU per exchange = (client CPU + server
+CPU) / answers read, both from the kernel's accounting (``getrusage``, ``/proc/PID/stat``) over the measuring
+window; wake-ups = voluntary context switches (``/proc/PID/status``) per cycle.
 
     scripts/bench_floor.py --stations 62 --cycle 1ms --duration 10s          # both variants, one table
     flock -x /tmp/mlink-cpu.lock .venv/bin/python scripts/bench_floor.py …    # as every timing on the shared machine
@@ -36,12 +39,16 @@ import signal
 import subprocess
 import sys
 import time
+from collections import deque
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "scripts"))
+
+from bench_figures import exchange_figures  # noqa: E402
 
 from mlink_sim.aio import mmsg  # noqa: E402
 from mlink_sim.aio.ticker import CycleTimer  # noqa: E402
@@ -66,16 +73,18 @@ class Floor:
     duration_s: float
     cycles: int = 0
     missed: int = 0            #: cycles the clock skipped (as the master's ``missed``, same host-stall policy)
-    missed_rate: float = 0.0
-    missing: int = 0           #: answers not back when the next cycle started
+    missed_rate: float = 0.0   #: exchanges due but not answered within a cycle / exchanges due (bench_figures)
+    missing: int = 0           #: answers given up (not back within the answer window)
     sent: int = 0              #: datagrams sent
-    exchanges: int = 0         #: datagrams answered within their cycle
+    due: int = 0               #: exchanges due: sent + what the skipped cycles would have sent
+    on_time: int = 0           #: answers read within a cycle of their cycle's start
+    exchanges: int = 0         #: answers read (within the answer window, late ones included)
     rtt_p50_ns: int = 0
     rtt_p99_ns: int = 0
     lateness_p99_ns: int = 0
     cpu_client_pct: float = 0.0
     cpu_server_pct: float = 0.0
-    cpu_per_exchange_us: float = 0.0  #: (client + server CPU) / exchanges
+    cpu_per_exchange_us: float = 0.0  #: (client + server CPU) / exchanges (answers read)
     spin_pct: float = 0.0             #: the client clock's spin before each deadline, % of the wall time
     cpu_per_exchange_nospin_us: float = 0.0  #: the same without the spin
     wakeups_client: float = 0.0       #: voluntary context switches per cycle
@@ -144,7 +153,8 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
                         catch_up_ns: int = 100_000_000) -> Floor:
     """The floor of *stations* stations of frame size *size* at *cycle_ns*, measured for *duration_s* after a
     0.5 s warm-up; the server runs in a subprocess of this script. *catch_up_ns*: the clock's host-stall policy,
-    as the network's (default: "absorb" up to 100 ms, the default of ``[network] stall_bound``)."""
+    as the network's (default: "absorb" up to 100 ms, the default of ``[network] stall_bound``); an answer is
+    awaited as long (at least one cycle), as the master's answer window (``NetworkPlan.answer_window_ns``)."""
     result = Floor(batched, stations, cycle_ns, duration_s)
     proc = subprocess.Popen([sys.executable, __file__, "--serve", str(stations)] + ([] if batched else ["--plain"]),
                             stdout=subprocess.PIPE)
@@ -160,6 +170,8 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
         suffixes = [i.to_bytes(2, "little") + pad for i in range(stations)]
         rtt, lateness = LatencyHistogram(), LatencyHistogram()
         pending: dict[bytes, int] = {}
+        by_cycle: deque[tuple[int, list[bytes]]] = deque()  # (cycle start, its keys), oldest first: aging
+        window = max(catch_up_ns, cycle_ns)
         counts = {"missed": 0, "missing": 0, "sent": 0, "cycles": 0}
         mono = time.monotonic_ns
 
@@ -199,12 +211,17 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
             counts["cycles"] += 1
             lateness.record(now - deadline)
             read()
-            counts["missing"] += len(pending)
-            pending.clear()  # answers later than a cycle do not count, as for the master
+            horizon = now - window
+            while by_cycle and by_cycle[0][0] < horizon:  # given up: older than the answer window
+                for key in by_cycle.popleft()[1]:
+                    if pending.pop(key, None) is not None:
+                        counts["missing"] += 1
             head = k.to_bytes(4, "little")
             burst = [head + s for s in suffixes]
-            for d in burst:
-                pending[d[:6]] = now
+            keys = [d[:6] for d in burst]
+            for key in keys:
+                pending[key] = now
+            by_cycle.append((now, keys))
             if batched:
                 sock.send_burst(list(zip(burst, targets)))
             else:
@@ -222,7 +239,7 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
         await asyncio.sleep(_WARM_UP_S)
         rtt.reset()
         lateness.reset()
-        counts.update(missed=0, missing=0, sent=0, cycles=0)
+        counts.update(missed=0, missing=0, sent=len(pending), cycles=0)  # in flight: as the master's reset_metrics
         wall0, cpu0, scpu0, spun0 = time.monotonic(), _self_cpu_s(), proc_cpu_s(proc.pid), timer.spun_ns
         wake0, swake0 = self_wakeups(), proc_wakeups(proc.pid)
         await asyncio.sleep(duration_s)
@@ -238,17 +255,19 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
             close_watched(loop, sock)
         proc.terminate()
         proc.wait(5)
-    cycles = counts["cycles"] + counts["missed"]
-    result.cycles, result.missed, result.missing = cycles, counts["missed"], counts["missing"]
-    result.missed_rate = counts["missed"] / cycles if cycles else 0.0
-    result.sent, result.exchanges = counts["sent"], rtt.count
-    r, lt = rtt.summary(), lateness.summary()
-    result.rtt_p50_ns, result.rtt_p99_ns, result.lateness_p99_ns = r["p50"], r["p99"], lt["p99"]
+    result.cycles, result.missed, result.missing = counts["cycles"] + counts["missed"], counts["missed"], \
+        counts["missing"]
+    result.sent = counts["sent"]
+    fig = exchange_figures(cycle_ns=cycle_ns, started=counts["cycles"], skipped=counts["missed"], sent=result.sent,
+                           rtt=rtt, cpu_s=cpu + scpu, spin_s=spun)
+    result.due, result.on_time, result.exchanges, result.missed_rate = fig.due, fig.on_time, fig.answered, \
+        fig.missed_rate
+    result.rtt_p50_ns, result.rtt_p99_ns, result.lateness_p99_ns = fig.rtt_p50_ns, fig.rtt_p99_ns, \
+        lateness.summary()["p99"]
     result.cpu_client_pct, result.cpu_server_pct = round(cpu / wall * 100, 1), round(scpu / wall * 100, 1)
     result.spin_pct = round(spun / wall * 100, 1)
-    if result.exchanges:
-        result.cpu_per_exchange_us = round((cpu + scpu) / result.exchanges * 1e6, 2)
-        result.cpu_per_exchange_nospin_us = round((cpu - spun + scpu) / result.exchanges * 1e6, 2)
+    result.cpu_per_exchange_us, result.cpu_per_exchange_nospin_us = fig.cpu_per_exchange_us, \
+        fig.cpu_per_exchange_nospin_us
     result.wakeups_client = round(wake / max(1, counts["cycles"]), 2)
     result.wakeups_server = round(swake / max(1, counts["cycles"]), 2)
     return result
@@ -256,7 +275,8 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
 
 def describe(f: Floor) -> str:
     return (f"floor {'batched' if f.batched else 'plain':<7} {f.stations:>3} × {format_ns(f.cycle_ns):>6}: "
-            f"missed {f.missed_rate * 100:.2f}% ({f.missed}), missing {f.missing}, "
+            f"missed {f.missed_rate * 100:.2f}% ({f.due - f.on_time} of {f.due} exchanges; {f.missed} cycles "
+            f"skipped, {f.missing} answers given up), "
             f"RTT p50 {format_ns(f.rtt_p50_ns)} p99 {format_ns(f.rtt_p99_ns)}, "
             f"lateness p99 {format_ns(f.lateness_p99_ns)}, CPU client/server {f.cpu_client_pct:.0f}/"
             f"{f.cpu_server_pct:.0f} %, {f.cpu_per_exchange_us:.1f} µs/exchange "

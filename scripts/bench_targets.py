@@ -11,9 +11,12 @@ The targets (ratios in one run on the 2-vCPU machine):
 5. the 1 ms knee, the most ML-III stations at 1 ms with missed ≤ floor + 0.05 points (every smaller cell of the
    run holding too), reaches 62 (cells of 15, 30 and 45 stations, 10 s each, and the 62 of target 1).
 
-"The floor" of a cell is the floor with the simulator's own system calls (``Cell.ref``). Where a bound is not met
+"The floor" of a cell is the floor with the simulator's own system calls (``Cell.ref``). Both are measured with
+one definition of missed, RTT and CPU per exchange (``bench_figures.exchange_figures``). Where a bound is not met
 the verdict says what bounds it, from the same run: the CPU of the master and the workers, CPU per exchange
 against the floor's, wake-ups per cycle, stations that did not come up, or the floor itself breaking the bound.
+A floor that itself misses more than the margin (answers not back within a cycle) is **saturated**: it cannot
+carry the load on this machine either, and the table says so under its bounds (:func:`floor_saturation`).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from typing import Any
 
 from mlink_sim.config import format_ns, parse_duration_ns
 
-__all__ = ["CELLS", "verdicts", "knee"]
+__all__ = ["CELLS", "floor_saturation", "verdicts", "knee"]
 
 #: (link, stations, cycle, duration): the targets' cells, then the knee's
 CELLS = (("ML3", 62, "1ms", "60s"), ("ML2", 30, "1ms", "60s"), ("ML3", 8, "250us", "30s"),
@@ -62,6 +65,19 @@ def bounded_by(c: Any) -> str:
     return text + (f"; {'; '.join(c.notes)}" if c.notes else "")
 
 
+def floor_saturation(c: Any) -> str:
+    """'' when the cell's floor carries its load (missed ≤ the margin), else a sentence saying it does not, with
+    its figures."""
+    ref = c.ref
+    if ref is None or ref["missed_rate"] <= MISSED_MARGIN:
+        return ""
+    due, on_time = ref.get("due", 0), ref.get("on_time", 0)
+    of = f" ({due - on_time:,} of {due:,} answers not back within a cycle)" if due else ""
+    return (f"floor saturated at {_name(c)}: the floor itself misses {_pct(ref['missed_rate'])}{of}, client / "
+            f"server CPU {ref.get('cpu_client_pct', 0):.0f} / {ref.get('cpu_server_pct', 0):.0f} %: the bounds "
+            f"of this cell are relative to a floor that cannot carry the load on this machine either")
+
+
 def _missed_ok(c: Any) -> bool:
     ref = c.ref
     return ref is not None and c.missed_rate <= ref["missed_rate"] + MISSED_MARGIN
@@ -87,7 +103,8 @@ def verdicts(cells: list[Any]) -> tuple[str, list[dict[str, Any]]]:
 
     def row(c: Any, bound: str, measured: str, floor: str, limit: str, met: bool, why: str = "") -> None:
         rows.append({"target": _name(c), "bound": bound, "measured": measured, "floor": floor, "limit": limit,
-                     "met": met, "verdict": "met" if met else f"not met: {why or bounded_by(c)}"})
+                     "met": met, "verdict": "met" if met else f"not met: {why or bounded_by(c)}",
+                     "floor_saturated": floor_saturation(c)})
 
     def failed(c: Any, target: str) -> bool:
         if c is not None and c.status == "ok" and c.ref is not None:
@@ -128,7 +145,8 @@ def verdicts(cells: list[Any]) -> tuple[str, list[dict[str, Any]]]:
             why += f"; at {beyond.stations}: {bounded_by(beyond)}"
         rows.append({"target": "1 ms knee (ML3)", "bound": f"reaches {KNEE_GOAL} stations", "measured": str(best),
                      "floor": "—", "limit": str(KNEE_GOAL), "met": best >= KNEE_GOAL,
-                     "verdict": "met" if best >= KNEE_GOAL else f"not met: {why}"})
+                     "verdict": "met" if best >= KNEE_GOAL else f"not met: {why}",
+                     "floor_saturated": "; ".join(filter(None, (floor_saturation(c) for c in run)))})
     else:
         rows.append({"target": "1 ms knee (ML3)", "bound": f"reaches {KNEE_GOAL} stations", "met": False,
                      "verdict": "not run"})
@@ -143,6 +161,8 @@ def _text(rows: list[dict[str, Any]]) -> str:
     for r in rows:
         lines.append(f"{r['target']:<{w}}  {r['bound']:<{wb}}  {r.get('measured', '—'):>10}  "
                      f"{r.get('floor', '—'):>10}  {r.get('limit', '—'):>10}  {r['verdict']}")
+    saturated = list(dict.fromkeys(s for r in rows for s in r.get("floor_saturated", "").split("; ") if s))
+    lines += [f"! {s}" for s in saturated]
     met = sum(1 for r in rows if r["met"])
     lines.append(f"{met} of {len(rows)} bounds met")
     return "\n".join(lines)

@@ -106,6 +106,12 @@ class LatencyHistogram:
     def __len__(self) -> int:
         return self.count
 
+    def count_at_most(self, ns: int) -> int:
+        """Number of recorded values ≤ ``ns``, to the histogram's resolution (a value in ``ns``'s own bucket,
+        at most 0.1 % above it, counts as well)."""
+        top = _index(min(max(ns, 0), HIGHEST_NS))
+        return sum(c for i, c in self._counts.items() if i <= top)
+
     def to_hdr(self) -> HdrHistogram:
         """A new :class:`hdrh.histogram.HdrHistogram` holding these counts (~2 ms), for anything the summary
         does not give (other percentiles, iterators, ``output_percentile_distribution``)."""

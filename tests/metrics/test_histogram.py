@@ -173,3 +173,10 @@ def test_reset_and_copy():
 )
 def test_format_ns(ns, text):
     assert format_ns(ns) == text
+
+
+def test_count_at_most_counts_the_values_up_to_a_bound():
+    h = filled([100 * US, 999 * US, 1 * MS, 1_002 * US, 5 * MS])
+    assert h.count_at_most(1 * MS) == 3  # 1.002 ms lies in another bucket than 1 ms (0.1 % resolution)
+    assert h.count_at_most(99 * US) == 0 and h.count_at_most(HIGHEST_NS) == 5
+    assert h.count_at_most(-1) == 0 and LatencyHistogram().count_at_most(1 * MS) == 0

@@ -1,0 +1,67 @@
+"""scripts/bench_figures.py: one definition of missed, RTT and CPU per exchange for the simulator and its floor
+(issue 21: a floor that lost most of its answers counted 0 % missed and divided its CPU by the few it kept)."""
+
+from __future__ import annotations
+
+import pytest
+
+from mlink_sim.metrics import LatencyHistogram
+
+from .scripts_loader import load_script
+
+MS = 1_000_000
+
+
+@pytest.fixture(scope="module")
+def figures():
+    yield from load_script("bench_figures.py", "mlink_bench_figures")
+
+
+@pytest.fixture(scope="module")
+def bench():
+    yield from load_script("bench.py", "mlink_bench")
+
+
+def _rtt(*values: int) -> LatencyHistogram:
+    h = LatencyHistogram()
+    for v in values:
+        h.record(v)
+    return h
+
+
+def test_answers_later_than_a_cycle_are_missed_but_stay_in_the_rtt_tail(figures) -> None:
+    # 2 cycles × 2 stations; one answer 3 ms late, one never back
+    f = figures.exchange_figures(cycle_ns=MS, started=2, skipped=0, sent=4, rtt=_rtt(400_000, 500_000, 3 * MS),
+                                 cpu_s=0.0003)
+    assert (f.due, f.answered, f.on_time) == (4, 3, 2)
+    assert f.missed_rate == 0.5
+    assert f.rtt_p99_ns >= 3 * MS  # the late answer is in the tail, not dropped
+    assert f.cpu_per_exchange_us == 100.0  # 300 µs over the 3 answers read
+
+
+def test_skipped_cycles_count_their_exchanges_as_missed(figures) -> None:
+    f = figures.exchange_figures(cycle_ns=MS, started=8, skipped=2, sent=16, rtt=_rtt(*[300_000] * 16),
+                                 cpu_s=0.0016, spin_s=0.0008)
+    assert (f.due, f.on_time, f.missed_rate) == (20, 16, 0.2)
+    assert (f.cpu_per_exchange_us, f.cpu_per_exchange_nospin_us) == (100.0, 50.0)
+
+
+def test_nothing_measured_is_no_division_by_zero(figures) -> None:
+    f = figures.exchange_figures(cycle_ns=MS, started=0, skipped=0, sent=0, rtt=LatencyHistogram(), cpu_s=0.1)
+    assert (f.due, f.missed_rate, f.cpu_per_exchange_us, f.rtt_p99_ns) == (0, 0.0, 0.0, 0)
+
+
+def test_targets_say_when_the_floor_itself_is_saturated(bench) -> None:
+    cell = bench.Cell("ML3", 62, MS, 1, duration_s=60.0, missed_rate=0.7, rtt_p99_ns=5 * MS,
+                      floor_batched={"batched": True, "missed_rate": 0.688, "due": 3_720_000, "on_time": 1_160_308,
+                                     "rtt_p99_ns": 2 * MS, "lateness_p99_ns": 200_000, "cpu_per_exchange_us": 30.0,
+                                     "cpu_per_exchange_nospin_us": 28.0, "cpu_client_pct": 87.0,
+                                     "cpu_server_pct": 98.0, "wakeups_client": 7.0, "wakeups_server": 0.1})
+    text, rows = bench.bench_targets.verdicts([cell])
+    assert "floor saturated at 62 ML3 @ 1ms, 60s: the floor itself misses 68.80 % (2,559,692 of 3,720,000" in text
+    assert text.splitlines()[-1].endswith("bounds met")
+    judged = [r for r in rows if r["target"].startswith("62 ML3")]
+    assert len(judged) == 3 and all(r["floor_saturated"] for r in judged)  # missed, RTT, CPU per exchange
+    cell.floor_batched["missed_rate"] = 0.0004  # within the margin: carries the load
+    text, rows = bench.bench_targets.verdicts([cell])
+    assert "saturated" not in text and not any(r.get("floor_saturated") for r in rows)
