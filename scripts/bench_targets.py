@@ -74,8 +74,9 @@ def floor_saturation(c: Any) -> str:
     due, on_time = ref.get("due", 0), ref.get("on_time", 0)
     of = f" ({due - on_time:,} of {due:,} answers not back within a cycle)" if due else ""
     return (f"floor saturated at {_name(c)}: the floor itself misses {_pct(ref['missed_rate'])}{of}, client / "
-            f"server CPU {ref.get('cpu_client_pct', 0):.0f} / {ref.get('cpu_server_pct', 0):.0f} %: the bounds "
-            f"of this cell are relative to a floor that cannot carry the load on this machine either")
+            f"server CPU {ref.get('cpu_client_pct', 0):.0f} / {ref.get('cpu_server_pct', 0):.0f} %, its clock's "
+            f"lateness p99 {format_ns(ref.get('lateness_p99_ns', 0))}: the bounds of this cell are relative to a "
+            f"floor that cannot carry the load on this machine either")
 
 
 def _missed_ok(c: Any) -> bool:
