@@ -301,7 +301,7 @@ def load_cells(paths: list[Path]) -> tuple[list[Cell], dict[str, Any]]:
 
 
 def chart(cells: list[Cell], path: Path) -> None:
-    """Three panels against the number of stations: missed cycles, RTT p99, and CPU per exchange of the simulator
+    """Three panels against the number of stations: missed exchanges, RTT p99, and CPU per exchange of the simulator
     (solid) and of both floors (batched dashed, plain dotted)."""
     import matplotlib
 
@@ -328,8 +328,8 @@ def chart(cells: list[Cell], path: Path) -> None:
                     if pts and io == "batched":
                         axes[2].plot(*zip(*pts), linestyle=style, marker=marker, color=colour, alpha=0.7,
                                      label=f"{link} {format_ns(cycle)}: {name}")
-    axes[0].set(xscale="log", yscale="log", xlabel="stations", ylabel="missed cycles % (0 drawn at 0.001)",
-                title="missed-cycle rate")
+    axes[0].set(xscale="log", yscale="log", xlabel="stations", ylabel="missed exchanges % (0 drawn at 0.001)",
+                title="missed: not answered within a cycle")
     axes[1].set(xscale="log", yscale="log", xlabel="stations", ylabel="RTT p99 (µs)", title="round trip p99")
     axes[2].set(xscale="log", yscale="log", xlabel="stations", ylabel="µs of CPU per exchange (both sides)",
                 title="CPU per exchange: simulator vs floor")
