@@ -65,3 +65,24 @@ def test_targets_say_when_the_floor_itself_is_saturated(bench) -> None:
     cell.floor_batched["missed_rate"] = 0.0004  # within the margin: carries the load
     text, rows = bench.bench_targets.verdicts([cell])
     assert "saturated" not in text and not any(r.get("floor_saturated") for r in rows)
+
+
+@pytest.fixture(scope="module")
+def floor():
+    yield from load_script("bench_floor.py", "mlink_bench_floor")
+
+
+def test_the_floor_counts_by_the_shared_definition(floor) -> None:
+    """A short real floor (2 stations, 5 ms cycle, loopback): its counts obey the shared definition's
+    invariants whatever the machine's load (no timing is asserted)."""
+    from mlink_sim.aio.udp import new_event_loop
+
+    loop = new_event_loop()
+    try:
+        f = loop.run_until_complete(floor.measure_floor(2, 32, 5 * MS, 0.3, batched=False))
+    finally:
+        loop.close()
+    assert f.sent > 0 and f.due >= f.sent
+    assert f.on_time <= f.exchanges <= f.sent + 2  # + the answers in flight when the window opened
+    assert f.missed_rate == (f.due - f.on_time) / f.due
+    assert f.exchanges + f.missing <= f.sent + 2 and f.cpu_per_exchange_us > 0
