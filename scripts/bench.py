@@ -46,6 +46,7 @@ import platform
 import sys
 import tempfile
 import time
+from collections import Counter
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -147,7 +148,7 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         session = await NetworkSession.open(config, config_path, workers=workers, restart_slaves=False)
         not_up = await session.bring_up(timeout=20.0)
         if not_up:
-            cell.notes.append(f"{len(not_up)} station(s) not up")
+            cell.notes.append(f"{len(not_up)} station(s) not up{_states(session)}")
         session.reset_metrics()
         await session.refresh_slave_stats()  # CPU baselines after bring-up
         pids = [w.pid for w in session.worker_list if w.alive and w.pid]
@@ -163,6 +164,9 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         wake, swake = self_wakeups() - wake0, sum(proc_wakeups(p) for p in pids) - swake0
         slaves1 = await _slave_cpu(session)
         metrics, meta = await session.snapshot(slave_stats=False)
+        behind = _states(session)
+        if behind:
+            cell.notes.append(f"at the end not at their phase{behind}")
     finally:
         if session is not None:
             await session.close()
@@ -187,6 +191,16 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         fig.cpu_per_exchange_nospin_us
     ran = max(1, cell.cycles - cell.missed)
     cell.wakeups_master, cell.wakeups_slaves = round(wake / ran, 2), round(swake / ran, 2)
+
+
+def _states(session: NetworkSession) -> str:
+    """The master's states of the stations not at their target phase, ``" (alarm 12, syncing 5)"``; '' for none:
+    whether they never came up or came up and fell back (a communication alarm, OFFLINE) tells what bounds a
+    saturated cell."""
+    if session.net is None:
+        return ""
+    counts = Counter(v.state.value for v in session.net.views().values() if not v.at_target)
+    return f" ({', '.join(f'{k} {n}' for k, n in counts.most_common())})" if counts else ""
 
 
 async def _slave_cpu(session: NetworkSession) -> dict[str, float]:

@@ -86,3 +86,15 @@ def test_the_floor_counts_by_the_shared_definition(floor) -> None:
     assert f.on_time <= f.exchanges <= f.sent + 2  # + the answers in flight when the window opened
     assert f.missed_rate == (f.due - f.on_time) / f.due
     assert f.exchanges + f.missing <= f.sent + 2 and f.cpu_per_exchange_us > 0
+
+
+def test_a_cell_notes_the_states_of_the_stations_not_at_their_phase(bench) -> None:
+    from types import SimpleNamespace as NS
+
+    from mlink_sim.master import StationState
+
+    views = {a: NS(state=s, at_target=s is StationState.PHASE3) for a, s in enumerate(
+        [StationState.ALARM] * 3 + [StationState.SYNCING, StationState.PHASE3, StationState.PHASE3])}
+    session = NS(net=NS(views=lambda: views))
+    assert bench._states(session) == " (alarm 3, syncing 1)"
+    assert bench._states(NS(net=NS(views=lambda: {}))) == "" and bench._states(NS(net=None)) == ""
