@@ -47,11 +47,14 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections import Counter, deque
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from mlink_sim.capture import CaptureWriter, read_capture
+from mlink_sim.aio import mmsg
+from mlink_sim.aio.tapped import TappedBurstSocket
+from mlink_sim.capture import CaptureWriter, TappedSocket, read_capture
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_US = 2.0
@@ -105,43 +108,114 @@ def _cpu(fn: Callable[[], object]) -> float:
     return time.process_time() - t
 
 
-def hot_path(n: int, repeat: int) -> dict[str, dict[str, float]]:
-    """µs of CPU per sendto and per recv, bare and tapped (the records go to the writer's deque, as in a run)."""
+def io_calls(items: Sequence[Item]) -> Counter[tuple[str, int]]:
+    """The master's I/O calls that moved the datagrams of *items*: ``("send", k)`` for a call that sent *k*
+    commands (``sendto`` for one, one ``sendmmsg`` for more), ``("recv", k)`` for a read that returned *k*
+    answers. The datagrams of one call share its time stamp (the tap stamps a call once); consecutive datagrams of
+    the same direction and master socket with the same time (µs, the file's resolution) are taken as one call."""
+    calls: Counter[tuple[str, int]] = Counter()
+    key, k = None, 0
+    for ts, data, src, dst in items:
+        if src is None:
+            continue
+        answer = len(data) > 2 and data[2] == RESPONSE
+        now = (ts // 1000, answer, dst if answer else src)
+        if now == key:
+            k += 1
+            continue
+        if key is not None:
+            calls[("recv" if key[1] else "send", k)] += 1
+        key, k = now, 1
+    if key is not None:
+        calls[("recv" if key[1] else "send", k)] += 1
+    return calls
+
+
+def _drain_plain(sock: socket.socket) -> None:
+    try:
+        while True:
+            sock.recv(4096)
+    except BlockingIOError:
+        return
+
+
+def hot_path(calls: Counter[tuple[str, int]], n: int, repeat: int) -> dict[str, Any]:
+    """µs of CPU per I/O call of the master, bare and tapped, for every kind of call in *calls*, and what the tap
+    adds per datagram with the calls weighted as *calls* counts them (the records go to a deque, as in a run;
+    turning them into the file is the writer's part (b)).
+
+    What is measured is what the master runs: with ``sendmmsg``/``recvmmsg`` supported (and ``MLINK_MMSG`` not
+    0), a :class:`~mlink_sim.aio.mmsg.BurstSocket` (the uncaptured run) against a
+    :class:`~mlink_sim.capture.tap.TappedBurstSocket` (``sendto`` for one command, ``send_burst`` for more,
+    ``recv_burst(k)`` for the answers); without, a plain socket against a :class:`TappedSocket` (``sendto`` and
+    ``recv`` per datagram). Bare and tapped alternate in blocks of at most 1 000 datagrams."""
+    batched = mmsg.supported()
     payload = b"\x4d" * 46
     a, b = _pair()
-    dst = b.getsockname()
-    writer = CaptureWriter(os.devnull)
-    ta, tb = writer.wrap(a), writer.wrap(b)
-    out: dict[str, list[float]] = {"send": [], "send_tapped": [], "recv": [], "recv_tapped": []}
-    block = 1000  # what the receive buffer holds easily
-    for _ in range(repeat):
-        cpu = dict.fromkeys(out, 0.0)
-        for _ in range(max(1, n // block)):
-            for name, s, r in (("", a, b), ("_tapped", ta, tb)):
-                send, recv = s.sendto, r.recv
-                cpu["send" + name] += _cpu(lambda: [send(payload, dst) for _ in range(block)])  # noqa: B023
-                cpu["recv" + name] += _cpu(lambda: [recv(4096) for _ in range(block)])  # noqa: B023
-            writer._queue.clear()  # the records themselves are the writer's part (b)
-        for k, v in cpu.items():
-            out[k].append(v / (max(1, n // block) * block) * 1e6)
+    a.setblocking(False)
+    b.setblocking(False)
+    station, master = b.getsockname(), a.getsockname()
+    queue: deque[Any] = deque()
+    sockets = {"bare": mmsg.BurstSocket(a) if batched else a,
+               "tapped": TappedBurstSocket(a, queue.append) if batched else TappedSocket(a, queue.append)}
+
+    def sender(s: Any, k: int, per: int) -> Callable[[], object]:
+        if k == 1 or not batched:
+            send, count = s.sendto, per * k
+            return lambda: [send(payload, station) for _ in range(count)]
+        burst, items = s.send_burst, [(payload, station)] * k
+        return lambda: [burst(items) for _ in range(per)]
+
+    def reader(s: Any, k: int, per: int) -> Callable[[], object]:
+        if not batched:
+            recv, count = s.recv, per * k
+            return lambda: [recv(4096) for _ in range(count)]
+        burst = s.recv_burst
+        return lambda: [burst(k) for _ in range(per)]
+
+    out: dict[str, Any] = {"batched": batched, "calls": {f"{kind} {k}": c for (kind, k), c in sorted(calls.items())}}
+    total = sum(k * c for (_, k), c in calls.items())
+    per_repeat = [0.0] * repeat
+    for (kind, k), count in sorted(calls.items()):
+        per = max(1, 1000 // k)  # calls per block: at most 1 000 datagrams wait in a receive buffer
+        blocks = max(1, n // (per * k))
+        cpu: dict[str, list[float]] = {"bare": [], "tapped": []}
+        for r in range(repeat):
+            spent = dict.fromkeys(cpu, 0.0)
+            for _ in range(blocks):
+                for name, s in sockets.items():
+                    if kind == "send":
+                        spent[name] += _cpu(sender(s, k, per))
+                        _drain_plain(b)
+                    else:
+                        for _ in range(per * k):
+                            b.sendto(payload, master)
+                        spent[name] += _cpu(reader(s, k, per))
+                queue.clear()
+            for name in cpu:
+                cpu[name].append(spent[name] / (blocks * per) * 1e6)
+            per_repeat[r] += count * (cpu["tapped"][-1] - cpu["bare"][-1]) / total
+        added = [t - p for t, p in zip(cpu["tapped"], cpu["bare"], strict=True)]
+        out[f"{kind} {k}"] = {"bare": spread(cpu["bare"]), "tapped": spread(cpu["tapped"]), "added": spread(added),
+                              "added_per_datagram": spread([x / k for x in added])}
     a.close()
     b.close()
-    result = {k: spread(v) for k, v in out.items()}
-    result["send_added"] = spread([t - p for t, p in zip(out["send_tapped"], out["send"], strict=True)])
-    result["recv_added"] = spread([t - p for t, p in zip(out["recv_tapped"], out["recv"], strict=True)])
-    return result
+    out["per_datagram"] = spread(per_repeat)
+    return out
 
 
 # ---------------------------------------------------------------------------------------------------- (b) the writer
 def traffic_of(path: Path) -> list[Item]:
     """The datagrams and notes of a capture, in order, as the hot path queued them: ``(ts_ns, datagram, src,
-    dst)`` and, after a datagram, its comments as notes ``(ts_ns, text, None, None)``. The source of an answer is
-    a fresh tuple and string (``recvfrom`` makes new ones for every datagram); the master's own addresses are
-    shared objects (the tap's ``local``, the master's endpoint table)."""
+    dst)`` and, after a datagram, its comments as notes ``(ts_ns, text, None, None)``. The master's own addresses
+    are shared objects (the tap's ``local``, the master's endpoint table), and so is the source of an answer read
+    with ``recvmmsg`` (the tap keeps one tuple per source); with ``MLINK_MMSG=0`` it is a fresh tuple and string
+    (``recvfrom`` makes new ones for every datagram)."""
     shared: dict[Any, Any] = {}
+    fresh = not mmsg.supported()
     items: list[Item] = []
     for d in read_capture(path).datagrams:
-        if len(d.data) > 2 and d.data[2] == RESPONSE:
+        if fresh and len(d.data) > 2 and d.data[2] == RESPONSE:
             src, dst = (d.src[0].encode().decode(), d.src[1]), shared.setdefault(d.dst, d.dst)
         else:
             src, dst = shared.setdefault(d.src, d.src), shared.setdefault(d.dst, d.dst)
@@ -269,9 +343,9 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         else:
             items = synthetic_traffic(args.n)
     sent, received = directions(items)
-    hot = hot_path(args.n, args.repeat)
+    hot = hot_path(io_calls(items), args.n, args.repeat)
     write = writer_cost(items, args.repeat)
-    tap = (sent * hot["send_added"]["median"] + received * hot["recv_added"]["median"]) / (sent + received)
+    tap = hot["per_datagram"]["median"]
     result.update({
         "traffic": {"source": source, "datagrams": sent + received, "sent": sent, "received": received,
                     "notes": sum(1 for it in items if it[2] is None)},
@@ -295,9 +369,12 @@ def report(r: dict[str, Any], duration: float) -> None:
     hot, t = r["tap_us"], r["traffic"]
     print(f"({r['date_utc']} UTC) traffic: {t['source']}, {t['datagrams']} datagrams ({t['sent']} sent, "
           f"{t['received']} received), {t['notes']} notes")
-    print(f"(a) tap, sendto: {fmt(hot['send'])} bare, {fmt(hot['send_tapped'])} tapped: added {fmt(hot['send_added'])}")
-    print(f"(a) tap, recv:   {fmt(hot['recv'])} bare, {fmt(hot['recv_tapped'])} tapped: added {fmt(hot['recv_added'])}")
-    print(f"(a) tap per datagram (weighted by sent/received): {r['tap_us_per_datagram']:.2f} us")
+    print(f"(a) the master's I/O calls, {'batched (sendmmsg/recvmmsg)' if hot['batched'] else 'per datagram'}, "
+          f"µs per call; calls in the traffic: {hot['calls']}")
+    for call in hot["calls"]:
+        c = hot[call]
+        print(f"    {call}: {fmt(c['bare'])} bare, {fmt(c['tapped'])} tapped: added {fmt(c['added'])}")
+    print(f"(a) tap per datagram (calls weighted as in the traffic): {fmt(hot['per_datagram'])}")
     print(f"(b) writer per datagram, replay of the traffic: {fmt(r['writer_us_per_datagram'])}")
     if "quickstart_real" in r:
         print(f"(b) writer per datagram, in situ (the writer thread of the real-clock runs): "

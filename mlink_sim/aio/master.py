@@ -7,7 +7,8 @@ with ``time.monotonic_ns()`` as it is read. The socket is also read just before 
 while the :class:`CycleTimer` spins before a deadline, so an answer that arrived in time is never counted
 missing only because the loop was busy with the clock. Where :mod:`~mlink_sim.aio.mmsg` is supported the socket
 is a ``BurstSocket``: the cycle's burst goes out in one ``sendmmsg`` and a read takes what is waiting with one
-``recvmmsg``; wrapped sockets (a capture's tap, an impairment, the virtual fabric) take the per-datagram path. Transport errors (``sendto``/``recv`` raising
+``recvmmsg``; a capture's tap keeps those calls (:mod:`~mlink_sim.aio.tapped`), an impairment and the
+virtual fabric take the per-datagram path. Transport errors (``sendto``/``recv`` raising
 ``OSError``, e.g. ``ConnectionRefusedError`` after an ICMP port unreachable) are counted in
 :attr:`Master.transport_errors`, never raised.
 """
@@ -43,6 +44,7 @@ from ..faults import Episode, FaultSpec, FaultStage, MasterFault, StationTraits
 from ..faults.stage import is_healthy
 from ..wire import Link, ml2, ml3
 from . import mmsg
+from .tapped import tap
 from .ticker import CycleTimer
 from .udp import bound_socket, close_watched
 
@@ -156,7 +158,7 @@ class Master:
             add_stations(self.core.addresses)
         sock = bound_socket(local[0], local[1], rcvbuf)
         if capture is not None:
-            self._sock, self._note = capture.wrap(sock), capture.note
+            self._sock, self._note = tap(capture, sock), capture.note  # the batched calls, tapped
         else:
             self._sock = mmsg.wrap(sock)  # sendmmsg/recvmmsg where supported (docs/performance.md)
         loop.add_reader(sock.fileno(), self.read_responses)

@@ -18,6 +18,7 @@ from typing import Any
 from .._log import get_logger
 from ..impair import Direction, ImpairmentLayer
 from .impaired import DelayLine
+from .tapped import tap
 from .udp import bind_address_for, bound_socket, close_watched, resolve
 
 __all__ = ["ImpairingProxy", "ProxyLink"]
@@ -78,7 +79,7 @@ class ImpairingProxy:
             log.info("proxy_ready", listen=f"{link.listen[0]}:{link.listen[1]}", to=f"{link.to[0]}:{link.to[1]}")
 
     def _wrap(self, sock: Any) -> Any:
-        return sock if self.capture is None else self.capture.wrap(sock)
+        return sock if self.capture is None else tap(self.capture, sock)
 
     def close(self) -> None:
         if self._line is not None:

@@ -21,6 +21,7 @@ import resource
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +32,7 @@ from ..metrics.stalls import WORKER_STALL_NS, StallLog
 from ..faults.plant import PlantFaults
 from .faults import handle_plant_request
 from .state import atomic_write, eeprom_path, remove_stale_temps
+from .tapped import tap
 from .udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endpoint
 
 __all__ = ["HostedStation", "SlaveServer", "query_control"]
@@ -112,7 +114,7 @@ class SlaveServer:
         try:
             for hs in self.stations:
                 hs.endpoint = await open_batch_endpoint(self._receiver(hs), hs.host, hs.port,
-                                                        wrap=None if self._capture is None else self._capture.wrap)
+                                                        wrap=None if self._capture is None else partial(tap, self._capture))
                 hs.port = hs.endpoint.local_address[1]
             if self._control_addr is not None:
                 self._control = await open_endpoint(self._on_control, *self._control_addr)

@@ -208,7 +208,7 @@ async def open_batch_endpoint(on_batch: Callable[[list[tuple[bytes, Any]]], None
                               wrap: Callable[[socket.socket], Any] | None = None,
                               batched: bool | None = None) -> BatchEndpoint:
     """Bind a UDP socket on *host*:*port* (0 = any free port) and read it in batches (:class:`BatchEndpoint`).
-    *wrap*: wraps the socket (a capture's tap, ``CaptureWriter.wrap``; its reads are one ``recvfrom`` each).
+    *wrap*: wraps the socket (a capture's tap, :func:`mlink_sim.aio.tapped.tap`).
     *batched*: read with ``recvmmsg`` (:mod:`mlink_sim.aio.mmsg`); None = where it is supported, False = never."""
     sock: Any = bound_socket(host, port, rcvbuf)
     if wrap is not None:

@@ -8,6 +8,11 @@ it when ``--capture`` is given; otherwise nothing changes on their hot path.
 A driver that keeps its own time (a virtual clock) calls ``record`` itself with its simulated timestamps and the
 addresses the datagram would carry; the capture does not care where the time comes from.
 
+Where ``sendmmsg``/``recvmmsg`` are supported, the I/O layer taps its batched calls instead
+(:class:`mlink_sim.aio.tapped.TappedBurstSocket`, fed the same tuples): the master, the slaves and the proxy
+wrap their sockets with :func:`mlink_sim.aio.tapped.tap`, which falls back to a :class:`TappedSocket`
+(``MLINK_MMSG=0``, or no ``recvmmsg``).
+
 ``recv`` needs the datagram's real source address. On a socket that is ``connect()``-ed when it is wrapped, the
 kernel delivers only datagrams from its peer, so the source is ``getpeername()`` and a plain ``recv`` suffices. On
 an unconnected socket (the master's and the slaves' sockets are: one master socket talks to every station, a
@@ -96,3 +101,4 @@ class TappedSocket:
         self.getsockname = sock.getsockname
         self.close = sock.close
         self.setsockopt = sock.setsockopt
+

@@ -1,6 +1,6 @@
 """Write datagrams to a pcapng file off the hot path (``--capture FILE.pcapng``).
 
-The hot path only appends ``(ts_ns, datagram, src, dst)`` to a deque (:meth:`wrap`'s tapped socket, or
+The hot path only appends ``(ts_ns, datagram, src, dst)`` to a deque (a tapped socket, or
 :attr:`CaptureWriter.record` for a driver with its own clock). A writer thread wakes every ``flush_s`` (250 ms) and
 takes the whole queue as one batch (without a thread, ``start(background=False)``, the driver calls :meth:`flush`
 itself: the virtual clock does, every 250 ms of simulated time). Without notes in the batch, every per-datagram
@@ -155,6 +155,9 @@ class CaptureWriter:
         #: ``record(ts_ns, datagram, (src_host, src_port), (dst_host, dst_port))``. A wildcard host (0.0.0.0, ::)
         #: is replaced by the address the kernel would send from. Sockets use :meth:`wrap` (one call less).
         self.record = record
+        #: what a socket's tap feeds: one ``(ts_ns, datagram, src, dst)`` tuple per datagram (the queue's append;
+        #: :meth:`wrap`, :func:`mlink_sim.aio.tapped.tap`)
+        self.sink = append
         self._file: BinaryIO | None = None
         self._blocks = _Blocks()
         self._packer = EpbPacker()
@@ -225,10 +228,11 @@ class CaptureWriter:
         self._queue.append((ts_ns, event, None, None))
 
     def wrap(self, sock: socket.socket) -> Any:
-        """*sock* as a :class:`~mlink_sim.capture.tap.TappedSocket` recording into this capture."""
+        """*sock* as a :class:`~mlink_sim.capture.tap.TappedSocket` recording into this capture (one system call
+        per datagram; the I/O layer taps its batched calls instead, :func:`mlink_sim.aio.tapped.tap`)."""
         from .tap import TappedSocket
 
-        return TappedSocket(sock, self._queue.append)
+        return TappedSocket(sock, self.sink)
 
     # ------------------------------------------------------------------ writer
     def _run(self) -> None:
