@@ -66,6 +66,8 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.master.slave",
     "mlink_sim.master.fastpath",
     "mlink_sim.master.core",
+    "mlink_sim.aio.vqueue",
+    "mlink_sim.aio.fabric",
 )
 #: setup.py's record of the sources it compiled (one "module sha256" line each), next to this file
 BUILD_STAMP = "_accel_build.txt"

@@ -11,13 +11,15 @@ happen in the order the datagrams are sent, which the cores fix, so a run is a p
 The master side is a :class:`FabricPort`, an object with the two socket methods the master's cycle uses
 (``sendto``, ``recv``), so :class:`~mlink_sim.aio.master.Master` runs its own cycle code, fast path included,
 unchanged. Responses reach ``MasterCore.on_response`` at their arrival time: RTTs are the model's.
+
+Every datagram of a virtual run passes through here twice, so the module is compiled with the cores
+(``mlink_sim._accel.COMPILED_MODULES``; its classes are native: no attributes beyond those declared).
 """
 
 from __future__ import annotations
 
 import functools
 import random
-from heapq import heappush as _push
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -25,7 +27,7 @@ from typing import Any
 from .._log import get_logger
 from ..impair import Direction, ImpairmentLayer
 from .state import atomic_write, eeprom_path, remove_stale_temps
-from .vclock import VirtualClock
+from .vqueue import VirtualClock
 
 __all__ = ["Fabric", "FabricPort", "VirtualCycle", "virtual_address"]
 
@@ -37,17 +39,15 @@ _TICK_NS = 1_000_000  # a slave process's housekeeping tick (aio/slave.py): the 
 class _Node:
     """One station on the fabric: its card core (None while "killed"), and when its paths are next free."""
 
-    __slots__ = ("address", "station", "factory", "eeprom", "armed", "down_free", "up_free", "epoch")
-
     def __init__(self, address: int, station: Any, factory: Callable[[int, bytes | None], Any]) -> None:
-        self.address = address
-        self.station = station
-        self.factory = factory
+        self.address: int = address
+        self.station: Any = station
+        self.factory: Callable[[int, bytes | None], Any] = factory
         self.eeprom: bytes | None = None
         self.armed: int | None = None  # time of the earliest poll queued
-        self.down_free = 0  # master -> station: no delivery before this (order kept)
-        self.up_free = 0  # station -> master
-        self.epoch = 0  # bumped when the station is killed: deliveries queued before are void
+        self.down_free: int = 0  # master -> station: no delivery before this (order kept)
+        self.up_free: int = 0  # station -> master
+        self.epoch: int = 0  # bumped when the station is killed: deliveries queued before are void
 
 
 class FabricPort:
@@ -56,10 +56,10 @@ class FabricPort:
     ``on_datagram(data, now)`` when they arrive)."""
 
     def __init__(self, fabric: Fabric, name: str, on_datagram: Callable[[bytes, int], None]) -> None:
-        self.fabric = fabric
-        self.name = name
-        self.on_datagram = on_datagram
-        self.closed = False
+        self.fabric: Fabric = fabric
+        self.name: str = name
+        self.on_datagram: Callable[[bytes, int], None] = on_datagram
+        self.closed: bool = False
 
     def sendto(self, data: bytes, address: int) -> int:
         self.fabric.send(self, address, data)
@@ -96,20 +96,21 @@ class Fabric:
                  state_dir: Path | None = None, capture: Any = None) -> None:
         if not 0 <= jitter_ns <= latency_ns:
             raise ValueError(f"jitter ({jitter_ns} ns) must be between 0 and the latency ({latency_ns} ns)")
-        self.clock = clock
-        self.latency_ns = latency_ns
-        self.jitter_ns = jitter_ns
-        self.seed = seed
-        self.state_dir = state_dir
+        self.clock: VirtualClock = clock
+        self.latency_ns: int = latency_ns
+        self.jitter_ns: int = jitter_ns
+        self.seed: int = seed
+        self.state_dir: Path | None = state_dir
         self.nodes: dict[int, _Node] = {}
-        self.undeliverable = 0  #: datagrams for no station, or for a station that is down
-        self._base = latency_ns - jitter_ns  # one-way delay: base + int(random() * span), span 0 without jitter
-        self._span = 2 * jitter_ns + 1 if jitter_ns else 0
-        self._random = random.Random(seed).random
+        self.undeliverable: int = 0  #: datagrams for no station, or for a station that is down
+        self._base: int = latency_ns - jitter_ns  # one-way delay: base + int(random() * span), 0 without jitter
+        self._span: int = 2 * jitter_ns + 1 if jitter_ns else 0
+        self._random: Callable[[], float] = random.Random(seed).random
         #: a CaptureWriter's ``record(ts_ns, datagram, src, dst)``: the master's view, as ``up --capture`` records
         #: it – commands as they leave, answers as they arrive – on simulated time and the addresses of
         #: :func:`virtual_address`
-        self._record = None if capture is None else capture.record
+        self._record: Callable[[int, bytes, tuple[str, int], tuple[str, int]], Any] | None = \
+            None if capture is None else capture.record
         #: the impairment layer (docs/faults.md): while it is active, every datagram goes through it after the
         #: network model (its delays add to the model's ordered delivery time, and may reorder)
         self.impair: ImpairmentLayer | None = None
@@ -171,7 +172,7 @@ class Fabric:
             for extra, out in impair.process(data, Direction.TO_STATION, address, now):
                 clock.at(t + extra, self._to_station, (node, node.epoch, port, out))
             return
-        _push(clock.queue, (t, next(clock.seq), self._to_station, (node, node.epoch, port, data)))  # clock.at
+        clock.at(t, self._to_station, (node, node.epoch, port, data))
 
     def _to_station(self, arg: tuple[_Node, int, FabricPort, bytes]) -> None:
         node, epoch, port, data = arg
@@ -185,11 +186,8 @@ class Fabric:
         if station.eeprom_pending:
             self._save(node, station)
         armed = node.armed
-        if armed is None or armed > now:  # self._arm(node), spelt out
-            due = station.next_deadline()
-            if due is not None and (armed is None or due < armed):
-                node.armed = due
-                clock.at(due, self._poll, node)
+        if armed is None or armed > now:  # (a poll due now is queued already)
+            self._arm(node)
         if response is not None:
             t = now + self._base
             if self._span:
@@ -202,7 +200,7 @@ class Fabric:
                 for extra, out in impair.process(response, Direction.TO_MASTER, node.address, now):
                     clock.at(t + extra, self._to_master, (port, out))
                 return
-            _push(clock.queue, (t, next(clock.seq), self._to_master, (port, response)))  # clock.at
+            clock.at(t, self._to_master, (port, response))
 
     def _to_master(self, arg: tuple[FabricPort, bytes]) -> None:
         port, data = arg
@@ -268,12 +266,12 @@ class VirtualCycle:
     strategy = "virtual"
 
     def __init__(self, clock: VirtualClock, period_ns: int, on_cycle: Callable[[int, int, int, int], None]) -> None:
-        self.clock = clock
-        self.period_ns = period_ns
-        self._on_cycle = on_cycle
-        self.running = False
-        self.cycle = -1
-        self._start = 0
+        self.clock: VirtualClock = clock
+        self.period_ns: int = period_ns
+        self._on_cycle: Callable[[int, int, int, int], None] = on_cycle
+        self.running: bool = False
+        self.cycle: int = -1
+        self._start: int = 0
 
     def start(self) -> None:
         """First cycle one period from now."""

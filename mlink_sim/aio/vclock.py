@@ -1,7 +1,8 @@
 """Virtual time: an event queue in simulated nanoseconds and an asyncio loop that runs on it.
 
-:class:`VirtualClock` holds simulated time (``now``, int ns) and a queue of callbacks due at given times (the
-in-memory network's deliveries, the master's cycles, the cards' polls; :mod:`mlink_sim.aio.fabric`).
+:class:`VirtualClock` (:mod:`.vqueue`, compiled with the cores) holds simulated time (``now``, int ns) and a queue
+of callbacks due at given times (the in-memory network's deliveries, the master's cycles, the cards' polls;
+:mod:`mlink_sim.aio.fabric`).
 :class:`VirtualEventLoop` is asyncio's selector loop with ``time()`` read from that clock: whenever the loop would
 sleep until its next timer (``asyncio.sleep``, ``wait_for`` timeouts …), the clock instead runs its own events in
 order of time up to that timer, and stops early at the first event that gives the loop work (a request completed,
@@ -16,12 +17,12 @@ run is a pure function of its inputs.
 from __future__ import annotations
 
 import asyncio
-import heapq
-import itertools
 import math
 import selectors
-from collections.abc import Callable, Sized
+from collections.abc import Sized
 from typing import Any
+
+from .vqueue import VirtualClock
 
 __all__ = ["VirtualClock", "VirtualEventLoop", "VirtualTimeStalled", "SLICE_NS"]
 
@@ -31,48 +32,6 @@ SLICE_NS = 50_000_000
 
 class VirtualTimeStalled(RuntimeError):
     """The loop waits for something, but no timer and no event is left: simulated time cannot advance."""
-
-
-class VirtualClock:
-    """Simulated monotonic time in ns and the callbacks due at given times (``at``), run by :meth:`run_until`."""
-
-    __slots__ = ("now", "_queue", "_seq", "queue", "seq")
-
-    def __init__(self, start_ns: int = 0) -> None:
-        self.now = start_ns
-        self._queue: list[tuple[int, int, Callable[[Any], None], Any]] = []
-        self._seq = itertools.count()
-        #: the queue itself, a heap of ``(when, next(seq), fn, arg)`` with ``when >= now``: the in-memory network
-        #: (:mod:`.fabric`) pushes its deliveries onto it directly, which is what :meth:`at` does, one call fewer
-        self.queue = self._queue
-        self.seq = self._seq
-
-    def now_ns(self) -> int:
-        return self.now
-
-    def at(self, when: int, fn: Callable[[Any], None], arg: Any = None) -> None:
-        """Call ``fn(arg)`` at simulated time *when* (ns; not before ``now``)."""
-        heapq.heappush(self._queue, (when if when > self.now else self.now, next(self._seq), fn, arg))
-
-    def next_due(self) -> int | None:
-        """When the next callback is due, or None when none is queued."""
-        return self._queue[0][0] if self._queue else None
-
-    def run_until(self, limit: int, stop: Sized = ()) -> bool:
-        """Run the callbacks due up to *limit* (inclusive) in order of time, ``now`` following each; ``True`` when
-        *stop* (a container: the loop's ready queue) is not empty after one of them (``now`` is then that
-        callback's time), else ``now = limit``."""
-        queue = self._queue
-        pop = heapq.heappop
-        while queue and queue[0][0] <= limit:
-            when, _, fn, arg = pop(queue)
-            self.now = when
-            fn(arg)
-            if stop:
-                return True
-        if limit > self.now:
-            self.now = limit
-        return False
 
 
 class _VirtualSelector(selectors.BaseSelector):
