@@ -30,9 +30,11 @@ from types import ModuleType
 __all__ = ["BUILD_STAMP", "COMPILED_MODULES", "MODE", "NATIVE_LIBRARY", "REASON", "describe", "pure_requested", "select"]
 
 #: The modules mypyc compiles (setup.py reads this tuple): the steady-state paths of the master core, the cards
-#: and the drive model, and the wire helpers they call per datagram. Not here: modules whose classes derive from
-#: RuntimeError (mypyc cannot compile them: cards.phases, master.machine, master.types), the declaration tables
-#: (construct layouts, codes, parameter tables) and everything above the cores.
+#: and the drive model, and the wire helpers they call per datagram; the virtual clock's per-event path (its event
+#: queue and in-memory network) and the metrics' per-exchange recorder (counters, RTT histograms). Not here:
+#: modules whose classes derive from RuntimeError (mypyc cannot compile them: cards.phases, master.machine,
+#: master.types), the declaration tables (construct layouts, codes, parameter tables) and everything else above
+#: the cores.
 COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.wire.fcs",
     "mlink_sim.wire.frame",
@@ -68,6 +70,8 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.master.core",
     "mlink_sim.aio.vqueue",
     "mlink_sim.aio.fabric",
+    "mlink_sim.metrics.histogram",
+    "mlink_sim.metrics.network",
 )
 #: setup.py's record of the sources it compiled (one "module sha256" line each), next to this file
 BUILD_STAMP = "_accel_build.txt"

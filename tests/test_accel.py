@@ -178,14 +178,16 @@ def test_pure_requested():
     assert _accel.pure_requested({"MLINK_PURE": "1"})
 
 
-#: compiled outside the sans-I/O cores: the virtual clock's per-event path (no socket, no wall clock either)
-_VIRTUAL_TIME = {"mlink_sim.aio.vqueue", "mlink_sim.aio.fabric"}
+#: compiled outside the sans-I/O cores (no socket, no wall clock either): the virtual clock's per-event path and the
+#: metrics' recorder
+_PER_EXCHANGE = {"mlink_sim.aio.vqueue", "mlink_sim.aio.fabric", "mlink_sim.metrics.histogram",
+                 "mlink_sim.metrics.network"}
 
 
 def test_compiled_modules_exist_and_are_cores():
     for name in _accel.COMPILED_MODULES:
         parts = name.split(".")
-        assert parts[1] in ("wire", "drive", "cards", "master") or name in _VIRTUAL_TIME, name
+        assert parts[1] in ("wire", "drive", "cards", "master") or name in _PER_EXCHANGE, name
         assert ROOT.joinpath(*parts).with_suffix(".py").is_file(), name
 
 
