@@ -4,16 +4,19 @@
 Everything is CPU time (user + system), never wall time. The **headline** is the sum of two parts, each measured
 apart where its noise is small, quoted as the median [p10, p90] over ``--repeat`` repeats:
 
-* **(a) the tap**, what the event loop pays per datagram: ``sendto``/``recv`` through a :class:`TappedSocket`
-  against the bare socket on loopback, in alternating blocks of 1 000 (process CPU time). A datagram is recorded
-  once, on the master's ``sendto`` (a command) or on its ``recv`` (an answer): the two are weighted by how many
-  of each the quickstart capture holds;
+* **(a) the tap**, what the event loop pays per datagram: the master's own I/O calls bare and tapped on
+  loopback, in alternating blocks of at most 1 000 datagrams (process CPU time): a ``BurstSocket`` (the
+  uncaptured run's socket) against a ``TappedBurstSocket`` (``mlink_sim.aio.tapped``), or with ``MLINK_MMSG=0``
+  a plain socket against a :class:`TappedSocket`. Every kind of call the quickstart makes (``sendto`` of one
+  command, ``sendmmsg`` of k, a read of k answers) is measured and weighted by how often its capture holds it
+  (:func:`io_calls`);
 * **(b) the writer**, what turning the queue into the file costs per datagram (thread CPU time,
   ``CaptureStats.writer_cpu_s``), **in situ**: the writer thread's own CPU in the real-clock quickstart runs below
   (median over the runs). Also shown (and used for the headline with ``--no-real``): a **replay** of the
   datagrams and notes of a quickstart capture through a :class:`CaptureWriter`, in the 250-ms batches its thread
-  takes, addresses of answers as fresh tuples as ``recvfrom`` makes them. The replay is about half the in-situ
-  figure on the 2-vCPU VM (a writer woken every 250 ms beside a busy master finds its caches cold).
+  takes, with the sources of answers shared as the batched tap shares them (fresh tuples with ``MLINK_MMSG=0``,
+  as ``recvfrom`` makes them). The replay is about 0.55-0.65 of the in-situ figure on the 2-vCPU VM
+  (docs/performance.md, "Capture", has what was ruled out).
 
 **Cross-checks**, in the same run: ``mlink-sim up quickstart`` with and without ``--capture``, the two runs of a
 pair back to back (their order alternates), on the real clock (``--duration D``) and on the virtual clock (the whole
@@ -152,6 +155,7 @@ def hot_path(calls: Counter[tuple[str, int]], n: int, repeat: int) -> dict[str, 
     batched = mmsg.supported()
     payload = b"\x4d" * 46
     a, b = _pair()
+    a.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)  # a block of answers waits whole: none dropped
     a.setblocking(False)
     b.setblocking(False)
     station, master = b.getsockname(), a.getsockname()
@@ -191,6 +195,8 @@ def hot_path(calls: Counter[tuple[str, int]], n: int, repeat: int) -> dict[str, 
                         for _ in range(per * k):
                             b.sendto(payload, master)
                         spent[name] += _cpu(reader(s, k, per))
+                        if name == "tapped" and len(queue) != per * k:  # every read found its k answers
+                            sys.exit(f"bench_capture: {len(queue)} answers read of {per * k} sent (dropped?)")
                 queue.clear()
             for name in cpu:
                 cpu[name].append(spent[name] / (blocks * per) * 1e6)
