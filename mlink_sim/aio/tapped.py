@@ -8,8 +8,9 @@ makes the same system calls as an uncaptured one, else the per-datagram
 
 A burst of commands is recorded with one clock read (the time ``sendmmsg`` returned) and the destinations the
 burst already carries. The answers one ``recvmmsg`` read share its time and take their sources from the
-``msg_name`` each message left in the socket's headers, decoded once per source and kept (as ``recvfrom_burst``
-does): reading answers with the capture on costs no ``recvfrom`` per datagram (docs/performance.md, "Capture").
+``msg_name`` each message left in the socket's headers (the read is ``recvfrom_burst``'s: each source decoded
+once and kept): reading answers with the capture on costs no ``recvfrom`` per datagram (docs/performance.md,
+"Capture").
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from .mmsg import CAPACITY, BurstSocket
 __all__ = ["TappedBurstSocket", "tap"]
 
 _mono = time.monotonic_ns
+_recvfrom_burst = BurstSocket.recvfrom_burst
 
 
 def tap(capture: Any, sock: socket.socket) -> Any:
@@ -42,7 +44,7 @@ class TappedBurstSocket(BurstSocket):
     datagram its calls move (see the module docstring). The per-datagram calls (``sendto``, ``recv``,
     ``recvfrom``) are a :class:`~mlink_sim.capture.tap.TappedSocket`'s."""
 
-    __slots__ = ("_append", "_local", "_namelen", "_slot")
+    __slots__ = ("_append", "_local")
 
     def __init__(self, sock: socket.socket, sink: Sink, capacity: int = CAPACITY) -> None:
         super().__init__(sock, capacity)
@@ -51,9 +53,6 @@ class TappedBurstSocket(BurstSocket):
         self.sendto, self.recv, self.recvfrom = single.sendto, single.recv, single.recvfrom  # type: ignore[assignment]
         self._append = sink
         self._local = sock.getsockname()[:2]
-        #: bytes of a source address in msg_name (struct sockaddr_in or sockaddr_in6): its cache key
-        self._namelen = 16 if sock.family == socket.AF_INET else 28
-        self._slot = len(self._rnview) // capacity  #: bytes between two messages' msg_name
 
     def send_burst(self, items: Sequence[tuple[bytes, Any]]) -> list[tuple[int, OSError]]:
         failures = BurstSocket.send_burst(self, items)
@@ -67,21 +66,23 @@ class TappedBurstSocket(BurstSocket):
         return failures
 
     def recv_burst(self, limit: int = CAPACITY) -> list[bytes]:
-        got = BurstSocket.recv_burst(self, limit)
+        got = _recvfrom_burst(self, limit)  # the same recvmmsg, each datagram with its source (msg_name, cached)
+        if len(got) == 1:  # the common case: one answer per read
+            data, addr = got[0]
+            self._append((_mono(), data, addr, self._local))
+            return [data]
         if got:
-            ts, names, size, sources, local, append = (_mono(), self._rnview, self._namelen, self._sources,
-                                                       self._local, self._append)
-            at = 0
-            for data in got:  # the source of message i is in its msg_name slot (left there by recvmmsg)
-                raw = names[at:at + size].tobytes()
-                append((ts, data, sources.get(raw) or self._source(raw), local))
-                at += self._slot
-        return got
+            self._received(got)
+        return [data for data, _ in got]
 
     def recvfrom_burst(self, limit: int = CAPACITY) -> list[tuple[bytes, Any]]:
-        got = BurstSocket.recvfrom_burst(self, limit)
+        got = _recvfrom_burst(self, limit)
         if got:
-            ts, local, append = _mono(), self._local, self._append
-            for data, addr in got:
-                append((ts, data, addr, local))
+            self._received(got)
         return got
+
+    def _received(self, got: list[tuple[bytes, Any]]) -> None:
+        """Record the datagrams of one read, with its time."""
+        ts, local, append = _mono(), self._local, self._append
+        for data, addr in got:
+            append((ts, data, addr, local))
