@@ -13,16 +13,14 @@ import pytest
 from mlink_sim.aio import mmsg
 from mlink_sim.capture import CaptureWriter, read_capture
 from mlink_sim.aio.tapped import TappedBurstSocket, tap
+from mlink_sim.aio.udp import bound_socket
 from mlink_sim.capture.tap import TappedSocket
 
 pytestmark = pytest.mark.skipif(not mmsg.supported(), reason="sendmmsg/recvmmsg not available here")
 
 
 def _udp(family: int = socket.AF_INET) -> socket.socket:
-    s = socket.socket(family, socket.SOCK_DGRAM)
-    s.bind(("::1" if family == socket.AF_INET6 else "127.0.0.1", 0))
-    s.setblocking(False)
-    return s
+    return bound_socket("::1" if family == socket.AF_INET6 else "127.0.0.1", 0)
 
 
 def _settle() -> None:
