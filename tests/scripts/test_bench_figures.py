@@ -97,4 +97,4 @@ def test_a_cell_notes_the_states_of_the_stations_not_at_their_phase(bench) -> No
         [StationState.ALARM] * 3 + [StationState.SYNCING, StationState.PHASE3, StationState.PHASE3])}
     session = NS(net=NS(views=lambda: views))
     assert bench._states(session) == " (alarm 3, syncing 1)"
-    assert bench._states(NS(net=NS(views=lambda: {}))) == "" and bench._states(NS(net=None)) == ""
+    assert bench._states(NS(net=NS(views=dict))) == "" and bench._states(NS(net=None)) == ""
