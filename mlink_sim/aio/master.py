@@ -106,6 +106,7 @@ class Master:
         self.core = core
         self.endpoints = dict(endpoints)
         self.metrics = metrics
+        core.on_rtt = metrics.record_rtt  # what _pump would do with an Rtt event, without the event
         self.transport_errors: Counter[str] = Counter()
         self._loop = loop
         #: a socket.socket, or what stands in for it: a BurstSocket (batched calls), a capture's TappedSocket, an

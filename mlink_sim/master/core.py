@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import struct
 from collections import Counter, deque
+from collections.abc import Callable
 from typing import Any
 
 from ..wire import CmdAlm, CommAlm, DropReason, Frame, Kind, Link, WireError, decode, encode
@@ -60,6 +61,10 @@ class MasterCore:
         self.cycles = 0
         #: Steady-state INV_CTL straight from and to bytes (:mod:`.fastpath`); False = general path only (tests).
         self.fast_path = True
+        #: Where an answer's round trip goes, ``on_rtt(station, ns)``: None = an :class:`Rtt` event. A driver that
+        #: only counts them (``mlink_sim.aio.master.Master``: its metrics' ``record_rtt``) sets it and saves an
+        #: event object and its dispatch per exchange. Late answers are ``Late`` events either way.
+        self.on_rtt: Callable[[int, int], None] | None = None
         self._now = 0
         self._cycle = 0
         self._window = plan.answer_window_ns
@@ -168,7 +173,11 @@ class MasterCore:
             if sent is st.outstanding:
                 st.outstanding = None
             st.rtt = rtt = now - sent.at
-            self._emit(Rtt(st.address, rtt))
+            on_rtt = self.on_rtt
+            if on_rtt is None:
+                self._emit(Rtt(st.address, rtt))
+            else:
+                on_rtt(st.address, rtt)
         else:
             sent.late_seen = True
             st.late += 1

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from master_fakes import MS
 
-from mlink_sim.master import Missing, Rtt, StateChanged, StationPlan, StationState
+from mlink_sim.master import Late, Missing, Rtt, StateChanged, StationPlan, StationState
 from mlink_sim.wire import Link
 
 S = StationState
@@ -65,3 +65,16 @@ def test_a_dead_station_goes_offline_after_the_window(net_of):
     assert net.core.state(0x21) is S.PHASE3  # not yet judged
     net.run(30)
     assert net.core.state(0x21) is S.OFFLINE
+
+
+def test_on_rtt_takes_the_round_trips_instead_of_rtt_events(net_of):
+    """``MasterCore.on_rtt``: the same round trips, as calls, and no Rtt event; a late answer is still ``Late``."""
+    plain, hooked = up(net_of, answer_window_ns=50 * MS), up(net_of, answer_window_ns=50 * MS)
+    calls = []
+    hooked.core.on_rtt = lambda station, ns: calls.append((station, ns))
+    for net in (plain, hooked):
+        hold_up_responses(net, 3, (net.cycle + 4) * MS)
+        net.run(20)
+    assert of(hooked, Rtt) == []
+    assert calls == [(e.station, e.ns) for e in of(plain, Rtt)] and len(calls) >= 15
+    assert of(hooked, Late) == of(plain, Late)
