@@ -16,7 +16,6 @@ same config and seed give the same report once those are left out (:func:`withou
 from __future__ import annotations
 
 import asyncio
-import gc
 import time
 from pathlib import Path
 from typing import Any
@@ -27,6 +26,7 @@ from ..faults import FaultStage
 from ..faults.plant import PlantFaults
 from .fabric import Fabric, FabricPort, VirtualCycle
 from .faults import handle_plant_request
+from .heap import settle_heap
 from .master import Master, MetricsSink, NullMetrics
 from .session import NetworkApi, NetworkSession, _flatten_counters, build_plans
 from .stations import build_station, spec_for
@@ -162,10 +162,7 @@ class VirtualSession(NetworkSession):
         workers = {st.address: _VirtualWorker(self, st.address) for st in self.config.station}
         self.net = NetworkApi(self.config, self.masters, workers)  # type: ignore[arg-type]
         self.net.faults = self
-        # as the real-time session (aio/heap.py), the start-up heap out of the collector's full passes (they cost the
-        # quickstart ≈ 0.1 s), but without the collection first: it alone takes 0.1-0.15 s, a quarter of the
-        # quickstart's budget (docs/performance.md, "Virtual clock"); what start-up left as garbage stays
-        gc.freeze()
+        settle_heap(collect=False)  # as the real-time session, without the collection (docs/performance.md)
         cycle.start()
 
     def _capture_flusher(self, period_ns: int) -> Any:
