@@ -31,7 +31,8 @@ __all__ = ["BUILD_STAMP", "COMPILED_MODULES", "MODE", "NATIVE_LIBRARY", "REASON"
 
 #: The modules mypyc compiles (setup.py reads this tuple): the steady-state paths of the master core, the cards
 #: and the drive model, and the wire helpers they call per datagram; the virtual clock's per-event path (its event
-#: queue and in-memory network) and the metrics' per-exchange recorder (counters, RTT histograms). Not here:
+#: queue and in-memory network), the metrics' per-exchange recorder (counters, RTT histograms) and the capture
+#: writer's per-datagram loop (capture.pack, without dpkt: the block layout is handed in). Not here:
 #: modules whose classes derive from RuntimeError (mypyc cannot compile them: cards.phases, master.machine,
 #: master.types), the declaration tables (construct layouts, codes, parameter tables) and everything else above
 #: the cores.
@@ -72,6 +73,7 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.aio.fabric",
     "mlink_sim.metrics.histogram",
     "mlink_sim.metrics.network",
+    "mlink_sim.capture.pack",
 )
 #: setup.py's record of the sources it compiled (one "module sha256" line each), next to this file
 BUILD_STAMP = "_accel_build.txt"

@@ -3,33 +3,31 @@
 **How issue 20's rule "use a well-kept library for pcapng; do not write the blocks by hand" is read here.** dpkt
 stays the library that *declares* every block: the Section Header and Interface Description Blocks, every
 Enhanced Packet Block that carries comments (``dpkt.pcapng.EnhancedPacketBlockLE`` with its options), and the
-layout of the uncommented Enhanced Packet Blocks this module packs. Nothing here declares a field: the block type,
+layout of the uncommented Enhanced Packet Blocks packed here. Nothing here declares a field: the block type,
 the interface id, the header struct (``_pack_hdr``, ``__hdr_fmt__``), its length (``__hdr_len__``), where the
-timestamp fields sit (``__hdr__``) and the options of a block without comments (``_do_pack_options()``) all come
-from dpkt's ``EnhancedPacketBlockLE``. What this module replaces is only dpkt's *loop* (``Writer.writepkts``), which
-runs in Python for each block (rounding the timestamp, two helper calls for the padding, a ``struct.pack``, two
-slices, a join): 1.8–3.1 µs per block on the project's 2-vCPU VM, most of the 2 µs a datagram may cost in all
-(docs/performance.md, "Capture"). Here a whole batch goes through C-level operations (``map``/``zip`` over the
-batch, one ``struct`` call per block for its 8 timestamp bytes, one ``bytes.join``): the whole writer's work is
-about half what it was with dpkt's loop (docs/performance.md, "Capture", has the figures).
+timestamp fields sit and their byte order (``__hdr__``) and the options of a block without comments
+(``_do_pack_options()``) all come from dpkt's ``EnhancedPacketBlockLE``. What replaces dpkt's *loop*
+(``Writer.writepkts``, which runs in Python for each block: 1.8–3.1 µs per block on the project's 2-vCPU VM, most
+of the 2 µs a datagram may cost in all) is :func:`mlink_sim.capture.pack.pack_records`, a loop compiled with mypyc
+that is handed the templates made here and the timestamp's byte order (docs/performance.md, "Capture").
 
 How: every block of a given captured length is the same bytes except its timestamp and its data. dpkt's own header
 struct packs that block once with a zero timestamp (:meth:`EpbPacker.template`); the template is cut around the
-timestamp and the data, and a batch is the join of ``head, timestamp, middle, data, tail`` per block. The output is
+timestamp and the data, and a block is ``head, timestamp, middle, data, tail`` joined. The output is
 byte-identical to dpkt's ``Writer.writepkts``/``writepkt`` for the same packets and integer-microsecond times
 (``tests/capture/test_epb.py`` proves it with hypothesis, and reads it back with dpkt's and python-pcapng's
-readers; the tshark tests read the writer's files too).
+readers; ``tests/capture/test_pack.py`` pins the writer's records path; the tshark tests read the writer's files).
 """
 
 from __future__ import annotations
 
 import struct
-from collections.abc import Sequence
-from itertools import chain, repeat
-from operator import add, and_, floordiv, rshift
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from dpkt import pcapng
+
+from .pack import Flow, Record, pack_records
 
 __all__ = ["EpbPacker", "Template"]
 
@@ -56,8 +54,11 @@ class EpbPacker:
             raise RuntimeError(f"dpkt's {kls.__name__} has no ts_high/ts_low pair: {names}")
         self._ts_at = struct.calcsize(order + "".join(fmts[:hi]))  # where the timestamp starts in the header
         self._ts = struct.Struct(order + fmts[hi] + fmts[hi + 1])  # dpkt's two timestamp fields
+        if self._ts.size != 8 or fmts[hi] != fmts[hi + 1] or fmts[hi] not in "IL" or order not in "<>!":
+            raise RuntimeError(f"dpkt's {kls.__name__} timestamp is not two 32-bit unsigned fields: {self._ts.format}")
+        self.little = order == "<"  #: the byte order of dpkt's ts_high/ts_low, for the compiled loop
         self._trailer = struct.calcsize(order + fmts[-1])  # the header's last field follows the data (dpkt's Writer)
-        self._templates: dict[int, Template] = {}
+        self._templates: dict[tuple[Any, Any, int], Flow] = {}  #: :meth:`pack`'s, by size
 
     def template(self, caplen: int, prefix: bytes = b"") -> Template:
         """``(head, middle, tail)`` of a block whose packet is *caplen* bytes: ``head + timestamp + middle + data +
@@ -70,34 +71,29 @@ class EpbPacker:
         return (hdr[:at], hdr[at + self._ts.size:cut] + prefix,
                 bytes(padded - caplen) + self._opts + hdr[cut:])
 
+    def flow(self, caplen: int, prefix: bytes = b"") -> Flow:
+        """The :data:`~mlink_sim.capture.pack.Flow` of :meth:`template` (what the compiled loop takes): the
+        template, the block's bytes beyond its data, and *prefix*."""
+        head, middle, tail = self.template(caplen, prefix)
+        return head, middle, tail, len(head) + self._ts.size + len(middle) + len(tail), prefix
+
+    def pack_records(self, records: list[Record], start: int, end: int, flows: dict[tuple[Any, Any, int], Flow],
+                     make: Callable[[Any, Any, int], Flow], *, offset: int = 0, unit: int = 1000,
+                     count: int = 1 << 60, budget: int = 1 << 60) -> tuple[bytes, int, int]:
+        """:func:`mlink_sim.capture.pack.pack_records` in this packer's byte order: the blocks of the records
+        ``start:end`` (``(ts, datagram, src, dst)``, stamped ``(ts + offset) // unit`` µs: by default ns), up to the
+        first note, the first datagram with comments, *count* blocks or the size *budget*; returns ``(blocks,
+        stop, size)``."""
+        return pack_records(records, start, end, count, budget, flows, make, offset, unit, self.little)
+
     def pack(self, stamps_us: Sequence[int], packets: Sequence[bytes]) -> bytes:
         """The blocks of *packets* stamped *stamps_us* (Unix time, integer µs), as dpkt's ``writepkts`` writes
-        them for ``[(us / 1e6, packet), …]``."""
-        templates = self._templates
-        lens = list(map(len, packets))
-        try:
-            parts = list(map(templates.__getitem__, lens))
-        except KeyError:
-            for n in set(lens).difference(templates):
-                templates[n] = self.template(n)
-            parts = list(map(templates.__getitem__, lens))
-        return self.pack_parts(stamps_us, parts, packets, unit=1)
+        them for ``[(us / 1e6, packet), …]``: every packet is its own flow (no prefix)."""
+        records = [(us, packet, 0, 0) for us, packet in zip(stamps_us, packets, strict=True)]
+        blocks, stop, _ = self.pack_records(records, 0, len(records), self._templates, self._make, unit=1)
+        assert stop == len(records)
+        return blocks
 
-    def pack_parts(self, stamps: Sequence[int], templates: Sequence[tuple[bytes, ...]], datas: Sequence[Any], *,
-                   offset: int = 0, unit: int = 1000) -> bytes:
-        """The blocks of ``templates[i]``'s prefix + ``datas[i]`` stamped ``(stamps[i] + offset) // unit`` µs
-        (by default *stamps* in ns): the writer's fast path, whose templates carry the IP/UDP header of their
-        flow (items after the first three of a template are not read). C-level operations only: per block
-        an addition, a division and dpkt's two timestamp fields packed by one ``struct`` call, then one join."""
-        if not datas:
-            return b""
-        heads, middles, tails, *_ = zip(*templates, strict=True)
-        pack = self._ts.pack
-        hi = (min(stamps) + offset) // unit >> 32
-        if (max(stamps) + offset) // unit >> 32 == hi:  # ts_high is the same for all (it changes every 71 min)
-            lows = map(add, stamps, repeat(offset - unit * (hi << 32)))  # (s + offset) // unit - hi·2³², exactly
-            times = map(pack, repeat(hi), map(floordiv, lows, repeat(unit)) if unit != 1 else lows)
-        else:
-            us = list(map(floordiv, map(add, stamps, repeat(offset)), repeat(unit)))
-            times = map(pack, map(rshift, us, repeat(32)), map(and_, us, repeat(0xFFFFFFFF)))
-        return b"".join(chain.from_iterable(zip(heads, times, middles, datas, tails, strict=True)))
+    def _make(self, src: Any, dst: Any, size: int) -> Flow:
+        flow = self._templates[(src, dst, size)] = self.flow(size)
+        return flow

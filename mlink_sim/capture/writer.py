@@ -3,12 +3,13 @@
 The hot path only appends ``(ts_ns, datagram, src, dst)`` to a deque (a tapped socket, or
 :attr:`CaptureWriter.record` for a driver with its own clock). A writer thread wakes every ``flush_s`` (250 ms) and
 takes the whole queue as one batch (without a thread, ``start(background=False)``, the driver calls :meth:`flush`
-itself: the virtual clock does, every 250 ms of simulated time). Without notes in the batch, every per-datagram
-step is a C-level ``map``/``zip`` over the batch: the Enhanced Packet Block template of the datagram's flow and size
-(dpkt's block header with the IPv4/IPv6 + UDP header built by dpkt appended, made once per flow and size), and
-its Unix time in integer µs. :class:`~mlink_sim.capture.epb.EpbPacker` then packs :data:`_CHUNK` blocks at a time
-in the layout dpkt declares, and each chunk goes to the unbuffered file in one ``write``: that system call releases
-the GIL, so the event loop never waits behind the writer for longer than one chunk. dpkt writes the Section Header
+itself: the virtual clock does, every 250 ms of simulated time). The records go, as they are, to a loop compiled
+with mypyc (:func:`mlink_sim.capture.pack.pack_records`, through :class:`~mlink_sim.capture.epb.EpbPacker`): per
+datagram, the Enhanced Packet Block template of its flow and size (dpkt's block header with the IPv4/IPv6 + UDP
+header built by dpkt in it, made once per flow and size, found in a dict), its Unix time in integer µs, the
+block's parts appended; :data:`_CHUNK` blocks per call, and each chunk goes to the unbuffered file in one
+``write``: that system call releases the GIL, so the event loop never waits behind the writer for longer than one
+chunk. dpkt writes the Section Header
 and Interface Description Blocks and every block with comments (``EnhancedPacketBlockLE`` with its options); how
 this reads issue 20's "use a well-kept library; do not write the blocks by hand", and why, is in
 :mod:`mlink_sim.capture.epb`. What this costs per datagram is measured by ``scripts/bench_capture.py``
@@ -34,7 +35,6 @@ import socket
 import threading
 import time
 from collections import deque
-from collections.abc import Iterator
 from itertools import repeat
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -44,6 +44,7 @@ from dpkt import pcapng
 
 from .._log import get_logger
 from .epb import EpbPacker
+from .pack import Flow, Record
 
 __all__ = ["CaptureWriter", "CaptureStats", "LINKTYPE_RAW", "ip_packet", "event_text"]
 
@@ -53,10 +54,6 @@ LINKTYPE_RAW = 101  #: pcapng link type "raw IP" (IPv4 or IPv6 by the version ni
 _CHUNK = 128  #: blocks packed between two file writes (each releases the GIL): a GIL hold well under 0.1 ms
 _SNAPLEN = 65535
 _popleft = deque.popleft
-_MAX_OVERHEAD = 32 + 40 + 8 + 3  #: an EPB's bytes beyond its datagram at most: block fields, IPv6, UDP, padding
-_MAX_DATAGRAM = 4096  #: what the sockets read at most (the size bound keeps room for one more)
-#: a template of :class:`~mlink_sim.capture.epb.EpbPacker` for one flow and size, and the IP/UDP header alone
-_Flow = tuple[bytes, bytes, bytes, bytes]
 
 
 @dataclasses.dataclass
@@ -153,10 +150,11 @@ class CaptureWriter:
 
         #: the hook for drivers with their own clock (a virtual clock):
         #: ``record(ts_ns, datagram, (src_host, src_port), (dst_host, dst_port))``. A wildcard host (0.0.0.0, ::)
-        #: is replaced by the address the kernel would send from. Sockets use :meth:`wrap` (one call less).
+        #: is replaced by the address the kernel would send from. Sockets are tapped instead
+        #: (:func:`mlink_sim.aio.tapped.tap`: one call less).
         self.record = record
         #: what a socket's tap feeds: one ``(ts_ns, datagram, src, dst)`` tuple per datagram (the queue's append;
-        #: :meth:`wrap`, :func:`mlink_sim.aio.tapped.tap`)
+        #: :func:`mlink_sim.aio.tapped.tap`)
         self.sink = append
         self._file: BinaryIO | None = None
         self._blocks = _Blocks()
@@ -164,16 +162,11 @@ class CaptureWriter:
         self._thread: threading.Thread | None = None
         self._wake = threading.Event()
         self._closing = False
-        #: (src, dst, size) -> the EPB template of that flow and size, its IP/UDP header appended (EpbPacker)
-        self._templates: dict[tuple[Any, Any, int], _Flow] = {}
-        #: datagrams read from the queue, not written yet (time stamp in ns, template, datagram), in three lists:
-        #: the last one waits for the notes that may follow it
-        self._stamps: list[int] = []
-        self._flows: list[_Flow] = []
-        self._datas: list[bytes] = []
-        self._notes: dict[int, list[str]] = {}  #: index in the pending lists -> its comments
-        self._noted = 0  #: notes queued by :meth:`note` (counted before they are queued)
-        self._notes_taken = 0  #: notes the writer has taken from the queue
+        #: (src, dst, size) -> the EPB template of that flow and size, its IP/UDP header in it (EpbPacker.flow)
+        self._templates: dict[tuple[Any, Any, int], Flow] = {}
+        #: records taken from the queue, not written yet: the last datagram, and the notes after it, wait for the
+        #: notes that may follow it
+        self._pending: list[Record] = []
         self._full = False
         self._limit_reserve = _epb_size(0, [self._limit_text()]) - 32
 
@@ -202,9 +195,10 @@ class CaptureWriter:
             self._thread = None
         if self._file is not None:
             self._drain_timed(final=True)
-            if self._notes:
-                log.warning("capture_notes_unwritten", notes=sum(map(len, self._notes.values())),
-                            reason="no datagram to attach to")
+            if self._pending:  # notes only: no datagram came
+                self.stats.notes += len(self._pending)
+                log.warning("capture_notes_unwritten", notes=len(self._pending), reason="no datagram to attach to")
+                self._pending.clear()
             self._file.close()
             self._file = None
         return self.stats
@@ -224,15 +218,7 @@ class CaptureWriter:
     # ------------------------------------------------------------------ producers
     def note(self, ts_ns: int, event: Any) -> None:
         """A comment (a string, or an event dataclass formatted in the writer thread) on the last datagram."""
-        self._noted += 1  # before the note is queued: a writer that sees it queued sees it counted
         self._queue.append((ts_ns, event, None, None))
-
-    def wrap(self, sock: socket.socket) -> Any:
-        """*sock* as a :class:`~mlink_sim.capture.tap.TappedSocket` recording into this capture (one system call
-        per datagram; the I/O layer taps its batched calls instead, :func:`mlink_sim.aio.tapped.tap`)."""
-        from .tap import TappedSocket
-
-        return TappedSocket(sock, self.sink)
 
     # ------------------------------------------------------------------ writer
     def _run(self) -> None:
@@ -255,62 +241,98 @@ class CaptureWriter:
 
     def _drain(self, final: bool = False) -> None:
         """Take everything queued, then write all but the last datagram (all when *final*): the last waits for
-        the notes that may come next (its comments).
-
-        Every step is a C-level ``map``/``zip``/slice over the batch (the template of each flow and size, the
-        timestamps); notes, when the batch holds any, are found with ``tuple.index`` and split it into runs.
-        :class:`~mlink_sim.capture.epb.EpbPacker` then packs :data:`_CHUNK` blocks per file write."""
-        queue = self._queue
+        the notes that may come next (its comments)."""
+        queue, pending = self._queue, self._pending
         count = len(queue)
         if count:
-            batch = list(map(_popleft, repeat(queue, count)))
-            noted = self._noted  # read after the pops: every note in the batch is counted in it
-            stamps, datas, srcs, dsts = zip(*batch, strict=True)
-            if noted == self._notes_taken:
-                self._take(stamps, datas, srcs, dsts)
-            else:
-                start = 0
-                for i in _notes_in(srcs):
-                    if i > start:
-                        self._take(stamps[start:i], datas[start:i], srcs[start:i], dsts[start:i])
-                    self._notes_taken += 1
-                    self.stats.notes += 1
-                    self._notes.setdefault(max(len(self._datas) - 1, 0), []).append(event_text(datas[i]))
-                    start = i + 1
-                if start < count:
-                    self._take(stamps[start:], datas[start:], srcs[start:], dsts[start:])
-        pending = len(self._datas)
-        if final and pending:
-            self._write(pending)
-        elif pending > 1:
-            self._write(pending - 1)
+            pending.extend(map(_popleft, repeat(queue, count)))
+        end = len(pending)
+        if not final:  # up to the last datagram, which stays with the notes after it
+            end -= 1
+            while end > 0 and pending[end][2] is None:
+                end -= 1
+        if end > 0:
+            self._write(end)
 
-    def _take(self, stamps: tuple[int, ...], datas: tuple[bytes, ...], srcs: tuple[Any, ...],
-              dsts: tuple[Any, ...]) -> None:
-        """Datagrams (no notes) into the pending lists: their flows' templates, their stamps (ns), themselves."""
-        flows = self._templates
+    def _write(self, end: int) -> None:
+        """Write the records ``pending[:end]`` and drop them: the compiled loop packs the runs of uncommented
+        datagrams, :data:`_CHUNK` per file write, up to the size bound; a datagram with notes goes by
+        :meth:`_write_one`, and so does each one near the bound."""
+        pending, flows, make, pack = self._pending, self._templates, self._make, self._packer.pack_records
+        offset, stats = self.epoch_offset_ns, self.stats
+        i = 0
         try:
-            got = list(map(flows.__getitem__, zip(srcs, dsts, map(len, datas), strict=True)))
-        except KeyError:  # a flow or size not seen before: made once
-            for key in set(zip(srcs, dsts, map(len, datas), strict=True)).difference(flows):
-                flows[key] = self._flow(*key)
-            got = list(map(flows.__getitem__, zip(srcs, dsts, map(len, datas), strict=True)))
-        self._flows.extend(got)
-        self._stamps.extend(stamps)
-        self._datas.extend(datas)
+            while i < end:
+                if self._full:  # the bound was reached (or the disk failed): counted, not written
+                    datagrams = sum(1 for record in pending[i:end] if record[2] is not None)
+                    stats.not_recorded += datagrams
+                    stats.notes += end - i - datagrams
+                    i = end
+                    break
+                blocks, stop, _ = pack(pending, i, end, flows, make, offset=offset, count=_CHUNK,
+                                       budget=self.max_bytes - self._limit_reserve - stats.bytes)
+                if stop > i:
+                    self._out(blocks)
+                    stats.datagrams += stop - i
+                    i = stop
+                else:
+                    stop = self._write_one(i, end)
+                    if stop == i:  # notes with no datagram to attach to yet
+                        break
+                    i = stop
+        finally:
+            del pending[:i]
 
-    def _flow(self, src: Any, dst: Any, size: int) -> _Flow:
-        """The EPB template of a *size*-byte datagram from *src* to *dst*, its IP + UDP header appended. A wildcard
-        source (a socket bound to 0.0.0.0 or ::) is replaced by the address the kernel sends from to reach
-        *dst*."""
+    def _write_one(self, i: int, end: int) -> int:
+        """The datagram at or after ``pending[i]`` with the notes before it (when no datagram came before them)
+        and after it, as its comments; near the bound, the last one that fits carries the limit comment. Returns
+        the index after its notes (*i* when no datagram is before *end*)."""
+        pending = self._pending
+        k = i
+        while k < end and pending[k][2] is None:
+            k += 1
+        if k == end:
+            return i
+        record = pending[k]
+        comments = [event_text(note[1]) for note in pending[i:k]]
+        k += 1
+        while k < len(pending) and pending[k][2] is None:
+            comments.append(event_text(pending[k][1]))
+            k += 1
+        self.stats.notes += len(comments)
+        ts_ns, data, src, dst = record
+        flow = self._templates.get((src, dst, len(data))) or self._make(src, dst, len(data))
+        caplen = len(flow[4]) + len(data)
+        size, block = self.stats.bytes, _epb_size(caplen, comments)
+        if size + 2 * block + self._limit_reserve > self.max_bytes:  # another one would not fit after it
+            self._full = True
+            comments.append(self._limit_text())
+            log.warning("capture_limit_reached", path=str(self.path), max_bytes=self.max_bytes)
+            if size + _epb_size(caplen, comments) > self.max_bytes:  # not even this one fits with its comments
+                self.stats.not_recorded += 1
+                return k
+        if comments:
+            self._write_commented(ts_ns, flow, data, comments)
+        else:
+            self._out(self._packer.pack_records([record], 0, 1, self._templates, self._make,
+                                                offset=self.epoch_offset_ns)[0])
+        self.stats.datagrams += 1
+        return k
+
+    def _make(self, src: Any, dst: Any, size: int) -> Flow:
+        """The EPB template of a *size*-byte datagram from *src* to *dst*, its IP + UDP header in it, made and kept.
+        A wildcard source (a socket bound to 0.0.0.0 or ::) is replaced by the address the kernel sends from to
+        reach *dst*."""
         from .tap import WILDCARDS, source_address_for
 
+        key = (src, dst, size)
         if src[0] in WILDCARDS:
             src = source_address_for(dst, src[1])
         elif dst[0] in WILDCARDS:
             dst = source_address_for(src, dst[1])
         header = ip_packet(bytes(size), src, dst)[:-size] if size else ip_packet(b"", src, dst)
-        return (*self._packer.template(len(header) + size, header), header)
+        flow = self._templates[key] = self._packer.flow(len(header) + size, header)
+        return flow
 
     def _limit_text(self) -> str:
         return f"capture limit of {self.max_bytes} bytes reached: later datagrams are not recorded"
@@ -331,82 +353,13 @@ class CaptureWriter:
             view = view[self._file.write(view) or 0:]
         self.stats.bytes += len(data)
 
-    def _write(self, count: int) -> None:
-        """Write the first *count* pending datagrams with their notes; keep the size bound."""
-        stamps, flows, datas = self._stamps[:count], self._flows[:count], self._datas[:count]
-        del self._stamps[:count], self._flows[:count], self._datas[:count]
-        notes = self._notes
-        mine: dict[int, list[str]] = {}
-        if notes:
-            mine = {i: notes.pop(i) for i in sorted(notes) if i < count}
-            self._notes = {i - count: c for i, c in notes.items()}
-        if self._full:
-            self.stats.not_recorded += count
-            return
-        bound = (self.stats.bytes + count * _MAX_OVERHEAD + sum(map(len, datas))
-                 + sum(_epb_size(0, c) - 32 for c in mine.values()))
-        if bound + self._limit_reserve + _MAX_OVERHEAD + _MAX_DATAGRAM > self.max_bytes:
-            self._write_bounded(stamps, flows, datas, mine)
-            return
-        start = 0
-        for i, comments in mine.items():  # commented datagrams one by one, the runs between them in chunks
-            self._write_run(stamps, flows, datas, start, i)
-            self._write_commented(stamps[i], flows[i], datas[i], comments)
-            start = i + 1
-        self._write_run(stamps, flows, datas, start, count)
-        self.stats.datagrams += count
-
-    def _write_run(self, stamps: list[int], flows: list[_Flow], datas: list[bytes], start: int, end: int) -> None:
-        """Uncommented datagrams ``start:end``: packed by the EpbPacker, one file write per :data:`_CHUNK`."""
-        pack, out = self._packer.pack_parts, self._out
-        for j in range(start, end, _CHUNK):
-            k = min(j + _CHUNK, end)
-            out(pack(stamps[j:k], flows[j:k], datas[j:k], offset=self.epoch_offset_ns))
-
-    def _write_commented(self, ts_ns: int, flow: _Flow, data: bytes, comments: list[str]) -> None:
+    def _write_commented(self, ts_ns: int, flow: Flow, data: bytes, comments: list[str]) -> None:
         """One datagram with comments: dpkt's own Enhanced Packet Block with ``opt_comment`` options."""
         us = (ts_ns + self.epoch_offset_ns) // 1000
         opts = [pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_COMMENT, text=c) for c in comments]
         opts.append(pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_ENDOFOPT))
-        self._out(bytes(pcapng.EnhancedPacketBlockLE(pkt_data=flow[3] + data, opts=opts, ts_high=us >> 32,
+        self._out(bytes(pcapng.EnhancedPacketBlockLE(pkt_data=flow[4] + data, opts=opts, ts_high=us >> 32,
                                                      ts_low=us & 0xFFFFFFFF)))
-
-    def _write_bounded(self, stamps: list[int], flows: list[_Flow], datas: list[bytes],
-                       notes: dict[int, list[str]]) -> None:
-        """One datagram at a time near ``max_bytes``: the last one that fits carries the limit comment."""
-        size = self.stats.bytes
-        for i, (ts_ns, flow, data) in enumerate(zip(stamps, flows, datas, strict=True)):
-            comments = notes.get(i)
-            caplen = len(flow[3]) + len(data)
-            block = _epb_size(caplen, comments)
-            if size + 2 * block + self._limit_reserve > self.max_bytes:  # another one would not fit after it
-                self._full = True
-                comments = [*(comments or ()), self._limit_text()]
-                log.warning("capture_limit_reached", path=str(self.path), max_bytes=self.max_bytes)
-                block = _epb_size(caplen, comments)
-                if size + block > self.max_bytes:  # not even this one fits with its comments
-                    self.stats.not_recorded += len(datas) - i
-                    return
-            if comments:
-                self._write_commented(ts_ns, flow, data, comments)
-            else:
-                self._out(self._packer.pack_parts([ts_ns], [flow], [data], offset=self.epoch_offset_ns))
-            self.stats.datagrams += 1
-            size += block
-            if self._full:
-                self.stats.not_recorded += len(datas) - i - 1
-                return
-
-
-def _notes_in(srcs: tuple[Any, ...]) -> Iterator[int]:
-    """Where the notes are in a batch (their source is None), by C-level scans."""
-    i = -1
-    while True:
-        try:
-            i = srcs.index(None, i + 1)
-        except ValueError:
-            return
-        yield i
 
 
 def _pad4(n: int) -> int:

@@ -22,27 +22,6 @@ PACKETS = st.lists(st.tuples(STAMPS, st.binary(min_size=0, max_size=90), st.list
                    max_size=40)
 
 
-def _dpkt_file(items: list[tuple[int, bytes, list[str]]]) -> bytes:
-    """What dpkt's Writer writes: ``writepkts`` for uncommented packets, ``writepkt`` of an EPB for the others. dpkt
-    takes the time as float seconds; where ``us / 1e6`` does not round back to *us* (far-future stamps: its own
-    float limit), the EPB is given its two timestamp fields instead (dpkt's ``writepkt`` path without ``ts``)."""
-    out = io.BytesIO()
-    writer = dpkt_pcapng.Writer(out, snaplen=65535, linktype=101)
-    for us, packet, comments in items:
-        exact = round(us / 1e6 * 1e6) == us
-        opts = None
-        if comments:
-            opts = [dpkt_pcapng.PcapngOptionLE(code=dpkt_pcapng.PCAPNG_OPT_COMMENT, text=c) for c in comments]
-            opts.append(dpkt_pcapng.PcapngOptionLE(code=dpkt_pcapng.PCAPNG_OPT_ENDOFOPT))
-        if not exact:  # us > 0 here (0 is exact)
-            writer.writepkt(EPB(pkt_data=packet, opts=opts or [], ts_high=us >> 32, ts_low=us & 0xFFFFFFFF))
-        elif comments:
-            writer.writepkt(EPB(pkt_data=packet, opts=opts), ts=us / 1e6)
-        else:
-            writer.writepkts([(us / 1e6, packet)])
-    return out.getvalue()
-
-
 def _packer_file(items: list[tuple[int, bytes, list[str]]], packer: EpbPacker) -> bytes:
     """The same, with every run of uncommented packets packed at once by the packer."""
     out = io.BytesIO()
@@ -67,10 +46,10 @@ def _packer_file(items: list[tuple[int, bytes, list[str]]], packer: EpbPacker) -
 
 @settings(max_examples=300, deadline=None)
 @given(PACKETS)
-def test_blocks_are_byte_identical_to_dpkt_and_read_back(items: list[tuple[int, bytes, list[str]]]) -> None:
+def test_blocks_are_byte_identical_to_dpkt_and_read_back(dpkt_file, items: list[tuple[int, bytes, list[str]]]) -> None:
     packer = EpbPacker()
     ours = _packer_file(items, packer)
-    assert ours == _dpkt_file(items)
+    assert ours == dpkt_file(items)
     # dpkt's reader: every packet, its time in µs
     got = [(round(ts * 1e6), bytes(buf)) for ts, buf in dpkt_pcapng.Reader(io.BytesIO(ours))]
     assert got == [(us, packet) for us, packet, _ in items]
@@ -80,14 +59,25 @@ def test_blocks_are_byte_identical_to_dpkt_and_read_back(items: list[tuple[int, 
             for b in blocks] == [(us, packet, comments) for us, packet, comments in items]
 
 
+def _records_packed(packer: EpbPacker, records: list, prefix: bytes = b"", **kw: int) -> bytes:
+    """The packer's records path (the writer's): every record packed, a flow per size with *prefix* in it."""
+    def make(src: object, dst: object, size: int):
+        flow = flows[(src, dst, size)] = packer.flow(len(prefix) + size, prefix)
+        return flow
+
+    flows: dict = {}
+    blocks, stop, size = packer.pack_records(records, 0, len(records), flows, make, **kw)
+    assert (stop, size) == (len(records), len(blocks))
+    return blocks
+
+
 @given(st.lists(st.tuples(STAMPS, st.binary(max_size=60)), max_size=30), st.binary(min_size=0, max_size=48))
 def test_a_template_with_a_prefix_is_the_packet_with_that_prefix(items: list[tuple[int, bytes]], prefix: bytes) -> None:
     """The writer's path: the IP/UDP header lives in the template of its flow, the datagram is the data."""
     packer = EpbPacker()
-    stamps = [us for us, _ in items]
-    templates = [packer.template(len(prefix) + len(data), prefix) for _, data in items]
-    assert packer.pack_parts(stamps, templates, [d for _, d in items], unit=1) == \
-        packer.pack(stamps, [prefix + d for _, d in items])
+    records = [(us, data, "s", "d") for us, data in items]
+    assert _records_packed(packer, records, prefix, unit=1) == \
+        packer.pack([us for us, _ in items], [prefix + d for _, d in items])
 
 
 @given(st.lists(st.tuples(st.integers(min_value=0, max_value=10**16), st.binary(max_size=20)), max_size=30),
@@ -96,16 +86,15 @@ def test_stamps_in_ns_with_an_offset_are_truncated_to_the_microsecond(items: lis
                                                                       offset: int) -> None:
     """The writer's stamps: monotonic ns + the epoch offset, in µs (truncated, as libpcap does)."""
     packer = EpbPacker()
-    stamps, datas = [ns for ns, _ in items], [d for _, d in items]
-    templates = [packer.template(len(d)) for d in datas]
-    assert packer.pack_parts(stamps, templates, datas, offset=offset) == \
-        packer.pack([(ns + offset) // 1000 for ns in stamps], datas)
+    records = [(ns, data, "s", "d") for ns, data in items]
+    assert _records_packed(packer, records, offset=offset) == \
+        packer.pack([(ns + offset) // 1000 for ns, _ in items], [d for _, d in items])
 
 
-def test_sizes_zero_and_not_multiples_of_four_and_the_71_minute_wrap() -> None:
+def test_sizes_zero_and_not_multiples_of_four_and_the_71_minute_wrap(dpkt_file) -> None:
     items = [(2**32 - 1, b"", []), (2**32, b"a", []), (2**32 + 1, b"abcde", ["c"]), (0, b"abcd", []),
              (1_700_000_000_123_456, bytes(range(78)), [])]
-    assert _packer_file(items, EpbPacker()) == _dpkt_file(items)
+    assert _packer_file(items, EpbPacker()) == dpkt_file(items)
     assert EpbPacker().pack([], []) == b""
 
 

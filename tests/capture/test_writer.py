@@ -10,6 +10,7 @@ from pathlib import Path
 import dpkt
 import pytest
 
+from mlink_sim.aio.tapped import tap
 from mlink_sim.capture import CaptureWriter, event_text, ip_packet, read_capture
 from mlink_sim.capture.tap import TappedSocket, source_address_for
 from mlink_sim.master import StateChanged, StationState
@@ -117,7 +118,7 @@ def test_tapped_socket_records_both_directions_with_real_addresses(tmp_path: Pat
     port, server_addr = raw.getsockname()[1], server.getsockname()
     path = tmp_path / "c.pcapng"
     with CaptureWriter(path) as w:
-        tapped = w.wrap(raw)
+        tapped = tap(w, raw)  # what --capture wraps a socket in
         try:
             tapped.sendto(b"ping" * 8, server.getsockname())
             data, peer = server.recvfrom(100)
