@@ -15,7 +15,7 @@ apart where its noise is small, quoted as the median [p10, p90] over ``--repeat`
   (median over the runs). Also shown (and used for the headline with ``--no-real``): a **replay** of the
   datagrams and notes of a quickstart capture through a :class:`CaptureWriter`, in the 250-ms batches its thread
   takes, with the sources of answers shared as the batched tap shares them (fresh tuples with ``MLINK_MMSG=0``,
-  as ``recvfrom`` makes them). The replay is about 0.55-0.65 of the in-situ figure on the 2-vCPU VM
+  as ``recvfrom`` makes them). The replay is about 0.5-0.65 of the in-situ figure on the 2-vCPU VM
   (docs/performance.md, "Capture", has what was ruled out).
 
 **Cross-checks**, in the same run: ``mlink-sim up quickstart`` with and without ``--capture``, the two runs of a
