@@ -17,7 +17,11 @@ RTT tail, not dropped from it.
 Two variants, both measured by the caller in the same run: **plain** (``recvfrom``/``recv`` until the socket is
 empty, one ``sendto`` per datagram) and **batched** (``mlink_sim.aio.mmsg``: the client's burst in one
 ``sendmmsg``, its answers and each station socket's commands in one ``recvmmsg``; the echo's answers stay one
-``sendto`` each, because each goes out from its own station's socket).
+``sendto`` each, because each goes out from its own station's socket). Where the master reads its answers with
+the kernel's receive timestamps (``mmsg.stamps_supported()``, not ``MLINK_RX_STAMPS=0``), the batched client does
+too, by the same rule (cycles whose quarter is longer than the clock's spin): no reader on its socket, the answers
+read by a ``PreRead`` a quarter period before each deadline, in the clock's spin and at each cycle's start, each RTT
+up to the kernel's stamp, as ``mlink_sim.aio.master`` does.
 
 Missed, RTT and CPU per exchange are ``bench_figures.exchange_figures``, the simulator's own definition: missed =
 exchanges due but not answered within a cycle, over the exchanges due; CPU per exchange = (client CPU + server
@@ -51,6 +55,7 @@ sys.path.insert(0, str(ROOT / "scripts"))
 from bench_figures import exchange_figures  # noqa: E402
 
 from mlink_sim.aio import mmsg  # noqa: E402
+from mlink_sim.aio.preread import PreRead  # noqa: E402
 from mlink_sim.aio.ticker import CycleTimer  # noqa: E402
 from mlink_sim.aio.udp import bound_socket, close_watched, new_event_loop, open_batch_endpoint  # noqa: E402
 from mlink_sim.config import format_ns, parse_duration_ns  # noqa: E402
@@ -161,6 +166,7 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
     loop = asyncio.get_running_loop()
     sock: Any = None
     timer: CycleTimer | None = None
+    pre: PreRead | None = None
     try:
         ports = json.loads(proc.stdout.readline())["ports"]  # type: ignore[union-attr]
         raw = bound_socket("127.0.0.1", 0)
@@ -174,6 +180,18 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
         window = max(catch_up_ns, cycle_ns)
         counts = {"missed": 0, "missing": 0, "sent": 0, "cycles": 0}
         mono = time.monotonic_ns
+
+        def read_stamped(limit: int = 512) -> None:  # as the master reads where it can: the kernel's stamps
+            while limit > 0:
+                want = min(limit, mmsg.CAPACITY)
+                batch = sock.recv_burst_stamped(want)
+                for data, now in batch:
+                    t = pending.pop(data[:6], None)
+                    if t is not None:
+                        rtt.record(now - t)
+                if len(batch) < want:
+                    return
+                limit -= want
 
         if batched:
             recv_burst = sock.recv_burst
@@ -232,9 +250,20 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
                     except OSError:
                         pass
             counts["sent"] += stations
+            if pre is not None:
+                pre.arm(deadline + cycle_ns)
 
-        loop.add_reader(raw.fileno(), read)
         timer = CycleTimer(cycle_ns, on_cycle, loop=loop, idle=read_one, catch_up_ns=catch_up_ns)
+        # the master's choice (aio/master.py, Master._read_stamped): stamped reads and a pre-read where they fit
+        if batched and mmsg.stamps_supported():
+            pre = PreRead.create(loop, read_stamped, cycle_ns, timer.spin_ns)
+        if pre is not None and sock.enable_stamps():
+            read = read_stamped
+        else:
+            if pre is not None:
+                pre.close()
+                pre = None
+            loop.add_reader(raw.fileno(), read)
         timer.start()
         await asyncio.sleep(_WARM_UP_S)
         rtt.reset()
@@ -251,6 +280,8 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
     finally:
         if timer is not None:
             timer.stop()
+        if pre is not None:
+            pre.close()
         if sock is not None:
             close_watched(loop, sock)
         proc.terminate()

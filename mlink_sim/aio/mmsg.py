@@ -5,7 +5,11 @@
 
 * ``send_burst([(datagram, addr), …])``: the whole burst in one ``sendmmsg`` (the master's N commands);
 * ``recv_burst(limit)``: every datagram waiting, up to *limit*, in one ``recvmmsg`` (the master's answers);
-* ``recvfrom_burst(limit)``: the same with each source address (a slave station's commands).
+* ``recvfrom_burst(limit)``: the same with each source address (a slave station's commands);
+* ``recv_burst_stamped(limit)``: as ``recv_burst``, each datagram with the time the kernel received it
+  (``SO_TIMESTAMPNS``, after :meth:`BurstSocket.enable_stamps`), on the ``time.monotonic_ns`` clock: a reader
+  that reads late still knows when each answer arrived (the master reads its answers once per cycle with it,
+  docs/performance.md, "Fewer wake-ups of the master").
 
 Each returns what it did without raising for "nothing waiting": an empty list, not ``BlockingIOError``, so a
 read needs no second system call to learn that the socket is empty. Other socket errors raise ``OSError`` as
@@ -32,17 +36,27 @@ import errno
 import os
 import socket
 import struct
+import platform
 import sys
+import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
-__all__ = ["BurstSocket", "CAPACITY", "drain", "supported", "wrap"]
+__all__ = ["BurstSocket", "CAPACITY", "drain", "stamps_supported", "supported", "wrap"]
 
 _MSG_DONTWAIT = 0x40  # <bits/socket.h>, the same on every Linux architecture CPython supports
 _EAGAIN = (errno.EAGAIN, errno.EWOULDBLOCK)
 _NAME_SIZE = 128  # sizeof(struct sockaddr_storage)
 CAPACITY = 64  #: messages per system call (a burst of more is sent, or read, in several calls)
 _BUFSIZE = 4096  # bytes per received datagram, as the per-datagram reads (``recv(4096)``)
+# Kernel receive timestamps: <asm-generic/socket.h> SO_TIMESTAMPNS (= SO_TIMESTAMPNS_OLD, 35; on x86-64 and
+# aarch64 its timespec has a 64-bit tv_sec), cmsg type SCM_TIMESTAMPNS = SO_TIMESTAMPNS at level SOL_SOCKET.
+# One control message per datagram: a struct cmsghdr (cmsg_len: size_t, level: int, type: int; 16 bytes) and the
+# struct timespec (tv_sec, tv_nsec: two int64), CMSG_SPACE(16) = 32 bytes. Other architectures (sparc, parisc,
+# mips number the option differently) keep the reads stamped by the reader.
+_SO_TIMESTAMPNS = 35
+_CTL_SIZE = 32
+_STAMPS_ARCH = platform.machine() in ("x86_64", "amd64", "aarch64", "arm64")
 
 
 class _IoVec(ctypes.Structure):
@@ -84,6 +98,14 @@ def supported() -> bool:
     set in the environment (that switch keeps the per-datagram calls, to compare or to rule the batching out; the
     slave workers inherit it). Read whenever a socket is opened."""
     return _calls is not None and os.environ.get("MLINK_MMSG", "").strip().lower() not in ("0", "off", "no", "false")
+
+
+def stamps_supported() -> bool:
+    """True where :meth:`BurstSocket.enable_stamps` can work (the batched calls, a 64-bit little-endian x86-64 or
+    aarch64 Linux) and ``MLINK_RX_STAMPS=0`` is not set (that switch keeps the master's reads stamped as they are
+    read, woken by every answer: to compare, or to rule the stamps out)."""
+    return (supported() and _STAMPS_ARCH and sys.byteorder == "little" and ctypes.sizeof(ctypes.c_size_t) == 8
+            and os.environ.get("MLINK_RX_STAMPS", "").strip().lower() not in ("0", "off", "no", "false"))
 
 
 def wrap(sock: socket.socket) -> Any:
@@ -149,7 +171,7 @@ class BurstSocket:
     __slots__ = ("sock", "sendto", "recv", "recvfrom", "fileno", "getsockname", "close", "setsockopt", "_fd",
                  "_cap", "_smsgs", "_siov", "_sdata", "_sview", "_slayout", "_names", "_rmsgs", "_riov", "_rbuf",
                  "_rview", "_rnames", "_rnview", "_rwords", "_stride", "_len_at", "_namelen_at", "_bufsize",
-                 "_sources")
+                 "_sources", "_rctl", "_rctlq", "_ctllen_at", "stamped")
 
     def __init__(self, sock: socket.socket, capacity: int = CAPACITY, bufsize: int = _BUFSIZE) -> None:
         if _calls is None:
@@ -187,6 +209,32 @@ class BurstSocket:
         self._len_at = _MMsgHdr.msg_len.offset // 4
         self._namelen_at = (_MMsgHdr.msg_hdr.offset + _MsgHdr.msg_namelen.offset) // 4
         self._sources: dict[bytes, Any] = {}
+        self._rctl: Any = None  # the control buffers of the kernel's timestamps (enable_stamps)
+        self._rctlq: Any = None
+        self._ctllen_at = (_MMsgHdr.msg_hdr.offset + _MsgHdr.msg_controllen.offset) // 4  # its low 32 bits
+        self.stamped = False  #: True once enable_stamps() succeeded
+
+    def enable_stamps(self) -> bool:
+        """Ask the kernel to stamp every datagram it receives on this socket (``SO_TIMESTAMPNS``) and give each
+        read slot a control buffer for the stamp, for :meth:`recv_burst_stamped`. False (nothing changed) where
+        :func:`stamps_supported` is False or the option is refused."""
+        if self.stamped:
+            return True
+        if not stamps_supported():
+            return False
+        try:
+            self.sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+        except OSError:
+            return False
+        cap = self._cap
+        self._rctl = ctypes.create_string_buffer(cap * _CTL_SIZE)
+        self._rctlq = memoryview(self._rctl).cast("B").cast("q")
+        base = ctypes.addressof(self._rctl)
+        for i in range(cap):
+            hdr = self._rmsgs[i].msg_hdr
+            hdr.msg_control, hdr.msg_controllen = base + i * _CTL_SIZE, _CTL_SIZE
+        self.stamped = True
+        return True
 
     # ------------------------------------------------------------------ sending
     def send_burst(self, items: Sequence[tuple[bytes, Any]]) -> list[tuple[int, OSError]]:
@@ -287,6 +335,31 @@ class BurstSocket:
             w = i * stride
             words[w + nl] = _NAME_SIZE
             out.append(view[i * size:i * size + words[w + at]].tobytes())
+        return out
+
+    def recv_burst_stamped(self, limit: int = CAPACITY) -> list[tuple[bytes, int]]:
+        """As :meth:`recv_burst`, each datagram with the time the kernel received it, in ``time.monotonic_ns``
+        nanoseconds (after :meth:`enable_stamps`; a datagram without a stamp gets the time it was read)."""
+        n = self._receive(limit)
+        if not n:
+            return []
+        # CLOCK_REALTIME (the stamps' clock) to CLOCK_MONOTONIC: one offset per read, both clocks read together
+        now = time.monotonic_ns()
+        offset = time.time_ns() - now
+        view, words, q, stride, at, nl, cl, size = (self._rview, self._rwords, self._rctlq, self._stride,
+                                                    self._len_at, self._namelen_at, self._ctllen_at, self._bufsize)
+        out = []
+        for i in range(n):
+            w = i * stride
+            words[w + nl] = _NAME_SIZE
+            if words[w + cl] >= _CTL_SIZE and q is not None:  # the timestamp's cmsg is there: tv_sec, tv_nsec
+                t = q[4 * i + 2] * 1_000_000_000 + q[4 * i + 3] - offset
+                words[w + cl] = _CTL_SIZE
+            else:
+                t = now
+                if q is not None:
+                    words[w + cl] = _CTL_SIZE
+            out.append((view[i * size:i * size + words[w + at]].tobytes(), t if t <= now else now))
         return out
 
     def recvfrom_burst(self, limit: int = CAPACITY) -> list[tuple[bytes, Any]]:

@@ -122,6 +122,47 @@ def test_a_destination_by_name_is_sent_one_by_one() -> None:
         rx.close()
 
 
+@pytest.mark.skipif(not mmsg.stamps_supported(), reason="kernel receive timestamps not supported here")
+def test_stamped_reads_keep_the_kernels_arrival_time() -> None:
+    """SO_TIMESTAMPNS (<asm-generic/socket.h>): a datagram read long after it came keeps the time it came, on the
+    monotonic clock; the stamps come in arrival order, and beyond one recvmmsg the slots' control buffers are
+    reused."""
+    tx, rx = _udp(), mmsg.BurstSocket(_udp())
+    try:
+        assert rx.enable_stamps() and rx.enable_stamps() and rx.stamped
+        before = time.monotonic_ns()
+        for i in range(mmsg.CAPACITY + 6):
+            tx.sendto(b"%d" % i, rx.getsockname())
+        after = time.monotonic_ns()
+        time.sleep(0.05)  # read 50 ms after they came
+        read_at = time.monotonic_ns()
+        got: list[tuple[bytes, int]] = []
+        while batch := rx.recv_burst_stamped(1000):
+            assert len(batch) <= mmsg.CAPACITY
+            got += batch
+        assert [d for d, _ in got] == [b"%d" % i for i in range(mmsg.CAPACITY + 6)]
+        stamps = [t for _, t in got]
+        assert stamps == sorted(stamps)
+        assert before - 1_000_000 <= stamps[0] and stamps[-1] <= after + 1_000_000 < read_at  # 1 ms: clock offset
+        assert rx.recv_burst_stamped() == []
+        tx.sendto(b"again", rx.getsockname())  # the control lengths were restored after the first reads
+        time.sleep(0.02)
+        ((data, t),) = rx.recv_burst_stamped(1)
+        assert data == b"again" and read_at < t <= time.monotonic_ns()
+    finally:
+        tx.close()
+        rx.close()
+
+
+def test_stamps_switched_off(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("MLINK_RX_STAMPS", "0")
+    sock = mmsg.BurstSocket(_udp())
+    try:
+        assert not mmsg.stamps_supported() and not sock.enable_stamps() and not sock.stamped
+    finally:
+        sock.close()
+
+
 def test_switched_off_the_sockets_stay_plain(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("MLINK_MMSG", "0")
     sock = _udp()

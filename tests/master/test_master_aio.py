@@ -171,3 +171,35 @@ async def test_master_over_loopback_with_and_without_batched_calls(batched, monk
     finally:
         await master.close(timeout=0.01)
     await asyncio.wait_for(loopback_scenario(Link.ML3), timeout=20)
+
+
+@pytest.mark.parametrize("stamps", [True, False], ids=["kernel-stamps", "reader"])
+async def test_master_reads_stamped_answers_without_a_reader(stamps, monkeypatch):
+    """With the kernel's receive timestamps (mmsg.stamps_supported, SO_TIMESTAMPNS) the master's socket wakes
+    nobody: the answers are read at the clock's wake-up, in its spin and at each cycle's start, each with the time
+    it came. Without them (MLINK_RX_STAMPS=0) every answer wakes the reader as before. The scenario passes
+    either way."""
+    from mlink_sim.aio import mmsg
+
+    monkeypatch.setenv("MLINK_RX_STAMPS", "1" if stamps else "0")
+    if stamps and not mmsg.stamps_supported():
+        pytest.skip("kernel receive timestamps not supported here")
+    plan = NetworkPlan(Link.ML3, TCYCLE, (StationPlan(0x03, Link.ML3),))
+    master = await Master.start(plan, {0x03: ("127.0.0.1", 9)})
+    try:
+        assert master.stamped is stamps
+        assert asyncio.get_running_loop().remove_reader(master._sock.fileno()) is not stamps
+    finally:
+        await master.close(timeout=0.01)
+    await asyncio.wait_for(loopback_scenario(Link.ML3), timeout=20)
+
+
+async def test_no_stamped_reads_where_the_pre_read_would_fall_in_the_spin():
+    """At 250 µs a quarter period is inside the clock's spin: the master keeps its reader (as without stamps)."""
+    plan = NetworkPlan(Link.ML3, 250_000, (StationPlan(0x03, Link.ML3),))
+    master = await Master.start(plan, {0x03: ("127.0.0.1", 9)})
+    try:
+        assert not master.stamped and master._pre is None
+        assert asyncio.get_running_loop().remove_reader(master._sock.fileno())
+    finally:
+        await master.close(timeout=0.01)

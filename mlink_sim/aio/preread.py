@@ -1,0 +1,62 @@
+"""One read of a socket's waiting datagrams per cycle, ahead of the cycle's deadline (docs/performance.md, "Fewer
+wake-ups of the master").
+
+A reader whose datagrams carry the kernel's receive timestamps (``mmsg.BurstSocket.recv_burst_stamped``) need not
+be woken by each of them: the time each came is kept. The master then reads its answers at the clock's wake-up,
+in its spin and at each cycle's start. Left to those reads alone, the answers of a whole cycle would be decoded
+just before the next cycle's commands go out, on the cycle's critical path. :class:`PreRead` adds one wake-up per
+cycle at a fixed point before the next deadline (a quarter period by default), so most answers are decoded
+there: two wake-ups per cycle (this one and the clock's) at any number of stations, where a reader woken by
+every answer wakes up to once per answer.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable
+
+from ._timerfd import TimerFD, timerfd_supported
+
+__all__ = ["PreRead"]
+
+
+class PreRead:
+    """Calls *read* once per cycle, *lead_ns* before the next deadline (a Linux timerfd watched by *loop*).
+    :meth:`arm` after each cycle's commands; :meth:`close` to stop. Where no timerfd can be made, :meth:`create`
+    gives None and the caller keeps its reads at the clock's wake-up."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, read: Callable[[], None], lead_ns: int) -> None:
+        self._loop = loop
+        self._read = read
+        self.lead_ns = lead_ns
+        self._tfd: TimerFD | None = TimerFD()
+        loop.add_reader(self._tfd.fileno(), self._on_timer)
+
+    @classmethod
+    def create(cls, loop: asyncio.AbstractEventLoop, read: Callable[[], None], period_ns: int,
+               spin_ns: int = 0) -> PreRead | None:
+        """A pre-read a quarter *period_ns* before each deadline; None where it would fall inside the clock's spin
+        (*spin_ns*: the spin reads then anyway) or no timerfd is available."""
+        lead = period_ns // 4
+        if lead <= spin_ns or not timerfd_supported():
+            return None
+        return cls(loop, read, lead)
+
+    def arm(self, next_deadline_ns: int) -> None:
+        tfd = self._tfd
+        if tfd is not None:
+            tfd.set_abs(next_deadline_ns - self.lead_ns)
+
+    def _on_timer(self) -> None:
+        tfd = self._tfd
+        if tfd is not None and tfd.drain():
+            self._read()
+
+    def close(self) -> None:
+        tfd, self._tfd = self._tfd, None
+        if tfd is not None:
+            try:
+                self._loop.remove_reader(tfd.fileno())
+            except (RuntimeError, ValueError, OSError):
+                pass  # loop already closed
+            tfd.close()
