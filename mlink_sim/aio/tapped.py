@@ -65,6 +65,11 @@ class TappedBurstSocket(BurstSocket):
             append((ts, data, local, addr))
         return failures
 
+    def enable_stamps(self) -> bool:
+        """Never: a captured master keeps reading on every arrival (its datagrams are recorded as they are read,
+        through :meth:`recv_burst`), not with the kernel's stamps once per cycle."""
+        return False
+
     def recv_burst(self, limit: int = CAPACITY) -> list[bytes]:
         got = _recvfrom_burst(self, limit)  # the same recvmmsg, each datagram with its source (msg_name, cached)
         if len(got) == 1:  # the common case: one answer per read
