@@ -18,7 +18,7 @@ Two variants, both measured by the caller in the same run: **plain** (``recvfrom
 empty, one ``sendto`` per datagram) and **batched** (``mlink_sim.aio.mmsg``: the client's burst in one
 ``sendmmsg``, its answers and each station socket's commands in one ``recvmmsg``; the echo's answers stay one
 ``sendto`` each, because each goes out from its own station's socket). Where the master reads its answers with
-the kernel's receive timestamps (``mmsg.stamps_supported()``, not ``MLINK_RX_STAMPS=0``), the batched client does
+the kernel's receive timestamps (``MLINK_RX_STAMPS=1``, ``mmsg.stamps_enabled()``), the batched client does
 too, by the same rule (cycles whose quarter is longer than the clock's spin): no reader on its socket, the answers
 read by a ``PreRead`` a quarter period before each deadline, in the clock's spin and at each cycle's start, each RTT
 up to the kernel's stamp, as ``mlink_sim.aio.master`` does.
@@ -255,7 +255,7 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
 
         timer = CycleTimer(cycle_ns, on_cycle, loop=loop, idle=read_one, catch_up_ns=catch_up_ns)
         # the master's choice (aio/master.py, Master._read_stamped): stamped reads and a pre-read where they fit
-        if batched and mmsg.stamps_supported():
+        if batched and mmsg.stamps_enabled():
             pre = PreRead.create(loop, read_stamped, cycle_ns, timer.spin_ns)
         if pre is not None and sock.enable_stamps():
             read = read_stamped

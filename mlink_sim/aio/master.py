@@ -2,8 +2,8 @@
 socket, with awaitable requests (docs/master.md, "Async API").
 
 The I/O here only moves bytes and timestamps; the core decides everything. The master owns a non-blocking UDP
-socket. Where the kernel's receive timestamps are supported (:func:`~mlink_sim.aio.mmsg.stamps_supported`; not with
-``MLINK_RX_STAMPS=0``) each answer is stamped with the time the kernel received it, and the socket wakes nobody:
+socket. With ``MLINK_RX_STAMPS=1``, where the kernel's receive timestamps are supported
+(:func:`~mlink_sim.aio.mmsg.stamps_enabled`) and a quarter cycle is longer than the clock's spin, each answer is stamped with the time the kernel received it, and the socket wakes nobody:
 the answers are read once per cycle a quarter period before the deadline (:class:`~mlink_sim.aio.preread.PreRead`),
 in the clock's spin and just before each cycle's commands go out (two wake-ups per cycle instead of up to one per
 answer; docs/performance.md, "Fewer wake-ups of the master"). Otherwise the socket is watched with
@@ -193,11 +193,11 @@ class Master:
         if it had been read at once), so the socket need not wake the loop for every answer: a pre-read a quarter
         period before each deadline (:class:`~mlink_sim.aio.preread.PreRead`), the clock's spin and each cycle's
         start read them (two wake-ups per cycle). Needs a :class:`~mlink_sim.aio.mmsg.BurstSocket`,
-        :func:`~mlink_sim.aio.mmsg.stamps_supported` and a cycle whose quarter is longer than the clock's spin
+        :func:`~mlink_sim.aio.mmsg.stamps_enabled` (``MLINK_RX_STAMPS=1``: off by default) and a cycle whose quarter is longer than the clock's spin
         (at 250 µs the master has no time to sleep between answers anyway; docs/performance.md, "Fewer wake-ups
         of the master")."""
         enable = getattr(self._sock, "enable_stamps", None)
-        if enable is None or not mmsg.stamps_supported():
+        if enable is None or not mmsg.stamps_enabled():
             return False
         pre = PreRead.create(loop, self.read_responses, period_ns, spin_ns)
         if pre is not None and not enable():

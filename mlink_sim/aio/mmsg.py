@@ -42,7 +42,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
-__all__ = ["BurstSocket", "CAPACITY", "drain", "stamps_supported", "supported", "wrap"]
+__all__ = ["BurstSocket", "CAPACITY", "drain", "stamps_enabled", "stamps_supported", "supported", "wrap"]
 
 _MSG_DONTWAIT = 0x40  # <bits/socket.h>, the same on every Linux architecture CPython supports
 _EAGAIN = (errno.EAGAIN, errno.EWOULDBLOCK)
@@ -101,11 +101,18 @@ def supported() -> bool:
 
 
 def stamps_supported() -> bool:
-    """True where :meth:`BurstSocket.enable_stamps` can work (the batched calls, a 64-bit little-endian x86-64 or
-    aarch64 Linux) and ``MLINK_RX_STAMPS=0`` is not set (that switch keeps the master's reads stamped as they are
-    read, woken by every answer: to compare, or to rule the stamps out)."""
-    return (supported() and _STAMPS_ARCH and sys.byteorder == "little" and ctypes.sizeof(ctypes.c_size_t) == 8
-            and os.environ.get("MLINK_RX_STAMPS", "").strip().lower() not in ("0", "off", "no", "false"))
+    """True where :meth:`BurstSocket.enable_stamps` can work: the batched calls, on a 64-bit little-endian x86-64 or
+    aarch64 Linux."""
+    return supported() and _STAMPS_ARCH and sys.byteorder == "little" and ctypes.sizeof(ctypes.c_size_t) == 8
+
+
+def stamps_enabled() -> bool:
+    """True where the stamps are :func:`supported <stamps_supported>` and ``MLINK_RX_STAMPS=1`` is set: the master
+    (and the batched floor of ``scripts/bench_floor.py``) then read their answers with the kernel's stamps, once per
+    cycle. Off by default: on the 2-vCPU bench machine it lowered the CPU per exchange at 15 ML-III stations × 1 ms
+    but raised the missed exchanges at 30 ML-II stations × 1 ms (docs/performance.md, "Fewer wake-ups of the
+    master")."""
+    return stamps_supported() and os.environ.get("MLINK_RX_STAMPS", "").strip().lower() in ("1", "on", "yes", "true")
 
 
 def wrap(sock: socket.socket) -> Any:
@@ -339,7 +346,9 @@ class BurstSocket:
 
     def recv_burst_stamped(self, limit: int = CAPACITY) -> list[tuple[bytes, int]]:
         """As :meth:`recv_burst`, each datagram with the time the kernel received it, in ``time.monotonic_ns``
-        nanoseconds (after :meth:`enable_stamps`; a datagram without a stamp gets the time it was read)."""
+        nanoseconds (after :meth:`enable_stamps`; a datagram without a stamp gets the time it was read). The kernel
+        turns stamping on a moment after the first socket of the system asks (net/core/dev.c, ``netstamp_work``):
+        until then it stamps a datagram when it is read, later than it came, never earlier."""
         n = self._receive(limit)
         if not n:
             return []

@@ -177,12 +177,12 @@ async def test_master_over_loopback_with_and_without_batched_calls(batched, monk
 async def test_master_reads_stamped_answers_without_a_reader(stamps, monkeypatch):
     """With the kernel's receive timestamps (mmsg.stamps_supported, SO_TIMESTAMPNS) the master's socket wakes
     nobody: the answers are read at the clock's wake-up, in its spin and at each cycle's start, each with the time
-    it came. Without them (MLINK_RX_STAMPS=0) every answer wakes the reader as before. The scenario passes
+    it came (opt-in: MLINK_RX_STAMPS=1). Without them every answer wakes the reader. The scenario passes
     either way."""
     from mlink_sim.aio import mmsg
 
     monkeypatch.setenv("MLINK_RX_STAMPS", "1" if stamps else "0")
-    if stamps and not mmsg.stamps_supported():
+    if stamps and not mmsg.stamps_enabled():
         pytest.skip("kernel receive timestamps not supported here")
     plan = NetworkPlan(Link.ML3, TCYCLE, (StationPlan(0x03, Link.ML3),))
     master = await Master.start(plan, {0x03: ("127.0.0.1", 9)})
@@ -194,8 +194,9 @@ async def test_master_reads_stamped_answers_without_a_reader(stamps, monkeypatch
     await asyncio.wait_for(loopback_scenario(Link.ML3), timeout=20)
 
 
-async def test_no_stamped_reads_where_the_pre_read_would_fall_in_the_spin():
+async def test_no_stamped_reads_where_the_pre_read_would_fall_in_the_spin(monkeypatch):
     """At 250 µs a quarter period is inside the clock's spin: the master keeps its reader (as without stamps)."""
+    monkeypatch.setenv("MLINK_RX_STAMPS", "1")
     plan = NetworkPlan(Link.ML3, 250_000, (StationPlan(0x03, Link.ML3),))
     master = await Master.start(plan, {0x03: ("127.0.0.1", 9)})
     try:
