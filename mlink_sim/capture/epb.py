@@ -71,11 +71,14 @@ class EpbPacker:
         return (hdr[:at], hdr[at + self._ts.size:cut] + prefix,
                 bytes(padded - caplen) + self._opts + hdr[cut:])
 
-    def flow(self, caplen: int, prefix: bytes = b"") -> Flow:
+    def flow(self, caplen: int, prefix: bytes = b"", csum: int = -1) -> Flow:
         """The :data:`~mlink_sim.capture.pack.Flow` of :meth:`template` (what the compiled loop takes): the
-        template, the block's bytes beyond its data, and *prefix*."""
+        template, the block's bytes beyond its data, *prefix* and *csum* (-1: the prefix is every datagram's; else
+        the partial sum of the UDP checksum, whose two bytes end *prefix* and are cut from the template's middle,
+        the loop making them per datagram)."""
         head, middle, tail = self.template(caplen, prefix)
-        return head, middle, tail, len(head) + self._ts.size + len(middle) + len(tail), prefix
+        overhead = len(head) + self._ts.size + len(middle) + len(tail)
+        return head, middle if csum < 0 else middle[:-2], tail, overhead, prefix, csum
 
     def pack_records(self, records: list[Record], start: int, end: int, flows: dict[tuple[Any, Any, int], Flow],
                      make: Callable[[Any, Any, int], Flow], *, offset: int = 0, unit: int = 1000,

@@ -19,14 +19,18 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["Flow", "Record", "pack_records"]
+__all__ = ["Flow", "Record", "pack_records", "packet", "udp_checksum"]
 
 #: one queued item: ``(ts_ns, datagram, src, dst)``, or a note ``(ts_ns, event, None, None)``
 Record = tuple[int, Any, Any, Any]
 #: the block template of one flow and size: ``(head, middle, tail, overhead, prefix)``; a block is ``head +
 #: timestamp + middle + data + tail``, ``overhead`` its bytes beyond the data, ``prefix`` the packet's bytes that
 #: *middle* ends with (the IP/UDP header), for a block written by dpkt instead (one with comments)
-Flow = tuple[bytes, bytes, bytes, int, bytes]
+#: *csum*: -1 when the prefix is the same for every datagram of the flow (IPv4: its UDP checksum 0, "not computed",
+#: RFC 768); else (IPv6, where the checksum is mandatory, RFC 8200 §8.1) the one's-complement sum, unfolded, of the
+#: flow's pseudo-header and UDP header with a zero checksum: *middle* then ends before the checksum's two bytes, and
+#: the loop appends them, summed over each datagram (:func:`udp_checksum`)
+Flow = tuple[bytes, bytes, bytes, int, bytes, int]
 
 
 def pack_records(records: list[Record], start: int, end: int, count: int, budget: int,
@@ -61,7 +65,7 @@ def pack_records(records: list[Record], start: int, end: int, count: int, budget
         flow = flows.get((src, dst, n))
         if flow is None:
             flow = make(src, dst, n)
-        head, middle, tail, overhead, _ = flow
+        head, middle, tail, overhead, _, csum = flow
         block = overhead + n
         if size + block + block > budget:
             break
@@ -72,8 +76,35 @@ def pack_records(records: list[Record], start: int, end: int, count: int, budget
         else:  # ">II": the µs count itself, big-endian
             parts.append(us.to_bytes(8, "big"))
         parts.append(middle)
+        if csum >= 0:  # IPv6: the UDP checksum of this datagram
+            parts.append(udp_checksum(csum, data).to_bytes(2, "big"))
         parts.append(data)
         parts.append(tail)
         size += block
         i += 1
     return b"".join(parts), i, size
+
+
+def udp_checksum(partial: int, data: bytes) -> int:
+    """The UDP checksum (RFC 768, over IPv6 RFC 8200 §8.1) of *data* after a pseudo-header and UDP header whose
+    one's-complement sum (unfolded) is *partial*: 16-bit big-endian words, an odd last byte padded with zero,
+    folded and complemented; a result of 0 is sent as FFFFH."""
+    total = partial
+    n = len(data)
+    for i in range(0, n - 1, 2):
+        total += data[i] << 8 | data[i + 1]
+    if n & 1:
+        total += data[n - 1] << 8
+    while total >> 16:
+        total = (total & 0xFFFF) + (total >> 16)
+    total = ~total & 0xFFFF
+    return total or 0xFFFF
+
+
+def packet(flow: Flow, data: bytes) -> bytes:
+    """The IP packet of *data* in *flow*: its prefix (the IP/UDP header) and the datagram, the UDP checksum of
+    this datagram in it where the flow has one (what a block with comments carries, written by dpkt)."""
+    prefix, csum = flow[4], flow[5]
+    if csum < 0:
+        return prefix + data
+    return prefix[:-2] + udp_checksum(csum, data).to_bytes(2, "big") + data

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import dataclasses
 import socket
+import struct
 import threading
 import time
 from collections import deque
@@ -44,7 +45,7 @@ from dpkt import pcapng
 
 from .._log import get_logger
 from .epb import EpbPacker
-from .pack import Flow, Record
+from .pack import Flow, Record, packet
 
 __all__ = ["CaptureWriter", "CaptureStats", "LINKTYPE_RAW", "ip_packet", "event_text"]
 
@@ -331,7 +332,8 @@ class CaptureWriter:
         elif dst[0] in WILDCARDS:
             dst = source_address_for(src, dst[1])
         header = ip_packet(bytes(size), src, dst)[:-size] if size else ip_packet(b"", src, dst)
-        flow = self._templates[key] = self._packer.flow(len(header) + size, header)
+        csum = _pseudo_sum(header) if header[0] >> 4 == 6 else -1  # IPv4: checksum 0 ("not computed")
+        flow = self._templates[key] = self._packer.flow(len(header) + size, header, csum)
         return flow
 
     def _limit_text(self) -> str:
@@ -358,8 +360,17 @@ class CaptureWriter:
         us = (ts_ns + self.epoch_offset_ns) // 1000
         opts = [pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_COMMENT, text=c) for c in comments]
         opts.append(pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_ENDOFOPT))
-        self._out(bytes(pcapng.EnhancedPacketBlockLE(pkt_data=flow[4] + data, opts=opts, ts_high=us >> 32,
+        self._out(bytes(pcapng.EnhancedPacketBlockLE(pkt_data=packet(flow, data), opts=opts, ts_high=us >> 32,
                                                      ts_low=us & 0xFFFFFFFF)))
+
+
+def _pseudo_sum(header: bytes) -> int:
+    """The one's-complement sum, unfolded, of an IPv6 + UDP *header*'s pseudo-header (source, destination, the UDP
+    length and next header 17, RFC 8200 §8.1) and its UDP header with the checksum taken as 0: the part of the UDP
+    checksum that is the same for every datagram of the flow (:func:`mlink_sim.capture.pack.udp_checksum`)."""
+    udp = header[40:48]
+    pseudo = header[8:40] + struct.pack("!IxxxB", int.from_bytes(udp[4:6], "big"), 17) + udp[:6]
+    return sum(struct.unpack(f"!{len(pseudo) // 2}H", pseudo))
 
 
 def _pad4(n: int) -> int:
