@@ -63,6 +63,11 @@ from mlink_sim.metrics import LatencyHistogram  # noqa: E402
 
 __all__ = ["Floor", "measure_floor", "proc_cpu_s", "proc_wakeups", "self_wakeups"]
 
+
+def _raise(exc: OSError) -> None:
+    """A socket error while the floor reads: the measurement is void, say so (mmsg.drain would count it a datagram)."""
+    raise exc
+
 HEADER = 12 + 2  # envelope + FCS (docs/wire-format.md): a datagram is HEADER + the frame size
 _WARM_UP_S = 0.5
 _TICK = os.sysconf("SC_CLK_TCK")
@@ -182,32 +187,22 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
         mono = time.monotonic_ns
 
         def read_stamped(limit: int = 512) -> None:  # as the master reads where it can: the kernel's stamps
-            while limit > 0:
-                want = min(limit, mmsg.CAPACITY)
-                batch = sock.recv_burst_stamped(want)
+            for batch in mmsg.drain(sock.recv_burst_stamped, limit, _raise):
                 for data, now in batch:
                     t = pending.pop(data[:6], None)
                     if t is not None:
                         rtt.record(now - t)
-                if len(batch) < want:
-                    return
-                limit -= want
 
         if batched:
             recv_burst = sock.recv_burst
 
-            def read(limit: int = 512) -> None:
-                while limit > 0:
-                    want = min(limit, mmsg.CAPACITY)
-                    batch = recv_burst(want)
+            def read(limit: int = 512) -> None:  # as the master reads by default: one stamp per recvmmsg
+                for batch in mmsg.drain(recv_burst, limit, _raise):
                     now = mono()
                     for data in batch:
                         t = pending.pop(data[:6], None)
                         if t is not None:
                             rtt.record(now - t)
-                    if len(batch) < want:
-                        return
-                    limit -= want
         else:
             recv = sock.recv
 
