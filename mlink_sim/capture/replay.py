@@ -54,7 +54,9 @@ class ReplayPlan:
     commands: list[tuple[int, int, int, bytes]]  #: (offset ns from the first command, station, cycle, datagram)
     recorded: dict[tuple[int, int], bytes]  #: (station, cycle) -> the recorded answer
     stations: list[int]
-    end_ns: int = 0  #: offset of the capture's last datagram of these stations
+    #: station -> offset of its last datagram in the capture: a command within a cycle of it may have no answer
+    #: recorded only because the capture (that station's master) ended, each master stopping on its own
+    ends: dict[int, int] = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass
@@ -84,7 +86,7 @@ def plan_replay(datagrams: list[Datagram], stations: list[int] | None = None) ->
     commands: list[tuple[int, int, int, bytes]] = []
     recorded: dict[tuple[int, int], bytes] = {}
     present: set[int] = set()
-    last = 0
+    ends: dict[int, int] = {}
     for d in datagrams:
         key = _key(d.data)
         if key is None:
@@ -93,7 +95,7 @@ def plan_replay(datagrams: list[Datagram], stations: list[int] | None = None) ->
         present.add(station)
         if stations is not None and station not in stations:
             continue
-        last = max(last, d.ts_ns)
+        ends[station] = max(ends.get(station, d.ts_ns), d.ts_ns)
         if kind == 1:
             commands.append((d.ts_ns, station, cycle, d.data))
         elif kind == 2:
@@ -104,7 +106,7 @@ def plan_replay(datagrams: list[Datagram], stations: list[int] | None = None) ->
                          f"{', '.join(f'{s:02X}H' for s in sorted(present)) or 'none'})")
     t0 = commands[0][0]
     return ReplayPlan([(ts - t0, st, cy, data) for ts, st, cy, data in commands], recorded,
-                      sorted({st for _, st, _, _ in commands}), last - t0)
+                      sorted({st for _, st, _, _ in commands}), {st: ts - t0 for st, ts in ends.items()})
 
 
 def _flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -255,8 +257,8 @@ def run_replay(plan: ReplayPlan, targets: dict[int, tuple[str, int]], *, grace_s
         where = f"cycle {cycle} station {station:02X}H {_describe_cmd(data)}"
         if recorded is None and live is None:
             continue
-        if recorded is None and plan.end_ns - offset < HEADER.unpack_from(data)[5]:
-            continue  # the capture ended within a cycle of this command: its answer could not be in it
+        if recorded is None and plan.ends.get(station, offset) - offset < HEADER.unpack_from(data)[5]:
+            continue  # the station's part of the capture ended within a cycle of this command: no answer could be in it
         if recorded is None:
             diffs = ["answered now, not answered in the capture"]
         elif live is None:

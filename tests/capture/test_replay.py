@@ -84,7 +84,8 @@ def test_plan_picks_the_master_frames_of_a_station() -> None:
            Datagram(4000, a, b, b"junk")]
     plan = plan_replay(dgs, [0x21])
     assert plan.commands == [(0, 0x21, 5, cmd)] and plan.recorded == {(0x21, 5): _rsp(ml2.Nop())}
-    assert plan.end_ns == 1000  # the last datagram of station 21H, from its first command
+    assert plan.ends == {0x21: 1000}  # the last datagram of station 21H, from its first command
+    assert plan_replay(dgs).ends == {0x21: 1000, 0x22: 2000}  # each station's own end (its master stops on its own)
     assert plan_replay(dgs).stations == [0x21, 0x22]
     with pytest.raises(ValueError, match="no master frames of station"):
         plan_replay(dgs, [0x30])
