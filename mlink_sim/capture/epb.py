@@ -22,7 +22,7 @@ readers; ``tests/capture/test_pack.py`` pins the writer's records path; the tsha
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any
 
 from dpkt import pcapng
@@ -58,7 +58,6 @@ class EpbPacker:
             raise RuntimeError(f"dpkt's {kls.__name__} timestamp is not two 32-bit unsigned fields: {self._ts.format}")
         self.little = order == "<"  #: the byte order of dpkt's ts_high/ts_low, for the compiled loop
         self._trailer = struct.calcsize(order + fmts[-1])  # the header's last field follows the data (dpkt's Writer)
-        self._templates: dict[tuple[Any, Any, int], Flow] = {}  #: :meth:`pack`'s, by size
 
     def template(self, caplen: int, prefix: bytes = b"") -> Template:
         """``(head, middle, tail)`` of a block whose packet is *caplen* bytes: ``head + timestamp + middle + data +
@@ -88,15 +87,3 @@ class EpbPacker:
         first note, the first datagram with comments, *count* blocks or the size *budget*; returns ``(blocks,
         stop, size)``."""
         return pack_records(records, start, end, count, budget, flows, make, offset, unit, self.little)
-
-    def pack(self, stamps_us: Sequence[int], packets: Sequence[bytes]) -> bytes:
-        """The blocks of *packets* stamped *stamps_us* (Unix time, integer µs), as dpkt's ``writepkts`` writes
-        them for ``[(us / 1e6, packet), …]``: every packet is its own flow (no prefix)."""
-        records = [(us, packet, 0, 0) for us, packet in zip(stamps_us, packets, strict=True)]
-        blocks, stop, _ = self.pack_records(records, 0, len(records), self._templates, self._make, unit=1)
-        assert stop == len(records)
-        return blocks
-
-    def _make(self, src: Any, dst: Any, size: int) -> Flow:
-        flow = self._templates[(src, dst, size)] = self.flow(size)
-        return flow

@@ -32,7 +32,7 @@ def _packer_file(items: list[tuple[int, bytes, list[str]]], packer: EpbPacker) -
             run.append((us, packet))
             continue
         if run:
-            out.write(packer.pack([u for u, _ in run], [p for _, p in run]))
+            out.write(_pack(packer, [u for u, _ in run], [p for _, p in run]))
             run.clear()
         if i < len(items):
             opts = [dpkt_pcapng.PcapngOptionLE(code=dpkt_pcapng.PCAPNG_OPT_COMMENT, text=c) for c in comments]
@@ -71,13 +71,19 @@ def _records_packed(packer: EpbPacker, records: list, prefix: bytes = b"", **kw:
     return blocks
 
 
+def _pack(packer: EpbPacker, stamps_us: list[int], packets: list[bytes]) -> bytes:
+    """Whole *packets* stamped *stamps_us* (Unix µs), each its own flow without a prefix: what dpkt's
+    ``writepkts`` writes for ``[(us / 1e6, packet), …]``."""
+    return _records_packed(packer, [(us, packet, 0, 0) for us, packet in zip(stamps_us, packets, strict=True)], unit=1)
+
+
 @given(st.lists(st.tuples(STAMPS, st.binary(max_size=60)), max_size=30), st.binary(min_size=0, max_size=48))
 def test_a_template_with_a_prefix_is_the_packet_with_that_prefix(items: list[tuple[int, bytes]], prefix: bytes) -> None:
     """The writer's path: the IP/UDP header lives in the template of its flow, the datagram is the data."""
     packer = EpbPacker()
     records = [(us, data, "s", "d") for us, data in items]
     assert _records_packed(packer, records, prefix, unit=1) == \
-        packer.pack([us for us, _ in items], [prefix + d for _, d in items])
+        _pack(packer, [us for us, _ in items], [prefix + d for _, d in items])
 
 
 @given(st.lists(st.tuples(st.integers(min_value=0, max_value=10**16), st.binary(max_size=20)), max_size=30),
@@ -88,16 +94,16 @@ def test_stamps_in_ns_with_an_offset_are_truncated_to_the_microsecond(items: lis
     packer = EpbPacker()
     records = [(ns, data, "s", "d") for ns, data in items]
     assert _records_packed(packer, records, offset=offset) == \
-        packer.pack([(ns + offset) // 1000 for ns, _ in items], [d for _, d in items])
+        _pack(packer, [(ns + offset) // 1000 for ns, _ in items], [d for _, d in items])
 
 
 def test_sizes_zero_and_not_multiples_of_four_and_the_71_minute_wrap(dpkt_file) -> None:
     items = [(2**32 - 1, b"", []), (2**32, b"a", []), (2**32 + 1, b"abcde", ["c"]), (0, b"abcd", []),
              (1_700_000_000_123_456, bytes(range(78)), [])]
     assert _packer_file(items, EpbPacker()) == dpkt_file(items)
-    assert EpbPacker().pack([], []) == b""
+    assert _pack(EpbPacker(), [], []) == b""
 
 
 def test_lengths_must_agree() -> None:
     with pytest.raises(ValueError):
-        EpbPacker().pack([1, 2], [b"x"])
+        _pack(EpbPacker(), [1, 2], [b"x"])
