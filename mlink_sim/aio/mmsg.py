@@ -34,9 +34,9 @@ import ctypes
 import ctypes.util
 import errno
 import os
+import platform
 import socket
 import struct
-import platform
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -361,14 +361,12 @@ class BurstSocket:
         for i in range(n):
             w = i * stride
             words[w + nl] = _NAME_SIZE
-            if words[w + cl] >= _CTL_SIZE and q is not None:  # the timestamp's cmsg is there: tv_sec, tv_nsec
-                t = q[4 * i + 2] * 1_000_000_000 + q[4 * i + 3] - offset
-                words[w + cl] = _CTL_SIZE
-            else:
-                t = now
-                if q is not None:
-                    words[w + cl] = _CTL_SIZE
-            out.append((view[i * size:i * size + words[w + at]].tobytes(), t if t <= now else now))
+            t = now
+            if q is not None:
+                if words[w + cl] >= _CTL_SIZE:  # the timestamp's cmsg is there: tv_sec, tv_nsec
+                    t = min(q[4 * i + 2] * 1_000_000_000 + q[4 * i + 3] - offset, now)
+                words[w + cl] = _CTL_SIZE  # the kernel set it to what it wrote: room for the next stamp
+            out.append((view[i * size:i * size + words[w + at]].tobytes(), t))
         return out
 
     def recvfrom_burst(self, limit: int = CAPACITY) -> list[tuple[bytes, Any]]:
