@@ -249,15 +249,12 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
                 pre.arm(deadline + cycle_ns)
 
         timer = CycleTimer(cycle_ns, on_cycle, loop=loop, idle=read_one, catch_up_ns=catch_up_ns)
-        # the master's choice (aio/master.py, Master._read_stamped): stamped reads and a pre-read where they fit
-        if batched and mmsg.stamps_enabled():
-            pre = PreRead.create(loop, read_stamped, cycle_ns, timer.spin_ns)
-        if pre is not None and sock.enable_stamps():
+        # the master's choice, in one place (PreRead.for_stamped): stamped reads and a pre-read where they fit
+        if batched:
+            pre = PreRead.for_stamped(loop, sock, read_stamped, cycle_ns, timer.spin_ns)
+        if pre is not None:
             read = read_stamped
         else:
-            if pre is not None:
-                pre.close()
-                pre = None
             loop.add_reader(raw.fileno(), read)
         timer.start()
         await asyncio.sleep(_WARM_UP_S)

@@ -196,15 +196,8 @@ class Master:
         :func:`~mlink_sim.aio.mmsg.stamps_enabled` (``MLINK_RX_STAMPS=1``: off by default) and a cycle whose quarter is longer than the clock's spin
         (at 250 µs the master has no time to sleep between answers anyway; docs/performance.md, "Fewer wake-ups
         of the master")."""
-        enable = getattr(self._sock, "enable_stamps", None)
-        if enable is None or not mmsg.stamps_enabled():
-            return False
-        pre = PreRead.create(loop, self.read_responses, period_ns, spin_ns)
-        if pre is not None and not enable():
-            pre.close()
-            pre = None
-        self._pre = pre
-        self.stamped = pre is not None
+        self._pre = PreRead.for_stamped(loop, self._sock, self.read_responses, period_ns, spin_ns)
+        self.stamped = self._pre is not None
         return self.stamped
 
     @property

@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Callable
+from typing import Any
 
+from . import mmsg
 from ._timerfd import TimerFD, timerfd_supported
 
 __all__ = ["PreRead"]
@@ -41,6 +43,22 @@ class PreRead:
         if lead <= spin_ns or not timerfd_supported():
             return None
         return cls(loop, read, lead)
+
+    @classmethod
+    def for_stamped(cls, loop: asyncio.AbstractEventLoop, sock: Any, read: Callable[[], None], period_ns: int,
+                    spin_ns: int = 0) -> PreRead | None:
+        """The reader's choice, made in one place (the master, ``scripts/bench_floor.py``'s client): a pre-read
+        calling *read*, with *sock*'s kernel stamps switched on, where :func:`mmsg.stamps_enabled
+        <mlink_sim.aio.mmsg.stamps_enabled>` (``MLINK_RX_STAMPS=1``), *sock* can stamp (``enable_stamps``) and
+        :meth:`create` gives one; else None, and the caller reads on every arrival."""
+        enable = getattr(sock, "enable_stamps", None)
+        if enable is None or not mmsg.stamps_enabled():
+            return None
+        pre = cls.create(loop, read, period_ns, spin_ns)
+        if pre is not None and not enable():
+            pre.close()
+            return None
+        return pre
 
     def arm(self, next_deadline_ns: int) -> None:
         tfd = self._tfd

@@ -45,3 +45,34 @@ def test_none_inside_the_spin() -> None:
         pre.close()
     finally:
         loop.close()
+
+
+def test_for_stamped_only_where_asked_and_the_socket_can_stamp(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The master's and the floor's one choice: off by default; on with MLINK_RX_STAMPS=1 for a socket that
+    switches its stamps on; never for one that refuses them (a tapped socket) or has no such call."""
+    import socket
+
+    from mlink_sim.aio import mmsg
+
+    class Refuses:
+        def enable_stamps(self) -> bool:
+            return False
+
+    loop = asyncio.new_event_loop()
+    raw = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        raw.bind(("127.0.0.1", 0))
+        sock = mmsg.wrap(raw)
+        monkeypatch.delenv("MLINK_RX_STAMPS", raising=False)
+        assert PreRead.for_stamped(loop, sock, lambda: None, 1_000_000, 70_000) is None
+        monkeypatch.setenv("MLINK_RX_STAMPS", "1")
+        assert PreRead.for_stamped(loop, Refuses(), lambda: None, 1_000_000, 70_000) is None
+        assert PreRead.for_stamped(loop, raw, lambda: None, 1_000_000, 70_000) is None  # no enable_stamps
+        pre = PreRead.for_stamped(loop, sock, lambda: None, 1_000_000, 70_000)
+        assert (pre is not None) == mmsg.stamps_supported()
+        assert getattr(sock, "stamped", False) == (pre is not None)
+        if pre is not None:
+            pre.close()
+    finally:
+        raw.close()
+        loop.close()
