@@ -18,7 +18,6 @@ Every datagram of a virtual run passes through here twice, so the module is comp
 
 from __future__ import annotations
 
-import functools
 import random
 from collections.abc import Callable
 from pathlib import Path
@@ -60,6 +59,7 @@ class FabricPort:
         self.name: str = name
         self.on_datagram: Callable[[bytes, int], None] = on_datagram
         self.closed: bool = False
+        self.address: tuple[str, int] = virtual_address(name)  #: what a capture shows for this end
 
     def sendto(self, data: bytes, address: int) -> int:
         self.fabric.send(self, address, data)
@@ -78,7 +78,6 @@ class FabricPort:
         self.closed = True
 
 
-@functools.cache  # called for every datagram a capture records: built once per end
 def virtual_address(end: int | str) -> tuple[str, int]:
     """The IPv4 address a capture shows for an end of the fabric (documentation range 192.0.2.0/24, RFC 5737):
     station *n* is 192.0.2.*n*:47001, the master of link ``ML2``/``ML3`` (a port named ``master:ML2``) is
@@ -106,11 +105,13 @@ class Fabric:
         self._base: int = latency_ns - jitter_ns  # one-way delay: base + int(random() * span), 0 without jitter
         self._span: int = 2 * jitter_ns + 1 if jitter_ns else 0
         self._random: Callable[[], float] = random.Random(seed).random
-        #: a CaptureWriter's ``record(ts_ns, datagram, src, dst)``: the master's view, as ``up --capture`` records
-        #: it – commands as they leave, answers as they arrive – on simulated time and the addresses of
-        #: :func:`virtual_address`
-        self._record: Callable[[int, bytes, tuple[str, int], tuple[str, int]], Any] | None = \
-            None if capture is None else capture.record
+        #: a CaptureWriter's ``sink``, fed one ``(ts_ns, datagram, src, dst)`` per datagram: the master's view, as
+        #: ``up --capture`` records it – commands as they leave, answers as they arrive – on simulated time and the
+        #: addresses of :func:`virtual_address` (made once per end: :attr:`FabricPort.address`, :attr:`_addresses`)
+        self._sink: Callable[[tuple[int, bytes, tuple[str, int], tuple[str, int]]], Any] | None = \
+            None if capture is None else capture.sink
+        #: the capture's address of station n, at index n
+        self._addresses: list[tuple[str, int]] = [virtual_address(n) for n in range(256)] if capture else []
         #: the impairment layer (docs/faults.md): while it is active, every datagram goes through it after the
         #: network model (its delays add to the model's ordered delivery time, and may reorder)
         self.impair: ImpairmentLayer | None = None
@@ -155,8 +156,8 @@ class Fabric:
         """A command from *port* to station *address*, leaving now."""
         clock = self.clock
         now = clock.now
-        if self._record is not None:
-            self._record(now, data, virtual_address(port.name), virtual_address(address))
+        if self._sink is not None:
+            self._sink((now, data, port.address, self._addresses[address]))
         node = self.nodes.get(address)
         if node is None or node.station is None:
             self.undeliverable += 1
@@ -198,17 +199,17 @@ class Fabric:
             impair = self.impair
             if impair is not None and impair.active:
                 for extra, out in impair.process(response, Direction.TO_MASTER, node.address, now):
-                    clock.at(t + extra, self._to_master, (port, out))
+                    clock.at(t + extra, self._to_master, (port, out, node.address))
                 return
-            clock.at(t, self._to_master, (port, response))
+            clock.at(t, self._to_master, (port, response, node.address))
 
-    def _to_master(self, arg: tuple[FabricPort, bytes]) -> None:
-        port, data = arg
+    def _to_master(self, arg: tuple[FabricPort, bytes, int]) -> None:
+        port, data, station = arg  # the station it came from (its address byte may have been corrupted)
         if port.closed:
             self.undeliverable += 1
             return
-        if self._record is not None:
-            self._record(self.clock.now, data, virtual_address(data[3]), virtual_address(port.name))
+        if self._sink is not None:
+            self._sink((self.clock.now, data, self._addresses[station], port.address))
         port.on_datagram(data, self.clock.now)
 
     # ------------------------------------------------------------------ polls
