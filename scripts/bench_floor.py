@@ -246,7 +246,7 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
                         pass
             counts["sent"] += stations
             if pre is not None:
-                pre.arm(deadline + cycle_ns)
+                pre.arm_after(deadline)
 
         timer = CycleTimer(cycle_ns, on_cycle, loop=loop, idle=read_one, catch_up_ns=catch_up_ns)
         # the master's choice, in one place (PreRead.for_stamped): stamped reads and a pre-read where they fit

@@ -3,19 +3,18 @@ socket, with awaitable requests (docs/master.md, "Async API").
 
 The I/O here only moves bytes and timestamps; the core decides everything. The master owns a non-blocking UDP
 socket. With ``MLINK_RX_STAMPS=1``, where the kernel's receive timestamps are supported
-(:func:`~mlink_sim.aio.mmsg.stamps_enabled`) and a quarter cycle is longer than the clock's spin, each answer is stamped with the time the kernel received it, and the socket wakes nobody:
-the answers are read once per cycle a quarter period before the deadline (:class:`~mlink_sim.aio.preread.PreRead`),
-in the clock's spin and just before each cycle's commands go out (two wake-ups per cycle instead of up to one per
-answer; docs/performance.md, "Fewer wake-ups of the master"). Otherwise the socket is watched with
-``loop.add_reader``: each wake-up reads every datagram waiting (up to a bound), each stamped with
-``time.monotonic_ns()`` as it is read, and it is also read in the spin and before each cycle's commands, so an
-answer that arrived in time is never counted missing only because the loop was busy with the clock. Where
-:mod:`~mlink_sim.aio.mmsg` is supported the socket
-is a ``BurstSocket``: the cycle's burst goes out in one ``sendmmsg`` and a read takes what is waiting with one
-``recvmmsg``; a capture's tap keeps those calls (:mod:`~mlink_sim.aio.tapped`), an impairment and the
-virtual fabric take the per-datagram path. Transport errors (``sendto``/``recv`` raising
-``OSError``, e.g. ``ConnectionRefusedError`` after an ICMP port unreachable) are counted in
-:attr:`Master.transport_errors`, never raised.
+(:func:`~mlink_sim.aio.mmsg.stamps_enabled`) and a quarter cycle is longer than the clock's spin, each answer is
+stamped with the time the kernel received it, and the socket wakes nobody: the answers are read once per cycle a
+quarter period before the deadline (:class:`~mlink_sim.aio.preread.PreRead`), in the clock's spin and just before
+each cycle's commands go out (two wake-ups per cycle instead of up to one per answer; docs/performance.md, "Fewer
+wake-ups of the master"). Otherwise the socket is watched with ``loop.add_reader``: each wake-up reads every
+datagram waiting (up to a bound), each stamped with ``time.monotonic_ns()`` as it is read, and it is also read in
+the spin and before each cycle's commands, so an answer that arrived in time is never counted missing only because
+the loop was busy with the clock. Where :mod:`~mlink_sim.aio.mmsg` is supported the socket is a ``BurstSocket``: the
+cycle's burst goes out in one ``sendmmsg`` and a read takes what is waiting with one ``recvmmsg``; a capture's tap
+keeps those calls (:mod:`~mlink_sim.aio.tapped`), an impairment and the virtual fabric take the per-datagram path.
+Transport errors (``sendto``/``recv`` raising ``OSError``, e.g. ``ConnectionRefusedError`` after an ICMP port
+unreachable) are counted in :attr:`Master.transport_errors`, never raised.
 """
 
 from __future__ import annotations
@@ -193,8 +192,8 @@ class Master:
         if it had been read at once), so the socket need not wake the loop for every answer: a pre-read a quarter
         period before each deadline (:class:`~mlink_sim.aio.preread.PreRead`), the clock's spin and each cycle's
         start read them (two wake-ups per cycle). Needs a :class:`~mlink_sim.aio.mmsg.BurstSocket`,
-        :func:`~mlink_sim.aio.mmsg.stamps_enabled` (``MLINK_RX_STAMPS=1``: off by default) and a cycle whose quarter is longer than the clock's spin
-        (at 250 µs the master has no time to sleep between answers anyway; docs/performance.md, "Fewer wake-ups
+        :func:`~mlink_sim.aio.mmsg.stamps_enabled` (``MLINK_RX_STAMPS=1``: off by default) and a cycle whose
+        quarter is longer than the clock's spin (at 250 µs the master has no time to sleep between answers anyway; docs/performance.md, "Fewer wake-ups
         of the master")."""
         self._pre = PreRead.for_stamped(loop, self._sock, self.read_responses, period_ns, spin_ns)
         self.stamped = self._pre is not None
@@ -420,7 +419,7 @@ class Master:
                 metrics.record_sent(station)
         pre = self._pre
         if pre is not None:
-            pre.arm(deadline_ns + self.core.plan.tcycle_ns)
+            pre.arm_after(deadline_ns)
         self._pump()
         if faults is not None and faults.watching:
             faults.after_cycle(now_ns)

@@ -23,14 +23,16 @@ __all__ = ["PreRead"]
 
 
 class PreRead:
-    """Calls *read* once per cycle, *lead_ns* before the next deadline (a Linux timerfd watched by *loop*).
-    :meth:`arm` after each cycle's commands; :meth:`close` to stop. Where no timerfd can be made, :meth:`create`
-    gives None and the caller keeps its reads at the clock's wake-up."""
+    """Calls *read* once per cycle of *period_ns*, *lead_ns* before the next deadline (a Linux timerfd watched by
+    *loop*). :meth:`arm_after` after each cycle's commands; :meth:`close` to stop. Where no timerfd can be made,
+    :meth:`create` gives None and the caller keeps its reads at the clock's wake-up."""
 
-    def __init__(self, loop: asyncio.AbstractEventLoop, read: Callable[[], None], lead_ns: int) -> None:
+    def __init__(self, loop: asyncio.AbstractEventLoop, read: Callable[[], None], lead_ns: int,
+                 period_ns: int) -> None:
         self._loop = loop
         self._read = read
         self.lead_ns = lead_ns
+        self._after = period_ns - lead_ns  # from a cycle's deadline to the next cycle's pre-read
         self._tfd: TimerFD | None = TimerFD()
         loop.add_reader(self._tfd.fileno(), self._on_timer)
 
@@ -42,7 +44,7 @@ class PreRead:
         lead = period_ns // 4
         if lead <= spin_ns or not timerfd_supported():
             return None
-        return cls(loop, read, lead)
+        return cls(loop, read, lead, period_ns)
 
     @classmethod
     def for_stamped(cls, loop: asyncio.AbstractEventLoop, sock: Any, read: Callable[[], None], period_ns: int,
@@ -61,9 +63,16 @@ class PreRead:
         return pre
 
     def arm(self, next_deadline_ns: int) -> None:
+        """The read, *lead_ns* before *next_deadline_ns* (replacing one armed before)."""
         tfd = self._tfd
         if tfd is not None:
             tfd.set_abs(next_deadline_ns - self.lead_ns)
+
+    def arm_after(self, deadline_ns: int) -> None:
+        """The read before the deadline one period after *deadline_ns* (the cycle whose commands just went out)."""
+        tfd = self._tfd
+        if tfd is not None:
+            tfd.set_abs(deadline_ns + self._after)
 
     def _on_timer(self) -> None:
         tfd = self._tfd

@@ -36,6 +36,20 @@ async def test_one_read_a_quarter_period_before_the_deadline() -> None:
     assert len(reads) == 2  # closed before it fell due
 
 
+async def test_arm_after_a_deadline_is_the_next_cycle_s_read() -> None:
+    loop = asyncio.get_running_loop()
+    reads: list[int] = []
+    pre = PreRead.create(loop, lambda: reads.append(time.monotonic_ns()), 40_000_000, spin_ns=70_000)
+    assert pre is not None
+    try:
+        deadline = time.monotonic_ns()  # this cycle's: the next is 40 ms on, its read 10 ms before it
+        pre.arm_after(deadline)
+        await asyncio.sleep(0.045)
+        assert len(reads) == 1 and deadline + 30_000_000 <= reads[0] < deadline + 45_000_000
+    finally:
+        pre.close()
+
+
 def test_none_inside_the_spin() -> None:
     loop = asyncio.new_event_loop()
     try:
