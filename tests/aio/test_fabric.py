@@ -135,3 +135,25 @@ def test_stale_eeprom_temporaries_are_removed_when_a_station_powers_up(tmp_path)
     fabric = Fabric(VirtualClock(), latency_ns=50 * US, jitter_ns=0, seed=0, state_dir=tmp_path)
     fabric.add_station(0x21, EchoStation)
     assert not stale.exists()
+
+
+class _Capture:
+    """What the fabric takes of a CaptureWriter: its ``sink``."""
+
+    def __init__(self) -> None:
+        self.records: list[tuple] = []
+        self.sink = self.records.append
+
+
+def test_a_capture_shows_each_answer_from_the_station_that_sent_it():
+    """The master's view on the fabric's addresses (docs/virtual-time.md): a command to station 21H from the ML-II
+    master's port, its answer from 21H, whatever its address byte says (the echo's answer b"Rcmd" carries 64H
+    there, as a corrupted answer might)."""
+    clock, capture = VirtualClock(), _Capture()
+    fabric = Fabric(clock, latency_ns=50 * US, jitter_ns=0, seed=0, capture=capture)
+    fabric.add_station(0x21, EchoStation)
+    port = FabricPort(fabric, "master:ML2", lambda data, now: None)
+    port.sendto(b"cmd", 0x21)
+    clock.run_until(10**9)
+    station, master = ("192.0.2.33", 47001), ("192.0.2.1", 40002)
+    assert capture.records == [(0, b"cmd", master, station), (100 * US, b"Rcmd", station, master)]
