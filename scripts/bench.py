@@ -4,7 +4,9 @@
 For every cell the sweep brings a network up exactly as ``mlink-sim up --workers W`` does (slave worker
 processes, the master in this process; W defaults to one per CPU but one, so the master keeps a CPU for
 itself) and measures it for ``--duration`` after bring-up. Then, in the same run, it measures **the floor**
-twice (``scripts/bench_floor.py``): one process serving all N station sockets as a packed worker does, driven
+twice (``scripts/bench_floor.py``): one process serving all N stations as a packed worker does (one socket
+shared by the N stations where the network packs its stations into fewer workers: ``Cell.layout`` "shared"; a
+socket per station otherwise), driven
 by a client that sends the same bursts on the same ``CycleTimer`` as the master and reads as the master reads,
 but with no protocol work on either side; once with the per-datagram system calls (**plain**), once with
 ``sendmmsg``/``recvmmsg`` (**batched**, ``mlink_sim.aio.mmsg``).
@@ -78,6 +80,7 @@ class Cell:
     workers: int
     duration_s: float = 0.0     #: measuring time of the network and of each floor
     io: str = "batched"         #: the simulator's system calls: batched (sendmmsg/recvmmsg) or plain
+    layout: str = "station"     #: shared: each worker's stations share one port (packed workers); station: a port each
     status: str = "ok"          #: ok / n/a (reason) / failed (reason)
     frame_size: int = 0
     missed_rate: float = 0.0        #: exchanges due but not answered within a cycle / exchanges due (bench_figures)
@@ -360,7 +363,8 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
              duration_s: float, ios: list[str]) -> list[Cell]:
     """One cell: the network once per I/O mode of *ios*, then both floors, each for *duration_s*; never raises.
     The floors are measured once and shared by the cell's I/O modes."""
-    cells = [Cell(link, n, cycle, min(workers, n), duration_s, io) for io in ios]
+    cells = [Cell(link, n, cycle, min(workers, n), duration_s, io, layout="shared" if workers < n else "station")
+             for io in ios]
     reason = applicable(link, n, cycle)
     if reason:
         for cell in cells:
@@ -384,7 +388,8 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
             continue
         try:
             result = loop.run_until_complete(measure_floor(n, size, cycle, duration_s, batched,
-                                                           load_config(path).network.absorb_ns))
+                                                           load_config(path).network.absorb_ns,
+                                                           shared=cells[0].layout == "shared"))
             floors[key] = asdict(result)
             print(f"{'':>22}floor {'batched' if batched else 'plain':<7} missed {result.missed_rate * 100:.2f}% "
                   f"rtt p99 {format_ns(result.rtt_p99_ns)} {result.cpu_per_exchange_us:.1f} µs/exchange",

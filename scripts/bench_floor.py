@@ -99,6 +99,7 @@ class Floor:
     cpu_per_exchange_nospin_us: float = 0.0  #: the same without the spin
     wakeups_client: float = 0.0       #: voluntary context switches per cycle
     wakeups_server: float = 0.0
+    shared: bool = False              #: the server's stations share one socket (a packed worker's layout)
 
 
 def proc_cpu_s(pid: int) -> float:
@@ -131,13 +132,22 @@ def _self_cpu_s() -> float:
 
 
 # ----------------------------------------------------------------------------------------------- the server
-def serve(count: int, batched: bool) -> None:
+def serve(count: int, batched: bool, shared: bool = False) -> None:
     """``--serve N``: N station sockets in this one process, each echoing; prints ``{"ports": […]}``, runs until
-    SIGTERM."""
+    SIGTERM. *shared*: one socket for the N stations, as a packed worker's (``SlaveServer(shared=True)``): each
+    read's datagrams echoed in one burst (``BatchEndpoint.send_burst``), offloaded bursts read as one buffer."""
     loop = new_event_loop()
 
-    async def main() -> None:
-        endpoints = []
+    async def main(n: int) -> None:
+        count = n
+        endpoints: list[Any] = []
+        if shared:
+            def on_bus(batch: list[tuple[bytes, Any]]) -> None:
+                endpoints[0].send_burst(batch)
+
+            endpoints.append(await open_batch_endpoint(on_bus, batched=batched, burst=64 * count))
+            endpoints[0].enable_gro()
+            count = 0
 
         def echo_to(index: int) -> Any:
             def on_batch(batch: list[tuple[bytes, Any]]) -> None:
@@ -148,26 +158,29 @@ def serve(count: int, batched: bool) -> None:
 
         for i in range(count):
             endpoints.append(await open_batch_endpoint(echo_to(i), batched=batched))
-        print(json.dumps({"ports": [ep.local_address[1] for ep in endpoints]}), flush=True)
+        ports = [ep.local_address[1] for ep in endpoints]
+        print(json.dumps({"ports": ports * (n // len(ports))}), flush=True)
         stop = asyncio.Event()
         loop.add_signal_handler(signal.SIGTERM, stop.set)
         await stop.wait()
         for ep in endpoints:
             ep.close()
 
-    loop.run_until_complete(main())
+    loop.run_until_complete(main(count))
 
 
 # ----------------------------------------------------------------------------------------------- the client
 async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: float, batched: bool,
-                        catch_up_ns: int = 100_000_000) -> Floor:
+                        catch_up_ns: int = 100_000_000, shared: bool = False) -> Floor:
     """The floor of *stations* stations of frame size *size* at *cycle_ns*, measured for *duration_s* after a
     0.5 s warm-up; the server runs in a subprocess of this script. *catch_up_ns*: the clock's host-stall policy,
     as the network's (default: "absorb" up to 100 ms, the default of ``[network] stall_bound``); an answer is
-    awaited as long (at least one cycle), as the master's answer window (``NetworkPlan.answer_window_ns``)."""
-    result = Floor(batched, stations, cycle_ns, duration_s)
-    proc = subprocess.Popen([sys.executable, __file__, "--serve", str(stations)] + ([] if batched else ["--plain"]),
-                            stdout=subprocess.PIPE)
+    awaited as long (at least one cycle), as the master's answer window (``NetworkPlan.answer_window_ns``).
+    *shared*: the stations share one socket of the server, as a packed worker's do (``mlink-sim up``); the
+    batched client then reads offloaded bursts as one buffer, as the master does."""
+    result = Floor(batched, stations, cycle_ns, duration_s, shared=shared)
+    proc = subprocess.Popen([sys.executable, __file__, "--serve", str(stations)] + ([] if batched else ["--plain"])
+                            + (["--shared"] if shared else []), stdout=subprocess.PIPE)
     loop = asyncio.get_running_loop()
     sock: Any = None
     timer: CycleTimer | None = None
@@ -176,6 +189,8 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
         ports = json.loads(proc.stdout.readline())["ports"]  # type: ignore[union-attr]
         raw = bound_socket("127.0.0.1", 0)
         sock = mmsg.BurstSocket(raw) if batched else raw
+        if shared and batched and not mmsg.stamps_enabled():  # as the master: its answers come as one burst
+            sock.enable_gro()
         targets = [("127.0.0.1", p) for p in ports]
         pad = bytes(max(0, HEADER + size - 6))
         suffixes = [i.to_bytes(2, "little") + pad for i in range(stations)]
@@ -297,7 +312,8 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
 
 
 def describe(f: Floor) -> str:
-    return (f"floor {'batched' if f.batched else 'plain':<7} {f.stations:>3} × {format_ns(f.cycle_ns):>6}: "
+    return (f"floor {'batched' if f.batched else 'plain':<7} {'shared' if f.shared else 'station':<7} "
+            f"{f.stations:>3} × {format_ns(f.cycle_ns):>6}: "
             f"missed {f.missed_rate * 100:.2f}% ({f.due - f.on_time} of {f.due} exchanges; {f.missed} cycles "
             f"skipped, {f.missing} answers given up), "
             f"RTT p50 {format_ns(f.rtt_p50_ns)} p99 {format_ns(f.rtt_p99_ns)}, "
@@ -309,7 +325,7 @@ def describe(f: Floor) -> str:
 
 def main() -> int:
     if len(sys.argv) >= 3 and sys.argv[1] == "--serve":
-        serve(int(sys.argv[2]), batched="--plain" not in sys.argv[3:])
+        serve(int(sys.argv[2]), batched="--plain" not in sys.argv[3:], shared="--shared" in sys.argv[3:])
         return 0
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--stations", type=int, default=62)
@@ -327,8 +343,9 @@ def main() -> int:
         print(f"bench_floor.py: {exc}", file=sys.stderr)
         return 2
     loop = new_event_loop()
-    results = [loop.run_until_complete(measure_floor(args.stations, args.size, cycle, duration, batched))
-               for batched in (False, True)]
+    results = [loop.run_until_complete(measure_floor(args.stations, args.size, cycle, duration, batched,
+                                                     shared=shared))
+               for shared in (False, True) for batched in (False, True)]
     loop.close()
     if args.json:
         print(json.dumps([asdict(r) for r in results], indent=1))

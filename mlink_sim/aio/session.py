@@ -267,7 +267,8 @@ class NetworkSession:
         groups = plan_workers([st.address for st in self.config.station], self._n_workers)
         self.worker_list = [
             Worker(WorkerSpec(i, self.config_path, addrs, run_dir, self._state_dir,
-                              extra_args=self.config.network.slave_flags() + (["--realtime"] if self.realtime else [])),
+                              extra_args=self.config.network.slave_flags() + (["--realtime"] if self.realtime else [])
+                              + (["--shared-port"] if len(addrs) > 1 else [])),
                    on_exit=self._on_worker_exit)
             for i, addrs in enumerate(groups)
         ]

@@ -43,6 +43,7 @@ _POLL_INTERVAL_S = 0.001
 _POLL_INTERVAL_NS = 1_000_000
 _KEEP_BEHIND = 8  # datagrams per source processed from one read; older ones are superseded (see _receiver)
 _MIN_CYCLE_NS = 250_000  # the shortest transmission cycle (SI-ET3 Table 14): sizes the backlog "absorb" keeps
+_BURST = 64  # datagrams read per wake-up of a station's socket at most (a shared socket: this many per station)
 _STALLS_REPORTED = 256  # recent stalls in each stats reply (the session keeps them by time)
 
 
@@ -74,10 +75,19 @@ class SlaveServer:
         control: tuple[str, int] | None = ("127.0.0.1", 0),
         absorb_ns: int = 0,
         capture: Any = None,
+        shared: bool = False,
     ) -> None:
         """*capture*: a :class:`~mlink_sim.capture.CaptureWriter`: every station socket is tapped, and each
-        station's phase changes (seen by the 1 ms tick) become notes."""
+        station's phase changes (seen by the 1 ms tick) become notes.
+
+        *shared*: the stations of one link that listen on the same host and port (port 0 included) share one
+        socket, as stations share a bus: the station address of each datagram (byte 3, docs/wire-format.md) picks
+        its station, and the answers to one read go back in one burst (``mmsg.BurstSocket.send_burst``: one
+        offloaded packet per burst where the kernel can). A datagram for no station hosted there is counted in
+        :attr:`unaddressed`, as a station on a bus ignores frames for others."""
         self.stations = stations
+        self.shared = shared
+        self.unaddressed = 0  #: datagrams on a shared port for a station not hosted there (or shorter than 4 bytes)
         #: host-stall policy (docs/timing.md): 0 = strict, else the stall bound. With "absorb" a backlog that a
         #: stall of this worker of up to the bound left on a socket is answered in full (late, not superseded).
         self.absorb_ns = absorb_ns
@@ -112,10 +122,17 @@ class SlaveServer:
             if hs.eeprom is not None and (n := remove_stale_temps(hs.eeprom)):
                 log.info("eeprom_stale_temps_removed", path=str(hs.eeprom), count=n)
         try:
-            for hs in self.stations:
-                hs.endpoint = await open_batch_endpoint(self._receiver(hs), hs.host, hs.port,
-                                                        wrap=None if self._capture is None else partial(tap, self._capture))
-                hs.port = hs.endpoint.local_address[1]
+            wrap = None if self._capture is None else partial(tap, self._capture)
+            for group in self._port_groups():
+                first = group[0]
+                if len(group) == 1:
+                    endpoint = await open_batch_endpoint(self._receiver(first), first.host, first.port, wrap=wrap)
+                else:
+                    endpoint = await open_batch_endpoint(self._bus_receiver(group), first.host, first.port,
+                                                         wrap=wrap, burst=_BURST * len(group))
+                    endpoint.enable_gro()  # the master sends each cycle's commands to this port as one burst
+                for hs in group:
+                    hs.endpoint, hs.port = endpoint, endpoint.local_address[1]
             if self._control_addr is not None:
                 self._control = await open_endpoint(self._on_control, *self._control_addr)
         except OSError:
@@ -164,7 +181,7 @@ class SlaveServer:
 
     # -- datagrams --------------------------------------------------------------------------------------------
 
-    def _receiver(self, hs: HostedStation) -> Callable[..., None]:  # a closure, for the hot path
+    def _receiver(self, hs: HostedStation, collect: bool = False) -> Callable[..., None]:  # a closure: hot path
         """The batch handler of one station's socket. More than ``_KEEP_BEHIND`` datagrams from one source waiting
         means the worker fell that many cycles behind: the oldest are counted as ``SUPERSEDED`` drops and only the
         newest ``_KEEP_BEHIND`` are processed (with the host-stall policy "absorb", as many as a stall of the
@@ -172,13 +189,30 @@ class SlaveServer:
         their slots have passed; answering every one would queue latency up (a 1 MiB receive buffer holds about a
         second of commands) and keep an overloaded worker behind for good. A hiccup of up to ``_KEEP_BEHIND`` cycles is still answered in full (late, not lost): with 2,
         a 3-cycle hiccup of a worker on a busy machine became lost commands, reception failures and a bUS trip
-        in the quickstart (3 of 6 runs failed; with 8, 0 of 6)."""
+        in the quickstart (3 of 6 runs failed; with 8, 0 of 6).
+
+        *collect*: the handler of a station on a shared socket, ``on_batch(batch, out)``: its answers are appended
+        to *out* (the shared socket sends them in one burst), not sent one by one."""
         station = hs.station
         receive = station.receive
         counters = station.counters
         monotonic_ns = time.monotonic_ns
 
         keep = self._keep_behind
+
+        if collect:
+            def on_station(batch: list[tuple[bytes, Any]], out: list[tuple[bytes, Any]]) -> None:
+                if len(batch) > keep:
+                    batch = _newest(batch, counters, keep)
+                for data, addr in batch:
+                    response = receive(data, addr, monotonic_ns())
+                    if response is not None:
+                        out.append((response, addr))
+                        hs.responses += 1
+                if station.eeprom_pending:
+                    self._collect_eeprom(hs)
+
+            return on_station
 
         def on_batch(batch: list[tuple[bytes, Any]]) -> None:
             if len(batch) > keep:
@@ -191,6 +225,55 @@ class SlaveServer:
                     hs.responses += 1
             if station.eeprom_pending:
                 self._collect_eeprom(hs)
+
+        return on_batch
+
+    def _port_groups(self) -> list[list[HostedStation]]:
+        """The stations that share a socket: with *shared*, those of one link on one host and port; else one each."""
+        if not self.shared:
+            return [[hs] for hs in self.stations]
+        groups: dict[tuple[str, int, Any], list[HostedStation]] = {}
+        for hs in self.stations:
+            groups.setdefault((hs.host, hs.port, hs.station.link), []).append(hs)
+        return list(groups.values())
+
+    def _bus_receiver(self, group: list[HostedStation]) -> Callable[..., None]:  # a closure, for the hot path
+        """The batch handler of a shared socket: each datagram to the station its address byte names, through that
+        station's own handler (``_receiver``: the same backlog rule per station and source), and the answers of
+        the read back in one burst."""
+        handlers = {hs.station.address: self._receiver(hs, collect=True) for hs in group}
+        keep = self._keep_behind
+        first = group[0]  # its endpoint is the group's (set once the socket is bound)
+
+        def on_batch(batch: list[tuple[bytes, Any]]) -> None:
+            out: list[tuple[bytes, Any]] = []
+            if len(batch) <= keep:  # no station can have fallen behind: in arrival order, no sorting
+                for item in batch:
+                    data = item[0]
+                    handler = handlers.get(data[3]) if len(data) > 3 else None
+                    if handler is None:
+                        self.unaddressed += 1
+                    else:
+                        handler([item], out)
+            else:
+                per: dict[int, list[tuple[bytes, Any]]] = {}
+                for item in batch:
+                    data = item[0]
+                    key = data[3] if len(data) > 3 else -1
+                    items = per.get(key)
+                    if items is None:
+                        per[key] = [item]
+                    else:
+                        items.append(item)
+                for key, items in per.items():
+                    handler = handlers.get(key)
+                    if handler is None:
+                        self.unaddressed += len(items)
+                    else:
+                        handler(items, out)
+            ep = first.endpoint
+            if out and ep is not None:
+                ep.send_burst(out)
 
         return on_batch
 
@@ -264,6 +347,7 @@ class SlaveServer:
         """Snapshot of every hosted station plus this process's CPU use and its stalls since *since* (monotonic
         ns): the most recent events and the totals. Reading changes nothing."""
         return {**self.cpu(),
+                "unaddressed": self.unaddressed,
                 "stalls": self.stalls.events("self", last=_STALLS_REPORTED, since=since),
                 "stall_totals": self.stalls.totals("self", since),
                 "stations": {f"{hs.station.address:#04x}": to_jsonable(hs.station.snapshot())

@@ -70,6 +70,11 @@ class TappedBurstSocket(BurstSocket):
         through :meth:`recv_burst`), not with the kernel's stamps once per cycle."""
         return False
 
+    def enable_gro(self) -> bool:
+        """Never: a captured socket reads each datagram as the kernel cuts it, so that its per-datagram calls
+        (``recv``, ``recvfrom``: the tap's) never see a coalesced buffer."""
+        return False
+
     def recv_burst(self, limit: int = CAPACITY) -> list[bytes]:
         got = _recvfrom_burst(self, limit)  # the same recvmmsg, each datagram with its source (msg_name, cached)
         if len(got) == 1:  # the common case: one answer per read

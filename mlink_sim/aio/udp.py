@@ -191,6 +191,29 @@ class BatchEndpoint:
             except OSError:
                 self.errors += 1
 
+    def send_burst(self, items: list[tuple[bytes, Any]]) -> None:
+        """Send every ``(data, addr)``: in one ``sendmmsg`` or offloaded ``sendmsg`` on a
+        :class:`~mlink_sim.aio.mmsg.BurstSocket`, else one ``sendto`` each; never raises (a datagram not sent
+        counts in :attr:`errors`)."""
+        sock = self._sock
+        if sock is None:
+            return
+        send_burst = getattr(sock, "send_burst", None)
+        if send_burst is not None:
+            self.errors += len(send_burst(items))
+            return
+        for data, addr in items:
+            try:
+                sock.sendto(data, addr)
+            except OSError:
+                self.errors += 1
+
+    def enable_gro(self) -> bool:
+        """Read a peer's offloaded bursts as one buffer each (:meth:`mlink_sim.aio.mmsg.BurstSocket.enable_gro`);
+        False where the socket cannot."""
+        enable = getattr(self._sock, "enable_gro", None)
+        return bool(enable()) if enable is not None else False
+
     @property
     def local_address(self) -> tuple[str, int]:
         assert self._sock is not None

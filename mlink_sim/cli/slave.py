@@ -123,11 +123,15 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
               help="strict: judge the master by the wall clock, as the manuals do (test your own master); absorb: "
                    "a stall of mlink-sim's own processes up to --stall-bound costs no command (docs/timing.md).")
 @click.option("--stall-bound", default="100ms", show_default=True, help="With --host-stalls absorb: the bound.")
+@click.option("--shared-port", is_flag=True,
+              help="With --config: the stations of one link share one UDP port where their endpoints allow it "
+                   "(port 0, or the same port); the address byte picks the station, as on a bus. What the packed "
+                   "workers of `mlink-sim up` do (docs/performance.md).")
 @click.option("--realtime", "rt", is_flag=True,
               help="SCHED_FIFO, locked memory, off the master's CPU, where permitted (docs/timing.md).")
 @capture_options
 def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_path, only, endpoints, state_dir,
-              control, log_json, log_level, ready_json, host_stalls, stall_bound, rt, capture_path,
+              control, log_json, log_level, ready_json, host_stalls, stall_bound, shared_port, rt, capture_path,
               capture_max) -> None:
     """Serve one station over UDP until SIGINT/SIGTERM (or several stations of a --config)."""
     configure_logging(json=log_json, level=log_level)
@@ -166,7 +170,8 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
         sys.exit(2)
     control_addr = None if control == "off" else parse_endpoint(control)
     capture = open_capture_or_exit("slave", capture_path, capture_max)
-    server = SlaveServer(stations, state_dir=state, control=control_addr, absorb_ns=absorb_ns, capture=capture)
+    server = SlaveServer(stations, state_dir=state, control=control_addr, absorb_ns=absorb_ns, capture=capture,
+                         shared=shared_port)
     loop = new_event_loop()
     try:
         code = loop.run_until_complete(_serve(server, ready_json, log_json, rt))

@@ -96,3 +96,81 @@ async def test_tick_reads_waiting_commands_before_it_counts_silence() -> None:
 def test_no_silence_is_due_before_phase_2() -> None:
     card = create_card("si-t3", settings=settings_for("si-t3", 0x21, 17, []), now=0)
     assert card.phase == 1 and card.silence_due(10**12) is False
+
+
+async def _shared_server(*addresses: int) -> SlaveServer:
+    stations = [HostedStation(create_card("si-t3", settings=settings_for("si-t3", a, 17, []), now=0), "127.0.0.1", 0)
+                for a in addresses]
+    server = SlaveServer(stations, control=None, shared=True)
+    await server.start()
+    return server
+
+
+def _nop_to(address: int, cycle: int) -> bytes:
+    return encode(Frame(Link.ML2, Kind.COMMAND, address, cycle, TCYCLE, ml2.M2Command(ml2.Nop(), 0)))
+
+
+async def test_shared_port_the_address_byte_picks_the_station() -> None:
+    """A packed worker's stations share one port, as stations share a bus (``SlaveServer(shared=True)``): each
+    command reaches the station its address byte names (docs/wire-format.md, byte 3), the answers come back from
+    that port, and a command for no station there is counted, not answered."""
+    server = await _shared_server(0x21, 0x22, 0x23)
+    master = _client()
+    try:
+        ports = {hs.port for hs in server.stations}
+        assert len(ports) == 1 and 0 not in ports
+        addr = ("127.0.0.1", ports.pop())
+        for address in (0x23, 0x21, 0x22, 0x30):
+            master.sendto(_nop_to(address, 7), addr)
+        await asyncio.sleep(0.2)
+        answers = []
+        while True:
+            try:
+                data, source = master.recvfrom(4096)
+            except BlockingIOError:
+                break
+            assert source == addr
+            answers.append(decode(data, kind=Kind.RESPONSE).station)
+        assert sorted(answers) == [0x21, 0x22, 0x23]
+        assert server.unaddressed == 1 and server.stats()["unaddressed"] == 1
+        assert [hs.responses for hs in server.stations] == [1, 1, 1]
+    finally:
+        master.close()
+        await server.close()
+
+
+async def test_shared_port_keeps_each_stations_backlog_rule() -> None:
+    server = await _shared_server(0x21, 0x22)
+    master = _client()
+    try:
+        addr = ("127.0.0.1", server.stations[0].port)
+        for cycle in range(1, 13):  # station 21H twelve cycles behind, 22H three: one batch
+            master.sendto(_nop_to(0x21, cycle), addr)
+            if cycle <= 3:
+                master.sendto(_nop_to(0x22, 100 + cycle), addr)
+        await asyncio.sleep(0.2)
+        got: dict[int, list[int]] = {}
+        while True:
+            try:
+                frame = decode(master.recv(4096), kind=Kind.RESPONSE)
+            except BlockingIOError:
+                break
+            got.setdefault(frame.station, []).append(frame.cycle)
+        assert got == {0x21: list(range(5, 13)), 0x22: [101, 102, 103]}
+        assert server.stations[0].station.counters.as_dict()["dropped_by_reason"].get("SUPERSEDED") == 4
+        assert "SUPERSEDED" not in server.stations[1].station.counters.as_dict()["dropped_by_reason"]
+    finally:
+        master.close()
+        await server.close()
+
+
+async def test_stations_of_different_links_keep_ports_of_their_own() -> None:
+    t3 = create_card("si-t3", settings=settings_for("si-t3", 0x21, 17, []), now=0)
+    et3 = create_card("si-et3", settings=settings_for("si-et3", 0x21, 32, []), now=0)
+    server = SlaveServer([HostedStation(t3, "127.0.0.1", 0), HostedStation(et3, "127.0.0.1", 0)], control=None,
+                         shared=True)
+    await server.start()
+    try:  # the same address on two links: two buses, two ports
+        assert server.stations[0].port != server.stations[1].port
+    finally:
+        await server.close()

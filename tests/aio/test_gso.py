@@ -1,0 +1,160 @@
+"""Segmentation offload (mlink_sim.aio.mmsg, "Segmentation offload"): a burst's datagrams of one size to one
+destination leave in one ``sendmsg`` with ``UDP_SEGMENT`` and still arrive as separate datagrams, in order; a socket
+that reads with ``UDP_GRO`` gets such a burst as one buffer and every read cuts it again (the batched reads and the
+per-datagram ``recv``/``recvfrom``); where the kernel refuses the offload the burst still goes; ``MLINK_GSO=0``
+switches it off; a capture's socket never reads coalesced buffers."""
+
+from __future__ import annotations
+
+import errno
+import socket
+import time
+from collections import deque
+from typing import Any
+
+import pytest
+
+from mlink_sim.aio import mmsg
+from mlink_sim.aio.tapped import TappedBurstSocket
+
+pytestmark = pytest.mark.skipif(not mmsg.gso_supported(), reason="UDP segmentation offload not available here")
+
+
+def _udp(cls: type[socket.socket] = socket.socket) -> socket.socket:
+    s = cls(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    s.setblocking(False)
+    return s
+
+
+def _settle() -> None:
+    time.sleep(0.02)  # loopback delivers at once; a margin for a loaded machine
+
+
+def _plain_reads(sock: socket.socket) -> list[bytes]:
+    out = []
+    while True:
+        try:
+            out.append(sock.recv(4096))
+        except BlockingIOError:
+            return out
+
+
+def test_datagrams_to_one_destination_are_grouped_by_size_in_order() -> None:
+    a, b = ("127.0.0.1", 1), ("127.0.0.1", 2)
+    layout = [(46, a), (46, b), (46, a), (10, a), (46, a)]
+    groups = mmsg._groups(layout)
+    assert groups is not None
+    assert [(idx, addr) for idx, addr, _ in groups] == [([0, 2, 4], a), ([1], b), ([3], a)]
+    assert groups[0][2] == [(17, 103, (46).to_bytes(2, "little"))]  # SOL_UDP, UDP_SEGMENT, the segment size
+    assert groups[1][2] == [] and groups[2][2] == []  # alone: a plain sendto
+    assert mmsg._groups([(46, a), (46, b)]) is None  # nothing shared: sendmmsg is the cheaper call
+
+
+def test_a_large_group_is_cut_below_64_kib() -> None:
+    layout = [(20_000, ("127.0.0.1", 1))] * 7
+    groups = mmsg._groups(layout)
+    assert groups is not None and [idx for idx, _, _ in groups] == [[0, 1, 2], [3, 4, 5], [6]]
+
+
+def test_an_offloaded_burst_reaches_a_plain_socket_as_separate_datagrams() -> None:
+    tx, rx = mmsg.BurstSocket(_udp()), _udp()
+    try:
+        items = [(bytes([i]) * 46, rx.getsockname()) for i in range(62)] + [(b"short", rx.getsockname())]
+        assert tx.send_burst(items) == []
+        assert tx._sgroups is not None  # the offload was used
+        _settle()
+        assert _plain_reads(rx) == [d for d, _ in items]
+    finally:
+        tx.close()
+        rx.close()
+
+
+def test_a_gro_reader_cuts_every_burst_again() -> None:
+    tx, rx = mmsg.BurstSocket(_udp()), mmsg.BurstSocket(_udp())
+    try:
+        assert rx.enable_gro() and rx.gro
+        here = rx.getsockname()
+        burst = [(i.to_bytes(2, "big") * 23, here) for i in range(40)]
+        assert tx.send_burst(burst + [(b"tail", here)]) == []
+        _settle()
+        got = rx.recvfrom_burst(8)  # a coalesced buffer is never cut off: all of it comes, beyond the limit
+        assert [d for d, _ in got] == [d for d, _ in burst]
+        assert {a for _, a in got} == {tx.getsockname()}
+        assert rx.recv_burst() == [b"tail"]  # sent alone: a datagram of its own
+        assert rx.recv_burst() == []
+        # one datagram at a time (what an impaired master's reads use): the rest of a buffer waits for the next
+        assert tx.send_burst(burst[:5]) == []
+        _settle()
+        assert [rx.recv(4096) for _ in range(3)] == [d for d, _ in burst[:3]]
+        assert rx.recvfrom(4096) == (burst[3][0], tx.getsockname())
+        assert rx.recv_burst() == [burst[4][0]]
+        with pytest.raises(BlockingIOError):
+            rx.recvfrom(4096)
+    finally:
+        tx.close()
+        rx.close()
+
+
+def test_gro_and_the_kernels_stamps_exclude_each_other() -> None:
+    a, b = mmsg.BurstSocket(_udp()), mmsg.BurstSocket(_udp())
+    try:
+        assert a.enable_gro() and not a.enable_stamps()
+        if mmsg.stamps_supported():
+            assert b.enable_stamps() and not b.enable_gro()
+    finally:
+        a.close()
+        b.close()
+
+
+class _NoOffload(socket.socket):
+    """A socket whose route refuses the offload, as a device without checksum offload does (EIO)."""
+
+    def sendmsg(self, buffers: Any, ancdata: Any = (), flags: int = 0, address: Any = None) -> int:
+        if ancdata:
+            raise OSError(errno.EIO, "Input/output error")
+        return super().sendmsg(buffers, ancdata, flags, address)
+
+
+def test_an_offload_the_kernel_refuses_falls_back_and_loses_nothing() -> None:
+    tx, rx = mmsg.BurstSocket(_udp(_NoOffload)), _udp()
+    try:
+        items = [(bytes([i]) * 30, rx.getsockname()) for i in range(5)]
+        assert tx.send_burst(items) == []
+        assert not tx._gso and tx._sgroups is None  # sendmmsg from then on
+        assert tx.send_burst(items) == []
+        _settle()
+        assert _plain_reads(rx) == [d for d, _ in items] * 2
+    finally:
+        tx.close()
+        rx.close()
+
+
+def test_switched_off_each_datagram_is_its_own_message(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("MLINK_GSO", "0")
+    assert not mmsg.gso_supported()
+    tx, rx = mmsg.BurstSocket(_udp()), mmsg.BurstSocket(_udp())
+    try:
+        assert not rx.enable_gro()
+        items = [(b"x" * 20, rx.getsockname())] * 4
+        assert tx.send_burst(items) == [] and tx._sgroups is None
+        _settle()
+        assert rx.recv_burst() == [b"x" * 20] * 4
+    finally:
+        tx.close()
+        rx.close()
+
+
+def test_a_captured_socket_reads_datagram_by_datagram() -> None:
+    queue: deque[Any] = deque()
+    tx, rx = mmsg.BurstSocket(_udp()), TappedBurstSocket(_udp(), queue.append)
+    try:
+        assert not rx.enable_gro()
+        items = [(bytes([i]) * 12, rx.getsockname()) for i in range(6)]
+        assert tx.send_burst(items) == []
+        _settle()
+        assert rx.recv_burst() == [d for d, _ in items]
+        assert [d for _, d, _, _ in queue] == [d for d, _ in items]  # each recorded on its own
+    finally:
+        tx.close()
+        rx.close()
