@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import signal
 import subprocess
 import time
@@ -176,3 +177,47 @@ def test_sigterm_stops_everything_without_orphans(config: Path) -> None:
     out, err = proc.communicate(timeout=30)
     assert "Traceback" not in err
     assert not wait_gone(kids), "worker processes left behind"
+
+
+PACKED = """
+[network]
+name = "packed"
+transmission_cycle = "2ms"
+""" + "".join(f"""
+[[station]]
+address = 0x{a:02X}
+card = "si-t3"
+params = {{ "b1-01" = 3, "b1-02" = 3 }}
+""" for a in (0x21, 0x22, 0x23)) + """
+[[timeline]]
+at = "0.5s"
+station = 0x22
+do = "kill-slave"
+""" + "".join(f"""
+[[timeline]]
+at = "4s"
+station = 0x{a:02X}
+expect = "phase"
+phase = 3
+""" for a in (0x21, 0x22, 0x23))
+
+
+def test_a_packed_worker_shares_one_port_and_keeps_it_when_restarted(tmp_path: Path) -> None:
+    """`up` packs the stations of one link into one worker on one port (docs/cards.md, "Stations sharing a
+    port"); killed, the worker comes back on that same port and every station returns to phase 3."""
+    cfg = tmp_path / "packed.toml"
+    cfg.write_text(PACKED)
+    report = tmp_path / "r.json"
+    run_dir = tmp_path / "run"
+    r = run_cli("up", str(cfg), "--workers", "1", "--no-status", "--report", str(report), "--run-dir", str(run_dir),
+                timeout=60)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "exited with code" in r.stdout  # the kill happened and was reported
+    log = (run_dir / "worker-0.log").read_text()
+    starts = [line for line in log.splitlines() if "0x21@" in line]  # the worker's "ready" log line, each start
+    assert len(starts) >= 2, "the worker was not restarted:\n" + log
+    ports = [set(re.findall(r"0x2[123]@127\.0\.0\.1:(\d+)", line)) for line in starts]
+    assert all(len(p) == 1 for p in ports), ports  # one port for the three stations
+    assert ports[0] == ports[-1]  # and the same one after the restart
+    doc = json.loads(report.read_text())
+    assert all(doc["station"][f"0x{a:02x}"]["answered"] > 0 for a in (0x21, 0x22, 0x23))
