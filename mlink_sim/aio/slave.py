@@ -44,6 +44,9 @@ _POLL_INTERVAL_NS = 1_000_000
 _KEEP_BEHIND = 8  # datagrams per source processed from one read; older ones are superseded (see _receiver)
 _MIN_CYCLE_NS = 250_000  # the shortest transmission cycle (SI-ET3 Table 14): sizes the backlog "absorb" keeps
 _BURST = 64  # datagrams read per wake-up of a station's socket at most (a shared socket: this many per station)
+# Receive buffer of a station's socket; a shared socket asks for this much per station, so that a backlog lasts
+# as long as on a socket of its own (the kernel caps the request at net.core.rmem_max).
+_RCVBUF = 1 << 20
 _STALLS_REPORTED = 256  # recent stalls in each stats reply (the session keeps them by time)
 
 
@@ -126,10 +129,12 @@ class SlaveServer:
             for group in self._port_groups():
                 first = group[0]
                 if len(group) == 1:
-                    endpoint = await open_batch_endpoint(self._receiver(first), first.host, first.port, wrap=wrap)
+                    endpoint = await open_batch_endpoint(self._receiver(first), first.host, first.port, wrap=wrap,
+                                                         rcvbuf=_RCVBUF)
                 else:
                     endpoint = await open_batch_endpoint(self._bus_receiver(group), first.host, first.port,
-                                                         wrap=wrap, burst=_BURST * len(group))
+                                                         wrap=wrap, burst=_BURST * len(group),
+                                                         rcvbuf=_RCVBUF * len(group))
                     endpoint.enable_gro()  # the master sends each cycle's commands to this port as one burst
                 for hs in group:
                     hs.endpoint, hs.port = endpoint, endpoint.local_address[1]
