@@ -138,16 +138,8 @@ def serve(count: int, batched: bool, shared: bool = False) -> None:
     read's datagrams echoed in one burst (``BatchEndpoint.send_burst``), offloaded bursts read as one buffer."""
     loop = new_event_loop()
 
-    async def main(n: int) -> None:
-        count = n
+    async def main() -> None:
         endpoints: list[Any] = []
-        if shared:
-            def on_bus(batch: list[tuple[bytes, Any]]) -> None:
-                endpoints[0].send_burst(batch)
-
-            endpoints.append(await open_batch_endpoint(on_bus, batched=batched, burst=64 * count))
-            endpoints[0].enable_gro()
-            count = 0
 
         def echo_to(index: int) -> Any:
             def on_batch(batch: list[tuple[bytes, Any]]) -> None:
@@ -156,17 +148,25 @@ def serve(count: int, batched: bool, shared: bool = False) -> None:
                     sendto(data, addr)
             return on_batch
 
-        for i in range(count):
-            endpoints.append(await open_batch_endpoint(echo_to(i), batched=batched))
-        ports = [ep.local_address[1] for ep in endpoints]
-        print(json.dumps({"ports": ports * (n // len(ports))}), flush=True)
+        if shared:
+            def on_bus(batch: list[tuple[bytes, Any]]) -> None:
+                endpoints[0].send_burst(batch)
+
+            endpoints.append(await open_batch_endpoint(on_bus, batched=batched, burst=64 * count))
+            endpoints[0].enable_gro()
+            ports = [endpoints[0].local_address[1]] * count
+        else:
+            for i in range(count):
+                endpoints.append(await open_batch_endpoint(echo_to(i), batched=batched))
+            ports = [ep.local_address[1] for ep in endpoints]
+        print(json.dumps({"ports": ports}), flush=True)
         stop = asyncio.Event()
         loop.add_signal_handler(signal.SIGTERM, stop.set)
         await stop.wait()
         for ep in endpoints:
             ep.close()
 
-    loop.run_until_complete(main(count))
+    loop.run_until_complete(main())
 
 
 # ----------------------------------------------------------------------------------------------- the client

@@ -196,8 +196,9 @@ class SlaveServer:
         a 3-cycle hiccup of a worker on a busy machine became lost commands, reception failures and a bUS trip
         in the quickstart (3 of 6 runs failed; with 8, 0 of 6).
 
-        *collect*: the handler of a station on a shared socket, ``on_batch(batch, out)``: its answers are appended
-        to *out* (the shared socket sends them in one burst), not sent one by one."""
+        The handler appends the answers to a list; a station's own socket then sends them (one ``sendto``, or a
+        burst after a backlog). *collect*: return that handler itself, ``on_station(batch, out)``, for a shared
+        socket, which sends the answers of all its stations in one burst."""
         station = hs.station
         receive = station.receive
         counters = station.counters
@@ -205,31 +206,30 @@ class SlaveServer:
 
         keep = self._keep_behind
 
-        if collect:
-            def on_station(batch: list[tuple[bytes, Any]], out: list[tuple[bytes, Any]]) -> None:
-                if len(batch) > keep:
-                    batch = _newest(batch, counters, keep)
-                for data, addr in batch:
-                    response = receive(data, addr, monotonic_ns())
-                    if response is not None:
-                        out.append((response, addr))
-                        hs.responses += 1
-                if station.eeprom_pending:
-                    self._collect_eeprom(hs)
+        def on_station(batch: list[tuple[bytes, Any]], out: list[tuple[bytes, Any]]) -> None:
+            if len(batch) > keep:
+                batch = _newest(batch, counters, keep)
+            before = len(out)  # a shared socket's list holds the other stations' answers too
+            for data, addr in batch:
+                response = receive(data, addr, monotonic_ns())
+                if response is not None:
+                    out.append((response, addr))
+            hs.responses += len(out) - before
+            if station.eeprom_pending:
+                self._collect_eeprom(hs)
 
+        if collect:
             return on_station
 
         def on_batch(batch: list[tuple[bytes, Any]]) -> None:
-            if len(batch) > keep:
-                batch = _newest(batch, counters, keep)
+            out: list[tuple[bytes, Any]] = []
+            on_station(batch, out)
             endpoint = hs.endpoint
-            for data, addr in batch:
-                response = receive(data, addr, monotonic_ns())
-                if response is not None and endpoint is not None:
-                    endpoint.sendto(response, addr)
-                    hs.responses += 1
-            if station.eeprom_pending:
-                self._collect_eeprom(hs)
+            if endpoint is not None and out:
+                if len(out) == 1:  # the common case: one command, one answer
+                    endpoint.sendto(*out[0])
+                else:
+                    endpoint.send_burst(out)
 
         return on_batch
 
@@ -247,35 +247,25 @@ class SlaveServer:
         station's own handler (``_receiver``: the same backlog rule per station and source), and the answers of
         the read back in one burst."""
         handlers = {hs.station.address: self._receiver(hs, collect=True) for hs in group}
-        keep = self._keep_behind
         first = group[0]  # its endpoint is the group's (set once the socket is bound)
 
         def on_batch(batch: list[tuple[bytes, Any]]) -> None:
+            per: dict[int, list[tuple[bytes, Any]]] = {}  # each station's datagrams, in arrival order
+            for item in batch:
+                data = item[0]
+                key = data[3] if len(data) > 3 else -1
+                items = per.get(key)
+                if items is None:
+                    per[key] = [item]
+                else:
+                    items.append(item)
             out: list[tuple[bytes, Any]] = []
-            if len(batch) <= keep:  # no station can have fallen behind: in arrival order, no sorting
-                for item in batch:
-                    data = item[0]
-                    handler = handlers.get(data[3]) if len(data) > 3 else None
-                    if handler is None:
-                        self.unaddressed += 1
-                    else:
-                        handler([item], out)
-            else:
-                per: dict[int, list[tuple[bytes, Any]]] = {}
-                for item in batch:
-                    data = item[0]
-                    key = data[3] if len(data) > 3 else -1
-                    items = per.get(key)
-                    if items is None:
-                        per[key] = [item]
-                    else:
-                        items.append(item)
-                for key, items in per.items():
-                    handler = handlers.get(key)
-                    if handler is None:
-                        self.unaddressed += len(items)
-                    else:
-                        handler(items, out)
+            for key, items in per.items():
+                handler = handlers.get(key)
+                if handler is None:
+                    self.unaddressed += len(items)
+                else:
+                    handler(items, out)
             ep = first.endpoint
             if out and ep is not None:
                 ep.send_burst(out)

@@ -203,10 +203,7 @@ class BatchEndpoint:
             self.errors += len(send_burst(items))
             return
         for data, addr in items:
-            try:
-                sock.sendto(data, addr)
-            except OSError:
-                self.errors += 1
+            self.sendto(data, addr)
 
     def enable_gro(self) -> bool:
         """Read a peer's offloaded bursts as one buffer each (:meth:`mlink_sim.aio.mmsg.BurstSocket.enable_gro`);

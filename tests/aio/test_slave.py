@@ -112,8 +112,9 @@ def _nop_to(address: int, cycle: int) -> bytes:
 
 async def test_shared_port_the_address_byte_picks_the_station() -> None:
     """A packed worker's stations share one port, as stations share a bus (``SlaveServer(shared=True)``): each
-    command reaches the station its address byte names (docs/wire-format.md, byte 3), the answers come back from
-    that port, and a command for no station there is counted, not answered."""
+    command reaches the station its address byte names (docs/wire-format.md, byte 3: the station address each card
+    is set to with F6-20, SI-T3 Table 4, SI-ET3 Table 7), the answers come back from that port, and a command for
+    no station there is counted, not answered."""
     server = await _shared_server(0x21, 0x22, 0x23)
     master = _client()
     try:
