@@ -2,7 +2,9 @@
 
 The sans-I/O cores' hot modules (:data:`mlink_sim._accel.COMPILED_MODULES`) are compiled with mypyc, as
 written, from their type annotations (docs/performance.md, "Compiled cores"). Each compiled module is an
-extension module next to its ``.py`` file; the ``.py`` stays the one source and the pure-Python fallback.
+extension module next to its ``.py`` file; the ``.py`` stays the one source and the pure-Python fallback. The
+hand-written C modules (:data:`mlink_sim._accel.C_EXTENSIONS`, e.g. the FCS in mlink_sim/wire/_fcsc.c) are built
+with them; the module that uses one keeps Python functions for the same work.
 
 Without a C compiler (or mypy), or with ``MLINK_BUILD_PURE=1``, the install goes on without the extensions and
 says so; the package then runs the pure-Python modules and reports it (``mlink-sim --version``).
@@ -18,7 +20,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from setuptools import setup
+from setuptools import Extension, setup
 from setuptools.command.build_ext import build_ext
 
 ROOT = Path(__file__).resolve().parent
@@ -38,16 +40,26 @@ def _say(message: str) -> None:
     print(f"mlink-sim build: {message}", file=sys.stderr, flush=True)
 
 
-def _modules() -> list[str]:
-    """The compiled modules' file paths, from ``COMPILED_MODULES`` in mlink_sim/_accel.py (parsed, not imported)."""
+def _names(tuple_name: str) -> list[str]:
+    """A tuple of module names in mlink_sim/_accel.py (parsed, not imported)."""
     tree = ast.parse((ROOT / "mlink_sim" / "_accel.py").read_text(encoding="utf-8"))
     for node in tree.body:
         if isinstance(node, ast.AnnAssign | ast.Assign):
             targets = [node.target] if isinstance(node, ast.AnnAssign) else node.targets
-            if any(isinstance(t, ast.Name) and t.id == "COMPILED_MODULES" for t in targets):
+            if any(isinstance(t, ast.Name) and t.id == tuple_name for t in targets):
                 assert node.value is not None
-                return [name.replace(".", "/") + ".py" for name in ast.literal_eval(node.value)]
-    raise SystemExit("setup.py: COMPILED_MODULES not found in mlink_sim/_accel.py")
+                return list(ast.literal_eval(node.value))
+    raise SystemExit(f"setup.py: {tuple_name} not found in mlink_sim/_accel.py")
+
+
+def _modules() -> list[str]:
+    """The mypyc modules' file paths (``COMPILED_MODULES``)."""
+    return [name.replace(".", "/") + ".py" for name in _names("COMPILED_MODULES")]
+
+
+def _c_sources() -> dict[str, str]:
+    """The hand-written C extension modules (``C_EXTENSIONS``): module name -> its ``.c`` file."""
+    return {name: name.replace(".", "/") + ".c" for name in _names("C_EXTENSIONS")}
 
 
 class OptionalBuildExt(build_ext):
@@ -96,11 +108,12 @@ class OptionalBuildExt(build_ext):
 
 
 def _current(built: Path, sources: list[str]) -> bool:
-    """``built`` exists and is newer than its C sources generated under build/."""
+    """``built`` exists and is newer than its own C sources: mypyc's under build/, or a hand-written module's."""
     if not built.exists():
         return False
     mtime = built.stat().st_mtime
-    own = [Path(src) for src in sources if (ROOT / src).resolve().is_relative_to(ROOT / "build")]
+    own = [Path(src) for src in sources
+           if any((ROOT / src).resolve().is_relative_to(ROOT / folder) for folder in ("build", "mlink_sim"))]
     return bool(own) and all((ROOT / src).stat().st_mtime < mtime for src in own)
 
 
@@ -112,6 +125,8 @@ def _source_stamp() -> str:
     lines = []
     for path in _modules():
         name = path[: -len(".py")].replace("/", ".")
+        lines.append(f"{name} {hashlib.sha256((ROOT / path).read_bytes()).hexdigest()}\n")
+    for name, path in _c_sources().items():
         lines.append(f"{name} {hashlib.sha256((ROOT / path).read_bytes()).hexdigest()}\n")
     return "".join(lines)
 
@@ -140,6 +155,8 @@ def _ext_modules() -> list[object]:
         return []
     finally:
         os.chdir(cwd)
+    # the C modules are built with the mypyc ones or not at all: the cores are compiled as a whole (mlink_sim._accel)
+    exts = [*exts, *(Extension(name, [path], extra_compile_args=["-O2"]) for name, path in _c_sources().items())]
     for ext in exts:
         ext.optional = True  # a failed compile or link leaves that module pure instead of failing the install
     return list(exts)

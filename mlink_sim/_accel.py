@@ -27,7 +27,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 
-__all__ = ["BUILD_STAMP", "COMPILED_MODULES", "MODE", "NATIVE_LIBRARY", "REASON", "describe", "pure_requested", "select"]
+__all__ = ["BUILD_STAMP", "BUILT_MODULES", "COMPILED_MODULES", "C_EXTENSIONS", "MODE", "NATIVE_LIBRARY", "REASON", "describe", "pure_requested", "select"]
 
 #: The modules mypyc compiles (setup.py reads this tuple): the steady-state paths of the master core, the cards
 #: and the drive model, and the wire helpers they call per datagram; the virtual clock's per-event path (its event
@@ -75,6 +75,13 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.metrics.network",
     "mlink_sim.capture.pack",
 )
+#: Hand-written C extension modules of the compiled cores, each built by setup.py from the ``.c`` file of its name
+#: (mlink_sim/wire/_fcsc.c: the FCS and the datagram steps around it; mlink_sim/wire/fcs.py says why by hand). The
+#: module that uses one imports it when it can and keeps its pure-Python functions as the fallback; in pure mode
+#: the import fails on purpose (:class:`_SourceFinder`), so the choice stays one for the whole process.
+C_EXTENSIONS: tuple[str, ...] = ("mlink_sim.wire._fcsc",)
+#: Everything the compiled cores are made of: the mypyc modules and the C ones.
+BUILT_MODULES: tuple[str, ...] = COMPILED_MODULES + C_EXTENSIONS
 #: setup.py's record of the sources it compiled (one "module sha256" line each), next to this file
 BUILD_STAMP = "_accel_build.txt"
 #: mypyc's shared library of the group (setup.py: ``group_name="mlink_sim_native"``), a top-level module.
@@ -95,13 +102,17 @@ def pure_requested(environ: Mapping[str, str] | None = None) -> bool:
 
 
 class _SourceFinder:
-    """Loads the compiled modules' ``.py`` files instead of their extension modules (pure mode)."""
+    """Loads the compiled modules' ``.py`` files instead of their extension modules, and refuses the C extension
+    modules (their users fall back to Python), in pure mode."""
 
     names = frozenset(COMPILED_MODULES)
+    refused = frozenset(C_EXTENSIONS)
 
     @classmethod
     def find_spec(cls, fullname: str, path: Sequence[str] | None = None,
                   target: ModuleType | None = None) -> importlib.machinery.ModuleSpec | None:
+        if fullname in cls.refused:
+            raise ModuleNotFoundError(f"{fullname}: the cores run pure Python ({REASON})", name=fullname)
         if fullname not in cls.names or not path:
             return None
         for entry in path:
@@ -113,6 +124,11 @@ class _SourceFinder:
     @classmethod
     def invalidate_caches(cls) -> None:
         return None
+
+
+def source_of(name: str) -> Path:
+    """The source file a built module is made from: its ``.py`` file, or the ``.c`` file of a C extension."""
+    return _PACKAGE_DIR.joinpath(*name.split(".")[1:]).with_suffix(".c" if name in C_EXTENSIONS else ".py")
 
 
 def _extension(name: str) -> Path | None:
@@ -137,19 +153,18 @@ def _built_from() -> dict[str, str]:
 def _why_not_compiled() -> str | None:
     """None when every compiled module is built from the .py next to it and the native library loads; else the
     reason. "Built from" is by content (sha256; ≈ 1 ms for all), not by file times, which an install resets."""
-    missing = [name for name in COMPILED_MODULES if _extension(name) is None]
-    if len(missing) == len(COMPILED_MODULES):
+    missing = [name for name in BUILT_MODULES if _extension(name) is None]
+    if len(missing) == len(BUILT_MODULES):
         return "not built (no C compiler or mypyc at install time, or MLINK_BUILD_PURE=1)"
     if missing:
-        return f"partly built ({len(missing)} of {len(COMPILED_MODULES)} modules missing, e.g. {missing[0]})"
+        return f"partly built ({len(missing)} of {len(BUILT_MODULES)} modules missing, e.g. {missing[0]})"
     built = _built_from()
     if not built:
         return f"no record of what was built ({BUILD_STAMP} missing; rebuild: pip install -e .)"
     stale = []
-    for name in COMPILED_MODULES:
-        source = _PACKAGE_DIR.joinpath(*name.split(".")[1:]).with_suffix(".py")
+    for name in BUILT_MODULES:
         try:
-            digest = hashlib.sha256(source.read_bytes()).hexdigest()
+            digest = hashlib.sha256(source_of(name).read_bytes()).hexdigest()
         except OSError:
             continue  # an install without the .py files: nothing to be stale against
         if built.get(name) != digest:
@@ -174,7 +189,7 @@ def select() -> str:
     else:
         why = _why_not_compiled()
     if why is None:
-        MODE, REASON = "compiled", f"mypyc, {len(COMPILED_MODULES)} modules"
+        MODE, REASON = "compiled", f"mypyc, {len(COMPILED_MODULES)} modules; C, {len(C_EXTENSIONS)}"
     else:
         MODE, REASON = "pure", why
         if _SourceFinder not in sys.meta_path:

@@ -162,7 +162,7 @@ def test_the_compiled_modules_load_when_built():
     if mode != "compiled":
         assert line.startswith("pure Python (")  # says why
         pytest.skip(f"not built here: {line}")
-    assert line == f"compiled (mypyc, {len(_accel.COMPILED_MODULES)} modules)"
+    assert line == f"compiled (mypyc, {len(_accel.COMPILED_MODULES)} modules; C, {len(_accel.C_EXTENSIONS)})"
     assert not path.endswith(".py")
 
 
@@ -189,6 +189,9 @@ def test_compiled_modules_exist_and_are_cores():
         parts = name.split(".")
         assert parts[1] in ("wire", "drive", "cards", "master") or name in _PER_EXCHANGE, name
         assert ROOT.joinpath(*parts).with_suffix(".py").is_file(), name
+    for name in _accel.C_EXTENSIONS:  # hand-written C, each from the .c file of its name, a core's helper
+        assert name.split(".")[1] in ("wire", "drive", "cards", "master"), name
+        assert _accel.source_of(name).is_file() and _accel.source_of(name).suffix == ".c", name
 
 
 def test_an_install_without_a_compiler_runs_pure(tmp_path):
@@ -220,8 +223,8 @@ def test_an_install_without_a_compiler_runs_pure(tmp_path):
 def _fake_build(root: Path, names: tuple[str, ...], stamp: bool = True) -> None:
     """A package folder with a .py and an extension module for each of *names*, and the build's record."""
     lines = []
-    for name in _accel.COMPILED_MODULES:
-        source = root.joinpath(*name.split(".")[1:]).with_suffix(".py")
+    for name in _accel.BUILT_MODULES:
+        source = root.joinpath(*name.split(".")[1:]).with_suffix(".c" if name in _accel.C_EXTENSIONS else ".py")
         source.parent.mkdir(parents=True, exist_ok=True)
         source.write_text(f"# {name}\n")
         lines.append(f"{name} {hashlib.sha256(source.read_bytes()).hexdigest()}\n")
@@ -233,12 +236,12 @@ def _fake_build(root: Path, names: tuple[str, ...], stamp: bool = True) -> None:
 
 @pytest.mark.parametrize("case, reason", [
     ("none", "not built (no C compiler or mypyc at install time, or MLINK_BUILD_PURE=1)"),
-    ("part", f"partly built (1 of {len(_accel.COMPILED_MODULES)} modules missing, e.g. {_accel.COMPILED_MODULES[-1]})"),
+    ("part", f"partly built (1 of {len(_accel.BUILT_MODULES)} modules missing, e.g. {_accel.BUILT_MODULES[-1]})"),
     ("no stamp", "no record of what was built (_accel_build.txt missing; rebuild: pip install -e .)"),
     ("edited", "mlink_sim.cards.base changed after the build (rebuild: pip install -e .)"),
 ])
 def test_why_the_cores_run_pure(tmp_path, monkeypatch, case, reason):
-    names = {"none": (), "part": _accel.COMPILED_MODULES[:-1]}.get(case, _accel.COMPILED_MODULES)
+    names = {"none": (), "part": _accel.BUILT_MODULES[:-1]}.get(case, _accel.BUILT_MODULES)
     _fake_build(tmp_path, names, stamp=case != "no stamp")
     if case == "edited":
         (tmp_path / "cards" / "base.py").write_text("# changed\n")

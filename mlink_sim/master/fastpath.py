@@ -12,7 +12,8 @@ declarations. Nothing here is declared a second time:
 * **command**: the datagram of the station's current INV_CTL body is encoded once by the general encoder
   (:func:`mlink_sim.wire.encode`) with cycle 0 and WDT 0. Each slot copies it, patches the cycle number
   (envelope bytes 4–7) and the WDT byte (data byte 15 on ML-I/II, byte 1 on ML-III; offsets from
-  ``COMMAND_FRAME_*``) and appends the FCS.
+  ``COMMAND_FRAME_*``) and appends the FCS; with the compiled cores one C call does all three
+  (``patch_seal``, mlink_sim/wire/_fcsc.c).
 * **response**: one ``unpack_from`` of the whole datagram: the envelope, the data frame (``RESPONSE_FRAME_*``)
   and the INV_CTL response body (``RESPONSE_MAIN``) in one format (:func:`~mlink_sim.wire.frame.datagram_struct`).
 
@@ -32,6 +33,7 @@ from typing import Any
 
 from ..wire import Frame, Kind, Link, encode, ml2, ml3
 from ..wire.codes import M2Cmd, M2Status, M3Cmd
+from ..wire.fcs import NATIVE
 from ..wire.frame import ENVELOPE, FCS_SIZE, HEADER_SIZE, MAGIC, datagram_offset, datagram_struct, fcs_ok, with_fcs
 from ..wire.layout import field_offset
 from .codec import Codec
@@ -41,6 +43,8 @@ __all__ = ["CyclicFrames", "cycle_of"]
 
 _CYCLE_OFFSET = field_offset(ENVELOPE, "cycle")
 _CYCLE = struct.Struct("<I")
+#: ``patch_seal`` of the FCS's C module (mlink_sim/wire/_fcsc.c), or None: pure Python.
+_PATCH_SEAL: Any = None if NATIVE is None else NATIVE.patch_seal
 
 
 def cycle_of(datagram: bytes) -> int:
@@ -105,6 +109,8 @@ class CyclicFrames:
             tpl = self._template = bytearray(encode(Frame(self.link, Kind.COMMAND, self.address, 0, self._tcycle,
                                                           message))[:-FCS_SIZE])
             self._body = body
+        if _PATCH_SEAL is not None:  # C (compiled cores): the copy, both patches and the FCS in one call
+            return _PATCH_SEAL(tpl, _CYCLE_OFFSET, cycle, self._wdt_at, wdt)
         _CYCLE.pack_into(tpl, _CYCLE_OFFSET, cycle)
         tpl[self._wdt_at] = wdt
         return with_fcs(tpl)

@@ -1,0 +1,219 @@
+/* The wire contract's FCS (CRC-16/X-25, docs/wire-format.md) in C, and the per-datagram steps around it.
+ *
+ * Part of the compiled cores (docs/performance.md, "Compiled cores"; mlink_sim/_accel.py C_EXTENSIONS): setup.py
+ * builds it next to mlink_sim/wire/fcs.py, which uses it when the compiled cores are selected and keeps the
+ * pure-Python functions as the fallback. tests/wire/test_fcs_native.py pins every function here to the pure one,
+ * byte for byte.
+ *
+ * Why by hand: the fast paths spend most of their byte work on the FCS (binascii.crc_hqx is the non-reflected
+ * CRC, so X-25 costs a translated copy and a slice around it), and no maintained library computes X-25 and
+ * seals, checks or patches a datagram in one call. The CRC is the textbook table-driven reflected CRC
+ * (polynomial 0x8408, init 0xFFFF, xorout 0xFFFF), checked against crc16_x25_reference.
+ *
+ *   crc16_x25(data) -> int                    the FCS of data (any bytes-like object)
+ *   seal(body) -> bytes                       body + its FCS (u16 LE): wire.frame.with_fcs
+ *   fcs_ok(datagram) -> bool                  the trailing FCS matches the bytes before it: wire.frame.fcs_ok
+ *   patch_seal(template, cycle_at, cycle, wdt_at, wdt) -> bytes
+ *                                             a copy of template with the u32 LE cycle at cycle_at and the byte
+ *                                             wdt at wdt_at, sealed: the master's cyclic command
+ *                                             (master.fastpath.CyclicFrames.command); template is not changed
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <stdint.h>
+#include <string.h>
+
+static uint16_t table[256];
+
+static void
+make_table(void)
+{
+    for (unsigned i = 0; i < 256; i++) {
+        uint16_t crc = (uint16_t)i;
+        for (int bit = 0; bit < 8; bit++)
+            crc = (crc & 1) ? (uint16_t)((crc >> 1) ^ 0x8408) : (uint16_t)(crc >> 1);
+        table[i] = crc;
+    }
+}
+
+static inline uint16_t
+x25(const unsigned char *p, Py_ssize_t n)
+{
+    uint16_t crc = 0xFFFF;
+    while (n-- > 0)
+        crc = (uint16_t)((crc >> 8) ^ table[(crc ^ *p++) & 0xFF]);
+    return (uint16_t)(crc ^ 0xFFFF);
+}
+
+/* A read-only view of obj's bytes: bytes and bytearray directly, anything else through the buffer protocol
+   (released by release()). */
+typedef struct {
+    const unsigned char *p;
+    Py_ssize_t n;
+    Py_buffer view;
+    int has_view;
+} bytes_in;
+
+static int
+get_bytes(PyObject *obj, bytes_in *in)
+{
+    in->has_view = 0;
+    if (PyBytes_CheckExact(obj)) {
+        in->p = (const unsigned char *)PyBytes_AS_STRING(obj);
+        in->n = PyBytes_GET_SIZE(obj);
+        return 0;
+    }
+    if (PyByteArray_CheckExact(obj)) {
+        in->p = (const unsigned char *)PyByteArray_AS_STRING(obj);
+        in->n = PyByteArray_GET_SIZE(obj);
+        return 0;
+    }
+    if (PyObject_GetBuffer(obj, &in->view, PyBUF_SIMPLE) < 0)
+        return -1;
+    in->has_view = 1;
+    in->p = (const unsigned char *)in->view.buf;
+    in->n = in->view.len;
+    return 0;
+}
+
+static void
+release(bytes_in *in)
+{
+    if (in->has_view)
+        PyBuffer_Release(&in->view);
+}
+
+/* A new bytes object: n bytes of src (patched by the caller before sealing), then their FCS, u16 LE. */
+static PyObject *
+sealed_copy(const unsigned char *src, Py_ssize_t n, unsigned char **out)
+{
+    PyObject *result = PyBytes_FromStringAndSize(NULL, n + 2);
+    if (result == NULL)
+        return NULL;
+    *out = (unsigned char *)PyBytes_AS_STRING(result);
+    memcpy(*out, src, (size_t)n);
+    return result;
+}
+
+static void
+append_fcs(unsigned char *buf, Py_ssize_t n)
+{
+    uint16_t fcs = x25(buf, n);
+    buf[n] = (unsigned char)(fcs & 0xFF);
+    buf[n + 1] = (unsigned char)(fcs >> 8);
+}
+
+static PyObject *
+fcsc_crc16_x25(PyObject *module, PyObject *data)
+{
+    bytes_in in;
+    if (get_bytes(data, &in) < 0)
+        return NULL;
+    uint16_t crc = x25(in.p, in.n);
+    release(&in);
+    return PyLong_FromLong(crc);
+}
+
+static PyObject *
+fcsc_seal(PyObject *module, PyObject *body)
+{
+    bytes_in in;
+    unsigned char *buf;
+    if (get_bytes(body, &in) < 0)
+        return NULL;
+    PyObject *result = sealed_copy(in.p, in.n, &buf);
+    if (result != NULL)
+        append_fcs(buf, in.n);
+    release(&in);
+    return result;
+}
+
+static PyObject *
+fcsc_fcs_ok(PyObject *module, PyObject *datagram)
+{
+    bytes_in in;
+    if (get_bytes(datagram, &in) < 0)
+        return NULL;
+    int ok = 0;
+    if (in.n >= 2) {
+        uint16_t fcs = (uint16_t)(in.p[in.n - 2] | (in.p[in.n - 1] << 8));
+        ok = x25(in.p, in.n - 2) == fcs;
+    }
+    release(&in);
+    return PyBool_FromLong(ok);
+}
+
+/* A non-negative integer argument that fits in limit (inclusive), or -1 with ValueError set. */
+static long long
+bounded(PyObject *arg, const char *name, unsigned long long limit)
+{
+    unsigned long long value = PyLong_AsUnsignedLongLong(arg);
+    if (value == (unsigned long long)-1 && PyErr_Occurred()) {
+        if (PyErr_ExceptionMatches(PyExc_OverflowError)) {
+            PyErr_Clear();
+            PyErr_Format(PyExc_ValueError, "patch_seal: %s must be an int in 0..%llu", name, limit);
+        }
+        return -1;
+    }
+    if (value > limit) {
+        PyErr_Format(PyExc_ValueError, "patch_seal: %s must be an int in 0..%llu", name, limit);
+        return -1;
+    }
+    return (long long)value;
+}
+
+static PyObject *
+fcsc_patch_seal(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 5) {
+        PyErr_Format(PyExc_TypeError, "patch_seal() takes 5 arguments (%zd given)", nargs);
+        return NULL;
+    }
+    bytes_in in;
+    if (get_bytes(args[0], &in) < 0)
+        return NULL;
+    PyObject *result = NULL;
+    unsigned char *buf;
+    long long cycle_at = bounded(args[1], "cycle_at", 0xFFFFULL);
+    long long cycle = cycle_at < 0 ? -1 : bounded(args[2], "cycle", 0xFFFFFFFFULL);
+    long long wdt_at = cycle < 0 ? -1 : bounded(args[3], "wdt_at", 0xFFFFULL);
+    long long wdt = wdt_at < 0 ? -1 : bounded(args[4], "wdt", 0xFF);
+    if (wdt < 0)
+        goto done;
+    if (cycle_at + 4 > in.n || wdt_at >= in.n) {
+        PyErr_Format(PyExc_ValueError, "patch_seal: offsets %lld (cycle) and %lld (wdt) outside a %zd-byte template",
+                     cycle_at, wdt_at, in.n);
+        goto done;
+    }
+    result = sealed_copy(in.p, in.n, &buf);
+    if (result == NULL)
+        goto done;
+    for (int i = 0; i < 4; i++)
+        buf[cycle_at + i] = (unsigned char)((cycle >> (8 * i)) & 0xFF);
+    buf[wdt_at] = (unsigned char)wdt;
+    append_fcs(buf, in.n);
+done:
+    release(&in);
+    return result;
+}
+
+static PyMethodDef methods[] = {
+    {"crc16_x25", fcsc_crc16_x25, METH_O, "CRC-16/X-25 of data (the FCS of the wire contract)."},
+    {"seal", fcsc_seal, METH_O, "body + its FCS (u16 LE)."},
+    {"fcs_ok", fcsc_fcs_ok, METH_O, "The datagram's trailing FCS (u16 LE) matches the bytes before it."},
+    {"patch_seal", (PyCFunction)(void (*)(void))fcsc_patch_seal, METH_FASTCALL,
+     "patch_seal(template, cycle_at, cycle, wdt_at, wdt): a sealed copy of template with the u32 LE cycle at "
+     "cycle_at and the byte wdt at wdt_at."},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module_def = {
+    PyModuleDef_HEAD_INIT, "_fcsc", "The wire contract's FCS in C (see mlink_sim/wire/fcs.py).", -1, methods,
+};
+
+PyMODINIT_FUNC
+PyInit__fcsc(void)
+{
+    make_table();
+    return PyModule_Create(&module_def);
+}
