@@ -24,7 +24,7 @@ from __future__ import annotations
 import abc
 from collections.abc import Hashable, Mapping
 from types import MappingProxyType
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Final
 
 from mlink_sim.params import ParamError
 from mlink_sim.wire import DropReason, Frame, Kind, Link, WireError, decode, ml2, ml3
@@ -46,25 +46,25 @@ __all__ = ["Station", "StationCounters", "StationSnapshot", "DriveSnapshot", "DE
 _LOG = get_logger("mlink_sim.cards")
 
 #: "Operation proceeds with a default transmission cycle of 2 ms" until CONNECT (phase 1, all three manuals).
-DEFAULT_TCYCLE_NS = 2_000_000
+DEFAULT_TCYCLE_NS: Final = 2_000_000
 #: While the drive is still moving, poll at least this often (status displays, coasting after a fault).
-DRIVE_TICK_NS = 10_000_000
+DRIVE_TICK_NS: Final = 10_000_000
 #: TX/RX/LK LEDs count as lit for this long after the last datagram ("LED may appear to be flashing").
-LED_WINDOW_NS = 100_000_000
-_IDLE = DriveCommand()
+LED_WINDOW_NS: Final = 100_000_000
+_IDLE: Final = DriveCommand()
 #: :meth:`Station._fast_receive` declines: take the general path.
-SLOW = object()
+SLOW: Final = object()
 
 
-_MAX_LOGGED_SOURCES = 32
+_MAX_LOGGED_SOURCES: Final = 32
 #: Incidents that can repeat every cycle on an overloaded machine (reception failures, WDT errors, phase changes,
 #: bUS errors and the reconnections after them) are logged the first _LOG_FIRST times, then at the 2**k-th
 #: occurrence only; the counters keep every one. An unbounded log line per lost cycle made an overloaded worker
 #: slower still (docs/performance.md).
-_LOG_FIRST = 8
+_LOG_FIRST: Final = 8
 
 
-_NOPS = (ml2.Nop, ml3.Nop)
+_NOPS: Final = (ml2.Nop, ml3.Nop)
 
 
 def _is_status_query(msg: Any) -> bool:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Mapping
 from types import MappingProxyType
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Final
 
 from mlink_sim.wire import (
     MAGIC, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, Unknown, encode, ml2,
@@ -36,8 +36,8 @@ from .settings import CardSettings
 
 __all__ = ["Ml2Station", "MAIN_HANDLERS", "SUB_HANDLERS", "echo_main", "echo_sub"]
 
-_ZERO_MAIN = bytes(ml2.RESPONSE_MAIN.size)
-_ZERO_SUB = bytes(ml2.RESPONSE_SUB.size)
+_ZERO_MAIN: Final = bytes(ml2.RESPONSE_MAIN.size)
+_ZERO_SUB: Final = bytes(ml2.RESPONSE_SUB.size)
 _MAIN_CODE = {cls: layout.code for cls, layout in ml2.COMMAND_MAIN.by_class.items()}
 _SUB_CODE = {cls: layout.code for cls, layout in ml2.COMMAND_SUB.by_class.items()}
 _ALLOWED, _IGNORED = Admit.ALLOWED, Admit.IGNORED
@@ -46,8 +46,11 @@ _ALLOWED, _IGNORED = Admit.ALLOWED, Admit.IGNORED
 # The fast path's formats, offsets and codes, derived from the wire declarations (so they cannot drift from them),
 # as master/fastpath.py does: whole datagrams (envelope, frame and INV_CTL body) in one struct each, the command's
 # first 17 data bytes (alike in both frame sizes) and the response of each frame size.
-_CMD_DG, _CMD_NAMES = datagram_struct(ml2.COMMAND_FRAME_17, 17, main=(
+_CMD_DG_NAMES = datagram_struct(ml2.COMMAND_FRAME_17, 17, main=(
     ml2.COMMAND_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.COMMAND_MAIN.size))
+_CMD_NAMES = _CMD_DG_NAMES[1]
+#: Final (module constants in a C static, mypyc), and the bound method: no lookup per datagram
+_CMD_UNPACK: Final = _CMD_DG_NAMES[0].unpack_from
 _RSP_DG = {size: datagram_struct(frame, size, main=(ml2.RESPONSE_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon,
                                                     ml2.RESPONSE_MAIN.size))
            for size, frame in ((17, ml2.RESPONSE_FRAME_17), (32, ml2.RESPONSE_FRAME_32))}
@@ -58,15 +61,15 @@ if _RSP_DG[32][1][-3:] != ("subcode", "substatus", "sub") or _RSP_DG[17][1] != _
         _RSP_DG[17][1][6:] != ("code", "alarm", "status", "output_freq", "output_current", "sel_ref", "sel_mon",
                                "mon1", "mon2", "rwdt"):
     raise ImportError(f"MECHATROLINK-II fast path: the INV_CTL response fields are {_RSP_DG[32][1]}")
-_SUBCODE_AT = datagram_offset("subcode", ml2.COMMAND_FRAME_32)
-_CMD_INV_CTL = int(M2Cmd.INV_CTL)
-_KIND_COMMAND = int(Kind.COMMAND)
-_KIND_RESPONSE = int(Kind.RESPONSE)
-_CMDRDY = int(M2Status.CMDRDY)
-_SUBRDY = int(M2SubStatus.SUBCMDRDY)
-_SUBWARN = int(M2SubStatus.SUBCMDRDY | M2SubStatus.SUBWARNG)
-_MS = 1_000_000
-_HALF_MS = 500_000
+_SUBCODE_AT: Final = datagram_offset("subcode", ml2.COMMAND_FRAME_32)
+_CMD_INV_CTL: Final = int(M2Cmd.INV_CTL)
+_KIND_COMMAND: Final = int(Kind.COMMAND)
+_KIND_RESPONSE: Final = int(Kind.RESPONSE)
+_CMDRDY: Final = int(M2Status.CMDRDY)
+_SUBRDY: Final = int(M2SubStatus.SUBCMDRDY)
+_SUBWARN: Final = int(M2SubStatus.SUBCMDRDY | M2SubStatus.SUBWARNG)
+_MS: Final = 1_000_000
+_HALF_MS: Final = 500_000
 
 
 def echo_main(body: Any) -> Any:
@@ -123,7 +126,7 @@ class Ml2Station(Station):
         self._deferred_cyc = False
         self._fast_len = HEADER_SIZE + self.data_size + FCS_SIZE
         self._frame32 = self.data_size == 32
-        self._rsp_dg = _RSP_DG[self.data_size][0]
+        self._rsp_pack = _RSP_DG[self.data_size][0].pack  # bound once: no lookup per datagram
 
     # -- the command ---------------------------------------------------------------------------
     def _process(self, frame: Frame, source: Hashable, now: int) -> bytes:
@@ -195,7 +198,7 @@ class Ml2Station(Station):
         if len(dg) != self._fast_len:
             return SLOW
         (magic, link, kind, stn, cycle, tcycle, code, sig, speed, torque, sel_ref, sel_mon, ref1, ref2,
-         wdt) = _CMD_DG.unpack_from(dg)
+         wdt) = _CMD_UNPACK(dg)
         if (magic != MAGIC or link != self.link or kind != _KIND_COMMAND or stn != self.address
                 or code != _CMD_INV_CTL
                 or (self._frame32 and dg[_SUBCODE_AT] != 0)
@@ -214,10 +217,10 @@ class Ml2Station(Station):
         if self.drive.status.fault is not self._seen_fault:
             self._watch_history()
         if self._frame32:
-            return with_fcs(self._rsp_dg.pack(MAGIC, link, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, alarm,
+            return with_fcs(self._rsp_pack(MAGIC, link, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, alarm,
                                               word, ofreq, cur, sel_ref, sel_mon, mon1, mon2, rwdt, 0, _SUBRDY,
                                               _ZERO_SUB))
-        return with_fcs(self._rsp_dg.pack(MAGIC, link, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, alarm,
+        return with_fcs(self._rsp_pack(MAGIC, link, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, alarm,
                                           word, ofreq, cur, sel_ref, sel_mon, mon1, mon2, rwdt))
 
     def _inv_ctl(self, sig: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,

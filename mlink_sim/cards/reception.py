@@ -21,13 +21,15 @@ A valid command ends a run of consecutive failures.
 
 from __future__ import annotations
 
+from typing import Final
+
 import enum
 
 __all__ = ["FailureKind", "ReceptionMonitor", "DEFAULT_MIN_TOLERANCE_NS"]
 
-DEFAULT_MIN_TOLERANCE_NS = 2_000_000
-_HALF = 1 << 31
-_MASK = 0xFFFF_FFFF
+DEFAULT_MIN_TOLERANCE_NS: Final = 2_000_000
+_HALF: Final = 1 << 31
+_MASK: Final = 0xFFFF_FFFF
 
 
 class FailureKind(enum.Enum):

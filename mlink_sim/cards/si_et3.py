@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Hashable, Mapping
 from types import MappingProxyType
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Final
 
 from mlink_sim.wire import (
     MAGIC, PROFILE_TYPE_INVERTER, CommAlm, Frame, Kind, Link, M3Cmd, Unknown, encode, ml3,
@@ -41,8 +41,8 @@ from .settings import CardSettings
 
 __all__ = ["SiEt3", "MAIN_HANDLERS", "SUB_HANDLERS", "VALID_TCYCLES_NS", "MANUAL_TABLES", "cmd_stat"]
 
-_ZERO_MAIN = bytes(ml3.RESPONSE_MAIN.size)
-_ZERO_SUB = bytes(ml3.RESPONSE_SUB.size)
+_ZERO_MAIN: Final = bytes(ml3.RESPONSE_MAIN.size)
+_ZERO_SUB: Final = bytes(ml3.RESPONSE_SUB.size)
 _MAIN_CODE = {cls: layout.code for cls, layout in ml3.COMMAND_MAIN.by_class.items()}
 _SUB_CODE = {cls: layout.code for cls, layout in ml3.COMMAND_SUB.by_class.items()}
 _ALLOWED, _IGNORED, _PHASE = Admit.ALLOWED, Admit.IGNORED, Admit.PHASE_ERROR
@@ -51,8 +51,11 @@ _ALLOWED, _IGNORED, _PHASE = Admit.ALLOWED, Admit.IGNORED, Admit.PHASE_ERROR
 # The fast path's formats, offsets and codes, derived from the wire declarations (so they cannot drift from them),
 # as master/fastpath.py does: whole datagrams (envelope, frame and INV_CTL body) in one struct each, the command's
 # first 32 data bytes (alike in both frame sizes) and the response of each frame size.
-_CMD_DG, _CMD_NAMES = datagram_struct(ml3.COMMAND_FRAME_32, 32, main=(
+_CMD_DG_NAMES = datagram_struct(ml3.COMMAND_FRAME_32, 32, main=(
     ml3.COMMAND_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.COMMAND_MAIN.size))
+_CMD_NAMES = _CMD_DG_NAMES[1]
+#: Final (module constants in a C static, mypyc), and the bound method: no lookup per datagram
+_CMD_UNPACK: Final = _CMD_DG_NAMES[0].unpack_from
 _RSP_DG = {size: datagram_struct(frame, size, main=(ml3.RESPONSE_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon,
                                                     ml3.RESPONSE_MAIN.size))
            for size, frame in ((32, ml3.RESPONSE_FRAME_32), (64, ml3.RESPONSE_FRAME_64))}
@@ -63,12 +66,12 @@ if _RSP_DG[64][1][-3:] != ("subcode", "sub_stat", "sub") or _RSP_DG[32][1] != _R
         _RSP_DG[32][1][6:] != ("code", "rwdt", "cmd_stat", "invcmd_stat", "invcmd_io", "output_freq",
                                "output_current", "sel_ref", "sel_mon", "mon1", "mon2"):
     raise ImportError(f"SI-ET3 fast path: the INV_CTL response fields are {_RSP_DG[64][1]}")
-_SUBCODE_AT = datagram_offset("subcode", ml3.COMMAND_FRAME_64)
-_CMD_INV_CTL = int(M3Cmd.INV_CTL)
-_LINK = int(Link.ML3)
-_KIND_COMMAND = int(Kind.COMMAND)
-_KIND_RESPONSE = int(Kind.RESPONSE)
-_SUBCMDRDY = ml3.SubStat(subcmdrdy=True).to_int()  # SUB_STAT with SUBCMDRDY only (Table 24)
+_SUBCODE_AT: Final = datagram_offset("subcode", ml3.COMMAND_FRAME_64)
+_CMD_INV_CTL: Final = int(M3Cmd.INV_CTL)
+_LINK: Final = int(Link.ML3)
+_KIND_COMMAND: Final = int(Kind.COMMAND)
+_KIND_RESPONSE: Final = int(Kind.RESPONSE)
+_SUBCMDRDY: Final = ml3.SubStat(subcmdrdy=True).to_int()  # SUB_STAT with SUBCMDRDY only (Table 24)
 _US = 1_000
 
 #: ID_CODE 18H = 03H granularity within 16H (250 µs) … 17H (8 ms): 250, 500, 750 µs and 1–8 ms in 0.5 ms steps
@@ -134,7 +137,7 @@ class SiEt3(Station):
         self._last_sub_alm = 0
         self._fast_len = HEADER_SIZE + self.data_size + FCS_SIZE
         self._frame64 = self.data_size == 64
-        self._rsp_dg = _RSP_DG[self.data_size][0]
+        self._rsp_pack = _RSP_DG[self.data_size][0].pack  # bound once: no lookup per datagram
         self._sel_mon_bits: dict[int, int] = {}  # SEL_MON -> INVCMD_STAT bits 24/25, filled as codes are seen
 
     def _power_up(self, values: Mapping[str, int], settings: CardSettings) -> None:
@@ -217,7 +220,7 @@ class SiEt3(Station):
         if len(dg) != self._fast_len:
             return SLOW
         (magic, link, kind, stn, cycle, tcycle, code, wdt, ctrl, ictrl, _io, speed, torque, sel_ref, sel_mon, ref1,
-         ref2) = _CMD_DG.unpack_from(dg)
+         ref2) = _CMD_UNPACK(dg)
         if (magic != MAGIC or link != _LINK or kind != _KIND_COMMAND or stn != self.address or code != _CMD_INV_CTL
                 or (self._frame64 and dg[_SUBCODE_AT] != 0)
                 or not fcs_ok(dg)):
@@ -243,10 +246,10 @@ class SiEt3(Station):
             self._watch_history()
         if self._frame64:
             self._last_sub_alm = 0
-            return with_fcs(self._rsp_dg.pack(MAGIC, _LINK, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, rwdt,
+            return with_fcs(self._rsp_pack(MAGIC, _LINK, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, rwdt,
                                               stat, invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2, 0,
                                               _SUBCMDRDY, _ZERO_SUB))
-        return with_fcs(self._rsp_dg.pack(MAGIC, _LINK, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, rwdt,
+        return with_fcs(self._rsp_pack(MAGIC, _LINK, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, rwdt,
                                           stat, invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2))
 
     def _inv_ctl(self, ctrl: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,

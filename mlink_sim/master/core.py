@@ -11,7 +11,7 @@ from __future__ import annotations
 import struct
 from collections import Counter, deque
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Final
 
 from ..wire import CmdAlm, CommAlm, DropReason, Frame, Kind, Link, WireError, decode, encode
 from ..wire.frame import HEADER_SIZE
@@ -43,8 +43,8 @@ from .types import (
 __all__ = ["MasterCore"]
 
 S = StationState
-_U32 = 0xFFFFFFFF
-_UP = (S.PHASE2, S.PHASE3)  # states in which requests and INV_CTL are sent
+_U32: Final = 0xFFFFFFFF
+_UP: Final = (S.PHASE2, S.PHASE3)  # states in which requests and INV_CTL are sent
 
 
 class MasterCore:

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import struct
 from operator import itemgetter
-from typing import Any
+from typing import Any, Final
 
 from ..wire import Frame, Kind, Link, encode, ml2, ml3
 from ..wire.codes import M2Cmd, M2Status, M3Cmd
@@ -41,24 +41,25 @@ from .plan import StationPlan
 
 __all__ = ["CyclicFrames", "cycle_of"]
 
-_CYCLE_OFFSET = field_offset(ENVELOPE, "cycle")
-_CYCLE = struct.Struct("<I")
+_CYCLE_OFFSET: Final = field_offset(ENVELOPE, "cycle")
+_CYCLE: Final = struct.Struct("<I")
+_CYCLE_UNPACK: Final = _CYCLE.unpack_from  # Final (a C static, mypyc) and bound: no lookup per datagram
 #: ``patch_seal`` of the FCS's C module (mlink_sim/wire/_fcsc.c), or None: pure Python.
-_PATCH_SEAL: Any = None if NATIVE is None else NATIVE.patch_seal
+_PATCH_SEAL: Final[Any] = None if NATIVE is None else NATIVE.patch_seal
 
 
 def cycle_of(datagram: bytes) -> int:
     """The envelope's cycle number (u32, bytes 4–7) of a datagram at least a header long."""
-    return _CYCLE.unpack_from(datagram, _CYCLE_OFFSET)[0]
+    return _CYCLE_UNPACK(datagram, _CYCLE_OFFSET)[0]
 
 
 #: ML-II STATUS ALM and WARNG (bits 0/1, SI-T3 "STATUS Field", an unnumbered table) and the ALARM byte must be
 #: zero for the fast path.
-_ML2_TROUBLE = int(M2Status.ALM | M2Status.WARNG)
+_ML2_TROUBLE: Final = int(M2Status.ALM | M2Status.WARNG)
 #: ML-III CMD_STAT (SI-ET3 §8 "Command Status (CMD_STAT)", an unnumbered table): D_ALM (bit 0) and CMD_ALM
 #: (bits 8-11) must be zero; COMM_ALM (bits 12-15) must not change (a latched warning 1-7 may stay; 8 and up is an
 #: alarm, and an edge is an event).
-_ML3_ALARMS = 0x0F01
+_ML3_ALARMS: Final = 0x0F01
 
 
 def _frames(link: Link, size: int) -> tuple[Any, Any, int, Any]:
@@ -76,7 +77,7 @@ class CyclicFrames:
     """Encode the cyclic INV_CTL command and decode its clean response for one station (see module docstring)."""
 
     __slots__ = ("link", "address", "size", "_codec", "_tcycle", "_wdt_at", "_body", "_template", "_dg", "_code",
-                 "_status_at", "_alarm_at", "_ml3", "_pick")
+                 "_status_at", "_alarm_at", "_ml3", "_pick", "_unpack")
 
     def __init__(self, plan: StationPlan, tcycle_ns: int, codec: Codec) -> None:
         link, size = plan.link, plan.data_size
@@ -91,6 +92,7 @@ class CyclicFrames:
         self._template = bytearray()
         # the whole response (envelope, frame, INV_CTL body) in one struct: one unpack per datagram
         self._dg, names = datagram_struct(rsp, size, main=(main.struct.subcon, main.size))
+        self._unpack = self._dg.unpack_from
         self._code = int(code)
         self._ml3 = link is Link.ML3
         self._status_at = names.index("cmd_stat" if self._ml3 else "status")
@@ -124,7 +126,7 @@ class CyclicFrames:
         warning (COMM_ALM 1-7, latched until ALM_CLR) is still clean, any change goes the general way."""
         if len(dg) != self.size:
             return None
-        f = self._dg.unpack_from(dg)
+        f = self._unpack(dg)
         if (f[0] != MAGIC or f[1] != self.link or f[2] != 2 or f[3] != self.address or f[4] != cycle
                 or f[6] != self._code):
             return None

@@ -21,7 +21,7 @@ from __future__ import annotations
 import enum
 import struct
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Final
 
 from construct import Int8ul, Int16ul, Int32ul, Struct
 
@@ -50,9 +50,9 @@ __all__ = [
     "datagram_offset",
 ]
 
-MAGIC = 0x4D
-HEADER_SIZE = 12
-FCS_SIZE = 2
+MAGIC: Final = 0x4D
+HEADER_SIZE: Final = 12
+FCS_SIZE: Final = 2
 
 #: The envelope header, declared once (the FCS trails the data).
 ENVELOPE = Struct(
@@ -65,7 +65,7 @@ ENVELOPE = Struct(
 )
 #: ``struct`` codec of :data:`ENVELOPE`: ``HEADER.unpack_from(datagram)`` -> (magic, link, kind, station, cycle,
 #: tcycle_ns). The per-cycle fast paths (cards, master) use it with :func:`with_fcs` and :func:`fcs_ok`.
-HEADER = fast_struct(ENVELOPE, HEADER_SIZE)
+HEADER: Final = fast_struct(ENVELOPE, HEADER_SIZE)
 
 
 def datagram_offset(name: str, *frames: Any) -> int:
@@ -78,12 +78,12 @@ def datagram_offset(name: str, *frames: Any) -> int:
     return HEADER_SIZE + offsets.pop()
 
 
-_FCS = fast_struct(Struct("fcs" / Int16ul), FCS_SIZE)
+_FCS: Final = fast_struct(Struct("fcs" / Int16ul), FCS_SIZE)
 
 
 #: The C module's functions (mlink_sim.wire.fcs.NATIVE), or None: pure Python.
-_SEAL: Any = None if NATIVE is None else NATIVE.seal
-_FCS_OK: Any = None if NATIVE is None else NATIVE.fcs_ok
+_SEAL: Final[Any] = None if NATIVE is None else NATIVE.seal
+_FCS_OK: Final[Any] = None if NATIVE is None else NATIVE.fcs_ok
 
 
 def with_fcs(body: bytes | bytearray) -> bytes:
@@ -160,9 +160,9 @@ def datagram_size(data_size: int) -> int:
 
 _ML2_TYPES = (ml2.M2Command, ml2.M2Response)
 _ML3_TYPES = (ml3.M3Command, ml3.M3Response)
-_MAX_DATAGRAM = datagram_size(64)
-_MIN_DATAGRAM = datagram_size(17)
-_LINKS = {int(v): v for v in Link}
+_MAX_DATAGRAM: Final = datagram_size(64)
+_MIN_DATAGRAM: Final = datagram_size(17)
+_LINKS: Final = {int(v): v for v in Link}
 
 
 def encode(frame: Frame) -> bytes:
