@@ -45,6 +45,9 @@ __all__ = ["MasterCore"]
 S = StationState
 _U32: Final = 0xFFFFFFFF
 _UP: Final = (S.PHASE2, S.PHASE3)  # states in which requests and INV_CTL are sent
+# the members the per-cycle paths compare with, each read once (an enum member is an attribute lookup per use)
+_PHASE3: Final = S.PHASE3
+_CYCLIC: Final = Send.CYCLIC
 
 
 class MasterCore:
@@ -137,7 +140,7 @@ class MasterCore:
         sent = st.outstanding  # the common answer, on time (_answer_to's first case)
         if sent is None or sent.cycle != cycle:
             sent = self._answer_to(st, cycle)
-        if sent is None or sent.send is not Send.CYCLIC or sent.sub_req is not None:
+        if sent is None or sent.send is not _CYCLIC or sent.sub_req is not None:
             return False
         r = st.frames.response(datagram, cycle, st.comm_alm)
         if r is None:
@@ -294,11 +297,11 @@ class MasterCore:
         if st.inflight:
             self._age(st, now)
         codec = st.codec
-        if (st.state is S.PHASE3 and st.enabled and not st.main_q and not st.sub_q and cycle >= st.hold_until
+        if (st.state is _PHASE3 and st.enabled and not st.main_q and not st.sub_q and cycle >= st.hold_until
                 and self.fast_path):
             # the steady state, what the general lane below gives for it: no event falls due (Slave.due), the
             # cyclic INV_CTL (Slave.choose_main), no sub-command request (Slave.choose_sub)
-            send, body, req = Send.CYCLIC, st.ctl_body, None
+            send, body, req = _CYCLIC, st.ctl_body, None
             code = codec.main_slot.code_of(body)
             sub_body = sub_req = None
         else:
@@ -321,7 +324,7 @@ class MasterCore:
         c32 = cycle & _U32
         st.outstanding = Sent(c32, now, send, code, body, req, sub_req)
         st.sent += 1
-        if send is Send.CYCLIC and sub_body is None and self.fast_path:
+        if send is _CYCLIC and sub_body is None and self.fast_path:
             return st.frames.command(body, c32, wdt)
         return encode(Frame(st.plan.link, Kind.COMMAND, st.address, c32, self.plan.tcycle_ns,
                             codec.message(body, wdt, sub_body)))

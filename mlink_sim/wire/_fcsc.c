@@ -7,8 +7,8 @@
  *
  * Why by hand: the fast paths spend most of their byte work on the FCS (binascii.crc_hqx is the non-reflected
  * CRC, so X-25 costs a translated copy and a slice around it), and no maintained library computes X-25 and
- * seals, checks or patches a datagram in one call. The CRC is the textbook table-driven reflected CRC
- * (polynomial 0x8408, init 0xFFFF, xorout 0xFFFF), checked against crc16_x25_reference.
+ * seals, checks or patches a datagram in one call. The CRC is the table-driven reflected CRC (polynomial 0x8408,
+ * init 0xFFFF, xorout 0xFFFF), four bytes per step ("slicing by 4"), checked against crc16_x25_reference.
  *
  *   crc16_x25(data) -> int                    the FCS of data (any bytes-like object)
  *   seal(body) -> bytes                       body + its FCS (u16 LE): wire.frame.with_fcs
@@ -23,7 +23,9 @@
 #include <stdint.h>
 #include <string.h>
 
-static uint16_t table[256];
+/* Slicing by 4: table[0][b] is the register's change for byte b, table[k][b] for byte b followed by k zero
+   bytes. Four bytes per step: the 16-bit register absorbs the first two, the other two enter fresh. */
+static uint16_t table[4][256];
 
 static void
 make_table(void)
@@ -32,16 +34,23 @@ make_table(void)
         uint16_t crc = (uint16_t)i;
         for (int bit = 0; bit < 8; bit++)
             crc = (crc & 1) ? (uint16_t)((crc >> 1) ^ 0x8408) : (uint16_t)(crc >> 1);
-        table[i] = crc;
+        table[0][i] = crc;
     }
+    for (int k = 1; k < 4; k++)
+        for (unsigned i = 0; i < 256; i++)
+            table[k][i] = (uint16_t)((table[k - 1][i] >> 8) ^ table[0][table[k - 1][i] & 0xFF]);
 }
 
 static inline uint16_t
 x25(const unsigned char *p, Py_ssize_t n)
 {
     uint16_t crc = 0xFFFF;
+    for (; n >= 4; n -= 4, p += 4) {
+        crc ^= (uint16_t)(p[0] | (p[1] << 8));
+        crc = (uint16_t)(table[3][crc & 0xFF] ^ table[2][crc >> 8] ^ table[1][p[2]] ^ table[0][p[3]]);
+    }
     while (n-- > 0)
-        crc = (uint16_t)((crc >> 8) ^ table[(crc ^ *p++) & 0xFF]);
+        crc = (uint16_t)((crc >> 8) ^ table[0][(crc ^ *p++) & 0xFF]);
     return (uint16_t)(crc ^ 0xFFFF);
 }
 
