@@ -27,7 +27,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 
-__all__ = ["BUILD_STAMP", "BUILT_MODULES", "COMPILED_MODULES", "C_EXTENSIONS", "MODE", "NATIVE_LIBRARY", "REASON", "describe", "pure_requested", "select"]
+__all__ = ["BUILD_STAMP", "BUILT_MODULES", "COMPILED_MODULES", "C_EXTENSIONS", "MODE", "NATIVE_LIBRARY", "REASON",
+           "describe", "pure_requested", "select", "source_of"]
 
 #: The modules mypyc compiles (setup.py reads this tuple): the steady-state paths of the master core, the cards
 #: and the drive model, and the wire helpers they call per datagram; the virtual clock's per-event path (its event
