@@ -46,11 +46,10 @@ _ALLOWED, _IGNORED = Admit.ALLOWED, Admit.IGNORED
 # The fast path's formats, offsets and codes, derived from the wire declarations (so they cannot drift from them),
 # as master/fastpath.py does: whole datagrams (envelope, frame and INV_CTL body) in one struct each, the command's
 # first 17 data bytes (alike in both frame sizes) and the response of each frame size.
-_CMD_DG_NAMES = datagram_struct(ml2.COMMAND_FRAME_17, 17, main=(
+_CMD_DG, _CMD_NAMES = datagram_struct(ml2.COMMAND_FRAME_17, 17, main=(
     ml2.COMMAND_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon, ml2.COMMAND_MAIN.size))
-_CMD_NAMES = _CMD_DG_NAMES[1]
-#: Final (module constants in a C static, mypyc), and the bound method: no lookup per datagram
-_CMD_UNPACK: Final = _CMD_DG_NAMES[0].unpack_from
+#: Final (a C static under mypyc) and bound once: no lookup per datagram
+_CMD_UNPACK: Final = _CMD_DG.unpack_from
 _RSP_DG = {size: datagram_struct(frame, size, main=(ml2.RESPONSE_MAIN.by_code[M2Cmd.INV_CTL].struct.subcon,
                                                     ml2.RESPONSE_MAIN.size))
            for size, frame in ((17, ml2.RESPONSE_FRAME_17), (32, ml2.RESPONSE_FRAME_32))}
@@ -218,10 +217,10 @@ class Ml2Station(Station):
             self._watch_history()
         if self._frame32:
             return with_fcs(self._rsp_pack(MAGIC, link, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, alarm,
-                                              word, ofreq, cur, sel_ref, sel_mon, mon1, mon2, rwdt, 0, _SUBRDY,
-                                              _ZERO_SUB))
+                                            word, ofreq, cur, sel_ref, sel_mon, mon1, mon2, rwdt, 0, _SUBRDY,
+                                            _ZERO_SUB))
         return with_fcs(self._rsp_pack(MAGIC, link, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, alarm,
-                                          word, ofreq, cur, sel_ref, sel_mon, mon1, mon2, rwdt))
+                                        word, ofreq, cur, sel_ref, sel_mon, mon1, mon2, rwdt))
 
     def _inv_ctl(self, sig: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,
                  now: int) -> tuple[int, int, int, int]:

@@ -21,9 +21,8 @@ A valid command ends a run of consecutive failures.
 
 from __future__ import annotations
 
-from typing import Final
-
 import enum
+from typing import Final
 
 __all__ = ["FailureKind", "ReceptionMonitor", "DEFAULT_MIN_TOLERANCE_NS"]
 

@@ -51,11 +51,10 @@ _ALLOWED, _IGNORED, _PHASE = Admit.ALLOWED, Admit.IGNORED, Admit.PHASE_ERROR
 # The fast path's formats, offsets and codes, derived from the wire declarations (so they cannot drift from them),
 # as master/fastpath.py does: whole datagrams (envelope, frame and INV_CTL body) in one struct each, the command's
 # first 32 data bytes (alike in both frame sizes) and the response of each frame size.
-_CMD_DG_NAMES = datagram_struct(ml3.COMMAND_FRAME_32, 32, main=(
+_CMD_DG, _CMD_NAMES = datagram_struct(ml3.COMMAND_FRAME_32, 32, main=(
     ml3.COMMAND_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon, ml3.COMMAND_MAIN.size))
-_CMD_NAMES = _CMD_DG_NAMES[1]
-#: Final (module constants in a C static, mypyc), and the bound method: no lookup per datagram
-_CMD_UNPACK: Final = _CMD_DG_NAMES[0].unpack_from
+#: Final (a C static under mypyc) and bound once: no lookup per datagram
+_CMD_UNPACK: Final = _CMD_DG.unpack_from
 _RSP_DG = {size: datagram_struct(frame, size, main=(ml3.RESPONSE_MAIN.by_code[M3Cmd.INV_CTL].struct.subcon,
                                                     ml3.RESPONSE_MAIN.size))
            for size, frame in ((32, ml3.RESPONSE_FRAME_32), (64, ml3.RESPONSE_FRAME_64))}
@@ -247,10 +246,10 @@ class SiEt3(Station):
         if self._frame64:
             self._last_sub_alm = 0
             return with_fcs(self._rsp_pack(MAGIC, _LINK, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, rwdt,
-                                              stat, invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2, 0,
-                                              _SUBCMDRDY, _ZERO_SUB))
+                                            stat, invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2, 0,
+                                            _SUBCMDRDY, _ZERO_SUB))
         return with_fcs(self._rsp_pack(MAGIC, _LINK, _KIND_RESPONSE, stn, cycle, tcycle, _CMD_INV_CTL, rwdt,
-                                          stat, invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2))
+                                        stat, invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2))
 
     def _inv_ctl(self, ctrl: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,
                  now: int) -> tuple[int, int, int, int, int]:

@@ -12,8 +12,8 @@ declarations. Nothing here is declared a second time:
 * **command**: the datagram of the station's current INV_CTL body is encoded once by the general encoder
   (:func:`mlink_sim.wire.encode`) with cycle 0 and WDT 0. Each slot copies it, patches the cycle number
   (envelope bytes 4–7) and the WDT byte (data byte 15 on ML-I/II, byte 1 on ML-III; offsets from
-  ``COMMAND_FRAME_*``) and appends the FCS; with the compiled cores one C call does all three
-  (``patch_seal``, mlink_sim/wire/_fcsc.c).
+  ``COMMAND_FRAME_*``) and appends the FCS (:func:`~mlink_sim.wire.frame.patch_seal`: one C call with the
+  compiled cores).
 * **response**: one ``unpack_from`` of the whole datagram: the envelope, the data frame (``RESPONSE_FRAME_*``)
   and the INV_CTL response body (``RESPONSE_MAIN``) in one format (:func:`~mlink_sim.wire.frame.datagram_struct`).
 
@@ -33,8 +33,9 @@ from typing import Any, Final
 
 from ..wire import Frame, Kind, Link, encode, ml2, ml3
 from ..wire.codes import M2Cmd, M2Status, M3Cmd
-from ..wire.fcs import NATIVE
-from ..wire.frame import ENVELOPE, FCS_SIZE, HEADER_SIZE, MAGIC, datagram_offset, datagram_struct, fcs_ok, with_fcs
+from ..wire.frame import (
+    ENVELOPE, FCS_SIZE, HEADER_SIZE, MAGIC, datagram_offset, datagram_struct, fcs_ok, patch_seal,
+)
 from ..wire.layout import field_offset
 from .codec import Codec
 from .plan import StationPlan
@@ -44,8 +45,6 @@ __all__ = ["CyclicFrames", "cycle_of"]
 _CYCLE_OFFSET: Final = field_offset(ENVELOPE, "cycle")
 _CYCLE: Final = struct.Struct("<I")
 _CYCLE_UNPACK: Final = _CYCLE.unpack_from  # Final (a C static, mypyc) and bound: no lookup per datagram
-#: ``patch_seal`` of the FCS's C module (mlink_sim/wire/_fcsc.c), or None: pure Python.
-_PATCH_SEAL: Final[Any] = None if NATIVE is None else NATIVE.patch_seal
 
 
 def cycle_of(datagram: bytes) -> int:
@@ -111,11 +110,7 @@ class CyclicFrames:
             tpl = self._template = bytearray(encode(Frame(self.link, Kind.COMMAND, self.address, 0, self._tcycle,
                                                           message))[:-FCS_SIZE])
             self._body = body
-        if _PATCH_SEAL is not None:  # C (compiled cores): the copy, both patches and the FCS in one call
-            return _PATCH_SEAL(tpl, _CYCLE_OFFSET, cycle, self._wdt_at, wdt)
-        _CYCLE.pack_into(tpl, _CYCLE_OFFSET, cycle)
-        tpl[self._wdt_at] = wdt
-        return with_fcs(tpl)
+        return patch_seal(tpl, _CYCLE_OFFSET, cycle, self._wdt_at, wdt)
 
     # ------------------------------------------------------------------ response
     def response(self, dg: bytes, cycle: int, comm_alm: int) -> tuple[int, int, int, int, int, int, bool] | None:

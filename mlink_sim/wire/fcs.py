@@ -7,7 +7,7 @@ Two implementations, one result:
 
 * **compiled cores** (:mod:`mlink_sim._accel`): the C module ``mlink_sim.wire._fcsc`` (mlink_sim/wire/_fcsc.c), a
   table-driven reflected CRC. :data:`NATIVE` is that module: :func:`mlink_sim.wire.frame.with_fcs`,
-  :func:`~mlink_sim.wire.frame.fcs_ok` and the master's cyclic command (``patch_seal``) call it directly, so a
+  :func:`~mlink_sim.wire.frame.fcs_ok` and :func:`~mlink_sim.wire.frame.patch_seal` call it directly, so a
   datagram is sealed or checked in one call, without a copy. It is written by hand because the FCS was most of
   the fast paths' byte work (docs/performance.md, "The FCS in C") and no maintained library seals, checks or
   patches a datagram in one call.
@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import binascii
 import importlib
-from typing import Any
+from typing import Any, Final
 
 __all__ = ["NATIVE", "crc16_x25", "crc16_x25_pure", "crc16_x25_reference"]
 
@@ -38,7 +38,7 @@ def _native() -> Any:
 
 
 #: ``mlink_sim.wire._fcsc`` when the compiled cores run, else None (see the module docstring).
-NATIVE: Any = _native()
+NATIVE: Final[Any] = _native()
 
 _REVERSE_BYTE = bytes(int(f"{i:08b}"[::-1], 2) for i in range(256))
 
@@ -46,7 +46,7 @@ _REVERSE_BYTE = bytes(int(f"{i:08b}"[::-1], 2) for i in range(256))
 def crc16_x25(data: bytes | bytearray | memoryview) -> int:
     """CRC-16/X-25 of *data* (the FCS of the wire contract)."""
     if NATIVE is not None:
-        return int(NATIVE.crc16_x25(data))
+        return NATIVE.crc16_x25(data)
     return crc16_x25_pure(data)
 
 

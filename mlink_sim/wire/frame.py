@@ -27,7 +27,7 @@ from construct import Int8ul, Int16ul, Int32ul, Struct
 
 from . import ml2, ml3
 from .codes import Kind, Link
-from .fcs import NATIVE, crc16_x25
+from .fcs import NATIVE, crc16_x25_pure
 from .layout import fast_format, fast_struct, field_offset
 from .sealed import Sealed as _Sealed
 
@@ -46,6 +46,7 @@ __all__ = [
     "HEADER",
     "with_fcs",
     "fcs_ok",
+    "patch_seal",
     "datagram_struct",
     "datagram_offset",
 ]
@@ -84,6 +85,8 @@ _FCS: Final = fast_struct(Struct("fcs" / Int16ul), FCS_SIZE)
 #: The C module's functions (mlink_sim.wire.fcs.NATIVE), or None: pure Python.
 _SEAL: Final[Any] = None if NATIVE is None else NATIVE.seal
 _FCS_OK: Final[Any] = None if NATIVE is None else NATIVE.fcs_ok
+_PATCH_SEAL: Final[Any] = None if NATIVE is None else NATIVE.patch_seal
+_U32: Final = struct.Struct("<I")
 
 
 def with_fcs(body: bytes | bytearray) -> bytes:
@@ -91,7 +94,19 @@ def with_fcs(body: bytes | bytearray) -> bytes:
     C check costs less than making a :class:`~mlink_sim.wire.sealed.Sealed`; in Python a ``Sealed``."""
     if _SEAL is not None:
         return _SEAL(body)
-    return _Sealed(body + _FCS.pack(crc16_x25(body)))
+    return _Sealed(body + _FCS.pack(crc16_x25_pure(body)))
+
+
+def patch_seal(template: bytes | bytearray, cycle_at: int, cycle: int, wdt_at: int, wdt: int) -> bytes:
+    """A sealed copy of *template* (a datagram without its FCS) with the u32 LE *cycle* at *cycle_at* and the
+    byte *wdt* at *wdt_at*: the master's cyclic command from its per-station template. *template* is not
+    changed. In C (compiled cores) one call does the copy, both patches and the FCS."""
+    if _PATCH_SEAL is not None:
+        return _PATCH_SEAL(template, cycle_at, cycle, wdt_at, wdt)
+    buf = bytearray(template)
+    _U32.pack_into(buf, cycle_at, cycle)
+    buf[wdt_at] = wdt
+    return with_fcs(buf)
 
 
 def datagram_struct(frame: Struct, size: int, **inline: tuple[Struct, int]) -> tuple[struct.Struct, tuple[str, ...]]:
@@ -107,10 +122,10 @@ def datagram_struct(frame: Struct, size: int, **inline: tuple[Struct, int]) -> t
 def fcs_ok(datagram: bytes | bytearray | memoryview) -> bool:
     """The datagram's trailing FCS matches its contents (callers check the length first)."""
     if _FCS_OK is not None:
-        return bool(_FCS_OK(datagram))
+        return _FCS_OK(datagram)
     if type(datagram) is _Sealed:
         return True
-    return crc16_x25(datagram[:-FCS_SIZE]) == _FCS.unpack_from(datagram, len(datagram) - FCS_SIZE)[0]
+    return crc16_x25_pure(datagram[:-FCS_SIZE]) == _FCS.unpack_from(datagram, len(datagram) - FCS_SIZE)[0]
 
 Message = ml2.M2Command | ml2.M2Response | ml3.M3Command | ml3.M3Response
 
@@ -208,7 +223,7 @@ def decode(datagram: bytes | bytearray | memoryview, *, data_size: int | None = 
     # (an ML-III slave reports COMM_ALM 1/8 for it) rather than as an unknown link.
     if not fcs_ok(datagram):
         (fcs,) = _FCS.unpack_from(datagram, n - FCS_SIZE)
-        want = crc16_x25(datagram[: n - FCS_SIZE])
+        want = crc16_x25_pure(datagram[: n - FCS_SIZE])  # the error path: the same CRC, either way
         raise WireError(DropReason.BAD_FCS, f"{fcs:#06x}, computed {want:#06x}")
     link = _LINKS.get(link_b)
     if link is None:

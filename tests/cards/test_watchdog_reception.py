@@ -187,6 +187,9 @@ def test_si_et3_comm_alm_silence_in_phase_3_is_sync_frame_3_then_a() -> None:
 
 
 def test_si_et3_comm_alm_fcs_1_then_8() -> None:
+    """SI-ET3 manual §8, the COMM_ALM code table under "Command Status (CMD_STAT)" (unnumbered): 1 = FCS error
+    (warning), 8 = FCS error (alarm). The bad datagrams are plain bytes, so the FCS check runs in full (in C with
+    the compiled cores, mlink_sim/wire/_fcsc.c)."""
     m = _running("si-et3", "F6-26=10")
     m.tick()
     bad = bytearray(encode(m.command(ml3.InvCtl(invcmd_ctrl=1, speed_ref=3000))))
