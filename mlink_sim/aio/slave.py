@@ -1,7 +1,7 @@
 """The slave side over UDP: one datagram endpoint per hosted station, feeding the sans-I/O card cores.
 
 The server only moves bytes and keeps time: ``datagram -> station.receive(data, addr, now) -> sendto``. Each
-station's socket is read in batches; a backlog beyond eight commands per source is superseded (``_receiver``).
+station's socket is read in batches; a backlog beyond eight commands per source is superseded (``SlaveServer._port``, :mod:`mlink_sim.aio.bus`).
 A 1 ms housekeeping tick calls ``station.poll(now)`` for stations whose deadline has come (silence detection, drive);
 EEPROM images the cards hand over (``take_eeprom``) are written atomically in a worker thread, and once an image is
 written, fsync'd and renamed the card is told (``station.eeprom_durable``): a CONFIG to EEPROM answers CMDRDY = 0 until
@@ -32,6 +32,7 @@ from ..metrics.stalls import WORKER_STALL_NS, StallLog
 from ..faults.plant import PlantFaults
 from .faults import handle_plant_request
 from .state import atomic_write, eeprom_path, remove_stale_temps
+from .bus import Bus, Port, due
 from .tapped import tap
 from .udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endpoint
 
@@ -41,7 +42,7 @@ log = get_logger("mlink_sim.slave")
 
 _POLL_INTERVAL_S = 0.001
 _POLL_INTERVAL_NS = 1_000_000
-_KEEP_BEHIND = 8  # datagrams per source processed from one read; older ones are superseded (see _receiver)
+_KEEP_BEHIND = 8  # datagrams per source processed from one read; older ones are superseded (see _port)
 _MIN_CYCLE_NS = 250_000  # the shortest transmission cycle (SI-ET3 Table 14): sizes the backlog "absorb" keeps
 _BURST = 64  # datagrams read per wake-up of a station's socket at most (a shared socket: this many per station)
 # Receive buffer of a station's socket; a shared socket asks for this much per station, so that a backlog lasts
@@ -90,7 +91,7 @@ class SlaveServer:
         :attr:`unaddressed`, as a station on a bus ignores frames for others."""
         self.stations = stations
         self.shared = shared
-        self.unaddressed = 0  #: datagrams on a shared port for a station not hosted there (or shorter than 4 bytes)
+        self._buses: list[Bus] = []  #: one per shared socket (its ``unaddressed`` count)
         #: host-stall policy (docs/timing.md): 0 = strict, else the stall bound. With "absorb" a backlog that a
         #: stall of this worker of up to the bound left on a socket is answered in full (late, not superseded).
         self.absorb_ns = absorb_ns
@@ -110,6 +111,7 @@ class SlaveServer:
         self._closing = False
         self._capture = capture
         self._phases = {id(hs): hs.station.phase for hs in stations}
+        self._cores = [hs.station for hs in stations]  #: the card cores, for the tick's scan (``bus.due``)
         self.plants = PlantFaults()  #: drive faults in force (``{"op": "plant"}``)
         for hs in stations:
             if self.state_dir is not None and hs.eeprom is None:
@@ -186,44 +188,26 @@ class SlaveServer:
 
     # -- datagrams --------------------------------------------------------------------------------------------
 
-    def _receiver(self, hs: HostedStation, collect: bool = False) -> Callable[..., None]:  # a closure: hot path
-        """The batch handler of one station's socket. More than ``_KEEP_BEHIND`` datagrams from one source waiting
-        means the worker fell that many cycles behind: the oldest are counted as ``SUPERSEDED`` drops and only the
-        newest ``_KEEP_BEHIND`` are processed (with the host-stall policy "absorb", as many as a stall of the
-        bound leaves at the shortest cycle: a stall of this process within the bound costs no command). On a bus
-        their slots have passed; answering every one would queue latency up (a 1 MiB receive buffer holds about a
-        second of commands) and keep an overloaded worker behind for good. A hiccup of up to ``_KEEP_BEHIND`` cycles is still answered in full (late, not lost): with 2,
-        a 3-cycle hiccup of a worker on a busy machine became lost commands, reception failures and a bUS trip
-        in the quickstart (3 of 6 runs failed; with 8, 0 of 6).
+    def _port(self, hs: HostedStation) -> Port:
+        """*hs* as its socket's reads see it (:class:`~mlink_sim.aio.bus.Port`). More than ``_keep_behind``
+        datagrams from one source waiting means the worker fell that many cycles behind: the oldest are counted as
+        ``SUPERSEDED`` drops and only the newest ``_keep_behind`` are answered (with the host-stall policy "absorb",
+        as many as a stall of the bound leaves at the shortest cycle: a stall of this process within the bound
+        costs no command). On a bus their slots have passed; answering every one would queue latency up (a 1 MiB
+        receive buffer holds about a second of commands) and keep an overloaded worker behind for good. A hiccup of
+        up to ``_KEEP_BEHIND`` cycles is still answered in full (late, not lost): with 2, a 3-cycle hiccup of a
+        worker on a busy machine became lost commands, reception failures and a bUS trip in the quickstart (3 of 6
+        runs failed; with 8, 0 of 6)."""
+        return Port(hs.station, hs, self._keep_behind, self._collect_eeprom, time.monotonic_ns)
 
-        The handler appends the answers to a list; a station's own socket then sends them (one ``sendto``, or a
-        burst after a backlog). *collect*: return that handler itself, ``on_station(batch, out)``, for a shared
-        socket, which sends the answers of all its stations in one burst."""
-        station = hs.station
-        receive = station.receive
-        counters = station.counters
-        monotonic_ns = time.monotonic_ns
-
-        keep = self._keep_behind
-
-        def on_station(batch: list[tuple[bytes, Any]], out: list[tuple[bytes, Any]]) -> None:
-            if len(batch) > keep:
-                batch = _newest(batch, counters, keep)
-            before = len(out)  # a shared socket's list holds the other stations' answers too
-            for data, addr in batch:
-                response = receive(data, addr, monotonic_ns())
-                if response is not None:
-                    out.append((response, addr))
-            hs.responses += len(out) - before
-            if station.eeprom_pending:
-                self._collect_eeprom(hs)
-
-        if collect:
-            return on_station
+    def _receiver(self, hs: HostedStation) -> Callable[[list[tuple[bytes, Any]]], None]:
+        """The batch handler of one station's own socket: the answers go back on it (one ``sendto``, or a burst
+        after a backlog)."""
+        serve = self._port(hs).serve
 
         def on_batch(batch: list[tuple[bytes, Any]]) -> None:
             out: list[tuple[bytes, Any]] = []
-            on_station(batch, out)
+            serve(batch, out)
             endpoint = hs.endpoint
             if endpoint is not None and out:
                 if len(out) == 1:  # the common case: one command, one answer
@@ -242,52 +226,44 @@ class SlaveServer:
             groups.setdefault((hs.host, hs.port, hs.station.link), []).append(hs)
         return list(groups.values())
 
-    def _bus_receiver(self, group: list[HostedStation]) -> Callable[..., None]:  # a closure, for the hot path
-        """The batch handler of a shared socket: each datagram to the station its address byte names, through that
-        station's own handler (``_receiver``: the same backlog rule per station and source), and the answers of
-        the read back in one burst."""
-        handlers = {hs.station.address: self._receiver(hs, collect=True) for hs in group}
+    def _bus_receiver(self, group: list[HostedStation]) -> Callable[[list[tuple[bytes, Any]]], None]:
+        """The batch handler of a shared socket (:class:`~mlink_sim.aio.bus.Bus`): each datagram to the station
+        its address byte names, through that station's :class:`~mlink_sim.aio.bus.Port` (the same backlog rule
+        per station and source), and the answers of the read back in one burst."""
+        bus = Bus([self._port(hs) for hs in group])
+        self._buses.append(bus)
+        serve = bus.serve
         first = group[0]  # its endpoint is the group's (set once the socket is bound)
 
         def on_batch(batch: list[tuple[bytes, Any]]) -> None:
-            per: dict[int, list[tuple[bytes, Any]]] = {}  # each station's datagrams, in arrival order
-            for item in batch:
-                data = item[0]
-                key = data[3] if len(data) > 3 else -1
-                items = per.get(key)
-                if items is None:
-                    per[key] = [item]
-                else:
-                    items.append(item)
-            out: list[tuple[bytes, Any]] = []
-            for key, items in per.items():
-                handler = handlers.get(key)
-                if handler is None:
-                    self.unaddressed += len(items)
-                else:
-                    handler(items, out)
+            out = serve(batch)
             ep = first.endpoint
             if out and ep is not None:
                 ep.send_burst(out)
 
         return on_batch
 
+    @property
+    def unaddressed(self) -> int:
+        """Datagrams on a shared port for a station not hosted there (or shorter than 4 bytes)."""
+        return sum(bus.unaddressed for bus in self._buses)
+
     def _on_tick(self) -> None:
         now = time.monotonic_ns()
         lag = now - self._tick_due
         if lag >= WORKER_STALL_NS:  # this process was held up (metrics/stalls.py): the report names it
             self.stalls.record("self", self._tick_due, lag, 0, lag <= self.absorb_ns)
-        for hs in self.stations:
+        stations = self.stations
+        for i in due(self._cores, now):  # compiled (mlink_sim.aio.bus): the scan of every station, once a tick
+            hs = stations[i]
             st = hs.station
-            deadline = st.next_deadline()
-            if deadline is not None and deadline <= now:
-                if hs.endpoint is not None and st.silence_due(now):
-                    # After a hold-up of this worker the loop runs its timers before it reads the sockets: the
-                    # commands that arrived meanwhile are read first, or they would count as the master's silence
-                    # (2 cycles = bUS on an SI-T/V7; seen in tests/testbed/test_netns.py).
-                    hs.endpoint.read_pending()
-                st.poll(now)
-                self._collect_eeprom(hs)
+            if hs.endpoint is not None and st.silence_due(now):
+                # After a hold-up of this worker the loop runs its timers before it reads the sockets: the
+                # commands that arrived meanwhile are read first, or they would count as the master's silence
+                # (2 cycles = bUS on an SI-T/V7; seen in tests/testbed/test_netns.py).
+                hs.endpoint.read_pending()
+            st.poll(now)
+            self._collect_eeprom(hs)
         if self._capture is not None:
             self._note_phases(now)
         if not self._closing:
@@ -373,21 +349,6 @@ class SlaveServer:
             payload = json.dumps({"ok": False, "error": "stats too large for one datagram"}).encode()
         assert self._control is not None
         self._control.sendto(payload, addr)
-
-
-def _newest(batch: list[tuple[bytes, Any]], counters: Any, behind: int) -> list[tuple[bytes, Any]]:
-    """The newest *behind* datagrams of each source, in arrival order; the rest counted SUPERSEDED."""
-    seen: dict[Any, int] = {}
-    keep: list[tuple[bytes, Any]] = []
-    for data, addr in reversed(batch):
-        n = seen.get(addr, 0)
-        if n < behind:
-            keep.append((data, addr))
-            seen[addr] = n + 1
-        else:
-            counters.drop("SUPERSEDED")
-    keep.reverse()
-    return keep
 
 
 async def query_control(host: str, port: int, op: str = "stats", timeout: float = 1.0,

@@ -1,0 +1,119 @@
+"""A slave worker's per-read path: the datagrams of one socket to the stations they name, and their answers back.
+
+:class:`~mlink_sim.aio.slave.SlaveServer` moves the bytes (its sockets, its 1 ms tick, EEPROM writes); every
+datagram it reads goes through here on its way to a card core, and every answer on its way back. On a shared
+port (the stations of one link in one worker, ``SlaveServer(shared=True)``) that is 62 datagrams per read at
+the largest ML-III line, so the module is compiled with the cores (``mlink_sim._accel.COMPILED_MODULES``; its
+classes are native: no attributes beyond those declared). It holds no protocol logic: which station a datagram
+is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it means is the card's business.
+
+* :class:`Port`: one station as its socket sees it. :meth:`Port.serve` hands a read's datagrams to the card
+  (``Station.receive``) and collects the answers. More than *keep* datagrams from one source in one read means
+  the worker fell that many cycles behind: the oldest are counted as ``SUPERSEDED`` drops and only the newest
+  *keep* are answered (``SlaveServer._keep_behind`` says why, and how "absorb" sizes it).
+* :class:`Bus`: the stations of one shared socket. :meth:`Bus.serve` groups a read by station byte (each
+  station's datagrams in arrival order, the stations in the order they first appear) and serves each group
+  through that station's :class:`Port`. A datagram for no station hosted there (or shorter than 4 bytes) is
+  counted in :attr:`Bus.unaddressed`, as a station on a bus ignores frames for others.
+* :func:`due`: which stations' ``poll`` is due at a tick (``Station.next_deadline``): a scan of every hosted
+  station once per millisecond.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from ..cards.base import Station
+
+__all__ = ["Bus", "Port", "due"]
+
+Batch = list[tuple[bytes, Any]]
+
+
+class Port:
+    """One hosted station's share of a read (see the module docstring). *hosted*: the
+    :class:`~mlink_sim.aio.slave.HostedStation` whose ``responses`` count the answers; *on_eeprom(hosted)*: called
+    after a read that left the card with an EEPROM image to write; *clock()*: the time each datagram is handed to
+    the card at (ns; the worker's ``time.monotonic_ns``)."""
+
+    def __init__(self, station: Any, hosted: Any, keep: int, on_eeprom: Callable[[Any], None],
+                 clock: Callable[[], int]) -> None:
+        self.station: Any = station
+        self.clock: Callable[[], int] = clock
+        self.hosted: Any = hosted
+        self.keep: int = keep
+        self.on_eeprom: Callable[[Any], None] = on_eeprom
+        self.receive: Callable[[bytes, Any, int], bytes | None] = station.receive
+
+    def serve(self, batch: Batch, out: Batch) -> None:
+        """Answer *batch* (this station's datagrams of one read, oldest first), appending ``(answer, source)`` to
+        *out* (a shared socket's list holds the other stations' answers too)."""
+        if len(batch) > self.keep:
+            batch = _newest(batch, self.station.counters, self.keep)
+        receive, clock = self.receive, self.clock
+        n = 0
+        for data, addr in batch:
+            response = receive(data, addr, clock())
+            if response is not None:
+                out.append((response, addr))
+                n += 1
+        if n:
+            self.hosted.responses += n
+        if self.station.eeprom_pending:
+            self.on_eeprom(self.hosted)
+
+
+class Bus:
+    """The stations of one shared socket, by station address (see the module docstring)."""
+
+    def __init__(self, ports: list[Port]) -> None:
+        self.ports: dict[int, Port] = {int(p.station.address): p for p in ports}
+        self.unaddressed: int = 0  #: datagrams for no station hosted here (or shorter than 4 bytes)
+
+    def serve(self, batch: Batch) -> Batch:
+        """The answers to one read of the shared socket, in the order the stations first appear in it."""
+        per: dict[int, Batch] = {}
+        for item in batch:
+            data = item[0]
+            key = data[3] if len(data) > 3 else -1
+            items = per.get(key)
+            if items is None:
+                per[key] = [item]
+            else:
+                items.append(item)
+        out: Batch = []
+        ports = self.ports
+        for key, items in per.items():
+            port = ports.get(key)
+            if port is None:
+                self.unaddressed += len(items)
+            else:
+                port.serve(items, out)
+        return out
+
+
+def _newest(batch: Batch, counters: Any, behind: int) -> Batch:
+    """The newest *behind* datagrams of each source, in arrival order; the rest counted SUPERSEDED."""
+    seen: dict[Any, int] = {}
+    keep: Batch = []
+    for item in reversed(batch):
+        addr = item[1]
+        n = seen.get(addr, 0)
+        if n < behind:
+            keep.append(item)
+            seen[addr] = n + 1
+        else:
+            counters.drop("SUPERSEDED")
+    keep.reverse()
+    return keep
+
+
+def due(stations: list[Station], now: int) -> list[int]:
+    """The indices of the *stations* whose :meth:`~mlink_sim.cards.base.Station.poll` is due at *now*."""
+    out: list[int] = []
+    for i, st in enumerate(stations):
+        deadline = st.next_deadline()
+        if deadline is not None and deadline <= now:
+            out.append(i)
+    return out
