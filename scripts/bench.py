@@ -59,7 +59,7 @@ sys.path.insert(0, str(ROOT / "scripts"))
 
 import bench_targets  # noqa: E402
 from bench_figures import exchange_figures  # noqa: E402
-from bench_floor import measure_floor, proc_wakeups, self_wakeups  # noqa: E402
+from bench_floor import host_ticks, measure_floor, proc_wakeups, self_wakeups, steal_pct  # noqa: E402
 
 from mlink_sim.aio import mmsg  # noqa: E402
 from mlink_sim.aio.session import NetworkSession  # noqa: E402
@@ -102,6 +102,7 @@ class Cell:
     cpu_per_exchange_nospin_us: float = 0.0  #: the same without the spin (the work an exchange itself costs)
     wakeups_master: float = 0.0     #: voluntary context switches per cycle
     wakeups_slaves: float = 0.0
+    steal_pct: float = 0.0          #: the hypervisor's steal over the window, % of all CPUs' time (bench_floor)
     floor: dict[str, Any] | None = None          #: bench_floor.Floor, plain system calls
     floor_batched: dict[str, Any] | None = None  #: bench_floor.Floor, sendmmsg/recvmmsg
     notes: list[str] = field(default_factory=list)
@@ -159,8 +160,9 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         spun0 = sum(t.spun_ns for t in timers)
         cpu0, wall0 = time.process_time(), time.monotonic()
         slaves0 = await _slave_cpu(session)
-        wake0, swake0 = self_wakeups(), sum(proc_wakeups(p) for p in pids)
+        wake0, swake0, host0 = self_wakeups(), sum(proc_wakeups(p) for p in pids), host_ticks()
         await asyncio.sleep(duration_s)
+        cell.steal_pct = steal_pct(host0, host_ticks())
         wall = time.monotonic() - wall0
         cpu_master_s = time.process_time() - cpu0
         spun_s = (sum(t.spun_ns for t in timers) - spun0) / 1e9
@@ -258,8 +260,22 @@ def table(cells: list[Cell]) -> str:
             f"{c.cpu_master:>5.0f}/{c.cpu_slaves:<5.0f} {_cpe(c):>13} "
             f"{c.wakeups_master:>4.1f}/{c.wakeups_slaves:<4.1f} | {_floor_cols(c.ref)} | "
             f"{_ratios(c):>11} {rtt_x or 0:>5.2f} | {_cpe(other) if other else '—':>13}"
-            + (f"  ({'; '.join(c.notes)})" if c.notes else ""))
+            + (f"  ({'; '.join(notes)})" if (notes := [*c.notes, *_steal(c)]) else ""))
     return "\n".join(rows)
+
+
+_STEAL_NOTED = 0.5  #: % of the machine's CPU time the hypervisor took, from which a row says so
+
+
+def _steal(c: Cell) -> list[str]:
+    """A note when the hypervisor took CPU time from the VM during the cell (the simulator's window or its
+    floor's): a floor that misses cycles while the host steals points at the host (docs/performance.md, "Host
+    steal")."""
+    ref = c.ref or {}
+    ours, floor = c.steal_pct, float(ref.get("steal_pct", 0.0))
+    if max(ours, floor) < _STEAL_NOTED:
+        return []
+    return [f"host steal {ours:.1f} % (floor {floor:.1f} %)"]
 
 
 def _human(ns: int) -> str:

@@ -61,7 +61,7 @@ from mlink_sim.aio.udp import bound_socket, close_watched, new_event_loop, open_
 from mlink_sim.config import format_ns, parse_duration_ns  # noqa: E402
 from mlink_sim.metrics import LatencyHistogram  # noqa: E402
 
-__all__ = ["Floor", "measure_floor", "proc_cpu_s", "proc_wakeups", "self_wakeups"]
+__all__ = ["Floor", "host_ticks", "measure_floor", "proc_cpu_s", "proc_wakeups", "self_wakeups", "steal_pct"]
 
 
 def _raise(exc: OSError) -> None:
@@ -100,6 +100,7 @@ class Floor:
     wakeups_client: float = 0.0       #: voluntary context switches per cycle
     wakeups_server: float = 0.0
     shared: bool = False              #: the server's stations share one socket (a packed worker's layout)
+    steal_pct: float = 0.0            #: the hypervisor's steal over the window, % of all CPUs' time (steal_pct)
 
 
 def proc_cpu_s(pid: int) -> float:
@@ -124,6 +125,27 @@ def proc_wakeups(pid: int | str) -> int:
 
 def self_wakeups() -> int:
     return proc_wakeups("self")
+
+
+def host_ticks(stat: str | None = None) -> tuple[int, ...]:
+    """The machine's CPU time so far, in clock ticks, as the first line of ``/proc/stat`` gives it (user, nice,
+    system, idle, iowait, irq, softirq, steal, …; *stat*: that file's text, for tests); () where it is missing."""
+    try:
+        text = Path("/proc/stat").read_text() if stat is None else stat
+        fields = text.split("\n", 1)[0].split()
+        return tuple(int(x) for x in fields[1:9]) if fields and fields[0] == "cpu" and len(fields) >= 9 else ()
+    except (OSError, ValueError):
+        return ()
+
+
+def steal_pct(before: tuple[int, ...], after: tuple[int, ...]) -> float:
+    """The time the hypervisor ran something else while this VM's CPUs had work (``steal``, the 8th field of
+    ``/proc/stat``) between two :func:`host_ticks`, in % of all CPUs' time; 0.0 without both. A floor that misses
+    cycles while this is high was slowed by the host, not by its own work."""
+    if len(before) < 8 or len(after) < 8:
+        return 0.0
+    total = sum(after[:8]) - sum(before[:8])
+    return round(100 * (after[7] - before[7]) / total, 1) if total > 0 else 0.0
 
 
 def _self_cpu_s() -> float:
@@ -277,8 +299,9 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
         lateness.reset()
         counts.update(missed=0, missing=0, sent=len(pending), cycles=0)  # in flight: as the master's reset_metrics
         wall0, cpu0, scpu0, spun0 = time.monotonic(), _self_cpu_s(), proc_cpu_s(proc.pid), timer.spun_ns
-        wake0, swake0 = self_wakeups(), proc_wakeups(proc.pid)
+        wake0, swake0, host0 = self_wakeups(), proc_wakeups(proc.pid), host_ticks()
         await asyncio.sleep(duration_s)
+        result.steal_pct = steal_pct(host0, host_ticks())
         wall = time.monotonic() - wall0
         cpu, scpu = _self_cpu_s() - cpu0, proc_cpu_s(proc.pid) - scpu0
         wake, swake = self_wakeups() - wake0, proc_wakeups(proc.pid) - swake0
@@ -320,7 +343,7 @@ def describe(f: Floor) -> str:
             f"lateness p99 {format_ns(f.lateness_p99_ns)}, CPU client/server {f.cpu_client_pct:.0f}/"
             f"{f.cpu_server_pct:.0f} %, {f.cpu_per_exchange_us:.1f} µs/exchange "
             f"({f.cpu_per_exchange_nospin_us:.1f} without the spin, {f.spin_pct:.0f} %), wake-ups/cycle "
-            f"{f.wakeups_client:.2f}/{f.wakeups_server:.2f}")
+            f"{f.wakeups_client:.2f}/{f.wakeups_server:.2f}, host steal {f.steal_pct:.1f} %")
 
 
 def main() -> int:

@@ -121,6 +121,20 @@ def test_tables_show_the_floor_and_the_ratios(bench) -> None:
     assert all(line.count("|") == lines[0].count("|") for line in lines)
 
 
+def test_host_steal_is_read_from_proc_stat_and_noted_in_the_row(bench) -> None:
+    """/proc/stat's first line: user nice system idle iowait irq softirq steal …, in clock ticks (proc(5)). The
+    steal between two readings is a share of all the time that passed; a row says so from 0.5 %."""
+    before = bench.host_ticks("cpu  100 0 50 800 0 0 10 40 0 0\ncpu0 1 2 3\n")
+    after = bench.host_ticks("cpu  400 0 150 1200 0 0 30 100 0 0\n")
+    assert before == (100, 0, 50, 800, 0, 0, 10, 40) and after[7] == 100
+    assert bench.steal_pct(before, after) == 6.8  # 60 of 880 ticks
+    assert bench.steal_pct((), after) == 0.0 and bench.host_ticks("intr 1 2\n") == ()
+    quiet = _good(bench, "ML3", 8, 250_000, steal_pct=0.2)
+    assert "steal" not in bench.table([quiet])
+    busy = _good(bench, "ML3", 8, 250_000, steal_pct=0.1, floor_batched=_floor(steal_pct=2.6))
+    assert "host steal 0.1 % (floor 2.6 %)" in bench.table([busy])
+
+
 def test_render_prints_earlier_runs_without_running_them(bench, tmp_path, capsys) -> None:
     old = {"link": "ML2", "stations": 9, "cycle_ns": 1_000_000, "workers": 1, "missed_rate": 0.0026,
            "rtt_p99_ns": 1_380_000, "echo_p99_ns": 410_000}  # a file of the per-station echo's days
