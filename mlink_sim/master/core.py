@@ -47,6 +47,8 @@ _U32: Final = 0xFFFFFFFF
 _UP: Final = (S.PHASE2, S.PHASE3)  # states in which requests and INV_CTL are sent
 # the members the per-cycle paths compare with, each read once (an enum member is an attribute lookup per use)
 _PHASE3: Final = S.PHASE3
+_PHASE1: Final = S.PHASE1
+_BRINGING: Final = frozenset((S.CONNECTING, S.SYNCING))  # counted against NetworkPlan.bringup_window
 _CYCLIC: Final = Send.CYCLIC
 
 
@@ -78,6 +80,7 @@ class MasterCore:
             self._stations.append(Slave(sp, by_period[period], period, plan.spread, plan.tcycle_ns))
             by_period[period] += 1
         self._by_addr = {st.address: st for st in self._stations}
+        self._bringing = 0  #: stations in CONNECTING or SYNCING (NetworkPlan.bringup_window), kept by _fire
 
     # ------------------------------------------------------------------ cyclic entry points
     def on_cycle(self, cycle: int, now: int) -> list[tuple[int, bytes]]:
@@ -86,10 +89,14 @@ class MasterCore:
         self._cycle = cycle
         self.cycles += 1
         out: list[tuple[int, bytes]] = []
+        window = self.plan.bringup_window
         for st in self._stations:
             if st.main_q or st.sub_q or st.disconnect_waiters:
                 requests.expire(st, now)
             if (cycle - st.offset) % st.period == 0:
+                if self._bringing >= window and st.state is _PHASE1 and st.enabled and cycle >= st.hold_until:
+                    self._retire(st, now)  # its CONNECT waits for the bring-up window: no command this slot
+                    continue
                 out.append((st.address, self._slot(st, cycle, now)))
         return out
 
@@ -286,7 +293,9 @@ class MasterCore:
         return {st.address: self.view(st.address) for st in self._stations}
 
     # ------------------------------------------------------------------ slot: choose and encode the command
-    def _slot(self, st: Slave, cycle: int, now: int) -> bytes:
+    def _retire(self, st: Slave, now: int) -> None:
+        """A new slot of *st*: its previous command is no longer the outstanding one (in flight within the answer
+        window, else Missing), and what stayed in flight too long is aged out."""
         prev = st.outstanding
         if prev is not None:
             st.outstanding = None
@@ -296,6 +305,9 @@ class MasterCore:
                 self._missing(st, prev, now)
         if st.inflight:
             self._age(st, now)
+
+    def _slot(self, st: Slave, cycle: int, now: int) -> bytes:
+        self._retire(st, now)
         codec = st.codec
         if (st.state is _PHASE3 and st.enabled and not st.main_q and not st.sub_q and cycle >= st.hold_until
                 and self.fast_path):
@@ -501,6 +513,7 @@ class MasterCore:
         new = next_state(old, event)
         if old is not new:
             st.state = new
+            self._bringing += (new in _BRINGING) - (old in _BRINGING)
             self._emit(StateChanged(st.address, old, new))
 
     def _emit(self, ev: Event) -> None:

@@ -188,6 +188,14 @@ class NetworkPlan:
     connect_backoff: int = 16
     """Communication cycles to wait (sending NOP) after a CONNECT refused with a data-setting error."""
 
+    bringup_window: int = 16
+    """At most this many stations in CONNECTING or SYNCING at once; a station in phase 1 that would CONNECT waits,
+    and is sent nothing meanwhile (a slave in phase 1 expects no command: it has no watchdog and no reception
+    monitor before CONNECT: SI-T3 Table 22 lists no reception failure in phase 1, and SI-ET3 "Communication Phases"
+    (Figure 19) says no fault is notified in phase 1). Not a figure of the manuals but the simulator's own pacing:
+    CONNECT, SYNC_SET and their answers take the general path at both ends, several times the CPU of the steady
+    INV_CTL, and 62 stations brought up at once overloaded a 2-vCPU machine (docs/master.md, "Bring-up window")."""
+
     spread: bool = True
     """Spread stations with COM_TIM > 1 over the transmission cycles of their communication cycle (station *i*
     of that period is served on cycles ``k`` with ``k % n == i % n``); False serves all on ``k % n == 0``."""
@@ -214,6 +222,8 @@ class NetworkPlan:
                                  f"{self.tcycle_ns} ns transmission cycles")
         if self.offline_after < 2:
             raise ValueError("offline_after must be at least 2 communication cycles")
+        if self.bringup_window < 1:
+            raise ValueError("bringup_window must be at least 1 station")
         if self.answer_window_ns < 0:
             raise ValueError("answer_window_ns must be >= 0")
         if self.request_retries < 1:

@@ -184,3 +184,56 @@ def test_control_encoding_ml2_table_16_and_ml3_table_20():
     b3 = Codec(StationPlan(0x21, Link.ML3)).inv_ctl(c)
     assert isinstance(b3, ml3.InvCtl) and b3.invcmd_ctrl == 0x1 | 0x200 | 0x400 | 0x1000 | 0x10000 | 0x200000
     assert b3.sel_mon == 0x41
+
+
+def test_the_bring_up_window_paces_connect_and_a_waiting_station_is_sent_nothing(net_of):
+    """NetworkPlan.bringup_window (docs/master.md, "Bring-up window"): at most that many stations in CONNECTING
+    or SYNCING at once. A station in phase 1 whose CONNECT waits gets no command at all meanwhile (a slave in
+    phase 1 has no watchdog and no reception monitor: SI-T3 Table 22, SI-ET3 "Communication Phases"), and every
+    station still comes up."""
+    plans = [StationPlan(a, Link.ML3) for a in range(0x03, 0x0F)]  # 12 stations
+    net = net_of(Link.ML3, MS, *plans, bringup_window=3)
+    core = net.core
+    connects, waited = [], 0
+    for _ in range(200):
+        if core.all_at_target():
+            break
+        before = {a: core.state(a) for a in core.addresses}
+        sent = _run_cycle(net)
+        names = {station: type(decode(d, kind=Kind.COMMAND).message.body).__name__ for station, d in sent}
+        connects.append(sum(name == "Connect" for name in names.values()))
+        idle = {a for a, st in before.items() if st is S.PHASE1 and a not in names}
+        waited += len(idle)
+        assert all(core.state(a) is S.PHASE1 for a in idle)  # held back, not dropped
+    assert core.all_at_target()
+    assert all(s.phase == 3 for s in net.slaves.values())
+    assert max(connects) == 3 and sum(connects) == 12  # three at a time, each station once
+    assert waited > 0
+
+
+def test_a_window_as_large_as_the_line_changes_nothing(net_of):
+    plans = [StationPlan(a, Link.ML3) for a in range(0x03, 0x0B)]  # 8 stations, the default window 16
+    net = net_of(Link.ML3, MS, *plans)
+    assert net.run_until(net.core.all_at_target, limit=50) <= 5  # as one station alone (the test above it)
+
+
+def test_the_bring_up_window_must_hold_a_station():
+    with pytest.raises(ValueError, match="bringup_window"):
+        NetworkPlan(Link.ML3, MS, (StationPlan(0x03, Link.ML3),), bringup_window=0)
+
+
+def _run_cycle(net):
+    """One cycle of *net*, returning what the master sent in it, ``[(station, datagram), …]``."""
+    sent = []
+
+    def record(direction, station, datagram, now):
+        if direction == "cmd":
+            sent.append((station, datagram))
+        return datagram
+
+    net.fault = record
+    try:
+        net.run(1)
+    finally:
+        net.fault = None
+    return sent
