@@ -96,7 +96,7 @@ def test_absorb_loses_no_command_to_stalls_within_the_bound(tmp_path):
     host = report["host"]
     assert host["policy"] == "absorb" and host["bound"] == 100_000_000
     assert host["by_process"]["master"]["count"] >= 3, out
-    assert host["by_process"]["worker:0"]["count"] >= 1, out
+    assert host["by_process"].get("worker:0", {}).get("count", 0) >= 1, (host["by_process"], out)
     if host["stall"]["max"] < host["bound"]:  # the invariant the policy promises (the host may add its own)
         assert host["stall"]["lost"] == 0 and report["missed"] == 0, out
         assert report["reception_failures"] == 0 and report["missing"] == 0, out
