@@ -1,11 +1,12 @@
 """The slave side over UDP: one datagram endpoint per hosted station, feeding the sans-I/O card cores.
 
 The server only moves bytes and keeps time: ``datagram -> station.receive(data, addr, now) -> sendto``. Each
-station's socket is read in batches; a backlog beyond eight commands per source is superseded (``SlaveServer._port``, :mod:`mlink_sim.aio.bus`).
-A 1 ms housekeeping tick calls ``station.poll(now)`` for stations whose deadline has come (silence detection, drive);
-EEPROM images the cards hand over (``take_eeprom``) are written atomically in a worker thread, and once an image is
-written, fsync'd and renamed the card is told (``station.eeprom_durable``): a CONFIG to EEPROM answers CMDRDY = 0 until
-then (docs/cards.md, "EEPROM"). Temporary files a killed process left are removed at start.
+station's socket is read in batches; a backlog beyond eight commands per source is superseded
+(``SlaveServer._port``, :mod:`mlink_sim.aio.bus`). A 1 ms housekeeping tick calls ``station.poll(now)`` for
+stations whose deadline has come (silence detection, drive). EEPROM images the cards hand over (``take_eeprom``)
+are written atomically in a worker thread, and once an image is written, fsync'd and renamed the card is told
+(``station.eeprom_durable``): a CONFIG to EEPROM answers CMDRDY = 0 until then (docs/cards.md, "EEPROM").
+Temporary files a killed process left are removed at start.
 
 A small JSON-over-UDP *control* endpoint answers ``{"op": "stats"}`` with every station's snapshot, counters and
 the process CPU time (``{"op": "cpu"}``: the CPU time only, small at any station count), so the supervisor
@@ -30,9 +31,9 @@ from .._log import get_logger
 from ..jsonable import to_jsonable
 from ..metrics.stalls import WORKER_STALL_NS, StallLog
 from ..faults.plant import PlantFaults
+from .bus import Bus, Port, due
 from .faults import handle_plant_request
 from .state import atomic_write, eeprom_path, remove_stale_temps
-from .bus import Bus, Port, due
 from .tapped import tap
 from .udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endpoint
 
