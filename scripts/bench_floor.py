@@ -141,7 +141,7 @@ def host_ticks(stat: str | None = None) -> tuple[int, ...]:
 def steal_pct(before: tuple[int, ...], after: tuple[int, ...]) -> float:
     """The time the hypervisor ran something else while this VM's CPUs had work (``steal``, the 8th field of
     ``/proc/stat``) between two :func:`host_ticks`, in % of all CPUs' time; 0.0 without both. A floor that misses
-    cycles while this is high was slowed by the host, not by its own work."""
+    cycles while this is high points at the host (a slowdown the host causes without stealing is not in it)."""
     if len(before) < 8 or len(after) < 8:
         return 0.0
     total = sum(after[:8]) - sum(before[:8])

@@ -7,19 +7,13 @@ from __future__ import annotations
 from typing import Any
 
 from mlink_sim.aio.bus import Bus, Port, due
+from mlink_sim.aio.slave import HostedStation
 from mlink_sim.cards import Station, create_card, settings_for
 from mlink_sim.wire import Frame, Kind, Link, decode, encode, ml2
 
 TCYCLE = 1_000_000
 SOURCE = ("127.0.0.1", 40000)
 OTHER = ("127.0.0.1", 40001)
-
-
-class Hosted:
-    """What a Port counts its answers on (``HostedStation.responses``)."""
-
-    def __init__(self) -> None:
-        self.responses = 0
 
 
 class Clock:
@@ -47,7 +41,8 @@ def _nop(address: int, cycle: int) -> bytes:
 
 
 def _port(address: int, keep: int = 8, eeprom: list[Any] | None = None) -> Port:
-    return Port(_station(address), Hosted(), keep,
+    station = _station(address)
+    return Port(station, HostedStation(station, "127.0.0.1", 0), keep,
                 (eeprom if eeprom is not None else []).append, Clock())
 
 

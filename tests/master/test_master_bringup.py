@@ -207,6 +207,8 @@ def test_the_bring_up_window_paces_connect_and_a_waiting_station_is_sent_nothing
         assert all(core.state(a) is S.PHASE1 for a in idle)  # held back, not dropped
     assert core.all_at_target()
     assert all(s.phase == 3 for s in net.slaves.values())
+    # SI-T3 Table 22, phase 1: no reception failure; a station held there for cycles sees none, and no WDT error
+    assert all(s.failures == 0 and s.e5 == 0 for s in net.slaves.values())
     assert max(connects) == 3 and sum(connects) == 12  # three at a time, each station once
     assert waited > 0
 
