@@ -26,12 +26,18 @@ where ``sendmmsg``/``recvmmsg`` are available, unless ``--io plain``, which runs
     scripts/bench.py --quick                           # a few cells, 2 s each (smoke test)
     scripts/bench.py --targets                         # issue 21's five targets, ~12 min (--duration 10s: ~4 min)
     scripts/bench.py --render docs/bench.json --markdown   # an earlier run's table, as in docs/performance.md
+    scripts/bench.py --targets --pm-qos                # the same with idle CPUs polling, floor and simulator alike
 
 ``--targets`` runs the cells of the capacity targets (scripts/bench_targets.py: 62 ML-III and 30 ML-II stations
 at 1 ms for 60 s, 8 ML-III stations at 250 µs for 30 s, and ML-III at 1 ms with 15, 30 and 45 stations for the
 knee) and prints met / not met for each bound, with the floor's figure beside it and, where a bound is not met,
 what bounds it (from the same run). ``--duration`` shortens every cell for a quick run. Exit status 0 either
 way: a benchmark reports, it does not gate.
+
+``--pm-qos`` holds the kernel's request for a CPU wake-up latency of 0 µs (``/dev/cpu_dma_latency``, as
+``mlink-sim up --realtime`` does: ``mlink_sim.aio.realtime.hold_wakeup_latency``) for the whole run, so the floors
+and the simulator run on CPUs that poll instead of halting when idle; refused (not root), the run does not start
+(exit 2). The JSON's ``host.pm_qos`` says which way a run was made.
 
 Cells the manuals rule out are listed as such and not run: MECHATROLINK-II below 0.5 ms (17-byte) or beyond
 30 stations (SI-T3 Table 29). Loops are bounded by --duration; all traffic stays on loopback.
@@ -61,7 +67,8 @@ import bench_targets  # noqa: E402
 from bench_figures import exchange_figures  # noqa: E402
 from bench_floor import host_ticks, measure_floor, proc_wakeups, self_wakeups, steal_pct  # noqa: E402
 
-from mlink_sim.aio import mmsg  # noqa: E402
+from mlink_sim._files import write_atomically  # noqa: E402
+from mlink_sim.aio import mmsg, realtime  # noqa: E402
 from mlink_sim.aio.session import NetworkSession  # noqa: E402
 from mlink_sim.aio.udp import new_event_loop  # noqa: E402
 from mlink_sim.cli.logs import configure_logging  # noqa: E402
@@ -490,6 +497,9 @@ def main() -> int:
     ap.add_argument("--markdown", action="store_true", help="print the table as Markdown (docs/performance.md)")
     ap.add_argument("--render", type=Path, nargs="+", metavar="JSON",
                     help="run nothing: print the table (and draw --png) from earlier runs' --json files")
+    ap.add_argument("--pm-qos", action="store_true",
+                    help="hold a CPU wake-up latency of 0 µs (/dev/cpu_dma_latency) for the whole run, floors and "
+                         "simulator alike, as mlink-sim up --realtime does (root only)")
     args = ap.parse_args()
     if args.render is not None:
         return render(args.render, args.markdown, args.png)
@@ -498,6 +508,13 @@ def main() -> int:
     except ValueError as exc:
         print(f"bench.py: {exc}", file=sys.stderr)
         return 2
+    pm_qos = None
+    if args.pm_qos:
+        pm_qos = realtime.hold_wakeup_latency()
+        if "refused" in pm_qos:
+            print(f"bench.py: --pm-qos: {pm_qos}", file=sys.stderr)
+            return 2
+        print(f"pm-qos: {pm_qos}, held for the whole run", file=sys.stderr)
     configure_logging(level="error")
     loop = new_event_loop()
     with tempfile.TemporaryDirectory(prefix="mlink-bench-") as tmp:
@@ -507,14 +524,16 @@ def main() -> int:
     print(markdown(cells) if args.markdown else table(cells))
     doc: dict[str, Any] = {
         "host": {"node": platform.node(), "cpus": os.cpu_count(), "python": platform.python_version(),
-                 "kernel": platform.release(), "load_avg": os.getloadavg()},
+                 "kernel": platform.release(), "load_avg": os.getloadavg(), "pm_qos": pm_qos},
         "cells": [asdict(c) for c in cells]}
     if args.targets:
         text, rows = bench_targets.verdicts(cells)
         print()
+        if pm_qos is not None:
+            print(f"--pm-qos: {pm_qos}, held for the floors and the simulator alike")
         print(text)
         doc["targets"] = rows
-    args.json.write_text(json.dumps(doc, indent=1))
+    write_atomically(args.json, json.dumps(doc, indent=1))
     print(f"wrote {args.json}", file=sys.stderr)
     if not args.targets:
         draw(cells, Path("bench.png") if args.png is None else args.png)

@@ -46,6 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import structlog
 
+from mlink_sim._files import write_atomically
 from mlink_sim.aio import CycleTimer, available_strategies
 
 try:
@@ -298,7 +299,7 @@ def main(argv: list[str] | None = None) -> int:
                 "platform": platform.platform(), "python": platform.python_version(),
                 "uvloop": getattr(uvloop, "__version__", None), "elapsed_s": round(elapsed, 1), "args": {
                     k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()}}
-        args.json.write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
+        write_atomically(args.json, json.dumps({"meta": meta, "rows": rows}, indent=1))
     return 0
 
 

@@ -1,16 +1,21 @@
 """Real-time scheduling where the machine allows it (``--realtime``; docs/timing.md, "Real-time scheduling").
 
-Three requests, each granted or refused on its own and reported in one line:
+Four requests, each granted or refused on its own and reported in one line:
 
 * **priority**: ``SCHED_FIFO`` for the calling thread (the event loop's), the master's clock above the slave
   workers (:data:`MASTER_PRIORITY`, :data:`WORKER_PRIORITY`), so that ordinary processes of the host no longer
   delay them; the kernel's RT throttling (``/proc/sys/kernel/sched_rt_runtime_us``, 95 % by default) keeps the
   machine usable even while the master spins before a deadline;
 * **memory**: ``mlockall(MCL_CURRENT | MCL_FUTURE)``, so no page fault stalls a cycle;
-* **CPUs**: the master on a CPU of its own (the last one), the workers on the others (:func:`cpu_plan`).
+* **CPUs**: the master on a CPU of its own (the last one), the workers on the others (:func:`cpu_plan`);
+* **wake-up latency**: the kernel's PM QoS request for a CPU wake-up latency of 0 µs (:func:`hold_wakeup_latency`,
+  ``/dev/cpu_dma_latency``, as ``cyclictest`` does), held until the process exits: an idle CPU polls instead of
+  halting, so a datagram or a timer no longer waits for a halted CPU to wake up. On a virtual machine that wake-up
+  is the hypervisor's, and it cost the 8-station 250 µs line here ≈ 30 µs per hop and, at times, whole cycles
+  (docs/timing.md, "Real-time scheduling"). The price is power: the machine's idle CPUs spin while the network runs.
 
-Nothing here raises: a refusal (no ``CAP_SYS_NICE``, ``RLIMIT_MEMLOCK``, a container without the capability)
-is reported and the run goes on with ordinary scheduling.
+Nothing here raises: a refusal (no ``CAP_SYS_NICE``, ``RLIMIT_MEMLOCK``, a container without the capability, no
+access to ``/dev/cpu_dma_latency``) is reported and the run goes on with ordinary scheduling.
 """
 
 from __future__ import annotations
@@ -18,8 +23,10 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import os
+import struct
 
-__all__ = ["MASTER_PRIORITY", "WORKER_PRIORITY", "cpu_plan", "apply"]
+__all__ = ["MASTER_PRIORITY", "WORKER_PRIORITY", "PM_QOS_PATH", "cpu_plan", "apply", "hold_wakeup_latency",
+           "release_wakeup_latency"]
 
 #: SCHED_FIFO priorities (1–99): the clock above the workers, both below the kernel's own threads (50 is the
 #: priority of threaded IRQ handlers on PREEMPT_RT kernels; these stay under it).
@@ -27,6 +34,12 @@ MASTER_PRIORITY = 40
 WORKER_PRIORITY = 30
 
 _MCL_CURRENT, _MCL_FUTURE = 1, 2
+
+#: The CPU latency QoS device (Linux, Documentation/power/pm_qos_interface.rst): a process that holds it open
+#: with an s32 written to it has a request for at most that many µs of wake-up latency on every CPU; closing it
+#: (or exiting) withdraws the request.
+PM_QOS_PATH = "/dev/cpu_dma_latency"
+_held: dict[str, int] = {}  # path -> the open descriptor that holds this process's request
 
 
 def cpu_plan(cpus: set[int] | None = None) -> tuple[set[int], set[int]]:
@@ -49,6 +62,7 @@ def apply(priority: int, cpus: set[int] | None = None) -> str:
     except (OSError, AttributeError) as exc:
         parts.append(f"SCHED_FIFO refused ({_why(exc)})")
     parts.append(_lock_memory())
+    parts.append(hold_wakeup_latency())
     if cpus:
         try:
             os.sched_setaffinity(0, cpus)
@@ -56,6 +70,33 @@ def apply(priority: int, cpus: set[int] | None = None) -> str:
         except (OSError, AttributeError) as exc:
             parts.append(f"CPU affinity refused ({_why(exc)})")
     return ", ".join(parts)
+
+
+def hold_wakeup_latency(path: str | None = None) -> str:
+    """Request a CPU wake-up latency of 0 µs from the kernel's PM QoS (*path*, default :data:`PM_QOS_PATH`), held
+    until this process exits or :func:`release_wakeup_latency`; what was granted, e.g. ``"CPU wake-up latency
+    0 µs"`` or ``"CPU wake-up latency refused (Permission denied)"``. Asking again while held changes nothing."""
+    path = PM_QOS_PATH if path is None else path
+    if path in _held:
+        return "CPU wake-up latency 0 µs"
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CLOEXEC)
+    except OSError as exc:
+        return f"CPU wake-up latency refused ({_why(exc)})"
+    try:
+        os.write(fd, struct.pack("=i", 0))  # an s32 in µs (a 10-character hex string is the other form)
+    except OSError as exc:
+        os.close(fd)
+        return f"CPU wake-up latency refused ({_why(exc)})"
+    _held[path] = fd
+    return "CPU wake-up latency 0 µs"
+
+
+def release_wakeup_latency(path: str | None = None) -> None:
+    """Withdraw the request of :func:`hold_wakeup_latency` (nothing if none is held)."""
+    fd = _held.pop(PM_QOS_PATH if path is None else path, None)
+    if fd is not None:
+        os.close(fd)
 
 
 def _lock_memory() -> str:

@@ -7,6 +7,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from mlink_sim.aio import realtime
 
 
@@ -16,15 +18,48 @@ def test_cpu_plan_gives_the_master_a_cpu_of_its_own():
     assert realtime.cpu_plan({5}) == ({5}, {5})
 
 
-def test_refusals_are_reported_not_raised(monkeypatch):
+def test_refusals_are_reported_not_raised(monkeypatch, tmp_path):
     def refuse(*_a):
         raise PermissionError(errno.EPERM, "Operation not permitted")
 
     monkeypatch.setattr(os, "sched_setscheduler", refuse)
     monkeypatch.setattr(os, "sched_setaffinity", refuse)
+    monkeypatch.setattr(realtime, "PM_QOS_PATH", str(tmp_path / "no-such-device"))
     text = realtime.apply(realtime.WORKER_PRIORITY, {0})
     assert text.startswith("SCHED_FIFO refused (Operation not permitted), ")
+    assert "CPU wake-up latency refused (No such file or directory)" in text
     assert text.endswith("CPU affinity refused (Operation not permitted)")
+
+
+def test_wakeup_latency_request_is_an_s32_zero_held_open_until_released(tmp_path):
+    device = tmp_path / "cpu_dma_latency"  # a file standing in for the PM QoS device: what is written, and when
+    device.write_bytes(b"")
+    try:
+        assert realtime.hold_wakeup_latency(str(device)) == "CPU wake-up latency 0 µs"
+        assert device.read_bytes() == b"\0\0\0\0"  # Documentation/power/pm_qos_interface.rst: an s32, in µs
+        fd = realtime._held[str(device)]
+        assert realtime.hold_wakeup_latency(str(device)) == "CPU wake-up latency 0 µs"  # held once, not reopened
+        assert realtime._held[str(device)] == fd and device.stat().st_size == 4
+        os.fstat(fd)  # still open: the request stands while the process lives
+    finally:
+        realtime.release_wakeup_latency(str(device))
+    assert str(device) not in realtime._held
+    with pytest.raises(OSError):
+        os.fstat(fd)  # closed: the kernel withdraws the request
+    realtime.release_wakeup_latency(str(device))  # nothing held: nothing to do
+
+
+def test_wakeup_latency_on_this_kernel_reads_back_zero_while_held():
+    """On the real device (root): while a process holds its request, the device reads back the machine's
+    effective constraint, 0 µs; without permission the refusal says why."""
+    code = ("import struct; from mlink_sim.aio import realtime as r; print(r.hold_wakeup_latency()); "
+            "import os; print(struct.unpack('=i', open(r.PM_QOS_PATH, 'rb').read(4))[0] "
+            "if 'refused' not in r.hold_wakeup_latency() else '-')")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=30).stdout.split("\n")
+    if out[0] == "CPU wake-up latency 0 µs":
+        assert out[1] == "0"
+    else:
+        assert out[0].startswith("CPU wake-up latency refused (")
 
 
 def test_granted_in_a_child_process_says_what_it_got():

@@ -153,3 +153,15 @@ def test_render_of_a_file_that_is_not_a_run_exits_2(bench, tmp_path, capsys) -> 
     assert bench.render([path], False, None) == 2
     assert "not a bench.py --json file" in capsys.readouterr().err
     assert bench.render([tmp_path / "missing.json"], False, None) == 2
+
+
+def test_pm_qos_refused_exits_2_before_any_cell_runs(bench, monkeypatch, capsys) -> None:
+    def must_not_run(*_a, **_k):
+        raise AssertionError("a cell ran although --pm-qos was refused")
+
+    monkeypatch.setattr(bench, "run_cell", must_not_run)
+    monkeypatch.setattr(bench.realtime, "hold_wakeup_latency",
+                        lambda: "CPU wake-up latency refused (Permission denied)")
+    monkeypatch.setattr("sys.argv", ["bench.py", "--pm-qos", "--stations", "1", "--cycles", "1ms", "--links", "ML2"])
+    assert bench.main() == 2
+    assert "bench.py: --pm-qos: CPU wake-up latency refused (Permission denied)" in capsys.readouterr().err
