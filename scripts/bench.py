@@ -511,16 +511,17 @@ def main() -> int:
     pm_qos = None
     if args.pm_qos:
         pm_qos = realtime.hold_wakeup_latency()
-        if "refused" in pm_qos:
+        if not realtime.wakeup_latency_held():
             print(f"bench.py: --pm-qos: {pm_qos}", file=sys.stderr)
             return 2
-        print(f"pm-qos: {pm_qos}, held for the whole run", file=sys.stderr)
     configure_logging(level="error")
     loop = new_event_loop()
     with tempfile.TemporaryDirectory(prefix="mlink-bench-") as tmp:
         cells = [c for link, n, cycle, seconds in plan
                  for c in run_cell(loop, Path(tmp), link, n, cycle, args.workers, seconds, args.io)]
     loop.close()
+    if pm_qos is not None:
+        print(f"--pm-qos: {pm_qos}, held for the floors and the simulator alike")
     print(markdown(cells) if args.markdown else table(cells))
     doc: dict[str, Any] = {
         "host": {"node": platform.node(), "cpus": os.cpu_count(), "python": platform.python_version(),
@@ -529,8 +530,6 @@ def main() -> int:
     if args.targets:
         text, rows = bench_targets.verdicts(cells)
         print()
-        if pm_qos is not None:
-            print(f"--pm-qos: {pm_qos}, held for the floors and the simulator alike")
         print(text)
         doc["targets"] = rows
     write_atomically(args.json, json.dumps(doc, indent=1))

@@ -26,7 +26,7 @@ import os
 import struct
 
 __all__ = ["MASTER_PRIORITY", "WORKER_PRIORITY", "PM_QOS_PATH", "cpu_plan", "apply", "hold_wakeup_latency",
-           "release_wakeup_latency"]
+           "wakeup_latency_held", "release_wakeup_latency"]
 
 #: SCHED_FIFO priorities (1–99): the clock above the workers, both below the kernel's own threads (50 is the
 #: priority of threaded IRQ handlers on PREEMPT_RT kernels; these stay under it).
@@ -40,6 +40,7 @@ _MCL_CURRENT, _MCL_FUTURE = 1, 2
 #: (or exiting) withdraws the request.
 PM_QOS_PATH = "/dev/cpu_dma_latency"
 _held: dict[str, int] = {}  # path -> the open descriptor that holds this process's request
+_GRANTED = "CPU wake-up latency 0 µs"
 
 
 def cpu_plan(cpus: set[int] | None = None) -> tuple[set[int], set[int]]:
@@ -79,7 +80,7 @@ def hold_wakeup_latency(path: str | None = None) -> str:
     0 µs"`` or ``"CPU wake-up latency refused (Permission denied)"``. Asking again while held changes nothing."""
     path = PM_QOS_PATH if path is None else path
     if path in _held:
-        return "CPU wake-up latency 0 µs"
+        return _GRANTED
     try:
         fd = os.open(path, os.O_WRONLY | os.O_CLOEXEC)
     except OSError as exc:
@@ -90,7 +91,12 @@ def hold_wakeup_latency(path: str | None = None) -> str:
         os.close(fd)
         return f"CPU wake-up latency refused ({_why(exc)})"
     _held[path] = fd
-    return "CPU wake-up latency 0 µs"
+    return _GRANTED
+
+
+def wakeup_latency_held(path: str | None = None) -> bool:
+    """True while this process holds the request of :func:`hold_wakeup_latency`."""
+    return (PM_QOS_PATH if path is None else path) in _held
 
 
 def release_wakeup_latency(path: str | None = None) -> None:

@@ -36,6 +36,7 @@ def test_wakeup_latency_request_is_an_s32_zero_held_open_until_released(tmp_path
     device.write_bytes(b"")
     try:
         assert realtime.hold_wakeup_latency(str(device)) == "CPU wake-up latency 0 µs"
+        assert realtime.wakeup_latency_held(str(device))
         assert device.read_bytes() == b"\0\0\0\0"  # Documentation/power/pm_qos_interface.rst: an s32, in µs
         fd = realtime._held[str(device)]
         assert realtime.hold_wakeup_latency(str(device)) == "CPU wake-up latency 0 µs"  # held once, not reopened
@@ -43,7 +44,7 @@ def test_wakeup_latency_request_is_an_s32_zero_held_open_until_released(tmp_path
         os.fstat(fd)  # still open: the request stands while the process lives
     finally:
         realtime.release_wakeup_latency(str(device))
-    assert str(device) not in realtime._held
+    assert not realtime.wakeup_latency_held(str(device))
     with pytest.raises(OSError):
         os.fstat(fd)  # closed: the kernel withdraws the request
     realtime.release_wakeup_latency(str(device))  # nothing held: nothing to do
@@ -53,8 +54,7 @@ def test_wakeup_latency_on_this_kernel_reads_back_zero_while_held():
     """On the real device (root): while a process holds its request, the device reads back the machine's
     effective constraint, 0 µs; without permission the refusal says why."""
     code = ("import struct; from mlink_sim.aio import realtime as r; print(r.hold_wakeup_latency()); "
-            "import os; print(struct.unpack('=i', open(r.PM_QOS_PATH, 'rb').read(4))[0] "
-            "if 'refused' not in r.hold_wakeup_latency() else '-')")
+            "print(struct.unpack('=i', open(r.PM_QOS_PATH, 'rb').read(4))[0] if r.wakeup_latency_held() else '-')")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=30).stdout.split("\n")
     if out[0] == "CPU wake-up latency 0 µs":
         assert out[1] == "0"
