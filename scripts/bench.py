@@ -73,6 +73,7 @@ from mlink_sim.aio.session import NetworkSession  # noqa: E402
 from mlink_sim.aio.udp import new_event_loop  # noqa: E402
 from mlink_sim.cli.logs import configure_logging  # noqa: E402
 from mlink_sim.config import format_ns, load_config, parse_duration_ns  # noqa: E402
+from mlink_sim.config.units import parse_arrival_poll  # noqa: E402
 
 STATIONS = (1, 8, 9, 15, 30, 62)  # the issue's sweep, plus 8 for the 250 µs × 8 stations target
 CYCLES = ("250us", "500us", "1ms", "2ms")
@@ -135,11 +136,12 @@ def applicable(link: str, stations: int, cycle_ns: int) -> str | None:
     return None
 
 
-def write_config(path: Path, link: str, stations: int, cycle_ns: int) -> int:
-    """A network of *stations* SI-T3 (ML-II, 17-byte) or SI-ET3 (ML-III, 32-byte) cards; returns the frame size."""
+def write_config(path: Path, link: str, stations: int, cycle_ns: int, arrival_poll: str = "auto") -> int:
+    """A network of *stations* SI-T3 (ML-II, 17-byte) or SI-ET3 (ML-III, 32-byte) cards, its workers' arrival poll
+    as *arrival_poll* says; returns the frame size."""
     card, size, first = ("si-t3", 17, 0x21) if link == "ML2" else ("si-et3", 32, 0x03)
     lines = ["[network]", f'name = "bench-{link}-{stations}"', f'link = "{link}"',
-             f'transmission_cycle = "{cycle_ns}ns"', ""]
+             f'transmission_cycle = "{cycle_ns}ns"', f'arrival_poll = "{arrival_poll}"', ""]
     for i in range(stations):
         lines += ["[[station]]", f"address = 0x{first + i:02X}", f'card = "{card}"', f'link = "{link}"',
                   f"frame_size = {size}", 'params = { "b1-01" = 3, "b1-02" = 3 }', ""]
@@ -383,7 +385,7 @@ def chart(cells: list[Cell], path: Path) -> None:
 
 # ----------------------------------------------------------------------------------------------- main
 def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycle: int, workers: int,
-             duration_s: float, ios: list[str]) -> list[Cell]:
+             duration_s: float, ios: list[str], arrival_poll: str = "auto") -> list[Cell]:
     """One cell: the network once per I/O mode of *ios*, then both floors, each for *duration_s*; never raises.
     The floors are measured once and shared by the cell's I/O modes."""
     cells = [Cell(link, n, cycle, min(workers, n), duration_s, io, layout="shared" if workers < n else "station")
@@ -394,7 +396,7 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
             cell.status = reason
         return cells
     path = tmp / f"{link}-{n}-{cycle}.toml"
-    size = write_config(path, link, n, cycle)
+    size = write_config(path, link, n, cycle, arrival_poll)
     floors: dict[str, dict[str, Any] | None] = {"floor": None, "floor_batched": None}
     for cell in cells:
         cell.frame_size = size
@@ -500,11 +502,15 @@ def main() -> int:
     ap.add_argument("--pm-qos", action="store_true",
                     help="hold a CPU wake-up latency of 0 µs (/dev/cpu_dma_latency) for the whole run, floors and "
                          "simulator alike, as mlink-sim up --realtime does (root only)")
+    ap.add_argument("--arrival-poll", default="auto",
+                    help="the workers' arrival poll ([network] arrival_poll): auto (the default, as mlink-sim up), "
+                         "off, or a lead such as 80us (docs/performance.md)")
     args = ap.parse_args()
     if args.render is not None:
         return render(args.render, args.markdown, args.png)
     try:
         plan = _parse(args)
+        parse_arrival_poll(args.arrival_poll)
     except ValueError as exc:
         print(f"bench.py: {exc}", file=sys.stderr)
         return 2
@@ -518,14 +524,16 @@ def main() -> int:
     loop = new_event_loop()
     with tempfile.TemporaryDirectory(prefix="mlink-bench-") as tmp:
         cells = [c for link, n, cycle, seconds in plan
-                 for c in run_cell(loop, Path(tmp), link, n, cycle, args.workers, seconds, args.io)]
+                 for c in run_cell(loop, Path(tmp), link, n, cycle, args.workers, seconds, args.io,
+                                   args.arrival_poll)]
     loop.close()
     if pm_qos is not None:
         print(f"--pm-qos: {pm_qos}, held for the floors and the simulator alike")
     print(markdown(cells) if args.markdown else table(cells))
     doc: dict[str, Any] = {
         "host": {"node": platform.node(), "cpus": os.cpu_count(), "python": platform.python_version(),
-                 "kernel": platform.release(), "load_avg": os.getloadavg(), "pm_qos": pm_qos},
+                 "kernel": platform.release(), "load_avg": os.getloadavg(), "pm_qos": pm_qos,
+                 "arrival_poll": args.arrival_poll},
         "cells": [asdict(c) for c in cells]}
     if args.targets:
         text, rows = bench_targets.verdicts(cells)

@@ -81,6 +81,7 @@ class SlaveServer:
         absorb_ns: int = 0,
         capture: Any = None,
         shared: bool = False,
+        arrival_poll: tuple[int, int | None] | None = None,
     ) -> None:
         """*capture*: a :class:`~mlink_sim.capture.CaptureWriter`: every station socket is tapped, and each
         station's phase changes (seen by the 1 ms tick) become notes.
@@ -89,9 +90,15 @@ class SlaveServer:
         socket, as stations share a bus: the station address of each datagram (byte 3, docs/wire-format.md) picks
         its station, and the answers to one read go back in one burst (``mmsg.BurstSocket.send_burst``: one
         offloaded packet per burst where the kernel can). A datagram for no station hosted there is counted in
-        :attr:`unaddressed`, as a station on a bus ignores frames for others."""
+        :attr:`unaddressed`, as a station on a bus ignores frames for others.
+
+        *arrival_poll*: :func:`~mlink_sim.config.units.parse_arrival_poll`'s setting (None: off). Each shared socket,
+        or the worker's only socket, is then read in a short busy-poll around the time its next burst of commands is
+        due (:class:`~mlink_sim.aio.arrival.ArrivalPoll`). The sockets of a worker hosting several stations each on
+        its own port are not: their polls would hold each other up."""
         self.stations = stations
         self.shared = shared
+        self.arrival_poll = arrival_poll
         self._buses: list[Bus] = []  #: one per shared socket (its ``unaddressed`` count)
         #: host-stall policy (docs/timing.md): 0 = strict, else the stall bound. With "absorb" a backlog that a
         #: stall of this worker of up to the bound left on a socket is answered in full (late, not superseded).
@@ -129,7 +136,8 @@ class SlaveServer:
                 log.info("eeprom_stale_temps_removed", path=str(hs.eeprom), count=n)
         try:
             wrap = None if self._capture is None else partial(tap, self._capture)
-            for group in self._port_groups():
+            groups = self._port_groups()
+            for group in groups:
                 first = group[0]
                 if len(group) == 1:
                     endpoint = await open_batch_endpoint(self._receiver(first), first.host, first.port, wrap=wrap,
@@ -141,6 +149,8 @@ class SlaveServer:
                     endpoint.enable_gro()  # the master sends each cycle's commands to this port as one burst
                 for hs in group:
                     hs.endpoint, hs.port = endpoint, endpoint.local_address[1]
+                if len(group) > 1 or len(groups) == 1:
+                    endpoint.poll_arrivals(self.arrival_poll)
             if self._control_addr is not None:
                 self._control = await open_endpoint(self._on_control, *self._control_addr)
         except OSError:
@@ -309,11 +319,12 @@ class SlaveServer:
     # -- control ----------------------------------------------------------------------------------------------
 
     def cpu(self) -> dict[str, Any]:
-        """This process's CPU use since start (``{"op": "cpu"}``: small at any station count)."""
+        """This process's CPU use since start, and its arrival polls' counters (``{"op": "cpu"}``: small at any
+        station count)."""
         wall = time.monotonic() - self._started_wall
         cpu = _cpu_seconds() - self._started_cpu
         return {"ok": True, "pid": os.getpid(), "wall_s": wall, "cpu_s": cpu,
-                "cpu_pct": 100.0 * cpu / wall if wall > 0 else 0.0}
+                "cpu_pct": 100.0 * cpu / wall if wall > 0 else 0.0, "arrival_poll": self._poll_stats()}
 
     def stats(self, since: int = 0) -> dict[str, Any]:
         """Snapshot of every hosted station plus this process's CPU use and its stalls since *since* (monotonic
@@ -324,6 +335,17 @@ class SlaveServer:
                 "stall_totals": self.stalls.totals("self", since),
                 "stations": {f"{hs.station.address:#04x}": to_jsonable(hs.station.snapshot())
                              for hs in self.stations}}
+
+    def _poll_stats(self) -> dict[str, int]:
+        """The arrival polls' counters, summed over the sockets (:meth:`ArrivalPoll.stats
+        <mlink_sim.aio.arrival.ArrivalPoll.stats>`; the largest learned cycle); empty without a poll."""
+        polls = list({id(ep): ep.poll for hs in self.stations
+                      if (ep := hs.endpoint) is not None and ep.poll is not None}.values())
+        total: dict[str, int] = {}
+        for poll in polls:
+            for key, value in poll.stats().items():
+                total[key] = max(total.get(key, 0), value) if key == "period_ns" else total.get(key, 0) + value
+        return total
 
     def _on_control(self, data: bytes, addr: Any) -> None:
         try:

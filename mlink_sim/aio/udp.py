@@ -4,16 +4,19 @@ from __future__ import annotations
 
 import asyncio
 import socket
+import time
 from collections.abc import Callable
 from typing import Any
 
 from .._log import get_logger
 from . import mmsg
+from .arrival import ArrivalPoll
 
 __all__ = ["new_event_loop", "stop_on_signals", "DatagramEndpoint", "open_endpoint", "BatchEndpoint", "open_batch_endpoint", "loop_name",
            "resolve", "bind_address_for", "bound_socket", "close_watched", "BindError"]
 
 log = get_logger("mlink_sim.aio.udp")
+_mono = time.monotonic_ns
 
 
 def new_event_loop() -> asyncio.AbstractEventLoop:
@@ -151,34 +154,49 @@ class BatchEndpoint:
         self._on_batch = on_batch
         self._burst = burst
         self.errors = 0
+        self.poll: ArrivalPoll | None = None  #: the arrival poll, once :meth:`poll_arrivals` set one
         self._loop = asyncio.get_running_loop()
         self._loop.add_reader(sock.fileno(), self._on_readable)
 
+    def poll_arrivals(self, setting: tuple[int, int | None] | None) -> bool:
+        """Read the bursts in a short busy-poll around the time each is due (:class:`~mlink_sim.aio.arrival.
+        ArrivalPoll`, *setting* from :func:`~mlink_sim.config.units.parse_arrival_poll`); True if one was set."""
+        if self.poll is None and self._sock is not None:
+            self.poll = ArrivalPoll.create(self._loop, self._read, setting)
+        return self.poll is not None
+
     def read_pending(self) -> None:
         """Hand over what is waiting now (at most *burst*), as the reader callback does."""
-        self._on_readable()
+        self._read()
 
     def _on_readable(self) -> None:
+        self._read()
+
+    def _read(self) -> bool:
+        """One read of what is waiting, handed over; True if there was any."""
         sock = self._sock
         if sock is None:
-            return
+            return False
         burst = getattr(sock, "recvfrom_burst", None)
         if burst is not None:  # recvmmsg (mlink_sim.aio.mmsg): one system call for what is waiting
             batch = [item for got in mmsg.drain(burst, self._burst, self._count_error) for item in got]
-            if batch:
-                self._on_batch(batch)
-            return
-        recvfrom = sock.recvfrom
-        batch = []
-        for _ in range(self._burst):
-            try:
-                batch.append(recvfrom(4096))
-            except BlockingIOError:
-                break
-            except OSError:  # e.g. ConnectionRefusedError after an ICMP port unreachable
-                self.errors += 1
-        if batch:
-            self._on_batch(batch)
+        else:
+            recvfrom = sock.recvfrom
+            batch = []
+            for _ in range(self._burst):
+                try:
+                    batch.append(recvfrom(4096))
+                except BlockingIOError:
+                    break
+                except OSError:  # e.g. ConnectionRefusedError after an ICMP port unreachable
+                    self.errors += 1
+        if not batch:
+            return False
+        poll = self.poll
+        if poll is not None:
+            poll.arrived(_mono())
+        self._on_batch(batch)
+        return True
 
     def _count_error(self, exc: OSError) -> None:  # e.g. ConnectionRefusedError after an ICMP port unreachable
         self.errors += 1
@@ -218,6 +236,9 @@ class BatchEndpoint:
         return sockname[0], sockname[1]
 
     def close(self) -> None:
+        poll, self.poll = self.poll, None
+        if poll is not None:
+            poll.close()
         sock, self._sock = self._sock, None
         if sock is not None:
             close_watched(self._loop, sock)

@@ -18,6 +18,7 @@ from ..aio.slave import HostedStation, SlaveServer
 from ..aio.stations import StationSpec, build_station, spec_for
 from ..aio.udp import BindError, loop_name, new_event_loop, stop_on_signals
 from ..config import ConfigError, load_config, parse_address, parse_duration_ns, parse_endpoint
+from ..config.units import parse_arrival_poll
 from ..wire import Link
 from .capture_opts import capture_options, open_capture_or_exit
 from .inputs import InputError, check_stations
@@ -127,12 +128,16 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
               help="With --config: the stations of one link share one UDP port where their endpoints allow it "
                    "(port 0, or the same port); the address byte picks the station, as on a bus. What the packed "
                    "workers of `mlink-sim up` do (docs/performance.md).")
+@click.option("--arrival-poll", "arrival_poll", default="auto", show_default=True,
+              help="auto: at cycles up to 500us, busy-poll from 80us before each burst of commands is due (no "
+                   "wake-up on arrival); a lead such as 80us: that lead at any cycle; off: never "
+                   "(docs/performance.md).")
 @click.option("--realtime", "rt", is_flag=True,
               help="SCHED_FIFO, locked memory, off the master's CPU, where permitted (docs/timing.md).")
 @capture_options
 def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_path, only, endpoints, state_dir,
-              control, log_json, log_level, ready_json, host_stalls, stall_bound, shared_port, rt, capture_path,
-              capture_max) -> None:
+              control, log_json, log_level, ready_json, host_stalls, stall_bound, shared_port, arrival_poll, rt,
+              capture_path, capture_max) -> None:
     """Serve one station over UDP until SIGINT/SIGTERM (or several stations of a --config)."""
     configure_logging(json=log_json, level=log_level)
     state = Path(state_dir) if state_dir else None
@@ -144,6 +149,10 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
         raise click.BadParameter(f"expected a duration above 0 and at most 1s, got {stall_bound!r}",
                                  param_hint="--stall-bound")
     absorb_ns = bound if host_stalls == "absorb" else 0
+    try:
+        poll = parse_arrival_poll(arrival_poll)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--arrival-poll") from None
     try:
         if config_path:
             if card or station_text:
@@ -171,7 +180,7 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
     control_addr = None if control == "off" else parse_endpoint(control)
     capture = open_capture_or_exit("slave", capture_path, capture_max)
     server = SlaveServer(stations, state_dir=state, control=control_addr, absorb_ns=absorb_ns, capture=capture,
-                         shared=shared_port)
+                         shared=shared_port, arrival_poll=poll)
     loop = new_event_loop()
     try:
         code = loop.run_until_complete(_serve(server, ready_json, log_json, rt))

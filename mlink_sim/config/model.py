@@ -16,7 +16,7 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_valida
 from ..faults.spec import FAULT_ACTIONS
 from ..wire.codes import Link
 from .faults import FAULT_FIELDS, check_fault_step, check_fault_targets, fault_end_ns
-from .units import format_ns, parse_duration_ns
+from .units import format_ns, parse_arrival_poll, parse_duration_ns
 
 __all__ = [
     "CARD_LINKS",
@@ -401,6 +401,10 @@ class NetworkConfig(BaseModel):
         "mlink-sim's own processes delayed (up to stall_bound) late instead of losing them; 'strict' judges "
         "by the wall clock as the manuals do (docs/timing.md, 'Host stalls')")
     stall_bound: DurationNs = Field(100_000_000, description="longest stall 'absorb' absorbs, e.g. '100ms'")
+    arrival_poll: str = Field(
+        "auto", description="the slave workers' arrival poll: 'auto' busy-polls from 80us before each burst of "
+        "commands is due at cycles up to 500us, a lead such as '80us' does so at any cycle, 'off' never "
+        "(docs/performance.md, 'The worker's arrival poll')")
 
     @model_validator(mode="after")
     def _jitter(self) -> NetworkConfig:
@@ -415,6 +419,12 @@ class NetworkConfig(BaseModel):
             raise ValueError("expected a duration above 0 and at most 1s, e.g. '50ms'")
         return v
 
+    @field_validator("arrival_poll")
+    @classmethod
+    def _poll(cls, v: str) -> str:
+        parse_arrival_poll(v)  # ValueError with the accepted forms
+        return v
+
     @property
     def absorb_ns(self) -> int:
         """The stall bound when the policy is 'absorb', else 0 (nothing absorbed)."""
@@ -422,8 +432,9 @@ class NetworkConfig(BaseModel):
 
     def slave_flags(self) -> list[str]:
         """The ``mlink-sim slave`` flags that give a slave this network's host-stall policy (``up``'s workers,
-        the compose testbed's station containers)."""
-        return ["--host-stalls", self.host_stalls, "--stall-bound", f"{self.stall_bound}ns"]
+        the compose testbed's station containers), and their arrival poll."""
+        return ["--host-stalls", self.host_stalls, "--stall-bound", f"{self.stall_bound}ns",
+                "--arrival-poll", self.arrival_poll]
 
 
 class Config(BaseModel):

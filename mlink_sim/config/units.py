@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["parse_duration_ns", "format_ns", "UNITS_NS"]
+__all__ = ["parse_duration_ns", "format_ns", "parse_arrival_poll", "UNITS_NS", "AUTO_POLL_LEAD_NS", "AUTO_POLL_MAX_PERIOD_NS"]
 
 UNITS_NS = {"ns": 1, "us": 1_000, "µs": 1_000, "ms": 1_000_000, "s": 1_000_000_000, "min": 60_000_000_000}
 _RE = re.compile(r"^\s*([0-9]+(?:\.[0-9]*)?|\.[0-9]+)\s*(ns|us|µs|ms|s|min)\s*$")
@@ -36,3 +36,26 @@ def format_ns(ns: int | float) -> str:
         if abs(ns) >= scale:
             return f"{ns / scale:.4g}{unit}"
     return f"{ns:.4g}ns"
+
+
+AUTO_POLL_LEAD_NS = 80_000  #: arrival poll "auto": from this long before a burst is due (docs/performance.md)
+AUTO_POLL_MAX_PERIOD_NS = 500_000  #: arrival poll "auto": only at transmission cycles up to this
+
+
+def parse_arrival_poll(text: str) -> tuple[int, int | None] | None:
+    """A worker's arrival poll (``mlink-sim slave --arrival-poll``, ``[network] arrival_poll``; the poll itself is
+    ``mlink_sim.aio.arrival.ArrivalPoll``): ``auto``, ``off`` or a lead time (``80us``) as ``(lead_ns,
+    max_period_ns)``; None for off, ``max_period_ns`` None for a poll at any cycle. ValueError for anything else,
+    or a lead not between 1 µs and 1 ms."""
+    word = text.strip().lower()
+    if word == "off":
+        return None
+    if word == "auto":
+        return AUTO_POLL_LEAD_NS, AUTO_POLL_MAX_PERIOD_NS
+    try:
+        lead = parse_duration_ns(word, default_unit="us")
+    except ValueError:
+        lead = 0
+    if not 1_000 <= lead <= 1_000_000:
+        raise ValueError(f"expected 'auto', 'off' or a lead between 1us and 1ms such as '80us', got {text!r}")
+    return lead, None

@@ -8,6 +8,7 @@ import socket
 
 from mlink_sim.aio.slave import HostedStation, SlaveServer
 from mlink_sim.cards import create_card, settings_for
+from mlink_sim.config.units import parse_arrival_poll
 from mlink_sim.wire import Frame, Kind, Link, decode, encode, ml2
 
 TCYCLE = 1_000_000
@@ -173,5 +174,34 @@ async def test_stations_of_different_links_keep_ports_of_their_own() -> None:
     await server.start()
     try:  # the same address on two links: two buses, two ports
         assert server.stations[0].port != server.stations[1].port
+    finally:
+        await server.close()
+
+
+async def test_arrival_poll_on_each_shared_socket_or_a_lone_station_s_only() -> None:
+    """``SlaveServer(arrival_poll=…)`` (mlink_sim.aio.arrival): a poll on each shared socket and on a worker's only
+    socket, none on the sockets of a worker hosting several stations each on its own port (their polls would hold
+    each other up); the worker's ``cpu`` reply carries the polls' counters."""
+    setting = parse_arrival_poll("auto")
+
+    def cards(*addresses: int) -> list[HostedStation]:
+        return [HostedStation(create_card("si-t3", settings=settings_for("si-t3", a, 17, []), now=0), "127.0.0.1", 0)
+                for a in addresses]
+
+    for stations, shared, polls in ((cards(0x21, 0x22), True, 1), (cards(0x21), False, 1),
+                                    (cards(0x21, 0x22), False, 0)):
+        server = SlaveServer(stations, control=None, shared=shared, arrival_poll=setting)
+        await server.start()
+        try:
+            endpoints = {id(hs.endpoint): hs.endpoint for hs in server.stations}.values()
+            assert sum(ep is not None and ep.poll is not None for ep in endpoints) == polls
+            assert set(server.cpu()["arrival_poll"]) == ({"period_ns", "windows", "caught", "spun_ns"} if polls
+                                                         else set())
+        finally:
+            await server.close()
+    server = SlaveServer(cards(0x21), control=None)  # the default: no poll
+    await server.start()
+    try:
+        assert server.stations[0].endpoint is not None and server.stations[0].endpoint.poll is None
     finally:
         await server.close()

@@ -187,3 +187,13 @@ def test_shipped_examples_load_by_name_and_configs_is_the_package_folder(tmp_pat
     assert load_config("configs/quickstart.toml").network.name == "quickstart"
     with pytest.raises(ConfigError, match="shipped examples, usable by name: .*quickstart"):
         load_config("quickstrat")
+
+
+def test_arrival_poll_reaches_the_workers_flags() -> None:
+    """``[network] arrival_poll`` (docs/configuration.md): "auto" by default, passed to every slave worker as
+    ``--arrival-poll`` with the host-stall flags; anything but auto, off or a lead of 1 µs–1 ms is refused."""
+    assert parse_config(BASE).network.slave_flags()[-2:] == ["--arrival-poll", "auto"]
+    config = parse_config(BASE.replace('"2ms"', '"2ms"\narrival_poll = "60us"'))
+    assert config.network.slave_flags()[-2:] == ["--arrival-poll", "60us"]
+    with pytest.raises(ConfigError, match=r"network\.arrival_poll.*'auto', 'off' or a lead"):
+        parse_config(BASE.replace('"2ms"', '"2ms"\narrival_poll = "always"'), "net.toml")

@@ -71,6 +71,9 @@ def test_slave_rejects_bad_input_with_exit_2() -> None:
     assert r.returncode == 2 and "frame size 64" in r.stderr
     r = run_cli("slave", "--card", "si-t3", "--station", "0x21", "--bogus")
     assert r.returncode == 2 and "No such option" in r.stderr
+    r = run_cli("slave", "--card", "si-t3", "--station", "0x21", "--arrival-poll", "soon")
+    assert r.returncode == 2 and "--arrival-poll" in r.stderr and "'auto', 'off' or a lead" in r.stderr
+    assert "Traceback" not in r.stderr
 
 
 def test_probe_answers_from_a_live_slave_and_fails_on_a_dead_port(slave) -> None:

@@ -99,7 +99,7 @@ def test_plan_commands():
     assert slave[:4] == ["ip", "netns", "exec", "mls-42-s21"]
     assert slave[4:] == ["py", "-m", "mlink_sim", "slave", "--config", "/c.toml", "--only", "0x21",
                          "--endpoint", "0x21=198.18.0.2:40000", "--ready-json",
-                         "--host-stalls", "absorb", "--stall-bound", "100000000ns"]  # fmt: skip
+                         "--host-stalls", "absorb", "--stall-bound", "100000000ns", "--arrival-poll", "auto"]  # fmt: skip
     master = plan.master_argv("/c.toml", report="/r.json", duration="5s", asserts=("missed == 0",), python="py")
     assert master[:4] == ["ip", "netns", "exec", "mls-42-m"]
     assert master[4:9] == ["py", "-m", "mlink_sim", "master", "/c.toml"]

@@ -1,0 +1,131 @@
+"""The worker's arrival poll: a socket read in a short busy-poll around the time the next burst of commands is due,
+instead of a wake-up when it comes (docs/performance.md, "The worker's arrival poll").
+
+A master sends its commands once per transmission cycle, so a slave worker knows when the next burst will come:
+one cycle after the last. Left to the event loop, the worker sleeps until the burst arrives and is then woken;
+on a virtual machine whose idle CPU halts, that wake-up took 36 µs (median) of the 250 µs cycle, and in stretches
+it came late enough that one read held two cycles' commands (docs/performance.md, "The sweep at 1 ms again").
+:class:`ArrivalPoll` learns the cycle from the bursts' arrivals, wakes *lead_ns* before the next one is due (a
+timerfd) and reads the socket without blocking until the burst is there, for at most *lead_ns* past its due time;
+then the reader (``loop.add_reader``) has it again. A wake-up before the burst costs the worker its spin; a
+wake-up when the burst comes costs the chain of the exchange.
+
+The learned cycle is the median of the gaps between the last :data:`SAMPLES` bursts (reads less than
+:data:`SAME_BURST_NS` apart are one burst). With a ``max_period_ns`` (as "auto" sets) the poll is armed only
+while that cycle is at most it: at 1 ms and beyond the wake-up is a small part of the
+cycle and the spin would be CPU spent for little. The setting (``auto``, ``off``, a lead) is parsed by
+:func:`mlink_sim.config.units.parse_arrival_poll`: "auto" wakes :data:`~mlink_sim.config.units.AUTO_POLL_LEAD_NS`
+(80 µs: a timerfd woke the halted worker ≈ 47 µs late, and a 50 µs lead caught 3–23 % of the bursts, 80 µs 99.8 %) before the burst is due, at cycles up to
+:data:`~mlink_sim.config.units.AUTO_POLL_MAX_PERIOD_NS` (500 µs).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Callable
+
+from ._timerfd import TimerFD, timerfd_supported
+
+__all__ = ["ArrivalPoll"]
+
+SAMPLES = 16  #: gaps between bursts from which the cycle is learned (their median)
+SAME_BURST_NS = 20_000  #: reads closer than this are one burst (the rest of a burst read a moment later)
+_mono = time.monotonic_ns
+
+
+class ArrivalPoll:
+    """Polls with *read* (non-blocking: True when it handed a burst over) from *lead_ns* before the next burst is
+    due to *lead_ns* after. The owner calls :meth:`arrived` with the time of every burst read (by the poll or by
+    the reader); :meth:`close` stops it. *max_period_ns*: poll only while the learned cycle is at most this (None:
+    at any cycle). :meth:`create` gives None where no timerfd can be made (the reader alone then)."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, read: Callable[[], bool], lead_ns: int,
+                 max_period_ns: int | None) -> None:
+        self._loop = loop
+        self._read = read
+        self.lead_ns = lead_ns
+        self.max_period_ns = max_period_ns
+        self.period_ns = 0  #: the cycle learned from the bursts (0: not yet)
+        self.windows = 0  #: polls begun
+        self.caught = 0  #: of those, the burst read by the poll
+        self.spun_ns = 0  #: time spent polling before the burst (or to the end of a window without one)
+        self.poll_at_ns = 0  #: when the last poll set begins (monotonic ns)
+        self._last = 0
+        self._due = 0
+        self._polling = False
+        self._gaps: list[int] = []
+        self._tfd: TimerFD | None = TimerFD()
+        loop.add_reader(self._tfd.fileno(), self._on_timer)
+
+    @classmethod
+    def create(cls, loop: asyncio.AbstractEventLoop, read: Callable[[], bool],
+               setting: tuple[int, int | None] | None) -> ArrivalPoll | None:
+        """A poll for *setting* (:func:`~mlink_sim.config.units.parse_arrival_poll`); None for off or where timerfd is missing."""
+        if setting is None or not timerfd_supported():
+            return None
+        return cls(loop, read, *setting)
+
+    @property
+    def armed(self) -> bool:
+        """True while a next burst's poll is set (a cycle learned and within ``max_period_ns``)."""
+        return self._due > 0
+
+    def arrived(self, now_ns: int) -> None:
+        """A burst was read at *now_ns*: learn the cycle, and set the poll for the next one."""
+        last = self._last
+        if now_ns - last < SAME_BURST_NS:
+            return
+        self._last = now_ns
+        if last:
+            gaps = self._gaps
+            gaps.append(now_ns - last)
+            if len(gaps) == SAMPLES:
+                gaps.sort()
+                self.period_ns = gaps[SAMPLES // 2]
+                gaps.clear()
+        period, tfd = self.period_ns, self._tfd
+        if tfd is None or not period or (self.max_period_ns is not None and period > self.max_period_ns):
+            self._due = 0
+            return
+        lead = min(self.lead_ns, period // 2)
+        due = self._due
+        # Read by the reader a little after it was due: the burst most likely came on time and the wake-up was late,
+        # so the next is due a cycle after this one was; read in the poll, or far from its time: a cycle after now.
+        anchor = due if due and not self._polling and 0 <= now_ns - due <= lead else now_ns
+        self._due = anchor + period
+        self.poll_at_ns = self._due - lead
+        tfd.set_abs(self.poll_at_ns)
+
+    def _on_timer(self) -> None:
+        tfd = self._tfd
+        if tfd is None or not tfd.drain() or not self._due:
+            return
+        self.windows += 1
+        read = self._read
+        start = now = _mono()
+        end = self._due + min(self.lead_ns, self.period_ns // 2)
+        self._polling = True
+        try:
+            while now < end:
+                if read():
+                    self.caught += 1
+                    break
+                now = _mono()
+        finally:
+            self._polling = False
+        self.spun_ns += now - start
+
+    def stats(self) -> dict[str, int]:
+        """The poll's counters, for the worker's stats."""
+        return {"period_ns": self.period_ns, "windows": self.windows, "caught": self.caught, "spun_ns": self.spun_ns}
+
+    def close(self) -> None:
+        tfd, self._tfd = self._tfd, None
+        self._due = 0
+        if tfd is not None:
+            try:
+                self._loop.remove_reader(tfd.fileno())
+            except (RuntimeError, ValueError, OSError):
+                pass  # loop already closed
+            tfd.close()

@@ -1,0 +1,138 @@
+"""mlink_sim.aio.arrival.ArrivalPoll: the cycle learned from the bursts' arrivals (their median gap), the poll set a
+lead before the next burst is due (a cycle after the last, or after the last one's due time when a late wake-up
+read it), none above ``max_period_ns``; on a real socket the bursts are read in the poll and every datagram is
+handed over once. The setting's parser: mlink_sim.config.units.parse_arrival_poll."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+import time
+
+import pytest
+
+from mlink_sim.aio._timerfd import timerfd_supported
+from mlink_sim.aio.arrival import SAMPLES, ArrivalPoll
+from mlink_sim.aio.udp import open_batch_endpoint
+from mlink_sim.config.units import AUTO_POLL_LEAD_NS, AUTO_POLL_MAX_PERIOD_NS, parse_arrival_poll
+
+pytestmark = pytest.mark.skipif(not timerfd_supported(), reason="no timerfd here")
+
+US = 1_000
+
+
+class _Recorder:
+    """An ArrivalPoll fed arrival times by hand, on a loop that never runs: what it sets is read, never fired."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, lead_ns: int, max_period_ns: int | None) -> None:
+        self.poll = ArrivalPoll(loop, lambda: False, lead_ns, max_period_ns)
+        self.set: list[int] = []
+
+    def feed(self, times: list[int]) -> None:
+        for t in times:
+            before = self.poll.poll_at_ns
+            self.poll.arrived(t)
+            if self.poll.armed and self.poll.poll_at_ns != before:
+                self.set.append(self.poll.poll_at_ns)
+
+
+def test_the_cycle_is_the_median_gap_and_the_poll_is_set_a_lead_before_the_next_burst() -> None:
+    loop = asyncio.new_event_loop()
+    r = _Recorder(loop, 80 * US, 500 * US)
+    try:
+        start = 1_000_000_000
+        # 250 µs bursts, one read late by 30 µs and one burst missed (a 500 µs gap): the median is the cycle
+        times = [start + k * 250 * US for k in range(SAMPLES + 2) if k != 7]
+        times[3] += 30 * US
+        r.feed(times[:SAMPLES + 1])
+        assert r.poll.period_ns == 250 * US and r.poll.armed
+        assert r.set == [times[SAMPLES] + 250 * US - 80 * US]  # nothing set before the cycle was known
+        r.feed([times[SAMPLES] + 5 * US])  # the rest of the same burst, read a moment later: nothing changes
+        assert len(r.set) == 1
+    finally:
+        r.poll.close()
+        loop.close()
+
+
+def test_a_late_wake_up_keeps_the_phase_and_a_burst_far_from_its_time_resets_it() -> None:
+    loop = asyncio.new_event_loop()
+    r = _Recorder(loop, 80 * US, None)
+    try:
+        t = [k * 250 * US + 10**9 for k in range(SAMPLES + 1)]
+        r.feed(t)
+        due = t[-1] + 250 * US
+        r.feed([due + 60 * US])  # read by the reader 60 µs after its due time (≤ the lead): a late wake-up
+        assert r.set[-1] == due + 250 * US - 80 * US
+        due += 250 * US
+        r.feed([due + 120 * US])  # 120 µs late (> the lead): the master's own lateness; a cycle after this read
+        assert r.set[-1] == due + 120 * US + 250 * US - 80 * US
+        due += 120 * US + 250 * US
+        r.poll._polling = True  # read in the poll: at its arrival, the phase follows it
+        r.feed([due + 20 * US])
+        r.poll._polling = False
+        assert r.set[-1] == due + 20 * US + 250 * US - 80 * US
+    finally:
+        r.poll.close()
+        loop.close()
+
+
+def test_no_poll_above_the_longest_cycle() -> None:
+    loop = asyncio.new_event_loop()
+    r = _Recorder(loop, 80 * US, 500 * US)  # "auto": polls only up to 500 µs
+    lead = _Recorder(loop, 900 * US, None)  # a lead given: at any cycle, at most half a cycle ahead
+    try:
+        r.feed([10**9 + k * 1_000_000 for k in range(2 * SAMPLES + 1)])
+        assert r.poll.period_ns == 1_000_000 and not r.poll.armed and r.set == []
+        lead.feed([10**9 + k * 1_000_000 for k in range(SAMPLES + 1)])
+        assert lead.poll.armed and lead.set == [10**9 + (SAMPLES + 1) * 1_000_000 - 500 * US]
+    finally:
+        r.poll.close()
+        lead.poll.close()
+        loop.close()
+
+
+async def test_bursts_on_a_socket_are_read_in_the_poll_and_none_is_lost() -> None:
+    """Bursts of 3 datagrams every 4 ms from another thread, read with a 1 ms lead (2 ms of poll around each):
+    once the cycle is learned the poll reads bursts (not only the reader's wake-ups), and every datagram reaches
+    the receiver once."""
+    got: list[bytes] = []
+    ep = await open_batch_endpoint(lambda batch: got.extend(d for d, _ in batch))
+    assert ep.poll_arrivals(parse_arrival_poll("1ms")) and ep.poll is not None
+    assert ep.poll_arrivals(parse_arrival_poll("off"))  # set once: the first setting stays
+    bursts = SAMPLES + 12
+    expected = sorted(bytes([k, i]) for k in range(bursts) for i in range(3))
+
+    def send() -> None:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
+            for k in range(bursts):
+                for i in range(3):
+                    tx.sendto(bytes([k, i]), ep.local_address)
+                time.sleep(0.004)
+
+    try:
+        await asyncio.to_thread(send)
+        for _ in range(100):
+            if len(got) >= len(expected):
+                break
+            await asyncio.sleep(0.01)
+        stats = ep.poll.stats()
+        assert sorted(got) == expected
+        assert 3_000 * US <= stats["period_ns"] <= 12_000 * US  # 4 ms, give or take a busy machine's sleeps
+        assert 1 <= stats["caught"] <= stats["windows"] and stats["spun_ns"] > 0
+    finally:
+        ep.close()
+    assert ep.poll is None
+
+
+def test_the_setting() -> None:
+    assert parse_arrival_poll("auto") == (AUTO_POLL_LEAD_NS, AUTO_POLL_MAX_PERIOD_NS) == (80 * US, 500 * US)
+    assert parse_arrival_poll(" OFF ") is None
+    assert parse_arrival_poll("60us") == (60 * US, None) == parse_arrival_poll("60")
+    for bad in ("0us", "2ms", "soon"):
+        with pytest.raises(ValueError, match="expected"):
+            parse_arrival_poll(bad)
+    loop = asyncio.new_event_loop()
+    try:
+        assert ArrivalPoll.create(loop, lambda: False, None) is None
+    finally:
+        loop.close()
