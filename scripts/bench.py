@@ -3,12 +3,13 @@
 
 For every cell the sweep brings a network up exactly as ``mlink-sim up --workers W`` does (slave worker
 processes, the master in this process; W defaults to one per CPU but one, so the master keeps a CPU for
-itself) and measures it for ``--duration`` after bring-up. Then, in the same run, it measures **the floor**
-twice (``scripts/bench_floor.py``): one process serving all N stations as a packed worker does (one socket
-shared by the N stations where the network packs its stations into fewer workers: ``Cell.layout`` "shared"; a
-socket per station otherwise), driven
-by a client that sends the same bursts on the same ``CycleTimer`` as the master and reads as the master reads,
-but with no protocol work on either side; once with the per-datagram system calls (**plain**), once with
+itself) and measures it for ``--duration`` after bring-up. In the same run it measures **the floor** twice
+(``scripts/bench_floor.py``), in turns with the network: a cell longer than 10 s is measured in turns of at most
+10 s (network, plain floor, batched floor, network …; ``bench_figures.turns``), each side's turns added up, so that
+the simulator and its floors see the same phases of the host. The floor is one process serving all N stations
+as a packed worker does (one socket shared by the N stations where the network packs its stations into fewer
+workers: ``Cell.layout`` "shared"; a socket per station otherwise), driven by a client that sends the same bursts
+on the same ``CycleTimer`` as the master and reads as the master reads, but with no protocol work on either side; once with the per-datagram system calls (**plain**), once with
 ``sendmmsg``/``recvmmsg`` (**batched**, ``mlink_sim.aio.mmsg``).
 
 Figures per cell, the network's and the floors' by one definition (``scripts/bench_figures.py``): missed (the
@@ -20,6 +21,9 @@ p99) are taken against the floor that uses the same system calls as the simulato
 where ``sendmmsg``/``recvmmsg`` are available, unless ``--io plain``, which runs the simulator with
 ``MLINK_MMSG=0``).
 
+``--arrival-poll`` sets the workers' arrival poll (``[network] arrival_poll``: ``auto``, the default of
+``mlink-sim up``, ``off`` or a lead; ``mlink_sim.aio.arrival``); the JSON's ``host.arrival_poll`` records it.
+
     scripts/bench.py                                   # the full sweep (~25 min), table + bench.json + bench.png
     scripts/bench.py --stations 30 --cycles 1ms --links ML2 --duration 60s     # one cell, one minute
     scripts/bench.py --stations 8 --cycles 1ms --links ML3 --io batched,plain  # what the batched calls gain
@@ -27,6 +31,7 @@ where ``sendmmsg``/``recvmmsg`` are available, unless ``--io plain``, which runs
     scripts/bench.py --targets                         # issue 21's five targets, ~12 min (--duration 10s: ~4 min)
     scripts/bench.py --render docs/bench.json --markdown   # an earlier run's table, as in docs/performance.md
     scripts/bench.py --targets --pm-qos                # the same with idle CPUs polling, floor and simulator alike
+    scripts/bench.py --stations 8 --cycles 250us --links ML3 --arrival-poll off   # without the workers' poll
 
 ``--targets`` runs the cells of the capacity targets (scripts/bench_targets.py: 62 ML-III and 30 ML-II stations
 at 1 ms for 60 s, 8 ML-III stations at 250 µs for 30 s, and ML-III at 1 ms with 15, 30 and 45 stations for the
@@ -64,8 +69,8 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 
 import bench_targets  # noqa: E402
-from bench_figures import exchange_figures  # noqa: E402
-from bench_floor import host_ticks, measure_floor, proc_wakeups, self_wakeups, steal_pct  # noqa: E402
+from bench_figures import Window, turns  # noqa: E402
+from bench_floor import floor_from, floor_window, host_ticks, proc_wakeups, self_wakeups  # noqa: E402
 
 from mlink_sim._files import write_atomically  # noqa: E402
 from mlink_sim.aio import mmsg, realtime  # noqa: E402
@@ -111,6 +116,7 @@ class Cell:
     wakeups_master: float = 0.0     #: voluntary context switches per cycle
     wakeups_slaves: float = 0.0
     steal_pct: float = 0.0          #: the hypervisor's steal over the window, % of all CPUs' time (bench_floor)
+    turns: int = 1                  #: the windows it was measured in, in turn with its floors (bench_figures.turns)
     floor: dict[str, Any] | None = None          #: bench_floor.Floor, plain system calls
     floor_batched: dict[str, Any] | None = None  #: bench_floor.Floor, sendmmsg/recvmmsg
     notes: list[str] = field(default_factory=list)
@@ -150,9 +156,9 @@ def write_config(path: Path, link: str, stations: int, cycle_ns: int, arrival_po
 
 
 # ----------------------------------------------------------------------------------------------- the network
-async def measure_network(config_path: Path, workers: int, duration_s: float, cell: Cell) -> None:
-    """The network of *config_path*, its system calls as *cell.io* says (``MLINK_MMSG``, inherited by the
-    workers), measured for *duration_s* after bring-up."""
+async def measure_network(config_path: Path, workers: int, duration_s: float, cell: Cell) -> Window:
+    """One window of the network of *config_path*, its system calls as *cell.io* says (``MLINK_MMSG``, inherited
+    by the workers), measured for *duration_s* after bring-up; what it saw go wrong goes to *cell.notes*."""
     saved = os.environ.get("MLINK_MMSG")
     os.environ["MLINK_MMSG"] = "1" if cell.io == "batched" else "0"
     session = None
@@ -171,7 +177,7 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         slaves0 = await _slave_cpu(session)
         wake0, swake0, host0 = self_wakeups(), sum(proc_wakeups(p) for p in pids), host_ticks()
         await asyncio.sleep(duration_s)
-        cell.steal_pct = steal_pct(host0, host_ticks())
+        host1 = host_ticks()
         wall = time.monotonic() - wall0
         cpu_master_s = time.process_time() - cpu0
         spun_s = (sum(t.spun_ns for t in timers) - spun0) / 1e9
@@ -189,22 +195,26 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         else:
             os.environ["MLINK_MMSG"] = saved
     report = metrics.report(meta=meta)
-    cell.cycles, cell.missed = report["cycles"], report["missed"]
-    cell.lateness_p99_ns = report["lateness"]["p99"]
-    cell.missing, cell.late = report["missing"], report["late"]
-    cpu_slaves_s = sum(slaves1.get(k, 0.0) - v for k, v in slaves0.items())
-    cell.cpu_master = round(cpu_master_s / wall * 100, 1)
-    cell.cpu_slaves = round(cpu_slaves_s / wall * 100, 1)
-    cell.sent = report["sent"]
-    cell.spin_pct = round(spun_s / wall * 100, 1)
-    fig = exchange_figures(cycle_ns=cell.cycle_ns, started=cell.cycles - cell.missed, skipped=cell.missed,
-                           sent=cell.sent, rtt=metrics.rtt, cpu_s=cpu_master_s + cpu_slaves_s, spin_s=spun_s)
+    return Window(cell.cycle_ns, wall_s=wall, started=report["cycles"] - report["missed"], skipped=report["missed"],
+                  sent=report["sent"], missing=report["missing"], late=report["late"], cpu_a_s=cpu_master_s,
+                  cpu_b_s=sum(slaves1.get(k, 0.0) - v for k, v in slaves0.items()), spin_s=spun_s, wake_a=wake,
+                  wake_b=swake, ticks=tuple(b - a for a, b in zip(host0, host1)) if host0 and host1 else (),
+                  rtt=metrics.rtt, lateness=metrics.lateness)
+
+
+def fill(cell: Cell, w: Window) -> None:
+    """*cell*'s figures from the simulator's window *w* (one turn, or the sum of its turns)."""
+    cell.cycles, cell.missed = w.started + w.skipped, w.skipped
+    cell.lateness_p99_ns = w.lateness.summary()["p99"]
+    cell.missing, cell.late, cell.sent = w.missing, w.late, w.sent
+    cell.cpu_master, cell.cpu_slaves, cell.spin_pct = w.pct(w.cpu_a_s), w.pct(w.cpu_b_s), w.pct(w.spin_s)
+    fig = w.figures()
     cell.due, cell.on_time, cell.exchanges, cell.missed_rate = fig.due, fig.on_time, fig.answered, fig.missed_rate
     cell.rtt_p50_ns, cell.rtt_p99_ns = fig.rtt_p50_ns, fig.rtt_p99_ns
     cell.cpu_per_exchange_us, cell.cpu_per_exchange_nospin_us = fig.cpu_per_exchange_us, \
         fig.cpu_per_exchange_nospin_us
-    ran = max(1, cell.cycles - cell.missed)
-    cell.wakeups_master, cell.wakeups_slaves = round(wake / ran, 2), round(swake / ran, 2)
+    cell.wakeups_master, cell.wakeups_slaves = w.per_cycle(w.wake_a), w.per_cycle(w.wake_b)
+    cell.steal_pct, cell.turns = w.steal_pct(), w.turns
 
 
 def _states(session: NetworkSession) -> str:
@@ -386,8 +396,9 @@ def chart(cells: list[Cell], path: Path) -> None:
 # ----------------------------------------------------------------------------------------------- main
 def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycle: int, workers: int,
              duration_s: float, ios: list[str], arrival_poll: str = "auto") -> list[Cell]:
-    """One cell: the network once per I/O mode of *ios*, then both floors, each for *duration_s*; never raises.
-    The floors are measured once and shared by the cell's I/O modes."""
+    """One cell: the network once per I/O mode of *ios*, and both floors, each for *duration_s* in turns of at most
+    ``bench_figures.TURN_S`` taken one after the other (network, floor, batched floor, network …), so that each
+    sees the same phases of the host; never raises. The floors are shared by the cell's I/O modes."""
     cells = [Cell(link, n, cycle, min(workers, n), duration_s, io, layout="shared" if workers < n else "station")
              for io in ios]
     reason = applicable(link, n, cycle)
@@ -397,34 +408,58 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
         return cells
     path = tmp / f"{link}-{n}-{cycle}.toml"
     size = write_config(path, link, n, cycle, arrival_poll)
-    floors: dict[str, dict[str, Any] | None] = {"floor": None, "floor_batched": None}
-    for cell in cells:
-        cell.frame_size = size
-        print(f"{link} {n:>2} stations {format_ns(cycle):>6} {cell.io:<7} …", end=" ", file=sys.stderr, flush=True)
-        try:
-            loop.run_until_complete(measure_network(path, cell.workers, duration_s, cell))
-        except Exception as exc:  # noqa: BLE001 - one failed cell must not end the sweep
-            cell.status = f"failed: {type(exc).__name__}: {exc}"
-        print(cell.status if cell.status != "ok" else
-              f"missed {cell.missed_rate * 100:.2f}% rtt p99 {format_ns(cell.rtt_p99_ns)} "
-              f"{cell.cpu_per_exchange_us:.1f} µs/exchange", file=sys.stderr, flush=True)
-    for key, batched in (("floor", False), ("floor_batched", True)):
-        if batched and not mmsg.supported():
+    absorb_ns = load_config(path).network.absorb_ns
+    shared = cells[0].layout == "shared"
+    ours: dict[int, Window] = {}
+    floors: dict[bool, Window] = {}
+    failed: set[bool] = set()
+    sides = [False, True] if mmsg.supported() else [False]
+    for turn in turns(duration_s):
+        for i, cell in enumerate(cells):
+            if cell.status != "ok":
+                continue
+            cell.frame_size = size
+            try:
+                _add(ours, i, loop.run_until_complete(measure_network(path, cell.workers, turn, cell)))
+            except Exception as exc:  # noqa: BLE001 - one failed cell must not end the sweep
+                cell.status = f"failed: {type(exc).__name__}: {exc}"
+        for batched in sides:
+            if batched in failed:
+                continue
+            try:
+                _add(floors, batched, loop.run_until_complete(
+                    floor_window(n, size, cycle, turn, batched, absorb_ns, shared=shared)))
+            except Exception as exc:  # noqa: BLE001 - the cell keeps its own figures
+                failed.add(batched)
+                for cell in cells:
+                    cell.notes.append(f"floor {'floor_batched' if batched else 'floor'} failed: "
+                                      f"{type(exc).__name__}: {exc}")
+    for i, cell in enumerate(cells):
+        if cell.status == "ok" and i in ours:
+            fill(cell, ours[i])
+        print(f"{link} {n:>2} stations {format_ns(cycle):>6} {cell.io:<7} " + (
+              cell.status if cell.status != "ok" else f"missed {cell.missed_rate * 100:.2f}% rtt p99 "
+              f"{format_ns(cell.rtt_p99_ns)} {cell.cpu_per_exchange_us:.1f} µs/exchange ({cell.turns} turns)"),
+              file=sys.stderr, flush=True)
+    result: dict[bool, dict[str, Any]] = {}
+    for batched, w in floors.items():
+        if batched in failed:
             continue
-        try:
-            result = loop.run_until_complete(measure_floor(n, size, cycle, duration_s, batched,
-                                                           load_config(path).network.absorb_ns,
-                                                           shared=cells[0].layout == "shared"))
-            floors[key] = asdict(result)
-            print(f"{'':>22}floor {'batched' if batched else 'plain':<7} missed {result.missed_rate * 100:.2f}% "
-                  f"rtt p99 {format_ns(result.rtt_p99_ns)} {result.cpu_per_exchange_us:.1f} µs/exchange",
-                  file=sys.stderr, flush=True)
-        except Exception as exc:  # noqa: BLE001 - the cell keeps its own figures
-            for cell in cells:
-                cell.notes.append(f"floor {key} failed: {type(exc).__name__}: {exc}")
+        f = floor_from(w, batched, n, shared)
+        result[batched] = asdict(f)
+        print(f"{'':>22}floor {'batched' if batched else 'plain':<7} missed {f.missed_rate * 100:.2f}% "
+              f"rtt p99 {format_ns(f.rtt_p99_ns)} {f.cpu_per_exchange_us:.1f} µs/exchange", file=sys.stderr,
+              flush=True)
     for cell in cells:
-        cell.floor, cell.floor_batched = floors["floor"], floors["floor_batched"]
+        cell.floor, cell.floor_batched = result.get(False), result.get(True)
     return cells
+
+
+def _add(windows: dict[Any, Window], key: Any, w: Window) -> None:
+    if key in windows:
+        windows[key].add(w)
+    else:
+        windows[key] = w
 
 
 def render(paths: list[Path], as_markdown: bool, png: Path | None) -> int:

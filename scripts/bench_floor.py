@@ -52,7 +52,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 
-from bench_figures import exchange_figures  # noqa: E402
+from bench_figures import Window, steal_share  # noqa: E402
 
 from mlink_sim.aio import mmsg  # noqa: E402
 from mlink_sim.aio.preread import PreRead  # noqa: E402
@@ -61,7 +61,7 @@ from mlink_sim.aio.udp import bound_socket, close_watched, new_event_loop, open_
 from mlink_sim.config import format_ns, parse_duration_ns  # noqa: E402
 from mlink_sim.metrics import LatencyHistogram  # noqa: E402
 
-__all__ = ["Floor", "host_ticks", "measure_floor", "proc_cpu_s", "proc_wakeups", "self_wakeups", "steal_pct"]
+__all__ = ["Floor", "floor_from", "floor_window", "host_ticks", "measure_floor", "proc_cpu_s", "proc_wakeups", "self_wakeups", "steal_pct"]
 
 
 def _raise(exc: OSError) -> None:
@@ -101,6 +101,7 @@ class Floor:
     wakeups_server: float = 0.0
     shared: bool = False              #: the server's stations share one socket (a packed worker's layout)
     steal_pct: float = 0.0            #: the hypervisor's steal over the window, % of all CPUs' time (steal_pct)
+    turns: int = 1                    #: the windows it was measured in (bench_figures.turns)
 
 
 def proc_cpu_s(pid: int) -> float:
@@ -144,8 +145,7 @@ def steal_pct(before: tuple[int, ...], after: tuple[int, ...]) -> float:
     cycles while this is high points at the host (a slowdown the host causes without stealing is not in it)."""
     if len(before) < 8 or len(after) < 8:
         return 0.0
-    total = sum(after[:8]) - sum(before[:8])
-    return round(100 * (after[7] - before[7]) / total, 1) if total > 0 else 0.0
+    return steal_share(tuple(b - a for a, b in zip(before, after)))
 
 
 def _self_cpu_s() -> float:
@@ -194,13 +194,39 @@ def serve(count: int, batched: bool, shared: bool = False) -> None:
 # ----------------------------------------------------------------------------------------------- the client
 async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: float, batched: bool,
                         catch_up_ns: int = 100_000_000, shared: bool = False) -> Floor:
+    """The floor of one window (:func:`floor_window`), its figures read (:func:`floor_from`)."""
+    window = await floor_window(stations, size, cycle_ns, duration_s, batched, catch_up_ns, shared)
+    return floor_from(window, batched, stations, shared)
+
+
+def floor_from(window: Window, batched: bool, stations: int, shared: bool) -> Floor:
+    """The figures of a floor's *window* (one turn, or the sum of several: ``bench_figures.Window.add``)."""
+    result = Floor(batched, stations, window.cycle_ns, round(window.wall_s, 1), shared=shared)
+    result.cycles, result.missed, result.missing = window.started + window.skipped, window.skipped, window.missing
+    result.sent = window.sent
+    fig = window.figures()
+    result.due, result.on_time, result.exchanges, result.missed_rate = fig.due, fig.on_time, fig.answered, \
+        fig.missed_rate
+    result.rtt_p50_ns, result.rtt_p99_ns, result.lateness_p99_ns = fig.rtt_p50_ns, fig.rtt_p99_ns, \
+        window.lateness.summary()["p99"]
+    result.cpu_client_pct, result.cpu_server_pct = window.pct(window.cpu_a_s), window.pct(window.cpu_b_s)
+    result.spin_pct = window.pct(window.spin_s)
+    result.cpu_per_exchange_us, result.cpu_per_exchange_nospin_us = fig.cpu_per_exchange_us, \
+        fig.cpu_per_exchange_nospin_us
+    result.wakeups_client, result.wakeups_server = window.per_cycle(window.wake_a), window.per_cycle(window.wake_b)
+    result.steal_pct = window.steal_pct()
+    result.turns = window.turns
+    return result
+
+
+async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: float, batched: bool,
+                       catch_up_ns: int = 100_000_000, shared: bool = False) -> Window:
     """The floor of *stations* stations of frame size *size* at *cycle_ns*, measured for *duration_s* after a
     0.5 s warm-up; the server runs in a subprocess of this script. *catch_up_ns*: the clock's host-stall policy,
     as the network's (default: "absorb" up to 100 ms, the default of ``[network] stall_bound``); an answer is
     awaited as long (at least one cycle), as the master's answer window (``NetworkPlan.answer_window_ns``).
     *shared*: the stations share one socket of the server, as a packed worker's do (``mlink-sim up``); the
     batched client then reads offloaded bursts as one buffer, as the master does."""
-    result = Floor(batched, stations, cycle_ns, duration_s, shared=shared)
     proc = subprocess.Popen([sys.executable, __file__, "--serve", str(stations)] + ([] if batched else ["--plain"])
                             + (["--shared"] if shared else []), stdout=subprocess.PIPE)
     loop = asyncio.get_running_loop()
@@ -301,7 +327,7 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
         wall0, cpu0, scpu0, spun0 = time.monotonic(), _self_cpu_s(), proc_cpu_s(proc.pid), timer.spun_ns
         wake0, swake0, host0 = self_wakeups(), proc_wakeups(proc.pid), host_ticks()
         await asyncio.sleep(duration_s)
-        result.steal_pct = steal_pct(host0, host_ticks())
+        host1 = host_ticks()
         wall = time.monotonic() - wall0
         cpu, scpu = _self_cpu_s() - cpu0, proc_cpu_s(proc.pid) - scpu0
         wake, swake = self_wakeups() - wake0, proc_wakeups(proc.pid) - swake0
@@ -316,22 +342,10 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
             close_watched(loop, sock)
         proc.terminate()
         proc.wait(5)
-    result.cycles, result.missed, result.missing = counts["cycles"] + counts["missed"], counts["missed"], \
-        counts["missing"]
-    result.sent = counts["sent"]
-    fig = exchange_figures(cycle_ns=cycle_ns, started=counts["cycles"], skipped=counts["missed"], sent=result.sent,
-                           rtt=rtt, cpu_s=cpu + scpu, spin_s=spun)
-    result.due, result.on_time, result.exchanges, result.missed_rate = fig.due, fig.on_time, fig.answered, \
-        fig.missed_rate
-    result.rtt_p50_ns, result.rtt_p99_ns, result.lateness_p99_ns = fig.rtt_p50_ns, fig.rtt_p99_ns, \
-        lateness.summary()["p99"]
-    result.cpu_client_pct, result.cpu_server_pct = round(cpu / wall * 100, 1), round(scpu / wall * 100, 1)
-    result.spin_pct = round(spun / wall * 100, 1)
-    result.cpu_per_exchange_us, result.cpu_per_exchange_nospin_us = fig.cpu_per_exchange_us, \
-        fig.cpu_per_exchange_nospin_us
-    result.wakeups_client = round(wake / max(1, counts["cycles"]), 2)
-    result.wakeups_server = round(swake / max(1, counts["cycles"]), 2)
-    return result
+    return Window(cycle_ns, wall_s=wall, started=counts["cycles"], skipped=counts["missed"], sent=counts["sent"],
+                  missing=counts["missing"], cpu_a_s=cpu, cpu_b_s=scpu, spin_s=spun, wake_a=wake, wake_b=swake,
+                  ticks=tuple(b - a for a, b in zip(host0, host1)) if host0 and host1 else (), rtt=rtt,
+                  lateness=lateness)
 
 
 def describe(f: Floor) -> str:

@@ -127,8 +127,8 @@ def test_host_steal_is_read_from_proc_stat_and_noted_in_the_row(bench) -> None:
     before = bench.host_ticks("cpu  100 0 50 800 0 0 10 40 0 0\ncpu0 1 2 3\n")
     after = bench.host_ticks("cpu  400 0 150 1200 0 0 30 100 0 0\n")
     assert before == (100, 0, 50, 800, 0, 0, 10, 40) and after[7] == 100
-    assert bench.steal_pct(before, after) == 6.8  # 60 of 880 ticks
-    assert bench.steal_pct((), after) == 0.0 and bench.host_ticks("intr 1 2\n") == ()
+    assert bench.Window(1, ticks=tuple(b - a for a, b in zip(before, after))).steal_pct() == 6.8  # 60 of 880
+    assert bench.Window(1).steal_pct() == 0.0 and bench.host_ticks("intr 1 2\n") == ()
     quiet = _good(bench, "ML3", 8, 250_000, steal_pct=0.2)
     assert "steal" not in bench.table([quiet])
     busy = _good(bench, "ML3", 8, 250_000, steal_pct=0.1, floor_batched=_floor(steal_pct=2.6))
@@ -165,3 +165,39 @@ def test_pm_qos_refused_exits_2_before_any_cell_runs(bench, monkeypatch, capsys)
     monkeypatch.setattr("sys.argv", ["bench.py", "--pm-qos", "--stations", "1", "--cycles", "1ms", "--links", "ML2"])
     assert bench.main() == 2
     assert "bench.py: --pm-qos: CPU wake-up latency refused (Permission denied)" in capsys.readouterr().err
+
+
+def test_a_cell_is_measured_in_turns_with_its_floors_and_their_counts_add_up(bench, monkeypatch, tmp_path) -> None:
+    """A 25 s cell: three turns of 8.3 s, each the network, the plain floor, the batched floor, in that order
+    (``bench_figures.turns``), so each side sees the same phases of the host; each side's figures are read from the
+    sum of its turns (missed from the summed counts, RTT from the merged histograms)."""
+    from mlink_sim.aio import mmsg
+
+    order: list[tuple[str, float]] = []
+
+    def window(side: str, turn: float, late_ns: int, late: int) -> object:
+        w = bench.Window(250_000, wall_s=turn, started=100, sent=800, cpu_a_s=0.01, cpu_b_s=0.01)
+        for i in range(800):
+            w.rtt.record(late_ns if i < late else 100_000)
+        order.append((side, round(turn, 2)))
+        return w
+
+    async def network(path, workers, turn, cell):
+        return window("network", turn, 300_000, 8)  # 8 of 800 answers later than the 250 µs cycle
+
+    async def floor(n, size, cycle, turn, batched, absorb_ns, shared=False):
+        return window("batched" if batched else "plain", turn, 300_000, 1 if batched else 4)
+
+    monkeypatch.setattr(bench, "measure_network", network)
+    monkeypatch.setattr(bench, "floor_window", floor)
+    monkeypatch.setattr(mmsg, "supported", lambda: True)
+    loop = bench.new_event_loop()
+    try:
+        [cell] = bench.run_cell(loop, tmp_path, "ML3", 8, 250_000, 1, 25.0, ["batched"])
+    finally:
+        loop.close()
+    assert order == [("network", 8.33), ("plain", 8.33), ("batched", 8.33)] * 3
+    assert (cell.turns, cell.due, cell.on_time, cell.missed_rate) == (3, 2400, 2376, 0.01)
+    assert (cell.floor["turns"], cell.floor["missed_rate"]) == (3, 0.005)
+    assert (cell.floor_batched["turns"], cell.floor_batched["missed_rate"]) == (3, 0.00125)
+    assert cell.ref is cell.floor_batched and cell.cpu_master == 0.1  # 0.03 s of 25 s

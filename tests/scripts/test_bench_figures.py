@@ -98,3 +98,20 @@ def test_a_cell_notes_the_states_of_the_stations_not_at_their_phase(bench) -> No
     session = NS(net=NS(views=lambda: views))
     assert bench._states(session) == " (alarm 3, syncing 1)"
     assert bench._states(NS(net=NS(views=dict))) == "" and bench._states(NS(net=None)) == ""
+
+
+def test_turns_are_at_most_ten_seconds_all_alike(figures) -> None:
+    assert figures.turns(60.0) == [10.0] * 6 and figures.turns(5.0) == [5.0] and figures.turns(10.0) == [10.0]
+    assert figures.turns(25.0) == pytest.approx([25 / 3] * 3)
+
+
+def test_windows_of_one_side_add_up(figures) -> None:
+    a = figures.Window(MS, wall_s=10.0, started=10, skipped=1, sent=20, cpu_a_s=0.5, spin_s=0.1, wake_a=30,
+                       ticks=(1, 0, 1, 8, 0, 0, 0, 0), rtt=_rtt(*[200_000] * 20))
+    b = figures.Window(MS, wall_s=10.0, started=10, sent=20, cpu_b_s=0.5, wake_a=10, ticks=(1, 0, 1, 6, 0, 0, 0, 2),
+                       rtt=_rtt(*[200_000] * 19, 3 * MS))
+    a.add(b)
+    assert (a.turns, a.started, a.skipped, a.sent, a.wake_a) == (2, 20, 1, 40, 40)
+    assert (a.pct(a.cpu_a_s), a.per_cycle(a.wake_a), a.steal_pct()) == (2.5, 2.0, 10.0)  # 2 of 20 ticks
+    f = a.figures()
+    assert (f.due, f.answered, f.on_time) == (42, 40, 39) and f.cpu_per_exchange_us == 25_000.0  # 1 s / 40
