@@ -44,6 +44,7 @@ log = get_logger("mlink_sim.slave")
 _POLL_INTERVAL_S = 0.001
 _POLL_INTERVAL_NS = 1_000_000
 _KEEP_BEHIND = 8  # datagrams per source processed from one read; older ones are superseded (see _port)
+_POLL_MAX_KEYS = ("period_ns", "lead_ns")  #: of the arrival polls' counters, those not summed but the largest taken
 _MIN_CYCLE_NS = 250_000  # the shortest transmission cycle (SI-ET3 Table 14): sizes the backlog "absorb" keeps
 _BURST = 64  # datagrams read per wake-up of a station's socket at most (a shared socket: this many per station)
 # Receive buffer of a station's socket; a shared socket asks for this much per station, so that a backlog lasts
@@ -338,13 +339,13 @@ class SlaveServer:
 
     def _poll_stats(self) -> dict[str, int]:
         """The arrival polls' counters, summed over the sockets (:meth:`ArrivalPoll.stats
-        <mlink_sim.aio.arrival.ArrivalPoll.stats>`; the largest learned cycle); empty without a poll."""
+        <mlink_sim.aio.arrival.ArrivalPoll.stats>`; the largest learned cycle and lead); empty without a poll."""
         polls = list({id(ep): ep.poll for hs in self.stations
                       if (ep := hs.endpoint) is not None and ep.poll is not None}.values())
         total: dict[str, int] = {}
         for poll in polls:
             for key, value in poll.stats().items():
-                total[key] = max(total.get(key, 0), value) if key == "period_ns" else total.get(key, 0) + value
+                total[key] = max(total.get(key, 0), value) if key in _POLL_MAX_KEYS else total.get(key, 0) + value
         return total
 
     def _on_control(self, data: bytes, addr: Any) -> None:

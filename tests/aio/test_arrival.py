@@ -12,7 +12,7 @@ import time
 import pytest
 
 from mlink_sim.aio._timerfd import timerfd_supported
-from mlink_sim.aio.arrival import SAMPLES, ArrivalPoll
+from mlink_sim.aio.arrival import LATE_SAMPLES, LEAD_MARGIN_NS, SAMPLES, ArrivalPoll
 from mlink_sim.aio.udp import open_batch_endpoint
 from mlink_sim.config.units import AUTO_POLL_LEAD_NS, AUTO_POLL_MAX_PERIOD_NS, parse_arrival_poll
 
@@ -135,4 +135,34 @@ def test_the_setting() -> None:
     try:
         assert ArrivalPoll.create(loop, lambda: False, None) is None
     finally:
+        loop.close()
+
+
+def test_the_lead_follows_the_timer_s_late_wake_ups_and_a_missed_burst_restores_it() -> None:
+    """Every LATE_SAMPLES polls the lead becomes the second latest wake-up plus the margin, at most the lead given;
+    a burst the reader had instead of the poll sets the full lead back."""
+    loop = asyncio.new_event_loop()
+    r = _Recorder(loop, 80 * US, None)
+    try:
+        for late in [30 * US] * (LATE_SAMPLES - 2) + [40 * US, 90 * US]:
+            r.poll.woke(late)
+        assert r.poll.wake_lead_ns == 40 * US + LEAD_MARGIN_NS  # the second latest (≈ p97), not the outlier
+        t = [k * 250 * US + 10**9 for k in range(SAMPLES + 1)]
+        r.poll._polling = True
+        r.feed(t)  # read in the poll: the adapted lead stays
+        r.poll._polling = False
+        assert r.set[-1] == t[-1] + 250 * US - (40 * US + LEAD_MARGIN_NS)
+        for _ in range(LATE_SAMPLES):
+            r.poll.woke(1 * US)
+        assert r.poll.wake_lead_ns == 1 * US + LEAD_MARGIN_NS
+        for _ in range(LATE_SAMPLES):
+            r.poll.woke(500 * US)
+        assert r.poll.wake_lead_ns == 80 * US  # never beyond the lead given
+        r.poll.woke(1 * US)
+        r.poll.wake_lead_ns = 20 * US
+        r.feed([t[-1] + 250 * US])  # the reader had this one: the full lead again, the samples restarted
+        assert r.poll.wake_lead_ns == 80 * US and r.set[-1] == t[-1] + 500 * US - 80 * US and r.poll._lates == []
+        assert r.poll.stats()["lead_ns"] == 80 * US
+    finally:
+        r.poll.close()
         loop.close()

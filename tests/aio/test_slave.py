@@ -195,7 +195,7 @@ async def test_arrival_poll_on_each_shared_socket_or_a_lone_station_s_only() -> 
         try:
             endpoints = {id(hs.endpoint): hs.endpoint for hs in server.stations}.values()
             assert sum(ep is not None and ep.poll is not None for ep in endpoints) == polls
-            assert set(server.cpu()["arrival_poll"]) == ({"period_ns", "windows", "caught", "spun_ns"} if polls
+            assert set(server.cpu()["arrival_poll"]) == ({"period_ns", "windows", "caught", "spun_ns", "lead_ns"} if polls
                                                          else set())
         finally:
             await server.close()
