@@ -19,6 +19,7 @@ import os
 import sys
 import time
 from collections.abc import Callable
+from typing import Any
 
 __all__ = ["TimerFD", "timerfd_supported", "set_thread_timer_slack", "make_abs_sleeper"]
 
@@ -104,6 +105,14 @@ class TimerFD:
     @property
     def closed(self) -> bool:
         return self._fd < 0
+
+    def close_watched(self, loop: Any) -> None:
+        """Stop *loop* watching this timerfd (``loop.add_reader``) and close it; a loop already closed is fine."""
+        try:
+            loop.remove_reader(self._fd)
+        except (RuntimeError, ValueError, OSError):
+            pass  # loop already closed: its selector no longer holds the fd
+        self.close()
 
     def close(self) -> None:
         fd, self._fd = self._fd, -1

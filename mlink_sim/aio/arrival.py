@@ -151,8 +151,4 @@ class ArrivalPoll:
         tfd, self._tfd = self._tfd, None
         self._due = 0
         if tfd is not None:
-            try:
-                self._loop.remove_reader(tfd.fileno())
-            except (RuntimeError, ValueError, OSError):
-                pass  # loop already closed
-            tfd.close()
+            tfd.close_watched(self._loop)

@@ -82,8 +82,4 @@ class PreRead:
     def close(self) -> None:
         tfd, self._tfd = self._tfd, None
         if tfd is not None:
-            try:
-                self._loop.remove_reader(tfd.fileno())
-            except (RuntimeError, ValueError, OSError):
-                pass  # loop already closed
-            tfd.close()
+            tfd.close_watched(self._loop)

@@ -251,11 +251,7 @@ class CycleTimer:
             self._handle = None
         tfd, self._tfd = self._tfd, None
         if tfd is not None:
-            try:
-                self._loop.remove_reader(tfd.fileno())  # type: ignore[union-attr]
-            except (RuntimeError, ValueError, OSError):
-                pass  # loop already closed: its selector no longer holds the fd
-            tfd.close()
+            tfd.close_watched(self._loop)
         thread, self._thread = self._thread, None
         if self._queue is not None:
             self._queue.put(None)
