@@ -70,7 +70,7 @@ sys.path.insert(0, str(ROOT / "scripts"))
 
 import bench_targets  # noqa: E402
 from bench_figures import Window, turns  # noqa: E402
-from bench_floor import floor_from, floor_window, host_ticks, proc_wakeups, self_wakeups  # noqa: E402
+from bench_floor import floor_from, floor_window, host_ticks, proc_wakeups, self_wakeups, ticks_between  # noqa: E402
 
 from mlink_sim._files import write_atomically  # noqa: E402
 from mlink_sim.aio import mmsg, realtime  # noqa: E402
@@ -115,7 +115,7 @@ class Cell:
     cpu_per_exchange_nospin_us: float = 0.0  #: the same without the spin (the work an exchange itself costs)
     wakeups_master: float = 0.0     #: voluntary context switches per cycle
     wakeups_slaves: float = 0.0
-    steal_pct: float = 0.0          #: the hypervisor's steal over the window, % of all CPUs' time (bench_floor)
+    steal_pct: float = 0.0          #: the hypervisor's steal over the window, % of all CPUs' time (bench_figures.steal_share)
     turns: int = 1                  #: the windows it was measured in, in turn with its floors (bench_figures.turns)
     floor: dict[str, Any] | None = None          #: bench_floor.Floor, plain system calls
     floor_batched: dict[str, Any] | None = None  #: bench_floor.Floor, sendmmsg/recvmmsg
@@ -198,23 +198,16 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
     return Window(cell.cycle_ns, wall_s=wall, started=report["cycles"] - report["missed"], skipped=report["missed"],
                   sent=report["sent"], missing=report["missing"], late=report["late"], cpu_a_s=cpu_master_s,
                   cpu_b_s=sum(slaves1.get(k, 0.0) - v for k, v in slaves0.items()), spin_s=spun_s, wake_a=wake,
-                  wake_b=swake, ticks=tuple(b - a for a, b in zip(host0, host1)) if host0 and host1 else (),
-                  rtt=metrics.rtt, lateness=metrics.lateness)
+                  wake_b=swake, ticks=ticks_between(host0, host1), rtt=metrics.rtt, lateness=metrics.lateness)
 
 
 def fill(cell: Cell, w: Window) -> None:
     """*cell*'s figures from the simulator's window *w* (one turn, or the sum of its turns)."""
-    cell.cycles, cell.missed = w.started + w.skipped, w.skipped
-    cell.lateness_p99_ns = w.lateness.summary()["p99"]
-    cell.missing, cell.late, cell.sent = w.missing, w.late, w.sent
-    cell.cpu_master, cell.cpu_slaves, cell.spin_pct = w.pct(w.cpu_a_s), w.pct(w.cpu_b_s), w.pct(w.spin_s)
-    fig = w.figures()
-    cell.due, cell.on_time, cell.exchanges, cell.missed_rate = fig.due, fig.on_time, fig.answered, fig.missed_rate
-    cell.rtt_p50_ns, cell.rtt_p99_ns = fig.rtt_p50_ns, fig.rtt_p99_ns
-    cell.cpu_per_exchange_us, cell.cpu_per_exchange_nospin_us = fig.cpu_per_exchange_us, \
-        fig.cpu_per_exchange_nospin_us
+    for name, value in w.summary().items():
+        setattr(cell, name, value)
+    cell.late = w.late
+    cell.cpu_master, cell.cpu_slaves = w.pct(w.cpu_a_s), w.pct(w.cpu_b_s)
     cell.wakeups_master, cell.wakeups_slaves = w.per_cycle(w.wake_a), w.per_cycle(w.wake_b)
-    cell.steal_pct, cell.turns = w.steal_pct(), w.turns
 
 
 def _states(session: NetworkSession) -> str:
@@ -408,6 +401,8 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
         return cells
     path = tmp / f"{link}-{n}-{cycle}.toml"
     size = write_config(path, link, n, cycle, arrival_poll)
+    for cell in cells:
+        cell.frame_size = size
     absorb_ns = load_config(path).network.absorb_ns
     shared = cells[0].layout == "shared"
     ours: dict[int, Window] = {}
@@ -418,7 +413,6 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
         for i, cell in enumerate(cells):
             if cell.status != "ok":
                 continue
-            cell.frame_size = size
             try:
                 _add(ours, i, loop.run_until_complete(measure_network(path, cell.workers, turn, cell)))
             except Exception as exc:  # noqa: BLE001 - one failed cell must not end the sweep

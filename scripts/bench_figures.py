@@ -31,6 +31,7 @@ A floor whose own missed rate is above the targets' margin cannot carry the load
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from mlink_sim.metrics import LatencyHistogram
 
@@ -116,6 +117,18 @@ class Window:
         return exchange_figures(cycle_ns=self.cycle_ns, started=self.started, skipped=self.skipped, sent=self.sent,
                                 rtt=self.rtt, cpu_s=self.cpu_a_s + self.cpu_b_s, spin_s=self.spin_s)
 
+    def summary(self) -> dict[str, Any]:
+        """The figures a cell (``bench.Cell``) and a floor (``bench_floor.Floor``) both report, by the field names
+        they share; each adds its own names for the two sides' CPU and wake-ups."""
+        fig = self.figures()
+        return {"cycles": self.started + self.skipped, "missed": self.skipped, "missing": self.missing,
+                "sent": self.sent, "due": fig.due, "on_time": fig.on_time, "exchanges": fig.answered,
+                "missed_rate": fig.missed_rate, "rtt_p50_ns": fig.rtt_p50_ns, "rtt_p99_ns": fig.rtt_p99_ns,
+                "lateness_p99_ns": self.lateness.summary()["p99"], "spin_pct": self.pct(self.spin_s),
+                "cpu_per_exchange_us": fig.cpu_per_exchange_us,
+                "cpu_per_exchange_nospin_us": fig.cpu_per_exchange_nospin_us, "steal_pct": self.steal_pct(),
+                "turns": self.turns}
+
     def pct(self, seconds: float) -> float:
         """*seconds* of CPU in % of the windows' wall time."""
         return round(seconds / self.wall_s * 100, 1) if self.wall_s > 0 else 0.0
@@ -131,6 +144,7 @@ class Window:
 def steal_share(ticks: tuple[int, ...]) -> float:
     """The time the hypervisor ran something else while this VM's CPUs had work (``steal``, the 8th field of
     ``/proc/stat``'s first line), in % of all CPUs' time, from the ticks that passed in each of the first 8 fields
-    (``bench_floor.host_ticks`` deltas); 0.0 without them."""
+    (``bench_floor.ticks_between``); 0.0 without them. A floor that misses cycles while this is high points at the
+    host (a slowdown the host causes without stealing is not in it)."""
     total = sum(ticks[:8]) if len(ticks) >= 8 else 0
     return round(100 * ticks[7] / total, 1) if total > 0 else 0.0

@@ -52,7 +52,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 
-from bench_figures import Window, steal_share  # noqa: E402
+from bench_figures import Window  # noqa: E402
 
 from mlink_sim.aio import mmsg  # noqa: E402
 from mlink_sim.aio.preread import PreRead  # noqa: E402
@@ -61,7 +61,8 @@ from mlink_sim.aio.udp import bound_socket, close_watched, new_event_loop, open_
 from mlink_sim.config import format_ns, parse_duration_ns  # noqa: E402
 from mlink_sim.metrics import LatencyHistogram  # noqa: E402
 
-__all__ = ["Floor", "floor_from", "floor_window", "host_ticks", "measure_floor", "proc_cpu_s", "proc_wakeups", "self_wakeups", "steal_pct"]
+__all__ = ["Floor", "floor_from", "floor_window", "host_ticks", "measure_floor", "proc_cpu_s", "proc_wakeups",
+           "self_wakeups", "ticks_between"]
 
 
 def _raise(exc: OSError) -> None:
@@ -100,7 +101,7 @@ class Floor:
     wakeups_client: float = 0.0       #: voluntary context switches per cycle
     wakeups_server: float = 0.0
     shared: bool = False              #: the server's stations share one socket (a packed worker's layout)
-    steal_pct: float = 0.0            #: the hypervisor's steal over the window, % of all CPUs' time (steal_pct)
+    steal_pct: float = 0.0            #: the hypervisor's steal over the window, % of all CPUs' time (bench_figures.steal_share)
     turns: int = 1                    #: the windows it was measured in (bench_figures.turns)
 
 
@@ -139,13 +140,9 @@ def host_ticks(stat: str | None = None) -> tuple[int, ...]:
         return ()
 
 
-def steal_pct(before: tuple[int, ...], after: tuple[int, ...]) -> float:
-    """The time the hypervisor ran something else while this VM's CPUs had work (``steal``, the 8th field of
-    ``/proc/stat``) between two :func:`host_ticks`, in % of all CPUs' time; 0.0 without both. A floor that misses
-    cycles while this is high points at the host (a slowdown the host causes without stealing is not in it)."""
-    if len(before) < 8 or len(after) < 8:
-        return 0.0
-    return steal_share(tuple(b - a for a, b in zip(before, after)))
+def ticks_between(before: tuple[int, ...], after: tuple[int, ...]) -> tuple[int, ...]:
+    """The ticks that passed in each field between two :func:`host_ticks`; () without both."""
+    return tuple(b - a for a, b in zip(before, after)) if before and after else ()
 
 
 def _self_cpu_s() -> float:
@@ -201,22 +198,9 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
 
 def floor_from(window: Window, batched: bool, stations: int, shared: bool) -> Floor:
     """The figures of a floor's *window* (one turn, or the sum of several: ``bench_figures.Window.add``)."""
-    result = Floor(batched, stations, window.cycle_ns, round(window.wall_s, 1), shared=shared)
-    result.cycles, result.missed, result.missing = window.started + window.skipped, window.skipped, window.missing
-    result.sent = window.sent
-    fig = window.figures()
-    result.due, result.on_time, result.exchanges, result.missed_rate = fig.due, fig.on_time, fig.answered, \
-        fig.missed_rate
-    result.rtt_p50_ns, result.rtt_p99_ns, result.lateness_p99_ns = fig.rtt_p50_ns, fig.rtt_p99_ns, \
-        window.lateness.summary()["p99"]
-    result.cpu_client_pct, result.cpu_server_pct = window.pct(window.cpu_a_s), window.pct(window.cpu_b_s)
-    result.spin_pct = window.pct(window.spin_s)
-    result.cpu_per_exchange_us, result.cpu_per_exchange_nospin_us = fig.cpu_per_exchange_us, \
-        fig.cpu_per_exchange_nospin_us
-    result.wakeups_client, result.wakeups_server = window.per_cycle(window.wake_a), window.per_cycle(window.wake_b)
-    result.steal_pct = window.steal_pct()
-    result.turns = window.turns
-    return result
+    return Floor(batched, stations, window.cycle_ns, round(window.wall_s, 1), shared=shared, **window.summary(),
+                 cpu_client_pct=window.pct(window.cpu_a_s), cpu_server_pct=window.pct(window.cpu_b_s),
+                 wakeups_client=window.per_cycle(window.wake_a), wakeups_server=window.per_cycle(window.wake_b))
 
 
 async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: float, batched: bool,
@@ -344,8 +328,7 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
         proc.wait(5)
     return Window(cycle_ns, wall_s=wall, started=counts["cycles"], skipped=counts["missed"], sent=counts["sent"],
                   missing=counts["missing"], cpu_a_s=cpu, cpu_b_s=scpu, spin_s=spun, wake_a=wake, wake_b=swake,
-                  ticks=tuple(b - a for a, b in zip(host0, host1)) if host0 and host1 else (), rtt=rtt,
-                  lateness=lateness)
+                  ticks=ticks_between(host0, host1), rtt=rtt, lateness=lateness)
 
 
 def describe(f: Floor) -> str:
