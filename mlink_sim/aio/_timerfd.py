@@ -106,6 +106,17 @@ class TimerFD:
     def closed(self) -> bool:
         return self._fd < 0
 
+    def watch(self, loop: Any, on_expiry: Callable[[], None]) -> None:
+        """Have *loop* call *on_expiry* each time this timerfd expires (``loop.add_reader``; a wake-up that finds
+        no expiration calls nothing); :meth:`close_watched` ends it."""
+        drain = self.drain
+
+        def on_readable() -> None:
+            if drain():
+                on_expiry()
+
+        loop.add_reader(self._fd, on_readable)
+
     def close_watched(self, loop: Any) -> None:
         """Stop *loop* watching this timerfd (``loop.add_reader``) and close it; a loop already closed is fine."""
         try:

@@ -67,8 +67,9 @@ class ArrivalPoll:
         self._due = 0
         self._polling = False
         self._gaps: list[int] = []
+        self._until = 0  # the end of the poll set: the due time plus the lead
         self._tfd: TimerFD | None = TimerFD()
-        loop.add_reader(self._tfd.fileno(), self._on_timer)
+        self._tfd.watch(loop, self._on_timer)
 
     @classmethod
     def create(cls, loop: asyncio.AbstractEventLoop, read: Callable[[], bool],
@@ -109,18 +110,18 @@ class ArrivalPoll:
         # so the next is due a cycle after this one was; read in the poll, or far from its time: a cycle after now.
         anchor = due if due and not self._polling and 0 <= now_ns - due <= lead else now_ns
         self._due = anchor + period
+        self._until = self._due + lead
         self.poll_at_ns = self._due - min(self.wake_lead_ns, lead)
         tfd.set_abs(self.poll_at_ns)
 
     def _on_timer(self) -> None:
-        tfd = self._tfd
-        if tfd is None or not tfd.drain() or not self._due:
+        if not self._due:
             return
         self.windows += 1
         read = self._read
         start = now = _mono()
         self.woke(start - self.poll_at_ns)
-        end = self._due + min(self.lead_ns, self.period_ns // 2)
+        end = self._until
         self._polling = True
         try:
             while now < end:

@@ -30,11 +30,10 @@ class PreRead:
     def __init__(self, loop: asyncio.AbstractEventLoop, read: Callable[[], None], lead_ns: int,
                  period_ns: int) -> None:
         self._loop = loop
-        self._read = read
         self.lead_ns = lead_ns
         self._after = period_ns - lead_ns  # from a cycle's deadline to the next cycle's pre-read
         self._tfd: TimerFD | None = TimerFD()
-        loop.add_reader(self._tfd.fileno(), self._on_timer)
+        self._tfd.watch(loop, read)
 
     @classmethod
     def create(cls, loop: asyncio.AbstractEventLoop, read: Callable[[], None], period_ns: int,
@@ -73,11 +72,6 @@ class PreRead:
         tfd = self._tfd
         if tfd is not None:
             tfd.set_abs(deadline_ns + self._after)
-
-    def _on_timer(self) -> None:
-        tfd = self._tfd
-        if tfd is not None and tfd.drain():
-            self._read()
 
     def close(self) -> None:
         tfd, self._tfd = self._tfd, None

@@ -221,7 +221,7 @@ class CycleTimer:
         src = self._source
         if src == "timerfd":
             self._tfd = TimerFD()
-            loop.add_reader(self._tfd.fileno(), self._on_timerfd)
+            self._tfd.watch(loop, self._on_wake)
             self._arm = self._tfd.set_abs
         elif src == "thread":
             self._queue = queue.SimpleQueue()
@@ -274,11 +274,6 @@ class CycleTimer:
         if self._coarse:
             delay = -(-delay // 1_000_000) * 1_000_000
         self._handle = self._loop.call_later(delay / 1e9, self._on_wake)  # type: ignore[union-attr]
-
-    def _on_timerfd(self) -> None:
-        tfd = self._tfd
-        if tfd is not None and tfd.drain():
-            self._on_wake()
 
     def _thread_main(self, q: queue.SimpleQueue[int | None], loop: asyncio.AbstractEventLoop, gen: int) -> None:
         set_thread_timer_slack(1)
