@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import asyncio
 import socket
+import time
+
+import pytest
 
 from mlink_sim.aio.slave import HostedStation, SlaveServer
 from mlink_sim.cards import create_card, settings_for
@@ -19,9 +22,9 @@ def _nop(cycle: int) -> bytes:
     return encode(Frame(Link.ML2, Kind.COMMAND, 0x21, cycle, TCYCLE, ml2.M2Command(ml2.Nop(), 0)))
 
 
-async def _server() -> tuple[SlaveServer, tuple[str, int]]:
+async def _server(arrival_poll: tuple[int, int | None] | None = None) -> tuple[SlaveServer, tuple[str, int]]:
     card = create_card("si-t3", settings=settings_for("si-t3", 0x21, 17, []), now=0)
-    server = SlaveServer([HostedStation(card, "127.0.0.1", 0)], control=None)
+    server = SlaveServer([HostedStation(card, "127.0.0.1", 0)], control=None, arrival_poll=arrival_poll)
     await server.start()
     return server, ("127.0.0.1", server.stations[0].port)
 
@@ -74,12 +77,21 @@ async def test_a_short_backlog_is_answered_in_full() -> None:
         await server.close()
 
 
-async def test_tick_reads_waiting_commands_before_it_counts_silence() -> None:
+@pytest.mark.parametrize("poll", [None, "1ms"])
+async def test_tick_reads_waiting_commands_before_it_counts_silence(poll: str | None) -> None:
     """A worker held up past a station's reception deadline: the tick runs before the reader, so it must read the
-    queued commands first; otherwise they count as reception failures (SI-T3 Table 22, E6 after two)."""
-    server, addr = await _server()
+    queued commands first; otherwise they count as reception failures (SI-T3 Table 22, E6 after two). The same
+    with an arrival poll set and armed on the socket (mlink_sim.aio.arrival): the tick's read is the poll's too."""
+    server, addr = await _server(parse_arrival_poll(poll) if poll else None)
     master = _client()
     station = server.stations[0].station
+    endpoint = server.stations[0].endpoint
+    assert endpoint is not None and (endpoint.poll is not None) == bool(poll)
+    if endpoint.poll is not None:  # a 1 ms cycle learned, the next burst due now: the poll set and waiting
+        endpoint.poll.period_ns = 1_000_000
+        endpoint.poll.arrived(time.monotonic_ns() - 1_000_000)
+        assert endpoint.poll.armed
+    set_at = endpoint.poll.poll_at_ns if endpoint.poll is not None else 0
     try:
         station.silence_due = lambda now: True  # type: ignore[method-assign]  # deadline passed
         station.next_deadline = lambda: 0  # type: ignore[method-assign]
@@ -88,6 +100,8 @@ async def test_tick_reads_waiting_commands_before_it_counts_silence() -> None:
         assert station.counters.rx_ok == 0  # no await since: the loop's reader has not run
         server._on_tick()
         assert station.counters.rx_ok == 2  # read by the tick itself, before it polled
+        if endpoint.poll is not None:  # the burst the tick read set the poll for the next cycle
+            assert endpoint.poll.armed and endpoint.poll.poll_at_ns >= set_at + 1_000_000
         assert await _answers(master, settle=0.05) == [1, 2]
     finally:
         master.close()
