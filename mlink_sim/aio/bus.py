@@ -13,7 +13,8 @@ is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it
   *keep* are answered (``SlaveServer._keep_behind`` says why, and how "absorb" sizes it).
 * :class:`Bus`: the stations of one shared socket. :meth:`Bus.serve` groups a read by station byte (each
   station's datagrams in arrival order, the stations in the order they first appear) and serves each group
-  through that station's :class:`Port`. A datagram for no station hosted there (or shorter than 4 bytes) is
+  through that station's :class:`Port`. A read with one datagram per station (every cycle's, unless the worker
+  fell behind) is the same grouping; it is served in one pass, without building the groups. A datagram for no station hosted there (or shorter than 4 bytes) is
   counted in :attr:`Bus.unaddressed`, as a station on a bus ignores frames for others.
 * :func:`due`: which stations' ``poll`` is due at a tick (``Station.next_deadline``): a scan of every hosted
   station once per millisecond.
@@ -37,9 +38,9 @@ class Port:
     after a read that left the card with an EEPROM image to write; *clock()*: the time each datagram is handed to
     the card at (ns; the worker's ``time.monotonic_ns``)."""
 
-    def __init__(self, station: Any, hosted: Any, keep: int, on_eeprom: Callable[[Any], None],
+    def __init__(self, station: Station, hosted: Any, keep: int, on_eeprom: Callable[[Any], None],
                  clock: Callable[[], int]) -> None:
-        self.station: Any = station
+        self.station: Station = station
         self.clock: Callable[[], int] = clock
         self.hosted: Any = hosted
         self.keep: int = keep
@@ -63,6 +64,15 @@ class Port:
         if self.station.eeprom_pending:
             self.on_eeprom(self.hosted)
 
+    def serve_one(self, data: bytes, addr: Any, out: Batch) -> None:
+        """:meth:`serve` of a read with one datagram for this station (never more than *keep*)."""
+        response = self.station.receive(data, addr, self.clock())
+        if response is not None:
+            out.append((response, addr))
+            self.hosted.responses += 1
+        if self.station.eeprom_pending:
+            self.on_eeprom(self.hosted)
+
 
 class Bus:
     """The stations of one shared socket, by station address (see the module docstring)."""
@@ -73,6 +83,17 @@ class Bus:
 
     def serve(self, batch: Batch) -> Batch:
         """The answers to one read of the shared socket, in the order the stations first appear in it."""
+        keys = [item[0][3] if len(item[0]) > 3 else -1 for item in batch]
+        ports = self.ports
+        if len(set(keys)) == len(keys):  # one datagram per station: the groups are the datagrams, in order
+            out: Batch = []
+            for key, item in zip(keys, batch):
+                port = ports.get(key)
+                if port is None:
+                    self.unaddressed += 1
+                else:
+                    port.serve_one(item[0], item[1], out)
+            return out
         per: dict[int, Batch] = {}
         for item in batch:
             data = item[0]
@@ -82,8 +103,7 @@ class Bus:
                 per[key] = [item]
             else:
                 items.append(item)
-        out: Batch = []
-        ports = self.ports
+        out = []
         for key, items in per.items():
             port = ports.get(key)
             if port is None:

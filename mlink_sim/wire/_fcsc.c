@@ -17,6 +17,11 @@
  *                                             a copy of template with the u32 LE cycle at cycle_at and the byte
  *                                             wdt at wdt_at, sealed: the master's cyclic command
  *                                             (master.fastpath.CyclicFrames.command); template is not changed
+ *   steady_delta(datagram, previous, cycle_at, wdt_at) -> int
+ *                                             cycle | wdt << 32 when datagram differs from previous (as long)
+ *                                             only in the u32 LE cycle at cycle_at, the byte at wdt_at and the
+ *                                             FCS, and its FCS is right; else -1: the inverse of patch_seal, for
+ *                                             the cyclic datagrams' steady state (wire.frame.steady_delta)
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -152,23 +157,29 @@ fcsc_fcs_ok(PyObject *module, PyObject *datagram)
     return PyBool_FromLong(ok);
 }
 
-/* A non-negative integer argument that fits in limit (inclusive), or -1 with ValueError set. */
+/* A non-negative integer argument of function fn that fits in limit (inclusive), or -1 with ValueError set. */
 static long long
-bounded(PyObject *arg, const char *name, unsigned long long limit)
+bounded_in(const char *fn, PyObject *arg, const char *name, unsigned long long limit)
 {
     unsigned long long value = PyLong_AsUnsignedLongLong(arg);
     if (value == (unsigned long long)-1 && PyErr_Occurred()) {
         if (PyErr_ExceptionMatches(PyExc_OverflowError)) {
             PyErr_Clear();
-            PyErr_Format(PyExc_ValueError, "patch_seal: %s must be an int in 0..%llu", name, limit);
+            PyErr_Format(PyExc_ValueError, "%s: %s must be an int in 0..%llu", fn, name, limit);
         }
         return -1;
     }
     if (value > limit) {
-        PyErr_Format(PyExc_ValueError, "patch_seal: %s must be an int in 0..%llu", name, limit);
+        PyErr_Format(PyExc_ValueError, "%s: %s must be an int in 0..%llu", fn, name, limit);
         return -1;
     }
     return (long long)value;
+}
+
+static long long
+bounded(PyObject *arg, const char *name, unsigned long long limit)
+{
+    return bounded_in("patch_seal", arg, name, limit);
 }
 
 static PyObject *
@@ -206,6 +217,51 @@ done:
     return result;
 }
 
+static PyObject *
+fcsc_steady_delta(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 4) {
+        PyErr_Format(PyExc_TypeError, "steady_delta() takes 4 arguments (%zd given)", nargs);
+        return NULL;
+    }
+    long long cycle_at = bounded_in("steady_delta", args[2], "cycle_at", 0xFFFFULL);
+    long long wdt_at = cycle_at < 0 ? -1 : bounded_in("steady_delta", args[3], "wdt_at", 0xFFFFULL);
+    if (wdt_at < 0)
+        return NULL;
+    bytes_in now, before;
+    if (get_bytes(args[0], &now) < 0)
+        return NULL;
+    if (get_bytes(args[1], &before) < 0) {
+        release(&now);
+        return NULL;
+    }
+    long long result = -1;
+    PyObject *out = NULL;
+    Py_ssize_t body = now.n - 2;  /* the bytes the FCS covers */
+    if (now.n == before.n && now.n >= 2) {
+        if (cycle_at + 4 > body || wdt_at >= body) {
+            PyErr_Format(PyExc_ValueError,
+                         "steady_delta: offsets %lld (cycle) and %lld (wdt) outside a %zd-byte datagram",
+                         cycle_at, wdt_at, now.n);
+            goto done;
+        }
+        Py_ssize_t i = 0;
+        for (; i < body; i++)
+            if (now.p[i] != before.p[i] && (i < cycle_at || i >= cycle_at + 4) && i != wdt_at)
+                break;
+        if (i == body && x25(now.p, body) == (uint16_t)(now.p[body] | (now.p[body + 1] << 8))) {
+            const unsigned char *c = now.p + cycle_at;
+            result = (long long)((uint32_t)c[0] | (uint32_t)c[1] << 8 | (uint32_t)c[2] << 16 | (uint32_t)c[3] << 24)
+                     | (long long)now.p[wdt_at] << 32;
+        }
+    }
+    out = PyLong_FromLongLong(result);
+done:
+    release(&now);
+    release(&before);
+    return out;
+}
+
 static PyMethodDef methods[] = {
     {"crc16_x25", fcsc_crc16_x25, METH_O, "CRC-16/X-25 of data (the FCS of the wire contract)."},
     {"seal", fcsc_seal, METH_O, "body + its FCS (u16 LE)."},
@@ -213,6 +269,9 @@ static PyMethodDef methods[] = {
     {"patch_seal", (PyCFunction)(void (*)(void))fcsc_patch_seal, METH_FASTCALL,
      "patch_seal(template, cycle_at, cycle, wdt_at, wdt): a sealed copy of template with the u32 LE cycle at "
      "cycle_at and the byte wdt at wdt_at."},
+    {"steady_delta", (PyCFunction)(void (*)(void))fcsc_steady_delta, METH_FASTCALL,
+     "steady_delta(datagram, previous, cycle_at, wdt_at): cycle | wdt << 32 when datagram differs from previous "
+     "only in the u32 LE cycle at cycle_at, the byte at wdt_at and its FCS, which is right; else -1."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -63,6 +63,21 @@ def test_the_station_byte_picks_the_station_and_the_stations_keep_their_first_or
     assert bus.unaddressed == 0
 
 
+def test_a_read_with_one_datagram_per_station_is_served_in_its_order() -> None:
+    """The common read (each station's command of one cycle, served in one pass): the stations in arrival order,
+    each answer to its datagram's source, a datagram for no station here counted, the answers counted per station,
+    an EEPROM image handed over after the read that left it."""
+    taken: list[Any] = []
+    ports = [_port(a, eeprom=taken) for a in (0x21, 0x22, 0x23)]
+    bus = Bus(ports)
+    ports[1].station.eeprom.dirty = True
+    batch = [(_nop(0x23, 1), SOURCE), (_nop(0x30, 1), SOURCE), (_nop(0x21, 1), OTHER), (_nop(0x22, 1), SOURCE)]
+    assert _answered(bus.serve(batch)) == [(0x23, 1, SOURCE), (0x21, 1, OTHER), (0x22, 1, SOURCE)]
+    assert [p.hosted.responses for p in ports] == [1, 1, 1]
+    assert bus.unaddressed == 1
+    assert taken == [ports[1].hosted]
+
+
 def test_datagrams_for_no_station_here_are_counted_not_answered() -> None:
     bus = Bus([_port(0x21)])
     out = bus.serve([(_nop(0x30, 1), SOURCE), (b"\x01\x02\x03", SOURCE), (b"", SOURCE), (_nop(0x21, 1), SOURCE)])

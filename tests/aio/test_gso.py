@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import errno
 import socket
+import struct
 import time
 from collections import deque
 from typing import Any
@@ -87,6 +88,27 @@ def test_a_gro_reader_cuts_every_burst_again() -> None:
         assert rx.recv_burst() == [burst[4][0]]
         with pytest.raises(BlockingIOError):
             rx.recvfrom(4096)
+    finally:
+        tx.close()
+        rx.close()
+
+
+def test_a_gro_reader_cuts_a_peers_short_last_segment_and_keeps_each_shape_apart() -> None:
+    """A peer's offloaded send may end with a shorter datagram (UDP_SEGMENT cuts the tail as it is): the read gives
+    it as it was sent. Bursts of different shapes one after the other are each cut by their own size."""
+    tx, rx = _udp(), mmsg.BurstSocket(_udp())
+    try:
+        assert rx.enable_gro()
+        here = rx.getsockname()
+        seg = struct.pack("=H", 10)
+        blob = bytes(range(35))
+        tx.sendmsg([blob], [(socket.SOL_UDP, 103, seg)], 0, here)  # UDP_SEGMENT, <linux/udp.h>
+        tx.sendmsg([bytes(range(64))], [(socket.SOL_UDP, 103, struct.pack("=H", 16))], 0, here)
+        _settle()
+        got = rx.recvfrom_burst()
+        assert [d for d, _ in got] == [blob[0:10], blob[10:20], blob[20:30], blob[30:35]] + [
+            bytes(range(i, i + 16)) for i in range(0, 64, 16)]
+        assert {a for _, a in got} == {tx.getsockname()}
     finally:
         tx.close()
         rx.close()

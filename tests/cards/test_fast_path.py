@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from mlink_sim.cards.base import SLOW
 from mlink_sim.wire import Kind, decode, encode, ml2, ml3
+from mlink_sim.wire.frame import with_fcs
 
 from .helpers import MS, Master, station
 
@@ -110,3 +111,45 @@ def test_kept_outputs_equal_fresh_ones_table18_table22(card: str, size: int) -> 
             for m in (kept, fresh):
                 m.slave_echo = decode(raw[0], kind=Kind.RESPONSE).message.rwdt & 0xF
     assert hits > 2000  # the kept values were used
+
+
+@pytest.mark.parametrize("card, size", [("si-t3", 32), ("si-t3", 17), ("si-t-v7", 32), ("si-t-v7", 17),
+                                        ("si-et3", 64), ("si-et3", 32)])
+def test_the_steady_state_matches_the_general_path(card: str, size: int) -> None:
+    """The fast path's steady state (a command that differs from the last one only in its cycle, WDT and FCS is not
+    unpacked again; the answer is the last one's template with its cycle and RWDT patched in): byte for byte the
+    general path's answers over long runs of one command while the drive ramps and its outputs move, a corrupted
+    FCS on an otherwise identical command (the general path's drop, SI-T3 Table 22 / SI-ET3 COMM_ALM), a wrong
+    WDT, skipped cycles, an ALM_CLR edge (ML-III), another station's byte and a command that changes again."""
+    fast, slow = _pair(card, size)
+    ml3_link = fast.ml3
+    fwd = 1
+    plan: list[tuple[int, int, int, str]] = [(fwd, 3000, 0x21, "run")] * 400 + [(fwd, 3000, 0x21, "bad_fcs")]
+    plan += [(fwd, 3000, 0x21, "run")] * 5 + [(fwd, 3000, 0x21, "bad_wdt")] + [(fwd, 3000, 0x21, "run")] * 5
+    plan += [(fwd, 3000, 0x21, "skip")] + [(fwd, 3000, 0x21, "run")] * 5 + [(fwd, 3000, 0x21, "station")]
+    plan += [(fwd, 3000, 0x21, "clear")] + [(fwd, 3000, 0x21, "run")] * 5
+    plan += [(fwd, 6000, 0x43, "run")] * 300 + [(0, 0, 0x43, "run")] * 300
+    for signals, speed, sel_mon, what in plan:
+        body = _inv_ctl(ml3_link, signals, speed, sel_mon)
+        for m in (fast, slow):
+            m.tick(2 if what == "skip" else 1)
+        kw: dict[str, Any] = {"cmd_ctrl": 0x08} if what == "clear" and ml3_link else {}
+        if what == "bad_wdt":
+            kw["wdt"] = 0x05
+        datagrams = [bytearray(encode(m.command(body, **kw))) for m in (fast, slow)]
+        for dg in datagrams:
+            if what == "bad_fcs":
+                dg[-1] ^= 0x10
+            elif what == "station":
+                dg[3] ^= 0x01
+                dg[-2:] = with_fcs(bytes(dg[:-2]))[-2:]
+        raw = [m.st.receive(bytes(dg), m.source, m.now) for m, dg in zip((fast, slow), datagrams)]
+        assert raw[0] == raw[1], what
+        if raw[0] is not None:
+            for m in (fast, slow):
+                m.slave_echo = decode(raw[0], kind=Kind.RESPONSE).message.rwdt & 0xF
+    assert fast.st.counters.as_dict() == slow.st.counters.as_dict()
+    counts = fast.st.counters.as_dict()
+    assert counts["dropped_by_reason"].get("BAD_FCS") == 1 and counts["other_station"] == 1
+    assert counts["wdt_errors"] == 1 and counts["rx_ok"] == len(plan) - 2 + 2  # and CONNECT, SYNC_SET
+    assert fast.st.snapshot().drive == slow.st.snapshot().drive

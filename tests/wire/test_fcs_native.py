@@ -21,6 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mlink_sim import _accel
+from mlink_sim.wire import frame
 from mlink_sim.wire.fcs import crc16_x25_pure, crc16_x25_reference
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -109,6 +110,47 @@ def test_patch_seal_equals_the_pure_patch(c, data):
 def test_patch_seal_refuses_bad_arguments(c, args, error):
     with pytest.raises(error):
         c.patch_seal(*args)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.data())
+def test_steady_delta_inverts_patch_seal_and_equals_the_cores_own(c, data):
+    """steady_delta (C) and mlink_sim.wire.frame.steady_delta (C when compiled, the pure fallback with
+    MLINK_PURE=1): cycle | wdt << 32 for a datagram that differs from the previous one only in its cycle, WDT and
+    FCS; -1 for any other change, a bad FCS or another length."""
+    template = data.draw(st.binary(min_size=6, max_size=80))
+    cycle_at = data.draw(st.integers(0, len(template) - 4))
+    wdt_at = data.draw(st.integers(0, len(template) - 1).filter(lambda i: not cycle_at <= i < cycle_at + 4))
+    cycle, wdt = data.draw(st.integers(0, 0xFFFF_FFFF)), data.draw(st.integers(0, 0xFF))
+    previous = c.patch_seal(template, cycle_at, data.draw(st.integers(0, 0xFFFF_FFFF)), wdt_at,
+                            data.draw(st.integers(0, 0xFF)))
+    now = c.patch_seal(template, cycle_at, cycle, wdt_at, wdt)
+    for fn in (c.steady_delta, frame.steady_delta):
+        assert fn(now, previous, cycle_at, wdt_at) == cycle | wdt << 32
+    assert c.steady_delta(bytearray(now), memoryview(previous), cycle_at, wdt_at) == cycle | wdt << 32
+    at, bit = data.draw(st.integers(0, len(now) - 1)), data.draw(st.integers(0, 7))
+    changed = bytearray(now)
+    changed[at] ^= 1 << bit
+    resealed = c.seal(bytes(changed[:-2]))
+    for fn in (c.steady_delta, frame.steady_delta):
+        assert fn(bytes(changed), previous, cycle_at, wdt_at) == -1  # a bad FCS, wherever the flip is
+        if at < len(now) - 2 and not cycle_at <= at < cycle_at + 4 and at != wdt_at:
+            assert fn(resealed, previous, cycle_at, wdt_at) == -1  # another field changed, sealed right
+        assert fn(now + b"\0", previous, cycle_at, wdt_at) == -1
+        assert fn(now[:-1], previous, cycle_at, wdt_at) == -1
+
+
+@pytest.mark.parametrize("args, error", [
+    ((b"\0" * 16, b"\0" * 16, 11, 0), ValueError),   # the cycle field runs into the FCS
+    ((b"\0" * 16, b"\0" * 16, 0, 14), ValueError),   # the WDT byte is the FCS
+    ((b"\0" * 16, b"\0" * 16, -1, 0), ValueError),
+    ((b"\0" * 16, b"\0" * 16, 0), TypeError),       # three arguments
+    (("not bytes", b"\0" * 16, 0, 4), TypeError),
+    ((b"\0" * 16, None, 0, 4), TypeError),
+])
+def test_steady_delta_refuses_bad_arguments(c, args, error):
+    with pytest.raises(error):
+        c.steady_delta(*args)
 
 
 def test_non_bytes_are_a_type_error(c):
