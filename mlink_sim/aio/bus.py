@@ -14,8 +14,9 @@ is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it
 * :class:`Bus`: the stations of one shared socket. :meth:`Bus.serve` groups a read by station byte (each
   station's datagrams in arrival order, the stations in the order they first appear) and serves each group
   through that station's :class:`Port`. A read with one datagram per station (every cycle's, unless the worker
-  fell behind) is the same grouping; it is served in one pass, without building the groups. A datagram for no station hosted there (or shorter than 4 bytes) is
-  counted in :attr:`Bus.unaddressed`, as a station on a bus ignores frames for others.
+  fell behind) is the same grouping; it is served in one pass, without building the groups. A datagram for no
+  station hosted there (or shorter than 4 bytes) is counted in :attr:`Bus.unaddressed`, as a station on a bus
+  ignores frames for others.
 * :func:`due`: which stations' ``poll`` is due at a tick (``Station.next_deadline``): a scan of every hosted
   station once per millisecond.
 """

@@ -21,7 +21,7 @@ from mlink_sim.wire import (
     MAGIC, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, Unknown, encode, ml2,
 )
 from mlink_sim.wire.frame import (
-    ENVELOPE, FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, patch_seal, steady_delta,
+    ENVELOPE, FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, steady_delta, Template,
 )
 from mlink_sim.wire.layout import field_offset
 
@@ -67,8 +67,8 @@ _SUBCODE_AT: Final = datagram_offset("subcode", ml2.COMMAND_FRAME_32)
 _CYCLE_AT: Final = field_offset(ENVELOPE, "cycle")  # the envelope's cycle (u32 LE), in commands and responses
 _WDT_AT: Final = datagram_offset("wdt", ml2.COMMAND_FRAME_17)  # alike in both frame sizes
 _RWDT_AT: Final = datagram_offset("rwdt", ml2.RESPONSE_FRAME_17)
-if (_WDT_AT != datagram_offset("wdt", ml2.COMMAND_FRAME_32) or _RWDT_AT != datagram_offset("rwdt", ml2.RESPONSE_FRAME_32)
-        or _RSP_DG[17][1][4] != "cycle"):
+if (_WDT_AT != datagram_offset("wdt", ml2.COMMAND_FRAME_32)
+        or _RWDT_AT != datagram_offset("rwdt", ml2.RESPONSE_FRAME_32) or _RSP_DG[17][1][4] != "cycle"):
     raise ImportError("MECHATROLINK-II fast path: WDT, RWDT or the cycle moved between the frame sizes")
 _CMD_INV_CTL: Final = int(M2Cmd.INV_CTL)
 _KIND_COMMAND: Final = int(Kind.COMMAND)
@@ -135,14 +135,12 @@ class Ml2Station(Station):
         self._fast_len = HEADER_SIZE + self.data_size + FCS_SIZE
         self._frame32 = self.data_size == 32
         self._rsp_pack = _RSP_DG[self.data_size][0].pack  # bound once: no lookup per datagram
-        # the fast path's steady state (_fast_receive): the last command it took and that command's fields ...
+        # the fast path's steady state (_fast_receive): the last command it took and its fields, and its answers'
+        # template
         self._fast_cmd = b""
         self._c_link = self._c_tcycle = self._c_sig = self._c_speed = self._c_torque = 0
         self._c_sel_ref = self._c_sel_mon = self._c_ref1 = self._c_ref2 = 0
-        # ... and the last answer's template (its cycle and RWDT zero, no FCS) with the fields it was made from
-        self._rsp_tpl = b""
-        self._r_tcycle = self._r_alarm = self._r_word = self._r_ofreq = self._r_cur = 0
-        self._r_sel_ref = self._r_sel_mon = self._r_mon1 = self._r_mon2 = 0
+        self._answer = Template(_RWDT_AT)
 
     # -- the command ---------------------------------------------------------------------------
     def _process(self, frame: Frame, source: Hashable, now: int) -> bytes:
@@ -214,24 +212,22 @@ class Ml2Station(Station):
         command that differs from the last one taken only in its cycle, WDT and FCS is not unpacked again, and
         the answer is the last one's template with the cycle and RWDT patched in while its other fields hold."""
         d = steady_delta(dg, self._fast_cmd, _CYCLE_AT, _WDT_AT) if self._fast_cmd else -1
-        if d >= 0:
-            cycle, wdt = d & 0xFFFFFFFF, d >> 32
-            link, stn, tcycle, sig, speed, torque = (self._c_link, self.address, self._c_tcycle, self._c_sig,
-                                                     self._c_speed, self._c_torque)
-            sel_ref, sel_mon, ref1, ref2 = self._c_sel_ref, self._c_sel_mon, self._c_ref1, self._c_ref2
+        if d >= 0:  # the fields kept from the last command (native ints, no unpack)
+            cycle, wdt, stn = d & 0xFFFFFFFF, d >> 32, self.address
+            link, tcycle, sig = self._c_link, self._c_tcycle, self._c_sig
+            speed, torque, sel_ref, sel_mon, ref1, ref2 = (self._c_speed, self._c_torque, self._c_sel_ref,
+                                                           self._c_sel_mon, self._c_ref1, self._c_ref2)
         else:
             if len(dg) != self._fast_len:
                 return SLOW
             (magic, link, kind, stn, cycle, tcycle, code, sig, speed, torque, sel_ref, sel_mon, ref1, ref2,
              wdt) = _CMD_UNPACK(dg)
             if (magic != MAGIC or link != self.link or kind != _KIND_COMMAND or stn != self.address
-                    or code != _CMD_INV_CTL
-                    or (self._frame32 and dg[_SUBCODE_AT] != 0)
-                    or not fcs_ok(dg)):
+                    or code != _CMD_INV_CTL or (self._frame32 and dg[_SUBCODE_AT] != 0) or not fcs_ok(dg)):
                 return SLOW
-            self._fast_cmd = dg
-            self._c_link, self._c_tcycle, self._c_sig, self._c_speed, self._c_torque = link, tcycle, sig, speed, torque
-            self._c_sel_ref, self._c_sel_mon, self._c_ref1, self._c_ref2 = sel_ref, sel_mon, ref1, ref2
+            self._fast_cmd, self._c_link, self._c_tcycle, self._c_sig = dg, link, tcycle, sig
+            self._c_speed, self._c_torque, self._c_sel_ref, self._c_sel_mon = speed, torque, sel_ref, sel_mon
+            self._c_ref1, self._c_ref2 = ref1, ref2
         if not self._accept(cycle, tcycle, wdt, _CMD_INV_CTL, source, now):
             return None
         if self._source is None:  # this command's gap lost the connection
@@ -244,20 +240,16 @@ class Ml2Station(Station):
         self._tx_at = now
         if self.drive.status.fault is not self._seen_fault:
             self._watch_history()
-        if (alarm != self._r_alarm or word != self._r_word or ofreq != self._r_ofreq or cur != self._r_cur
-                or mon1 != self._r_mon1 or mon2 != self._r_mon2 or sel_ref != self._r_sel_ref
-                or sel_mon != self._r_sel_mon or tcycle != self._r_tcycle or not self._rsp_tpl):
+        answer = self._answer
+        if answer.stale(alarm, word, ofreq, cur, sel_ref, sel_mon, mon1, mon2, tcycle):
             if self._frame32:
-                self._rsp_tpl = self._rsp_pack(MAGIC, link, _KIND_RESPONSE, stn, 0, tcycle, _CMD_INV_CTL, alarm,
+                answer.body = self._rsp_pack(MAGIC, link, _KIND_RESPONSE, stn, 0, tcycle, _CMD_INV_CTL, alarm,
                                                word, ofreq, cur, sel_ref, sel_mon, mon1, mon2, 0, 0, _SUBRDY,
                                                _ZERO_SUB)
             else:
-                self._rsp_tpl = self._rsp_pack(MAGIC, link, _KIND_RESPONSE, stn, 0, tcycle, _CMD_INV_CTL, alarm,
+                answer.body = self._rsp_pack(MAGIC, link, _KIND_RESPONSE, stn, 0, tcycle, _CMD_INV_CTL, alarm,
                                                word, ofreq, cur, sel_ref, sel_mon, mon1, mon2, 0)
-            self._r_alarm, self._r_word, self._r_ofreq, self._r_cur = alarm, word, ofreq, cur
-            self._r_mon1, self._r_mon2, self._r_sel_ref, self._r_sel_mon = mon1, mon2, sel_ref, sel_mon
-            self._r_tcycle = tcycle
-        return patch_seal(self._rsp_tpl, _CYCLE_AT, cycle, _RWDT_AT, rwdt)
+        return answer.seal(cycle, rwdt)
 
     def _inv_ctl(self, sig: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,
                  now: int) -> tuple[int, int, int, int]:

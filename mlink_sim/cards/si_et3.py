@@ -25,7 +25,7 @@ from mlink_sim.wire import (
     MAGIC, PROFILE_TYPE_INVERTER, CommAlm, Frame, Kind, Link, M3Cmd, Unknown, encode, ml3,
 )
 from mlink_sim.wire.frame import (
-    ENVELOPE, FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, patch_seal, steady_delta,
+    ENVELOPE, FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, steady_delta, Template,
 )
 from mlink_sim.wire.layout import field_offset
 
@@ -72,8 +72,8 @@ _SUBCODE_AT: Final = datagram_offset("subcode", ml3.COMMAND_FRAME_64)
 _CYCLE_AT: Final = field_offset(ENVELOPE, "cycle")  # the envelope's cycle (u32 LE), in commands and responses
 _WDT_AT: Final = datagram_offset("wdt", ml3.COMMAND_FRAME_32)  # alike in both frame sizes
 _RWDT_AT: Final = datagram_offset("rwdt", ml3.RESPONSE_FRAME_32)
-if (_WDT_AT != datagram_offset("wdt", ml3.COMMAND_FRAME_64) or _RWDT_AT != datagram_offset("rwdt", ml3.RESPONSE_FRAME_64)
-        or _RSP_DG[32][1][4] != "cycle"):
+if (_WDT_AT != datagram_offset("wdt", ml3.COMMAND_FRAME_64)
+        or _RWDT_AT != datagram_offset("rwdt", ml3.RESPONSE_FRAME_64) or _RSP_DG[32][1][4] != "cycle"):
     raise ImportError("SI-ET3 fast path: WDT, RWDT or the cycle moved between the frame sizes")
 _CMD_INV_CTL: Final = int(M3Cmd.INV_CTL)
 _LINK: Final = int(Link.ML3)
@@ -146,14 +146,12 @@ class SiEt3(Station):
         self._fast_len = HEADER_SIZE + self.data_size + FCS_SIZE
         self._frame64 = self.data_size == 64
         self._rsp_pack = _RSP_DG[self.data_size][0].pack  # bound once: no lookup per datagram
-        # the fast path's steady state (_fast_receive): the last command it took and that command's fields ...
+        # the fast path's steady state (_fast_receive): the last command it took and its fields, and its answers'
+        # template
         self._fast_cmd = b""
         self._c_tcycle = self._c_ctrl = self._c_ictrl = self._c_speed = self._c_torque = 0
         self._c_sel_ref = self._c_sel_mon = self._c_ref1 = self._c_ref2 = 0
-        # ... and the last answer's template (its cycle and RWDT zero, no FCS) with the fields it was made from
-        self._rsp_tpl = b""
-        self._r_tcycle = self._r_stat = self._r_invcmd_stat = self._r_ofreq = self._r_cur = 0
-        self._r_sel_ref = self._r_sel_mon = self._r_mon1 = self._r_mon2 = 0
+        self._answer = Template(_RWDT_AT)
         self._sel_mon_bits: dict[int, int] = {}  # SEL_MON -> INVCMD_STAT bits 24/25, filled as codes are seen
 
     def _power_up(self, values: Mapping[str, int], settings: CardSettings) -> None:
@@ -235,14 +233,14 @@ class SiEt3(Station):
 
         The steady state costs less: a command that differs from the last one taken here only in its cycle, WDT
         and FCS (:func:`~mlink_sim.wire.frame.steady_delta`, one C call) is not unpacked and checked field by field
-        again, and the answer is the last answer's template with the cycle and RWDT patched in
-        (:func:`~mlink_sim.wire.frame.patch_seal`) for as long as none of its other fields changes."""
+        again, and the answer is its template (:class:`~mlink_sim.wire.frame.Template`) with the cycle and RWDT
+        patched in, packed again only when one of its other fields changes."""
         d = steady_delta(dg, self._fast_cmd, _CYCLE_AT, _WDT_AT) if self._fast_cmd else -1
-        if d >= 0:
-            cycle, wdt = d & 0xFFFFFFFF, d >> 32
-            stn, tcycle, ctrl, ictrl, speed, torque = (self.address, self._c_tcycle, self._c_ctrl, self._c_ictrl,
-                                                       self._c_speed, self._c_torque)
-            sel_ref, sel_mon, ref1, ref2 = self._c_sel_ref, self._c_sel_mon, self._c_ref1, self._c_ref2
+        if d >= 0:  # the fields kept from the last command (native ints, no unpack)
+            cycle, wdt, stn = d & 0xFFFFFFFF, d >> 32, self.address
+            tcycle, ctrl, ictrl = self._c_tcycle, self._c_ctrl, self._c_ictrl
+            speed, torque, sel_ref, sel_mon, ref1, ref2 = (self._c_speed, self._c_torque, self._c_sel_ref,
+                                                           self._c_sel_mon, self._c_ref1, self._c_ref2)
         else:
             if len(dg) != self._fast_len:
                 return SLOW
@@ -251,9 +249,9 @@ class SiEt3(Station):
             if (magic != MAGIC or link != _LINK or kind != _KIND_COMMAND or stn != self.address
                     or code != _CMD_INV_CTL or (self._frame64 and dg[_SUBCODE_AT] != 0) or not fcs_ok(dg)):
                 return SLOW
-            self._fast_cmd = dg
-            self._c_tcycle, self._c_ctrl, self._c_ictrl, self._c_speed, self._c_torque = tcycle, ctrl, ictrl, speed, torque
-            self._c_sel_ref, self._c_sel_mon, self._c_ref1, self._c_ref2 = sel_ref, sel_mon, ref1, ref2
+            self._fast_cmd, self._c_tcycle, self._c_ctrl, self._c_ictrl = dg, tcycle, ctrl, ictrl
+            self._c_speed, self._c_torque, self._c_sel_ref, self._c_sel_mon = speed, torque, sel_ref, sel_mon
+            self._c_ref1, self._c_ref2 = ref1, ref2
         if not self._accept(cycle, tcycle, wdt, _CMD_INV_CTL, source, now):
             return None
         if self._source is None:  # this command's gap lost the connection
@@ -275,20 +273,16 @@ class SiEt3(Station):
             self._watch_history()
         if self._frame64:
             self._last_sub_alm = 0
-        if (stat != self._r_stat or invcmd_stat != self._r_invcmd_stat or ofreq != self._r_ofreq
-                or cur != self._r_cur or mon1 != self._r_mon1 or mon2 != self._r_mon2 or sel_ref != self._r_sel_ref
-                or sel_mon != self._r_sel_mon or tcycle != self._r_tcycle or not self._rsp_tpl):
+        answer = self._answer
+        if answer.stale(stat, invcmd_stat, ofreq, cur, sel_ref, sel_mon, mon1, mon2, tcycle):
             if self._frame64:
-                self._rsp_tpl = self._rsp_pack(MAGIC, _LINK, _KIND_RESPONSE, stn, 0, tcycle, _CMD_INV_CTL, 0, stat,
+                answer.body = self._rsp_pack(MAGIC, _LINK, _KIND_RESPONSE, stn, 0, tcycle, _CMD_INV_CTL, 0, stat,
                                                invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2, 0,
                                                _SUBCMDRDY, _ZERO_SUB)
             else:
-                self._rsp_tpl = self._rsp_pack(MAGIC, _LINK, _KIND_RESPONSE, stn, 0, tcycle, _CMD_INV_CTL, 0, stat,
+                answer.body = self._rsp_pack(MAGIC, _LINK, _KIND_RESPONSE, stn, 0, tcycle, _CMD_INV_CTL, 0, stat,
                                                invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2)
-            self._r_stat, self._r_invcmd_stat, self._r_ofreq, self._r_cur = stat, invcmd_stat, ofreq, cur
-            self._r_mon1, self._r_mon2, self._r_sel_ref, self._r_sel_mon = mon1, mon2, sel_ref, sel_mon
-            self._r_tcycle = tcycle
-        return patch_seal(self._rsp_tpl, _CYCLE_AT, cycle, _RWDT_AT, rwdt)
+        return answer.seal(cycle, rwdt)
 
     def _inv_ctl(self, ctrl: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,
                  now: int) -> tuple[int, int, int, int, int]:

@@ -48,6 +48,7 @@ __all__ = [
     "fcs_ok",
     "patch_seal",
     "steady_delta",
+    "Template",
     "datagram_struct",
     "datagram_offset",
 ]
@@ -131,6 +132,38 @@ def steady_delta(datagram: bytes, previous: bytes, cycle_at: int, wdt_at: int) -
     if now != before or not fcs_ok(datagram):
         return -1
     return int(_U32.unpack_from(datagram, cycle_at)[0]) | datagram[wdt_at] << 32
+
+
+class Template:
+    """A cyclic datagram kept as a template (the cards' steady-state answers, docs/cards.md "The steady state"):
+    :attr:`body` is the datagram without its FCS, with its cycle and its (R)WDT byte at *wdt_at* zero. It is packed
+    again by the caller only when :meth:`stale` says one of the nine fields it was packed from changed; each
+    datagram is then :meth:`seal`: the body with the cycle and the WDT patched in, sealed (:func:`patch_seal`).
+    Nine native ints and no tuple, so the check costs no allocation per datagram."""
+
+    def __init__(self, wdt_at: int) -> None:
+        self.wdt_at = wdt_at
+        self.body = b""
+        self._field0 = self._field1 = self._field2 = self._field3 = self._field4 = 0
+        self._field5 = self._field6 = self._field7 = self._field8 = 0
+
+    def stale(self, k0: int, k1: int, k2: int, k3: int, k4: int, k5: int, k6: int, k7: int, k8: int) -> bool:
+        """True when :attr:`body` must be packed again: there is none yet, or one of the nine fields it is packed
+        from (everything but the cycle and the WDT, in the caller's order) changed; the new ones are kept."""
+        if (self.body and k0 == self._field0 and k1 == self._field1 and k2 == self._field2 and k3 == self._field3
+                and k4 == self._field4 and k5 == self._field5 and k6 == self._field6 and k7 == self._field7
+                and k8 == self._field8):
+            return False
+        self._field0, self._field1, self._field2, self._field3, self._field4 = k0, k1, k2, k3, k4
+        self._field5, self._field6, self._field7, self._field8 = k5, k6, k7, k8
+        return True
+
+    def seal(self, cycle: int, wdt: int) -> bytes:
+        """The datagram of *cycle* (u32) with *wdt* (a byte) and its FCS."""
+        return patch_seal(self.body, _CYCLE_AT, cycle, self.wdt_at, wdt)
+
+
+_CYCLE_AT: Final = field_offset(ENVELOPE, "cycle")
 
 
 def datagram_struct(frame: Struct, size: int, **inline: tuple[Struct, int]) -> tuple[struct.Struct, tuple[str, ...]]:
