@@ -29,7 +29,8 @@ it off), ``send_burst`` sends the datagrams of a burst that go to one destinatio
 where it must (before a device without the offload; at the receiving socket unless that socket asked for
 ``UDP_GRO``). Each datagram on a network is an ordinary UDP datagram. A socket that reads with ``UDP_GRO``
 (:meth:`BurstSocket.enable_gro`) gets such a group as one buffer with its segment size, and the reads cut it
-again, so every caller still sees one datagram per frame. On this 2-vCPU machine the kernel's path costs about
+again (one ``recvmmsg`` for up to four buffers, one ``struct`` call to cut each), so every caller still sees one
+datagram per frame. On this 2-vCPU machine the kernel's path costs about
 10 µs of CPU per datagram on loopback; a group of 62 costs about as much as one datagram (docs/performance.md,
 "One port per worker, one packet per burst"). It pays where many stations share a port: the slave workers of
 ``mlink-sim up`` (``SlaveServer(shared=True)``).
@@ -76,7 +77,15 @@ _SOL_UDP = 17
 _UDP_SEGMENT = 103
 _UDP_GRO = 104
 _GRO_CTL = socket.CMSG_SPACE(4)
-_GRO_BUFSIZE = 65535  # a coalesced buffer is one UDP datagram at most
+# A UDP_GRO read: _GRO_SLOTS coalesced buffers per recvmmsg, each in a slot of _GRO_SLOT bytes (a coalesced buffer
+# is one UDP datagram, at most 65,535 bytes), with its source and its control message: struct cmsghdr (cmsg_len: a
+# size_t, then cmsg_level and cmsg_type: two ints) and the segment size, an int at CMSG_LEN(0).
+_GRO_SLOTS = 4
+_GRO_SLOT = 65536
+_CMSG_KIND = struct.Struct("=ii")
+_CMSG_KIND_AT = ctypes.sizeof(ctypes.c_size_t)
+_CMSG_INT = struct.Struct("=i")
+_CMSG_DATA_AT = socket.CMSG_LEN(0)
 _GSO_BYTES = 60_000  # one offloaded send at most (the IP datagram it builds must stay below 64 KiB)
 _NO_GSO = (errno.EINVAL, errno.EIO, errno.ENOPROTOOPT, errno.EOPNOTSUPP)  # the offload refused (not a lost datagram)
 _CTL_SIZE = 32
@@ -259,7 +268,7 @@ class BurstSocket:
                  "_cap", "_smsgs", "_siov", "_sdata", "_sview", "_skey", "_names", "_rmsgs", "_riov", "_rbuf",
                  "_rview", "_rnames", "_rnview", "_rwords", "_stride", "_len_at", "_namelen_at", "_bufsize",
                  "_sources", "_rctl", "_rctlq", "_ctllen_at", "stamped", "_gso", "_sgroups", "gro", "_gbuf",
-                 "_gview", "_gleft", "_gerr")
+                 "_gview", "_gmsgs", "_gnames", "_gctl", "_gleft", "_gerr")
 
     def __init__(self, sock: socket.socket, capacity: int = CAPACITY, bufsize: int = _BUFSIZE) -> None:
         if _calls is None:
@@ -305,8 +314,11 @@ class BurstSocket:
         self._gso = gso_supported()  #: a burst's datagrams of one size to one destination go in one sendmsg
         self._sgroups: list[tuple[list[int], Any, list[tuple[int, int, bytes]]]] | None = None
         self.gro = False  #: True once enable_gro() succeeded
-        self._gbuf: Any = None
+        self._gbuf: Any = None  # the UDP_GRO reads' slots (enable_gro): buffers, headers, sources, control messages
         self._gview: Any = None
+        self._gmsgs: Any = None
+        self._gnames: Any = None
+        self._gctl: Any = None
         self._gleft: deque[tuple[bytes, Any]] = deque()  #: segments read but not handed over yet (recv/recvfrom)
         self._gerr: OSError | None = None  #: an error met after some segments were read: raised on the next read
 
@@ -462,15 +474,30 @@ class BurstSocket:
             self.sock.setsockopt(_SOL_UDP, _UDP_GRO, 1)
         except OSError:
             return False
-        self._gbuf = bytearray(_GRO_BUFSIZE)
-        self._gview = memoryview(self._gbuf)
+        slots = _GRO_SLOTS
+        self._gbuf = ctypes.create_string_buffer(slots * _GRO_SLOT)
+        self._gview = memoryview(self._gbuf).cast("B")
+        self._gnames = ctypes.create_string_buffer(slots * _NAME_SIZE)
+        self._gctl = ctypes.create_string_buffer(slots * _GRO_CTL)
+        self._gmsgs = (_MMsgHdr * slots)()
+        iov = (_IoVec * slots)()
+        buf, names, ctl = (ctypes.addressof(self._gbuf), ctypes.addressof(self._gnames),
+                           ctypes.addressof(self._gctl))
+        for i in range(slots):
+            iov[i].iov_base, iov[i].iov_len = buf + i * _GRO_SLOT, _GRO_SLOT
+            hdr = self._gmsgs[i].msg_hdr
+            hdr.msg_iov, hdr.msg_iovlen = ctypes.addressof(iov) + i * ctypes.sizeof(_IoVec), 1
+            hdr.msg_name, hdr.msg_namelen = names + i * _NAME_SIZE, _NAME_SIZE
+            hdr.msg_control, hdr.msg_controllen = ctl + i * _GRO_CTL, _GRO_CTL
+        self._gmsgs._iov = iov  # kept alive with the headers that point into it
         self.recv, self.recvfrom = self._recv_one, self._recvfrom_one
         self.gro = True
         return True
 
     def _read_gro(self, limit: int) -> list[tuple[bytes, Any]]:
-        """At least what is waiting up to *limit* datagrams (a buffer's segments are never cut off: a read may give
-        more), each with its source; [] when none is waiting."""
+        """At least what is waiting up to *limit* datagrams, each with its source; [] when none is waiting. A read
+        may give more: a coalesced buffer's segments are never cut off, and one call takes up to four buffers
+        (never more buffers than datagrams are still wanted, so ``limit=1`` reads one buffer)."""
         out: list[tuple[bytes, Any]] = []
         left = self._gleft
         while left and len(out) < limit:
@@ -481,28 +508,49 @@ class BurstSocket:
                 self._gerr = err
                 return out
             raise err
-        recvmsg_into, buf, view = self.sock.recvmsg_into, [self._gbuf], self._gview
+        # one recvmmsg for up to _GRO_SLOTS coalesced buffers (never more buffers than datagrams are still wanted):
+        # a burst and the finding that nothing more waits are one system call, where a recvmsg per buffer needs a
+        # second one, which fails with EAGAIN (4 µs in a running network, docs/performance.md)
+        call, fd, msgs = _calls[1], self._fd, self._gmsgs  # type: ignore[index]
+        view, names, ctl = self._gview, self._gnames, self._gctl
         while len(out) < limit:
-            try:
-                n, anc, _flags, addr = recvmsg_into(buf, _GRO_CTL)
-            except BlockingIOError:
-                break
-            except OSError as exc:
+            want = min(_GRO_SLOTS, limit - len(out))
+            n = call(fd, msgs, want, _MSG_DONTWAIT, None)
+            if n < 0:
+                e = ctypes.get_errno()
+                if e in _EAGAIN:
+                    break
+                if e == errno.EINTR:
+                    continue
+                exc = OSError(e, os.strerror(e))
                 if not out:
-                    raise
+                    raise exc
                 self._gerr = exc  # the segments read first are handed over; the error comes with the next read
                 break
-            seg = n
-            for level, kind, value in anc:
-                if level == _SOL_UDP and kind == _UDP_GRO:
-                    seg = int.from_bytes(value[:4], sys.byteorder)
-            if 0 < seg < n:
-                count, rest = divmod(n, seg)
-                out += zip(_cutter(seg, count).unpack_from(buf[0]), repeat(addr, count))
-                if rest:
-                    out.append((view[n - rest:n].tobytes(), addr))
-            else:
-                out.append((view[:n].tobytes(), addr))
+            for i in range(n):
+                msg = msgs[i]
+                size, hdr = msg.msg_len, msg.msg_hdr
+                raw = names[i * _NAME_SIZE:i * _NAME_SIZE + hdr.msg_namelen]
+                hdr.msg_namelen = _NAME_SIZE
+                addr = self._sources.get(raw)
+                if addr is None:
+                    addr = self._source(raw)
+                seg = size
+                if hdr.msg_controllen >= _CMSG_DATA_AT + 4:  # the kernel's UDP_GRO message: the segment size
+                    at = i * _GRO_CTL
+                    if _CMSG_KIND.unpack_from(ctl, at + _CMSG_KIND_AT) == (_SOL_UDP, _UDP_GRO):
+                        seg = _CMSG_INT.unpack_from(ctl, at + _CMSG_DATA_AT)[0]
+                hdr.msg_controllen = _GRO_CTL
+                at = i * _GRO_SLOT
+                if 0 < seg < size:
+                    count, rest = divmod(size, seg)
+                    out += zip(_cutter(seg, count).unpack_from(view, at), repeat(addr, count))
+                    if rest:
+                        out.append((view[at + size - rest:at + size].tobytes(), addr))
+                else:
+                    out.append((view[at:at + size].tobytes(), addr))
+            if n < want:
+                break
         return out
 
     def _recvfrom_one(self, bufsize: int, flags: int = 0) -> tuple[bytes, Any]:

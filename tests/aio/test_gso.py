@@ -75,10 +75,17 @@ def test_a_gro_reader_cuts_every_burst_again() -> None:
         burst = [(i.to_bytes(2, "big") * 23, here) for i in range(40)]
         assert tx.send_burst(burst + [(b"tail", here)]) == []
         _settle()
-        got = rx.recvfrom_burst(8)  # a coalesced buffer is never cut off: all of it comes, beyond the limit
+        got = rx.recvfrom_burst(1)  # a coalesced buffer is never cut off: all of it comes, beyond the limit
         assert [d for d, _ in got] == [d for d, _ in burst]
         assert {a for _, a in got} == {tx.getsockname()}
         assert rx.recv_burst() == [b"tail"]  # sent alone: a datagram of its own
+        assert rx.recv_burst() == []
+        # one read takes up to four buffers, never more buffers than datagrams are asked for
+        for _ in range(3):
+            assert tx.send_burst(burst[:6] + [(b"tail", here)]) == []
+        _settle()
+        assert rx.recv_burst(2) == [d for d, _ in burst[:6]] + [b"tail"]
+        assert rx.recv_burst(8) == ([d for d, _ in burst[:6]] + [b"tail"]) * 2
         assert rx.recv_burst() == []
         # one datagram at a time (what an impaired master's reads use): the rest of a buffer waits for the next
         assert tx.send_burst(burst[:5]) == []
