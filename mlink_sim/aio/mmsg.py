@@ -43,7 +43,6 @@ callers keep the per-datagram calls: the transport works the same either way (``
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import errno
 import os
 import platform
@@ -53,15 +52,23 @@ import sys
 import time
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
-from itertools import repeat
 from typing import Any
+
+from .gro import SOL_UDP as _SOL_UDP
+from .gro import UDP_GRO as _UDP_GRO
+from .gro import CoalescedReads
+from .msghdr import CALLS as _calls
+from .msghdr import EAGAIN as _EAGAIN
+from .msghdr import HDR_SIZE as _HDR_SIZE
+from .msghdr import MSG_DONTWAIT as _MSG_DONTWAIT
+from .msghdr import NAME_SIZE as _NAME_SIZE
+from .msghdr import IoVec as _IoVec
+from .msghdr import MMsgHdr as _MMsgHdr
+from .msghdr import MsgHdr as _MsgHdr
 
 __all__ = ["BurstSocket", "CAPACITY", "drain", "gso_supported", "stamps_enabled", "stamps_supported", "supported",
            "wrap"]
 
-_MSG_DONTWAIT = 0x40  # <bits/socket.h>, the same on every Linux architecture CPython supports
-_EAGAIN = (errno.EAGAIN, errno.EWOULDBLOCK)
-_NAME_SIZE = 128  # sizeof(struct sockaddr_storage)
 CAPACITY = 64  #: messages per system call (a burst of more is sent, or read, in several calls)
 _BUFSIZE = 4096  # bytes per received datagram, as the per-datagram reads (``recv(4096)``)
 # Kernel receive timestamps: <asm-generic/socket.h> SO_TIMESTAMPNS (= SO_TIMESTAMPNS_OLD, 35; on x86-64 and
@@ -73,57 +80,13 @@ _SO_TIMESTAMPNS = 35
 # Segmentation offload, <linux/udp.h>: UDP_SEGMENT (Linux 4.18) and UDP_GRO (Linux 5.0) at level SOL_UDP (17); the
 # GRO control message carries the segment size as an int. At most 64 segments per send (UDP_MAX_SEGMENTS: 64 in
 # 4.18, 128 since 5.4): a burst is split at CAPACITY = 64 anyway.
-_SOL_UDP = 17
 _UDP_SEGMENT = 103
-_UDP_GRO = 104
-_GRO_CTL = socket.CMSG_SPACE(4)
-# A UDP_GRO read: _GRO_SLOTS coalesced buffers per recvmmsg, each in a slot of _GRO_SLOT bytes (a coalesced buffer
-# is one UDP datagram, at most 65,535 bytes), with its source and its control message: struct cmsghdr (cmsg_len: a
-# size_t, then cmsg_level and cmsg_type: two ints) and the segment size, an int at CMSG_LEN(0).
-_GRO_SLOTS = 4
-_GRO_SLOT = 65536
-_CMSG_KIND = struct.Struct("=ii")
-_CMSG_KIND_AT = ctypes.sizeof(ctypes.c_size_t)
-_CMSG_INT = struct.Struct("=i")
-_CMSG_DATA_AT = socket.CMSG_LEN(0)
 _GSO_BYTES = 60_000  # one offloaded send at most (the IP datagram it builds must stay below 64 KiB)
 _NO_GSO = (errno.EINVAL, errno.EIO, errno.ENOPROTOOPT, errno.EOPNOTSUPP)  # the offload refused (not a lost datagram)
 _CTL_SIZE = 32
 _STAMPS_ARCH = platform.machine() in ("x86_64", "amd64", "aarch64", "arm64")
 
 
-class _IoVec(ctypes.Structure):
-    _fields_ = [("iov_base", ctypes.c_void_p), ("iov_len", ctypes.c_size_t)]
-
-
-class _MsgHdr(ctypes.Structure):
-    _fields_ = [("msg_name", ctypes.c_void_p), ("msg_namelen", ctypes.c_uint32), ("msg_iov", ctypes.c_void_p),
-                ("msg_iovlen", ctypes.c_size_t), ("msg_control", ctypes.c_void_p),
-                ("msg_controllen", ctypes.c_size_t), ("msg_flags", ctypes.c_int)]
-
-
-class _MMsgHdr(ctypes.Structure):
-    _fields_ = [("msg_hdr", _MsgHdr), ("msg_len", ctypes.c_uint)]
-
-
-_HDR_SIZE = ctypes.sizeof(_MMsgHdr)
-
-
-def _load() -> tuple[Any, Any] | None:
-    if not sys.platform.startswith("linux"):
-        return None
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-        send, recv = libc.sendmmsg, libc.recvmmsg
-    except (OSError, AttributeError):
-        return None
-    # No argtypes: the arguments are Python ints (int), the header arrays themselves or byref() (pointers) and
-    # None (NULL), which ctypes passes as they are; argtypes' conversions cost ~1.5 µs per call (measured here).
-    send.restype = recv.restype = ctypes.c_int
-    return send, recv
-
-
-_calls = _load()
 
 
 def supported() -> bool:
@@ -212,22 +175,6 @@ def drain(burst: Callable[[int], list[Any]], limit: int, on_error: Callable[[OSE
         limit -= want
 
 
-def _cutter(size: int, count: int) -> struct.Struct:
-    """The ``struct`` that cuts a coalesced buffer into *count* datagrams of *size* bytes in one call: a
-    ``UDP_GRO`` read cut by slicing costs 14 µs for 62 datagrams of 32 bytes on the bench machine, by this
-    2.8 µs (docs/performance.md, "The worker's own path"). Made once per shape and kept (at most 256 shapes: a
-    peer's segment size is its own choice)."""
-    cut = _CUTTERS.get((size, count))
-    if cut is None:
-        if len(_CUTTERS) >= 256:
-            _CUTTERS.clear()
-        cut = _CUTTERS[(size, count)] = struct.Struct(f"{size}s" * count)
-    return cut
-
-
-_CUTTERS: dict[tuple[int, int], struct.Struct] = {}
-
-
 def _encode(addr: Any) -> bytes | None:
     """The ``struct sockaddr`` of a numeric ``(host, port)`` (IPv4) or ``(host, port[, flowinfo, scope_id])``
     (IPv6); None for anything else (a name: the caller sends that datagram with ``sendto``)."""
@@ -267,8 +214,8 @@ class BurstSocket:
     __slots__ = ("sock", "sendto", "recv", "recvfrom", "fileno", "getsockname", "close", "setsockopt", "_fd",
                  "_cap", "_smsgs", "_siov", "_sdata", "_sview", "_skey", "_names", "_rmsgs", "_riov", "_rbuf",
                  "_rview", "_rnames", "_rnview", "_rwords", "_stride", "_len_at", "_namelen_at", "_bufsize",
-                 "_sources", "_rctl", "_rctlq", "_ctllen_at", "stamped", "_gso", "_sgroups", "gro", "_gbuf",
-                 "_gview", "_gmsgs", "_gnames", "_gctl", "_gleft", "_gerr")
+                 "_sources", "_rctl", "_rctlq", "_ctllen_at", "stamped", "_gso", "_sgroups", "gro", "_coalesced",
+                 "_gleft", "_gerr")
 
     def __init__(self, sock: socket.socket, capacity: int = CAPACITY, bufsize: int = _BUFSIZE) -> None:
         if _calls is None:
@@ -314,11 +261,7 @@ class BurstSocket:
         self._gso = gso_supported()  #: a burst's datagrams of one size to one destination go in one sendmsg
         self._sgroups: list[tuple[list[int], Any, list[tuple[int, int, bytes]]]] | None = None
         self.gro = False  #: True once enable_gro() succeeded
-        self._gbuf: Any = None  # the UDP_GRO reads' slots (enable_gro): buffers, headers, sources, control messages
-        self._gview: Any = None
-        self._gmsgs: Any = None
-        self._gnames: Any = None
-        self._gctl: Any = None
+        self._coalesced: Any = None  #: the UDP_GRO reads (gro.CoalescedReads), once enable_gro() succeeded
         self._gleft: deque[tuple[bytes, Any]] = deque()  #: segments read but not handed over yet (recv/recvfrom)
         self._gerr: OSError | None = None  #: an error met after some segments were read: raised on the next read
 
@@ -474,22 +417,7 @@ class BurstSocket:
             self.sock.setsockopt(_SOL_UDP, _UDP_GRO, 1)
         except OSError:
             return False
-        slots = _GRO_SLOTS
-        self._gbuf = ctypes.create_string_buffer(slots * _GRO_SLOT)
-        self._gview = memoryview(self._gbuf).cast("B")
-        self._gnames = ctypes.create_string_buffer(slots * _NAME_SIZE)
-        self._gctl = ctypes.create_string_buffer(slots * _GRO_CTL)
-        self._gmsgs = (_MMsgHdr * slots)()
-        iov = (_IoVec * slots)()
-        buf, names, ctl = (ctypes.addressof(self._gbuf), ctypes.addressof(self._gnames),
-                           ctypes.addressof(self._gctl))
-        for i in range(slots):
-            iov[i].iov_base, iov[i].iov_len = buf + i * _GRO_SLOT, _GRO_SLOT
-            hdr = self._gmsgs[i].msg_hdr
-            hdr.msg_iov, hdr.msg_iovlen = ctypes.addressof(iov) + i * ctypes.sizeof(_IoVec), 1
-            hdr.msg_name, hdr.msg_namelen = names + i * _NAME_SIZE, _NAME_SIZE
-            hdr.msg_control, hdr.msg_controllen = ctl + i * _GRO_CTL, _GRO_CTL
-        self._gmsgs._iov = iov  # kept alive with the headers that point into it
+        self._coalesced = CoalescedReads(self._fd)
         self.recv, self.recvfrom = self._recv_one, self._recvfrom_one
         self.gro = True
         return True
@@ -508,49 +436,12 @@ class BurstSocket:
                 self._gerr = err
                 return out
             raise err
-        # one recvmmsg for up to _GRO_SLOTS coalesced buffers (never more buffers than datagrams are still wanted):
-        # a burst and the finding that nothing more waits are one system call, where a recvmsg per buffer needs a
-        # second one, which fails with EAGAIN (4 µs in a running network, docs/performance.md)
-        call, fd, msgs = _calls[1], self._fd, self._gmsgs  # type: ignore[index]
-        view, names, ctl = self._gview, self._gnames, self._gctl
-        while len(out) < limit:
-            want = min(_GRO_SLOTS, limit - len(out))
-            n = call(fd, msgs, want, _MSG_DONTWAIT, None)
-            if n < 0:
-                e = ctypes.get_errno()
-                if e in _EAGAIN:
-                    break
-                if e == errno.EINTR:
-                    continue
-                exc = OSError(e, os.strerror(e))
-                if not out:
-                    raise exc
-                self._gerr = exc  # the segments read first are handed over; the error comes with the next read
-                break
-            for i in range(n):
-                msg = msgs[i]
-                size, hdr = msg.msg_len, msg.msg_hdr
-                raw = names[i * _NAME_SIZE:i * _NAME_SIZE + hdr.msg_namelen]
-                hdr.msg_namelen = _NAME_SIZE
-                addr = self._sources.get(raw)
-                if addr is None:
-                    addr = self._source(raw)
-                seg = size
-                if hdr.msg_controllen >= _CMSG_DATA_AT + 4:  # the kernel's UDP_GRO message: the segment size
-                    at = i * _GRO_CTL
-                    if _CMSG_KIND.unpack_from(ctl, at + _CMSG_KIND_AT) == (_SOL_UDP, _UDP_GRO):
-                        seg = _CMSG_INT.unpack_from(ctl, at + _CMSG_DATA_AT)[0]
-                hdr.msg_controllen = _GRO_CTL
-                at = i * _GRO_SLOT
-                if 0 < seg < size:
-                    count, rest = divmod(size, seg)
-                    out += zip(_cutter(seg, count).unpack_from(view, at), repeat(addr, count))
-                    if rest:
-                        out.append((view[at + size - rest:at + size].tobytes(), addr))
-                else:
-                    out.append((view[at:at + size].tobytes(), addr))
-            if n < want:
-                break
+        try:
+            self._coalesced.read(limit, out, self._sources.get, self._source)
+        except OSError as exc:
+            if not out:
+                raise
+            self._gerr = exc  # the segments read first are handed over; the error comes with the next read
         return out
 
     def _recvfrom_one(self, bufsize: int, flags: int = 0) -> tuple[bytes, Any]:
