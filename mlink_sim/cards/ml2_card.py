@@ -21,9 +21,8 @@ from mlink_sim.wire import (
     MAGIC, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, Unknown, encode, ml2,
 )
 from mlink_sim.wire.frame import (
-    ENVELOPE, FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, steady_delta, Template,
+    CYCLE_AT, FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, steady_delta, Template,
 )
-from mlink_sim.wire.layout import field_offset
 
 from . import commands
 from .alarms import Ml2Alarms, ml2_failure_code
@@ -64,7 +63,6 @@ if _RSP_DG[32][1][-3:] != ("subcode", "substatus", "sub") or _RSP_DG[17][1] != _
                                "mon1", "mon2", "rwdt"):
     raise ImportError(f"MECHATROLINK-II fast path: the INV_CTL response fields are {_RSP_DG[32][1]}")
 _SUBCODE_AT: Final = datagram_offset("subcode", ml2.COMMAND_FRAME_32)
-_CYCLE_AT: Final = field_offset(ENVELOPE, "cycle")  # the envelope's cycle (u32 LE), in commands and responses
 _WDT_AT: Final = datagram_offset("wdt", ml2.COMMAND_FRAME_17)  # alike in both frame sizes
 _RWDT_AT: Final = datagram_offset("rwdt", ml2.RESPONSE_FRAME_17)
 if (_WDT_AT != datagram_offset("wdt", ml2.COMMAND_FRAME_32)
@@ -211,7 +209,7 @@ class Ml2Station(Station):
         path (tests/cards/test_fast_path.py). The steady state as on the SI-ET3 (``SiEt3._fast_receive``): a
         command that differs from the last one taken only in its cycle, WDT and FCS is not unpacked again, and
         the answer is the last one's template with the cycle and RWDT patched in while its other fields hold."""
-        d = steady_delta(dg, self._fast_cmd, _CYCLE_AT, _WDT_AT) if self._fast_cmd else -1
+        d = steady_delta(dg, self._fast_cmd, CYCLE_AT, _WDT_AT) if self._fast_cmd else -1
         if d >= 0:  # the fields kept from the last command (native ints, no unpack)
             cycle, wdt, stn = d & 0xFFFFFFFF, d >> 32, self.address
             link, tcycle, sig = self._c_link, self._c_tcycle, self._c_sig

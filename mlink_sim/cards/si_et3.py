@@ -25,9 +25,8 @@ from mlink_sim.wire import (
     MAGIC, PROFILE_TYPE_INVERTER, CommAlm, Frame, Kind, Link, M3Cmd, Unknown, encode, ml3,
 )
 from mlink_sim.wire.frame import (
-    ENVELOPE, FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, steady_delta, Template,
+    CYCLE_AT, FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, steady_delta, Template,
 )
-from mlink_sim.wire.layout import field_offset
 
 from . import commands
 from .alarms import Ml3Alarms, ml3_failure_code
@@ -69,7 +68,6 @@ if _RSP_DG[64][1][-3:] != ("subcode", "sub_stat", "sub") or _RSP_DG[32][1] != _R
                                "output_current", "sel_ref", "sel_mon", "mon1", "mon2"):
     raise ImportError(f"SI-ET3 fast path: the INV_CTL response fields are {_RSP_DG[64][1]}")
 _SUBCODE_AT: Final = datagram_offset("subcode", ml3.COMMAND_FRAME_64)
-_CYCLE_AT: Final = field_offset(ENVELOPE, "cycle")  # the envelope's cycle (u32 LE), in commands and responses
 _WDT_AT: Final = datagram_offset("wdt", ml3.COMMAND_FRAME_32)  # alike in both frame sizes
 _RWDT_AT: Final = datagram_offset("rwdt", ml3.RESPONSE_FRAME_32)
 if (_WDT_AT != datagram_offset("wdt", ml3.COMMAND_FRAME_64)
@@ -235,7 +233,7 @@ class SiEt3(Station):
         and FCS (:func:`~mlink_sim.wire.frame.steady_delta`, one C call) is not unpacked and checked field by field
         again, and the answer is its template (:class:`~mlink_sim.wire.frame.Template`) with the cycle and RWDT
         patched in, packed again only when one of its other fields changes."""
-        d = steady_delta(dg, self._fast_cmd, _CYCLE_AT, _WDT_AT) if self._fast_cmd else -1
+        d = steady_delta(dg, self._fast_cmd, CYCLE_AT, _WDT_AT) if self._fast_cmd else -1
         if d >= 0:  # the fields kept from the last command (native ints, no unpack)
             cycle, wdt, stn = d & 0xFFFFFFFF, d >> 32, self.address
             tcycle, ctrl, ictrl = self._c_tcycle, self._c_ctrl, self._c_ictrl

@@ -38,11 +38,10 @@ from typing import Any
 from . import frames
 from .recovery import Episode, RecoveryLog
 from .spec import BadCommand, FaultSpec, FreezeWdt, MasterFault, Silence, SkipCycles
-from ..wire.frame import HEADER_SIZE
+from ..wire.frame import CYCLE_AT, HEADER_SIZE
 
 __all__ = ["FaultStage", "StationTraits", "is_healthy", "INJECTED"]
 
-_CYCLE_AT = 4  # envelope cycle number, bytes 4–7 (wire/frame.py ENVELOPE)
 #: What :meth:`FaultStage.injected` counts, per station (the report's ``injected`` keys, docs/report.md).
 INJECTED: tuple[str, ...] = ("silences", "skips", "wdt_freezes", "bad_commands", "drive_faults")
 
@@ -90,7 +89,7 @@ def is_healthy(view: Any, since_ns: int = 0) -> bool:
 
 
 def _cycle(datagram: bytes) -> int:
-    return int.from_bytes(datagram[_CYCLE_AT:_CYCLE_AT + 4], "little")
+    return int.from_bytes(datagram[CYCLE_AT:CYCLE_AT + 4], "little")
 
 
 class FaultStage:

@@ -34,22 +34,20 @@ from typing import Any, Final
 from ..wire import Frame, Kind, Link, encode, ml2, ml3
 from ..wire.codes import M2Cmd, M2Status, M3Cmd
 from ..wire.frame import (
-    ENVELOPE, FCS_SIZE, HEADER_SIZE, MAGIC, datagram_offset, datagram_struct, fcs_ok, patch_seal, steady_delta,
+    CYCLE_AT, FCS_SIZE, HEADER_SIZE, MAGIC, datagram_offset, datagram_struct, fcs_ok, patch_seal, steady_delta,
 )
-from ..wire.layout import field_offset
 from .codec import Codec
 from .plan import StationPlan
 
 __all__ = ["CyclicFrames", "cycle_of"]
 
-_CYCLE_OFFSET: Final = field_offset(ENVELOPE, "cycle")
 _CYCLE: Final = struct.Struct("<I")
 _CYCLE_UNPACK: Final = _CYCLE.unpack_from  # Final (a C static, mypyc) and bound: no lookup per datagram
 
 
 def cycle_of(datagram: bytes) -> int:
     """The envelope's cycle number (u32, bytes 4–7) of a datagram at least a header long."""
-    return _CYCLE_UNPACK(datagram, _CYCLE_OFFSET)[0]
+    return _CYCLE_UNPACK(datagram, CYCLE_AT)[0]
 
 
 #: ML-II STATUS ALM and WARNG (bits 0/1, SI-T3 "STATUS Field", an unnumbered table) and the ALARM byte must be
@@ -115,7 +113,7 @@ class CyclicFrames:
             tpl = self._template = bytearray(encode(Frame(self.link, Kind.COMMAND, self.address, 0, self._tcycle,
                                                           message))[:-FCS_SIZE])
             self._body = body
-        return patch_seal(tpl, _CYCLE_OFFSET, cycle, self._wdt_at, wdt)
+        return patch_seal(tpl, CYCLE_AT, cycle, self._wdt_at, wdt)
 
     # ------------------------------------------------------------------ response
     def response(self, dg: bytes, cycle: int, comm_alm: int) -> tuple[int, int, int, int, int, int, bool] | None:
@@ -130,7 +128,7 @@ class CyclicFrames:
         with its RWDT, without being unpacked and checked field by field again."""
         last = self._last
         if last:
-            d = steady_delta(dg, last, _CYCLE_OFFSET, self._rwdt_at)
+            d = steady_delta(dg, last, CYCLE_AT, self._rwdt_at)
             if d >= 0 and d & 0xFFFFFFFF == cycle and comm_alm == self._last_comm:
                 r = self._last_out
                 return d >> 32, r[1], r[2], r[3], r[4], r[5], r[6]

@@ -47,6 +47,7 @@ __all__ = [
     "with_fcs",
     "fcs_ok",
     "patch_seal",
+    "CYCLE_AT",
     "steady_delta",
     "Template",
     "datagram_struct",
@@ -69,6 +70,7 @@ ENVELOPE = Struct(
 #: ``struct`` codec of :data:`ENVELOPE`: ``HEADER.unpack_from(datagram)`` -> (magic, link, kind, station, cycle,
 #: tcycle_ns). The per-cycle fast paths (cards, master) use it with :func:`with_fcs` and :func:`fcs_ok`.
 HEADER: Final = fast_struct(ENVELOPE, HEADER_SIZE)
+CYCLE_AT: Final = field_offset(ENVELOPE, "cycle")  #: the envelope's cycle number (u32 LE), commands and responses
 
 
 def datagram_offset(name: str, *frames: Any) -> int:
@@ -160,10 +162,7 @@ class Template:
 
     def seal(self, cycle: int, wdt: int) -> bytes:
         """The datagram of *cycle* (u32) with *wdt* (a byte) and its FCS."""
-        return patch_seal(self.body, _CYCLE_AT, cycle, self.wdt_at, wdt)
-
-
-_CYCLE_AT: Final = field_offset(ENVELOPE, "cycle")
+        return patch_seal(self.body, CYCLE_AT, cycle, self.wdt_at, wdt)
 
 
 def datagram_struct(frame: Struct, size: int, **inline: tuple[Struct, int]) -> tuple[struct.Struct, tuple[str, ...]]:

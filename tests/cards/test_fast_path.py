@@ -9,10 +9,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mlink_sim.cards.base import SLOW
-from mlink_sim.wire import Kind, decode, encode, ml2, ml3
+from mlink_sim.wire import CommAlm, Kind, M2Alarm, decode, encode, ml2, ml3
 from mlink_sim.wire.frame import with_fcs
 
-from .helpers import MS, Master, station
+from .helpers import MS, Master, alarm, comm_alm, station
 
 PARAMS = {"si-t3": ("b1-01=3", "b1-02=3"), "si-et3": ("b1-01=3", "b1-02=3"), "si-t-v7": ("n003=3", "n004=9")}
 
@@ -153,3 +153,27 @@ def test_the_steady_state_matches_the_general_path(card: str, size: int) -> None
     assert counts["dropped_by_reason"].get("BAD_FCS") == 1 and counts["other_station"] == 1
     assert counts["wdt_errors"] == 1 and counts["rx_ok"] == len(plan) - 2 + 2  # and CONNECT, SYNC_SET
     assert fast.st.snapshot().drive == slow.st.snapshot().drive
+
+
+@pytest.mark.parametrize("card, size", [("si-t3", 17), ("si-t-v7", 32), ("si-et3", 32), ("si-et3", 64)])
+def test_a_new_transmission_cycle_after_a_steady_run_is_a_cycle_fault(card: str, size: int) -> None:
+    """After a steady run, a command whose only news besides its cycle and WDT is the header's transmission cycle
+    (bytes 8–11) is not the steady state: it is a transmission cycle fault, E6 on MECHATROLINK-II (SI-T3 Table 22,
+    SI-T/V7 Table 7) and COMM_ALM B, synchronization interval error, on the SI-ET3; the fast and the general card
+    answer alike."""
+    fast, slow = _pair(card, size)
+    body = _inv_ctl(fast.ml3, 1, 3000, 0x21)
+    for cycle in range(51):
+        for m in (fast, slow):
+            m.tick()
+        other = {"tcycle_ns": 2 * MS} if cycle == 50 else {}
+        raw = [m.st.receive(encode(m.command(body, **other)), m.source, m.now) for m in (fast, slow)]
+        assert raw[0] == raw[1] and raw[0] is not None
+        answer = decode(raw[0], kind=Kind.RESPONSE)
+        for m in (fast, slow):
+            m.slave_echo = answer.message.rwdt & 0xF
+    if fast.ml3:
+        assert comm_alm(answer) == CommAlm.SYNC_INTERVAL_ERROR
+    else:
+        assert alarm(answer) == M2Alarm.COMM_ERROR == 0xE6
+    assert fast.st.counters.as_dict() == slow.st.counters.as_dict()
