@@ -20,7 +20,7 @@ from .. import _accel
 from .._log import get_logger
 from ..config import Config, TimelineStep, format_ns
 from ..metrics import write_report
-from .scenario import CheckResult, Scenario, speed_scales
+from .scenario import CheckResult, Scenario, speed_scales, with_stalls
 from .session import EndpointError, NetworkSession, build_plans
 from .status import LiveStatus, StatusInfo, WorstP99, render_lines
 from .supervisor import resolve_workers
@@ -187,7 +187,7 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
         stopper.cancel()
         await session.refresh_slave_stats()
         await session.close_masters()  # DISCONNECT while the slaves still run
-        scenario.results[:] = [_with_stalls(c, session.metrics.stalls, t0) for c in scenario.results]
+        scenario.results[:] = [with_stalls(c, session.metrics.stalls, t0) for c in scenario.results]
         for c in scenario.results:
             session.metrics.record_check(c.at_s, c.what, c.ok, c.detail)
         interrupted = caught[0].name if caught else None
@@ -211,12 +211,6 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
     verdict = Verdict.of(scenario, report, session.problems, caught[0] if caught else None, cut)
     _print_summary(config, report, scenario, verdict, session.problems, opts)
     return RunOutcome(verdict.exit_code, report, scenario.results, session.problems)
-
-
-def _with_stalls(check: CheckResult, stalls: Any, t0: float) -> CheckResult:
-    """A failed check names the host stalls of the three seconds before it (loop time is the monotonic clock)."""
-    near = "" if check.ok else stalls.describe_near(int((t0 + check.at_s) * 1e9), zero_ns=int(t0 * 1e9))
-    return dataclasses.replace(check, detail=f"{check.detail}; {near}") if near else check
 
 
 def _notice(opts: RunOptions, event: str, text: str) -> None:

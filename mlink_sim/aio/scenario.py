@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Awaitable, Callable
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -22,7 +23,7 @@ from ..params import FAMILIES
 from ..wire import InvCmdStat, Link, M2Status
 
 __all__ = ["SpeedScale", "CheckResult", "NetworkHandle", "Scenario", "StationControls", "speed_scale",
-           "speed_scales"]
+           "speed_scales", "with_stalls"]
 
 log = get_logger("mlink_sim.scenario")
 
@@ -90,6 +91,14 @@ class CheckResult:
     what: str
     ok: bool
     detail: str
+
+
+def with_stalls(check: CheckResult, stalls: Any, t0: float) -> CheckResult:
+    """*check*, when it failed, with the host stalls of the three seconds before it named in its detail
+    (docs/timing.md, "Host stalls"); *stalls* is the run's ``metrics.stalls.StallLog``, *t0* the loop time of
+    the timeline's "0 s" (loop time is the monotonic clock)."""
+    near = "" if check.ok else stalls.describe_near(int((t0 + check.at_s) * 1e9), zero_ns=int(t0 * 1e9))
+    return dataclasses.replace(check, detail=f"{check.detail}; {near}") if near else check
 
 
 class NetworkHandle(Protocol):
@@ -163,6 +172,7 @@ class Scenario:
         self.links = {st.address: st.link for st in config.station}
         self.steps: list[TimelineStep] = sorted(config.timeline, key=lambda s: s.at)
         self.started = 0  #: steps begun so far, in order of time (``steps[:started]``)
+        self.t0: float | None = None  #: the loop time of "0 s", once :meth:`run` began
         #: called with each action step's description as it begins (a capture's comments: ``--capture``)
         self.note: Callable[[str], None] | None = None
         self._waiting: set[asyncio.Task[None]] = set()  # checks that wait (recovered, refused)
@@ -180,7 +190,8 @@ class Scenario:
         return [st.address for st in self.config.station] if step.station == "all" else [step.station]
 
     async def run(self, t0: float, sleep_until: Callable[[float], Awaitable[None]]) -> None:
-        """Execute the steps in order of time; *t0* is the loop time of "0 s"."""
+        """Execute the steps in order of time; *t0* is the loop time of "0 s" (kept as :attr:`t0`)."""
+        self.t0 = t0
         for step in self.steps:
             await sleep_until(t0 + step.at / 1e9)
             self.started += 1

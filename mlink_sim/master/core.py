@@ -15,7 +15,7 @@ from typing import Any, Final
 
 from ..wire import CmdAlm, CommAlm, DropReason, Frame, Kind, Link, WireError, decode, encode
 from ..wire.frame import HEADER_SIZE
-from . import requests, restart
+from . import drivefault, requests, restart
 from .codec import Reply
 from .commands import Cmd, Send
 from .fastpath import cycle_of
@@ -141,7 +141,7 @@ class MasterCore:
         """A clean answer to a cyclic INV_CTL, on time or late, straight from the bytes (:mod:`.fastpath`): what
         the general path does for it (:meth:`_observe`, :meth:`_advance`). False: the general path decides."""
         st = self._by_addr.get(datagram[3]) if len(datagram) >= HEADER_SIZE else None
-        if st is None or st.state not in _UP or st.alarm or st.cmd_alm or st.comm_alm >= 8:
+        if st is None or st.state not in _UP or st.alarm or st.fault or st.cmd_alm or st.comm_alm >= 8:
             return False
         cycle = cycle_of(datagram)
         sent = st.outstanding  # the common answer, on time (_answer_to's first case)
@@ -154,7 +154,6 @@ class MasterCore:
             return False
         self._take(st, sent, now)
         st.rwdt, st.status, st.output_freq, st.output_current, st.mon1, st.mon2, st.warning = r
-        st.fault = False
         if st.run_held or st.searching:
             restart.watch(st, self._emit)
         return True
@@ -453,7 +452,8 @@ class MasterCore:
     # ------------------------------------------------------------------ bookkeeping
     def _observe(self, st: Slave, reply: Reply) -> None:
         codec = st.codec
-        if reply.alarm != st.alarm:
+        ml3_link = codec.link is Link.ML3
+        if reply.alarm != st.alarm and not ml3_link:  # ML-III: the code of D_ALM is read (_drive_fault)
             st.alarm = reply.alarm
             if reply.alarm:
                 st.alarm_name = codec.alarm_name(reply.alarm, reply.status or 0)
@@ -469,6 +469,8 @@ class MasterCore:
             self._alarm_edge(st, reply.cmd_alm, "command")
         if not reply.status_valid:
             return  # SI-T3 "STATUS Field" note: with PRM_RD only CMDRDY is valid
+        if ml3_link and reply.fault is not st.fault:
+            self._drive_fault(st, reply.fault)
         st.fault = reply.fault
         st.warning = reply.warning
         if reply.kind is Cmd.INV_CTL:
@@ -500,11 +502,64 @@ class MasterCore:
     def _reached(self, st: Slave, now: int) -> None:
         st.was_up = True
         st.clear_rounds = 0
-        if st.fault_since is not None:
-            st.recoveries += 1
-            self._emit(Recovered(st.address, st.fault_reason, now - st.fault_since))
-            st.fault_since = None
-            restart.begin(st, self._emit)
+        if st.fault_since is None:
+            return
+        if st.fault and st.codec.link is Link.ML3:  # D_ALM once the connection is back: which fault? (drivefault)
+            if st.fault_read is None and not st.alarm:
+                self._read_drive_fault(st)
+            if st.fault_read is not None:
+                st.recovery_pending = True  # decided when U2-01 is known (_drive_fault_read)
+                return
+            if self._reset_connection_fault(st):
+                return
+        self._recovered(st, now)
+
+    def _recovered(self, st: Slave, now: int) -> None:
+        since = st.fault_since
+        st.recoveries += 1
+        self._emit(Recovered(st.address, st.fault_reason, now - since if since is not None else 0))
+        st.fault_since = None
+        st.fault_resets = 0
+        restart.begin(st, self._emit)
+
+    # ------------------------------------------------------------------ ML-III drive faults (drivefault)
+    def _drive_fault(self, st: Slave, on: bool) -> None:
+        """A D_ALM edge: on, read its code (ALM_RD, SI-ET3 Tables 16/17); off, the view's alarm clears."""
+        if on:
+            if st.fault_read is None:
+                self._read_drive_fault(st)
+        elif st.alarm:
+            st.alarm, st.alarm_name = 0, None
+            self._emit(AlarmCleared(st.address, "alarm"))
+
+    def _read_drive_fault(self, st: Slave) -> None:
+        req = st.fault_read = drivefault.read_request(st.address, self._deadline(None, None))
+        st.main_q.append(req)
+        req.add_done_callback(lambda r: self._drive_fault_read(st, r))
+
+    def _drive_fault_read(self, st: Slave, req: Request) -> None:
+        """U2-01 is known (or the read failed): the view, then a recovery that waited for it."""
+        st.fault_read = None
+        code = drivefault.code_of(req)
+        if code and st.fault and code != st.alarm:
+            st.alarm, st.alarm_name = code, drivefault.name_of(code)
+            self._emit(AlarmRaised(st.address, code, st.alarm_name, "alarm"))
+        if st.recovery_pending:
+            st.recovery_pending = False
+            if st.state is st.target and st.fault_since is not None and not self._reset_connection_fault(st):
+                self._recovered(st, self._now)
+
+    def _reset_connection_fault(self, st: Slave) -> bool:
+        """bUS / E5 left by the connection loss and not reset by ALM_CLR (RUN on): DISCONNECT + CONNECT, as on
+        the SI-T3 (drivefault); at most ``clear_attempts`` times per recovery. False: nothing to do here."""
+        if (st.alarm not in drivefault.CONNECTION_FAULTS or st.fault_resets >= self.plan.clear_attempts
+                or not expects(st.state, Ev.ESCALATED)):
+            return False
+        st.fault_resets += 1
+        st.reset_first = True
+        st.last_error = f"drive fault {st.alarm_name} after the connection loss; DISCONNECT resets it"
+        self._fire(st, Ev.ESCALATED)
+        return True
 
     def _fire(self, st: Slave, event: Ev) -> None:
         """The one place a station's state changes: by the table (:func:`~.machine.next_state`, which raises

@@ -80,6 +80,11 @@ class Slave:
         self.clear_rounds = 0
         self.fault_since: int | None = None
         self.fault_reason = ""
+        #: ML-III: the ALM_RD reading U2-01 behind D_ALM (drivefault), a recovery waiting for it, and the
+        #: DISCONNECT + CONNECT rounds spent on a bUS / E5 the connection loss left
+        self.fault_read: Request | None = None
+        self.recovery_pending = False
+        self.fault_resets = 0
         self.last_error: str | None = None
         # view
         self.alarm = 0
