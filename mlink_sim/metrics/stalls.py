@@ -14,10 +14,21 @@ their time, so a repeat changes nothing.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-__all__ = ["StallLog", "Stall", "WORKER_STALL_NS", "POLICIES"]
+__all__ = ["StallLog", "Stall", "WORKER_STALL_NS", "POLICIES", "longest_named_ms"]
+
+#: One stall as :meth:`StallLog.describe_near` names it: "<ms> ms at <s> s (<process>…)".
+_NAMED = re.compile(r"(\d+(?:\.\d+)?) ms at -?\d+(?:\.\d+)? s \(")
+
+
+def longest_named_ms(text: str) -> float:
+    """The longest host stall, in ms, that the :meth:`StallLog.describe_near` sentences in *text* name (a failed
+    check's detail, or ``mlink-sim up``'s output); 0.0 when they name none. With the bound (``host.bound`` of the
+    report) it tells a check that failed after a stall beyond what the policy absorbs (docs/ci.md)."""
+    return max((float(ms) for ms in _NAMED.findall(text)), default=0.0)
 
 #: A worker's 1 ms tick that runs this late is a stall (twice the tick: uvloop's timers are whole milliseconds).
 WORKER_STALL_NS = 2_000_000

@@ -5,7 +5,8 @@ The plugin is registered through the ``pytest11`` entry point when mlink-sim is 
 
 from .harness import NetworkNotUp, RunningNetwork
 from .metrics import Latency, MetricsView, StationMetricsView
+from .stalls import beyond_the_bound, run_beyond_the_bound
 from .virtual import VirtualRunningNetwork
 
 __all__ = ["RunningNetwork", "VirtualRunningNetwork", "NetworkNotUp", "MetricsView", "Latency",
-           "StationMetricsView"]
+           "StationMetricsView", "beyond_the_bound", "run_beyond_the_bound"]

@@ -13,11 +13,23 @@ from pathlib import Path
 
 import pytest
 
+from mlink_sim.testing import run_beyond_the_bound
+
 MLINK = [sys.executable, "-m", "mlink_sim"]
 
 
 def run_cli(*args: str, timeout: float = 60.0, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run([*MLINK, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd)
+
+
+def assert_held(r: subprocess.CompletedProcess[str]) -> None:
+    """A real-clock run held every check: exit 0 and "all checks held". When every failed check names a host
+    stall beyond the bound the host-stall policy absorbs (docs/ci.md), the run says nothing about mlink-sim and
+    the test is skipped, naming them; any other failure fails."""
+    if r.returncode == 1 and (reason := run_beyond_the_bound(r.stdout)):
+        pytest.skip(reason)
+    assert r.returncode == 0, r.stdout + r.stderr[-2000:]
+    assert "all checks held" in r.stdout, r.stdout
 
 
 class SlaveProc:

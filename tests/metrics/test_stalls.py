@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from mlink_sim.metrics import NetworkMetrics, check_all, parse_assertion
-from mlink_sim.metrics.stalls import StallLog
+from mlink_sim.metrics.stalls import StallLog, longest_named_ms
 
 MS = 1_000_000
 
@@ -46,6 +46,18 @@ def test_describe_near_names_the_stall_before_a_failed_check():
     text = log.describe_near(5_000 * MS, zero_ns=1_000 * MS)
     assert text.startswith("the host stalled 6 times in the 3 s before, longest: 4.0 ms at 3.00 s (worker:0); ")
     assert text.endswith("23.0 ms at 3.20 s (master, 11 cycles lost)")
+
+
+@pytest.mark.parametrize("zero_ms", [0, 4_500])  # a stall before the timeline's "0 s" is at a negative time
+def test_longest_named_reads_back_what_describe_near_writes(zero_ms):
+    log = StallLog("absorb", 100 * MS)
+    log.reset(0)
+    for at_ms, ms in ((4_100, 12.6), (4_200, 130.5), (4_300, 5.2), (4_400, 0.4)):
+        log.record("master", at_ms * MS, int(ms * MS), 3, False)
+    detail = "output 0.00 Hz, expected 20 ± 0.5 Hz; " + log.describe_near(5_000 * MS, zero_ns=zero_ms * MS)
+    assert longest_named_ms(detail) == 130.5
+    assert longest_named_ms("output 0.00 Hz, expected 20 ± 0.5 Hz") == 0.0
+    assert longest_named_ms("rtt p50 86.78us; host stalls 3, longest 130.5ms") == 0.0  # the summary is not a check
 
 
 def test_wire_round_trip_and_merge():

@@ -21,6 +21,7 @@ from click.testing import CliRunner
 from mlink_sim.config import load_config, parse_config
 from mlink_sim.testbed import firewall, netns
 from mlink_sim.testbed.netns import check_prefix, cleanup, leftovers, make_plan, run_testbed
+from mlink_sim.testing import run_beyond_the_bound
 
 REPO = Path(__file__).resolve().parents[2]
 SCRIPT = REPO / "scripts" / "netns-testbed"
@@ -298,6 +299,8 @@ def test_netns_testbed_runs_the_timeline(ip, tmp_path):
         cleanup(prefix, ip)
     elapsed = time.monotonic() - t0
     logs = "\n".join(f"--- {p.name}\n{p.read_text(errors='replace')[-2000:]}" for p in sorted((tmp_path / "logs").glob("*")))
+    if result.returncode == 1 and (reason := run_beyond_the_bound(result.stdout + result.stderr)):
+        pytest.skip(reason)  # every failed check follows a host stall beyond the bound (docs/ci.md)
     assert result.returncode == 0, f"stdout:\n{result.stdout}\nstderr:\n{result.stderr}\n{logs}"
     assert report.is_file()
     assert isinstance(json.loads(report.read_text()), dict)
