@@ -10,6 +10,12 @@ could avoid). Then each run's report gives its stalls, missed cycles and failed 
     .venv/bin/python scripts/soak.py                      # 100 runs of configs/quickstart.toml
     .venv/bin/python scripts/soak.py --runs 20 --hog      # with a CPU hog pinned to the last CPU
     .venv/bin/python scripts/soak.py configs/quickstart.toml --json soak.json -- --host-stalls strict
+    .venv/bin/python scripts/soak.py --runs 10 --stop 400ms@1s      # a stall beyond the bound in every run
+
+``--stop D@T`` stops each run's whole process group (``up`` and its slave workers) with SIGSTOP for D, T into the
+timeline (after bring-up: the run's ``network_up`` log line), then SIGCONT: a host stall of a chosen length, e.g.
+one beyond the 100 ms bound the policy absorbs, after which the stations must recover by themselves
+(docs/timing.md, "Beyond the bound").
 
 Exit 0 when at least ``--target`` percent of the runs passed, 1 otherwise, 2 on bad arguments.
 Everything it starts (runs, the hog) stops by itself: each run has a timeout and the hog a time limit.
@@ -20,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import statistics
 import subprocess
 import sys
@@ -29,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from mlink_sim._files import write_atomically
+from mlink_sim.config import parse_duration_ns
 
 ROOT = Path(__file__).resolve().parent.parent
 MLINK = [sys.executable, "-m", "mlink_sim"]
@@ -53,16 +61,54 @@ def baseline(seconds: float, period_s: float = 0.002, stall_s: float = 0.004) ->
             "total_ms": round(sum(stalls) * 1e3, 2)}
 
 
-def one_run(config: str, extra: list[str], workdir: Path, index: int, timeout: float) -> dict[str, Any]:
+def parse_stop(text: str) -> tuple[float, float]:
+    """``D@T`` -> (D, T) in seconds: stop for D, T into the timeline (``400ms@1s``)."""
+    duration, sep, at = text.partition("@")
+    if not sep:
+        raise argparse.ArgumentTypeError(f"expected DURATION@TIME, e.g. 400ms@1s, got {text!r}")
+    try:
+        return parse_duration_ns(duration) / 1e9, parse_duration_ns(at) / 1e9
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _until_up(proc: subprocess.Popen[str], head: list[str]) -> bool:
+    """Read the run's output into *head* until its ``network_up`` line; False if it ended first."""
+    assert proc.stdout is not None
+    for line in proc.stdout:
+        head.append(line)
+        if "network_up" in line:
+            return True
+    return False
+
+
+def one_run(config: str, extra: list[str], workdir: Path, index: int, timeout: float,
+            stop: tuple[float, float] | None = None) -> dict[str, Any]:
     report_path = workdir / f"run-{index}.json"
     started = time.monotonic()
+    logs = ["--log-level", "info"] if stop is not None else []  # its network_up line starts the stop's clock
+    proc = subprocess.Popen([*MLINK, "up", config, "--no-status", "--report", str(report_path), *logs, *extra],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
+                            start_new_session=stop is not None)  # its own group: up and its workers stop together
+    head: list[str] = []
     try:
-        proc = subprocess.run([*MLINK, "up", config, "--no-status", "--report", str(report_path), *extra],
-                              capture_output=True, text=True, timeout=timeout, cwd=ROOT)
-        code, out = proc.returncode, proc.stdout + proc.stderr
-    except subprocess.TimeoutExpired as exc:
-        code, out = -1, f"timeout after {timeout} s: {exc.stdout or ''}"
+        if stop is not None and _until_up(proc, head):
+            time.sleep(stop[1])
+            try:
+                os.killpg(proc.pid, signal.SIGSTOP)
+                time.sleep(stop[0])
+            finally:
+                os.killpg(proc.pid, signal.SIGCONT)
+        out = "".join(head) + proc.communicate(timeout=max(1.0, timeout - (time.monotonic() - started)))[0]
+        code = proc.returncode
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        code, out = -1, f"timeout after {timeout} s: " + "".join(head) + proc.communicate()[0]
+    except ProcessLookupError:  # the run ended before the stop
+        code, out = proc.wait(), "".join(head)
     row: dict[str, Any] = {"run": index, "exit": code, "seconds": round(time.monotonic() - started, 2)}
+    if stop is not None:
+        row["stopped_ms"] = round(stop[0] * 1e3, 1)
     try:
         report = json.loads(report_path.read_text())
     except (OSError, ValueError):
@@ -112,6 +158,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--timeout", type=float, default=60.0, help="seconds one run may take")
     ap.add_argument("--target", type=float, default=99.0, help="percent of runs that must pass")
     ap.add_argument("--json", help="write the rows and the summary here")
+    ap.add_argument("--stop", type=parse_stop, metavar="D@T",
+                    help="stop each run (up and its workers) for D, T after it started, e.g. 400ms@1s")
     ap.epilog = "Arguments after '--' go to mlink-sim up, e.g. -- --no-realtime."
     argv = list(sys.argv[1:] if argv is None else argv)
     cut = argv.index("--") if "--" in argv else len(argv)
@@ -132,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
               f"longest {base.get('max_ms', 0)} ms", flush=True)
         with tempfile.TemporaryDirectory(prefix="mlink-soak-") as tmp:
             for i in range(args.runs):
-                row = one_run(args.config, args.extra, Path(tmp), i, args.timeout)
+                row = one_run(args.config, args.extra, Path(tmp), i, args.timeout, args.stop)
                 rows.append(row)
                 print(json.dumps(row), flush=True)
     finally:
