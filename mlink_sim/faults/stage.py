@@ -38,7 +38,7 @@ from typing import Any
 from . import frames
 from .recovery import Episode, RecoveryLog
 from .spec import BadCommand, FaultSpec, FreezeWdt, MasterFault, Silence, SkipCycles
-from ..wire.frame import CYCLE_AT, HEADER_SIZE
+from ..wire.frame import HEADER_SIZE, cycle_of
 
 __all__ = ["FaultStage", "StationTraits", "is_healthy", "INJECTED"]
 
@@ -86,10 +86,6 @@ def is_healthy(view: Any, since_ns: int = 0) -> bool:
     not count, as in the timeline's ``expect = "no-alarm"``."""
     last = view.last_response_ns
     return bool(view.at_target and not view.fault and view.comm_alm < 8 and last is not None and last > since_ns)
-
-
-def _cycle(datagram: bytes) -> int:
-    return int.from_bytes(datagram[CYCLE_AT:CYCLE_AT + 4], "little")
 
 
 class FaultStage:
@@ -195,7 +191,7 @@ class FaultStage:
             return datagram
         if st.skip is not None:
             count, first = st.skip
-            cycle = _cycle(datagram)
+            cycle = cycle_of(datagram)
             if first is None:
                 first = cycle
                 st.skip = (count, first)
@@ -249,7 +245,7 @@ class FaultStage:
         assert fault is not None and fault.kind is not None and ep is not None
         st.bad = st.bad_ep = None
         replaced = frames.bad_command(datagram, fault.kind, subcmd=st.traits.subcmd, family=st.traits.family)
-        st.watch = (_cycle(datagram), "after" if fault.kind == "phase" else "this", ep)
+        st.watch = (cycle_of(datagram), "after" if fault.kind == "phase" else "this", ep)
         self._count(st.traits.address, "bad_commands")
         self.log.end(ep, now)
         return replaced
@@ -257,7 +253,7 @@ class FaultStage:
     def _watch(self, st: _State, datagram: bytes) -> None:
         assert st.watch is not None
         cycle, mode, ep = st.watch
-        d = (_cycle(datagram) - cycle) & 0xFFFFFFFF
+        d = (cycle_of(datagram) - cycle) & 0xFFFFFFFF
         if d != 0 if mode == "this" else not 0 < d < 1 << 31:  # phase: the answer to the master's next command
             return
         answer = frames.read_answer(datagram)

@@ -14,11 +14,10 @@ from collections.abc import Callable
 from typing import Any, Final
 
 from ..wire import CmdAlm, CommAlm, DropReason, Frame, Kind, Link, WireError, decode, encode
-from ..wire.frame import HEADER_SIZE
+from ..wire.frame import HEADER_SIZE, cycle_of
 from . import drivefault, requests, restart
 from .codec import Reply
 from .commands import Cmd, Send
-from .fastpath import cycle_of
 from .machine import Ev, expects, next_state
 from .plan import NetworkPlan
 from .slave import Sent, Slave

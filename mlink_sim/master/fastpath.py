@@ -27,7 +27,6 @@ give the same bytes, views and events.
 
 from __future__ import annotations
 
-import struct
 from operator import itemgetter
 from typing import Any, Final
 
@@ -39,15 +38,7 @@ from ..wire.frame import (
 from .codec import Codec
 from .plan import StationPlan
 
-__all__ = ["CyclicFrames", "cycle_of"]
-
-_CYCLE: Final = struct.Struct("<I")
-_CYCLE_UNPACK: Final = _CYCLE.unpack_from  # Final (a C static, mypyc) and bound: no lookup per datagram
-
-
-def cycle_of(datagram: bytes) -> int:
-    """The envelope's cycle number (u32, bytes 4–7) of a datagram at least a header long."""
-    return _CYCLE_UNPACK(datagram, CYCLE_AT)[0]
+__all__ = ["CyclicFrames"]
 
 
 #: ML-II STATUS ALM and WARNG (bits 0/1, SI-T3 "STATUS Field", an unnumbered table) and the ALARM byte must be

@@ -48,6 +48,7 @@ __all__ = [
     "fcs_ok",
     "patch_seal",
     "CYCLE_AT",
+    "cycle_of",
     "steady_delta",
     "Template",
     "datagram_struct",
@@ -92,6 +93,12 @@ _FCS_OK: Final[Any] = None if NATIVE is None else NATIVE.fcs_ok
 _PATCH_SEAL: Final[Any] = None if NATIVE is None else NATIVE.patch_seal
 _STEADY_DELTA: Final[Any] = None if NATIVE is None else NATIVE.steady_delta
 _U32: Final = struct.Struct("<I")
+_U32_UNPACK: Final = _U32.unpack_from  # Final (a C static, mypyc) and bound: no lookup per datagram
+
+
+def cycle_of(datagram: bytes | bytearray) -> int:
+    """The envelope's cycle number (u32 LE at :data:`CYCLE_AT`) of a datagram at least a header long."""
+    return int(_U32_UNPACK(datagram, CYCLE_AT)[0])
 
 
 def with_fcs(body: bytes | bytearray) -> bytes:

@@ -4,7 +4,7 @@ cycle and the (R)WDT patched in and sealed, which :func:`steady_delta` reads bac
 
 from __future__ import annotations
 
-from mlink_sim.wire.frame import FCS_SIZE, Template, fcs_ok, steady_delta
+from mlink_sim.wire.frame import CYCLE_AT, FCS_SIZE, Template, cycle_of, fcs_ok, steady_delta
 
 FIELDS = (0x0C, 0x0300_0004, 6000, 120, 0x21, 0x43, 17, 0, 1_000_000)
 BODY = bytes(range(44))  # a 32-byte ML-III answer without its FCS (envelope 12 + data 32)
@@ -30,6 +30,7 @@ def test_its_datagrams_carry_the_cycle_and_the_wdt_and_steady_delta_reads_them_b
     dg = t.seal(0x1234_5678, 0xA5)
     assert len(dg) == len(BODY) + FCS_SIZE and fcs_ok(dg)
     assert dg[4:8] == (0x1234_5678).to_bytes(4, "little") and dg[RWDT_AT] == 0xA5
+    assert CYCLE_AT == 4 and cycle_of(dg) == 0x1234_5678  # the envelope's bytes 4-7 (docs/wire-format.md)
     assert dg[:4] + dg[8:RWDT_AT] + dg[RWDT_AT + 1:-FCS_SIZE] == BODY[:4] + BODY[8:RWDT_AT] + BODY[RWDT_AT + 1:]
     before = t.seal(7, 0x10)
     assert steady_delta(dg, before, 4, RWDT_AT) == 0x1234_5678 | 0xA5 << 32
