@@ -118,6 +118,21 @@ def test_alm_clr_cannot_reset_a_drive_fault_while_run_is_on() -> None:
     assert alarm(r) == 0 and m.st.snapshot().drive.fault is None
 
 
+def test_si_et3_alm_clr_cannot_reset_a_drive_fault_while_run_is_on() -> None:
+    """The same drive under the SI-ET3 (ALM_CLR_MOD 0 "Clears the status of present faults and alarms"): D_ALM
+    stays while INVCMD_CTRL forward (Table 20 bit 0) is on, and clears once the run is off. The master's recovery
+    of a bUS left by a lost connection relies on it (mlink_sim.master.drivefault)."""
+    m = Master(station("si-et3", params=("b1-01=3", "b1-02=3")))
+    m.connect()
+    m.send(ml3.InvCtl(invcmd_ctrl=0x0001 | 0x0400, speed_ref=1000))  # forward + EF0 (Table 20 bit 10)
+    m.send(ml3.InvCtl(invcmd_ctrl=0x0001, speed_ref=1000))
+    r = m.send(ml3.AlmClr(0))
+    assert r.message.stat.d_alm and m.st.snapshot().drive.fault == "EF0"
+    m.send(ml3.InvCtl(invcmd_ctrl=0))
+    r = m.send(ml3.AlmClr(0))
+    assert not r.message.stat.d_alm and m.st.snapshot().drive.fault is None
+
+
 def test_alm_clr_mod_other_than_0_is_a94() -> None:
     m = Master(station("si-t3"))
     m.connect()
