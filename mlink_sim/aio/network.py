@@ -20,7 +20,7 @@ from .. import _accel
 from .._log import get_logger
 from ..config import Config, TimelineStep, format_ns
 from ..metrics import write_report
-from .scenario import CheckResult, Scenario, speed_scales, with_stalls
+from .scenario import CheckResult, Scenario, speed_scales
 from .session import EndpointError, NetworkSession, build_plans
 from .status import LiveStatus, StatusInfo, WorstP99, render_lines
 from .supervisor import resolve_workers
@@ -187,7 +187,7 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
         stopper.cancel()
         await session.refresh_slave_stats()
         await session.close_masters()  # DISCONNECT while the slaves still run
-        scenario.results[:] = [with_stalls(c, session.metrics.stalls, t0) for c in scenario.results]
+        scenario.results[:] = scenario.results_naming_stalls(session.metrics.stalls)
         for c in scenario.results:
             session.metrics.record_check(c.at_s, c.what, c.ok, c.detail)
         interrupted = caught[0].name if caught else None

@@ -23,7 +23,7 @@ from ..params import FAMILIES
 from ..wire import InvCmdStat, Link, M2Status
 
 __all__ = ["SpeedScale", "CheckResult", "NetworkHandle", "Scenario", "StationControls", "speed_scale",
-           "speed_scales", "with_stalls"]
+           "speed_scales"]
 
 log = get_logger("mlink_sim.scenario")
 
@@ -93,10 +93,9 @@ class CheckResult:
     detail: str
 
 
-def with_stalls(check: CheckResult, stalls: Any, t0: float) -> CheckResult:
-    """*check*, when it failed, with the host stalls of the three seconds before it named in its detail
-    (docs/timing.md, "Host stalls"); *stalls* is the run's ``metrics.stalls.StallLog``, *t0* the loop time of
-    the timeline's "0 s" (loop time is the monotonic clock)."""
+def _with_stalls(check: CheckResult, stalls: Any, t0: float) -> CheckResult:
+    """*check*, when it failed, with the host stalls of the three seconds before it named in its detail (loop time
+    is the monotonic clock)."""
     near = "" if check.ok else stalls.describe_near(int((t0 + check.at_s) * 1e9), zero_ns=int(t0 * 1e9))
     return dataclasses.replace(check, detail=f"{check.detail}; {near}") if near else check
 
@@ -172,7 +171,7 @@ class Scenario:
         self.links = {st.address: st.link for st in config.station}
         self.steps: list[TimelineStep] = sorted(config.timeline, key=lambda s: s.at)
         self.started = 0  #: steps begun so far, in order of time (``steps[:started]``)
-        self.t0: float | None = None  #: the loop time of "0 s", once :meth:`run` began
+        self._t0: float | None = None  # the loop time of "0 s", once run() began
         #: called with each action step's description as it begins (a capture's comments: ``--capture``)
         self.note: Callable[[str], None] | None = None
         self._waiting: set[asyncio.Task[None]] = set()  # checks that wait (recovered, refused)
@@ -189,9 +188,15 @@ class Scenario:
     def _targets(self, step: TimelineStep) -> list[int]:
         return [st.address for st in self.config.station] if step.station == "all" else [step.station]
 
+    def results_naming_stalls(self, stalls: Any) -> list[CheckResult]:
+        """The checks so far, each failed one naming the host stalls of the three seconds before it
+        (docs/timing.md, "Host stalls"); *stalls* is the run's ``metrics.stalls.StallLog``."""
+        t0 = self._t0
+        return list(self.results) if t0 is None else [_with_stalls(c, stalls, t0) for c in self.results]
+
     async def run(self, t0: float, sleep_until: Callable[[float], Awaitable[None]]) -> None:
-        """Execute the steps in order of time; *t0* is the loop time of "0 s" (kept as :attr:`t0`)."""
-        self.t0 = t0
+        """Execute the steps in order of time; *t0* is the loop time of "0 s"."""
+        self._t0 = t0
         for step in self.steps:
             await sleep_until(t0 + step.at / 1e9)
             self.started += 1

@@ -31,7 +31,7 @@ from typing import Any
 
 
 from .._log import get_logger
-from ..aio.scenario import Scenario, speed_scales, with_stalls
+from ..aio.scenario import Scenario, speed_scales
 from ..aio.session import NetworkSession
 from ..aio.supervisor import resolve_workers
 from ..aio.udp import new_event_loop
@@ -148,8 +148,7 @@ class Host:
             if self.scenario is None or self.scenario_task is None:
                 raise RuntimeError("the network was started without timeline=True")
             await asyncio.wait_for(asyncio.shield(self.scenario_task), kwargs.get("timeout"))
-            t0, stalls = self.scenario.t0, self.session.metrics.stalls
-            results = self.scenario.results if t0 is None else [with_stalls(c, stalls, t0) for c in self.scenario.results]
+            results = self.scenario.results_naming_stalls(self.session.metrics.stalls)
             return [dataclasses.asdict(c) for c in results]
         if method == "stop":
             self.final = await self._final_report()
