@@ -96,9 +96,9 @@ _U32: Final = struct.Struct("<I")
 _U32_UNPACK: Final = _U32.unpack_from  # Final (a C static, mypyc) and bound: no lookup per datagram
 
 
-def cycle_of(datagram: bytes | bytearray) -> int:
+def cycle_of(datagram: bytes) -> int:
     """The envelope's cycle number (u32 LE at :data:`CYCLE_AT`) of a datagram at least a header long."""
-    return int(_U32_UNPACK(datagram, CYCLE_AT)[0])
+    return _U32_UNPACK(datagram, CYCLE_AT)[0]
 
 
 def with_fcs(body: bytes | bytearray) -> bytes:
