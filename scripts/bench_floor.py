@@ -23,12 +23,20 @@ too, by the same rule (cycles whose quarter is longer than the clock's spin): no
 read by a ``PreRead`` a quarter period before each deadline, in the clock's spin and at each cycle's start, each RTT
 up to the kernel's stamp, as ``mlink_sim.aio.master`` does.
 
+**With the cores' time** (``--work SERVE,ENCODE,DECODE``, off by default): the server keeps its CPU busy *SERVE*
+per datagram before each echo, the client *ENCODE* per command after the cycle's start and before the burst, and
+*DECODE* per answer after its stamp: a floor that takes as long as the simulator's cores and does none of their
+work, to tell what the chain's length costs from what the simulator's I/O costs (docs/performance.md, "What bounds
+the missed answers"). ``--variant shared-batched`` measures only the floor a packed worker's network is judged
+against.
+
 Missed, RTT and CPU per exchange are ``bench_figures.exchange_figures``, the simulator's own definition: missed =
 exchanges due but not answered within a cycle, over the exchanges due; CPU per exchange = (client CPU + server
 CPU) / answers read, both from the kernel's accounting (``getrusage``, ``/proc/PID/stat``) over the measuring
 window; wake-ups = voluntary context switches (``/proc/PID/status``) per cycle.
 
     scripts/bench_floor.py --stations 62 --cycle 1ms --duration 10s          # both variants, one table
+    scripts/bench_floor.py --variant shared-batched --work 0.92us,0.25us,1.1us   # with the cores' time
     flock -x /tmp/mlink-cpu.lock .venv/bin/python scripts/bench_floor.py …    # as every timing on the shared machine
 """
 
@@ -61,8 +69,31 @@ from mlink_sim.aio.udp import bound_socket, close_watched, new_event_loop, open_
 from mlink_sim.config import format_ns, parse_duration_ns  # noqa: E402
 from mlink_sim.metrics import LatencyHistogram  # noqa: E402
 
-__all__ = ["Floor", "floor_from", "floor_window", "host_ticks", "measure_floor", "proc_cpu_s", "proc_wakeups",
+__all__ = ["Floor", "Work", "floor_from", "floor_window", "host_ticks", "measure_floor", "proc_cpu_s", "proc_wakeups",
            "self_wakeups", "ticks_between"]
+
+
+@dataclass(frozen=True)
+class Work:
+    """``--work``: the CPU time the cores take per datagram, spent busy with none of their work: *serve_ns* by the
+    server before each echo (a card's ``receive``), *encode_ns* by the client per command before the burst goes
+    out (the master's encode), *decode_ns* per answer after it is read and stamped (the master's decode). A floor
+    with the cores' time and none of their work: what the chain's length alone costs on this machine."""
+
+    serve_ns: int = 0
+    encode_ns: int = 0
+    decode_ns: int = 0
+
+    @classmethod
+    def parse(cls, text: str) -> Work:
+        """``"SERVE,ENCODE,DECODE"``, each a duration (``0.9us``, ``900ns``; a bare number is in ns)."""
+        parts = [p.strip() for p in text.split(",")]
+        if len(parts) != 3:
+            raise ValueError(f"--work takes SERVE,ENCODE,DECODE (three durations per datagram), not {text!r}")
+        try:
+            return cls(*(parse_duration_ns(p, default_unit="ns") for p in parts))
+        except ValueError as exc:
+            raise ValueError(f"--work: {exc}") from None
 
 
 def _raise(exc: OSError) -> None:
@@ -151,10 +182,18 @@ def _self_cpu_s() -> float:
 
 
 # ----------------------------------------------------------------------------------------------- the server
-def serve(count: int, batched: bool, shared: bool = False) -> None:
+def busy(ns: int) -> None:
+    """Keep this CPU busy for *ns* (``--work``: the time the cores would take, with none of their work)."""
+    end = time.monotonic_ns() + ns
+    while time.monotonic_ns() < end:
+        pass
+
+
+def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0) -> None:
     """``--serve N``: N station sockets in this one process, each echoing; prints ``{"ports": […]}``, runs until
     SIGTERM. *shared*: one socket for the N stations, as a packed worker's (``SlaveServer(shared=True)``): each
-    read's datagrams echoed in one burst (``BatchEndpoint.send_burst``), offloaded bursts read as one buffer."""
+    read's datagrams echoed in one burst (``BatchEndpoint.send_burst``), offloaded bursts read as one buffer.
+    *work_ns*: the CPU is kept busy that long per datagram before the echo goes back (``--work``)."""
     loop = new_event_loop()
 
     async def main() -> None:
@@ -162,6 +201,8 @@ def serve(count: int, batched: bool, shared: bool = False) -> None:
 
         def echo_to(index: int) -> Any:
             def on_batch(batch: list[tuple[bytes, Any]]) -> None:
+                if work_ns:
+                    busy(work_ns * len(batch))
                 sendto = endpoints[index].sendto
                 for data, addr in batch:
                     sendto(data, addr)
@@ -169,6 +210,8 @@ def serve(count: int, batched: bool, shared: bool = False) -> None:
 
         if shared:
             def on_bus(batch: list[tuple[bytes, Any]]) -> None:
+                if work_ns:
+                    busy(work_ns * len(batch))
                 endpoints[0].send_burst(batch)
 
             endpoints.append(await open_batch_endpoint(on_bus, batched=batched, burst=64 * count))
@@ -190,9 +233,9 @@ def serve(count: int, batched: bool, shared: bool = False) -> None:
 
 # ----------------------------------------------------------------------------------------------- the client
 async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: float, batched: bool,
-                        catch_up_ns: int = 100_000_000, shared: bool = False) -> Floor:
+                        catch_up_ns: int = 100_000_000, shared: bool = False, work: Work | None = None) -> Floor:
     """The floor of one window (:func:`floor_window`), its figures read (:func:`floor_from`)."""
-    window = await floor_window(stations, size, cycle_ns, duration_s, batched, catch_up_ns, shared)
+    window = await floor_window(stations, size, cycle_ns, duration_s, batched, catch_up_ns, shared, work)
     return floor_from(window, batched, stations, shared)
 
 
@@ -204,15 +247,18 @@ def floor_from(window: Window, batched: bool, stations: int, shared: bool) -> Fl
 
 
 async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: float, batched: bool,
-                       catch_up_ns: int = 100_000_000, shared: bool = False) -> Window:
+                       catch_up_ns: int = 100_000_000, shared: bool = False, work: Work | None = None) -> Window:
     """The floor of *stations* stations of frame size *size* at *cycle_ns*, measured for *duration_s* after a
     0.5 s warm-up; the server runs in a subprocess of this script. *catch_up_ns*: the clock's host-stall policy,
     as the network's (default: "absorb" up to 100 ms, the default of ``[network] stall_bound``); an answer is
     awaited as long (at least one cycle), as the master's answer window (``NetworkPlan.answer_window_ns``).
     *shared*: the stations share one socket of the server, as a packed worker's do (``mlink-sim up``); the
-    batched client then reads offloaded bursts as one buffer, as the master does."""
+    batched client then reads offloaded bursts as one buffer, as the master does. *work*: each side keeps its CPU
+    busy as long as the cores would take (:class:`Work`), with none of their work."""
+    work = work or Work()
     proc = subprocess.Popen([sys.executable, __file__, "--serve", str(stations)] + ([] if batched else ["--plain"])
-                            + (["--shared"] if shared else []), stdout=subprocess.PIPE)
+                            + (["--shared"] if shared else []) + [f"--work-ns={work.serve_ns}"],
+                            stdout=subprocess.PIPE)
     loop = asyncio.get_running_loop()
     sock: Any = None
     timer: CycleTimer | None = None
@@ -233,12 +279,16 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
         counts = {"missed": 0, "missing": 0, "sent": 0, "cycles": 0}
         mono = time.monotonic_ns
 
+        decode_ns = work.decode_ns
+
         def read_stamped(limit: int = 512) -> None:  # as the master reads where it can: the kernel's stamps
             for batch in mmsg.drain(sock.recv_burst_stamped, limit, _raise):
                 for data, now in batch:
                     t = pending.pop(data[:6], None)
                     if t is not None:
                         rtt.record(now - t)
+                if decode_ns:
+                    busy(decode_ns * len(batch))
 
         if batched:
             recv_burst = sock.recv_burst
@@ -250,6 +300,8 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
                         t = pending.pop(data[:6], None)
                         if t is not None:
                             rtt.record(now - t)
+                    if decode_ns:
+                        busy(decode_ns * len(batch))
         else:
             recv = sock.recv
 
@@ -262,6 +314,8 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
                     t = pending.pop(data[:6], None)
                     if t is not None:
                         rtt.record(mono() - t)
+                    if decode_ns:
+                        busy(decode_ns)
 
         def read_one() -> None:
             read(1)
@@ -276,6 +330,8 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
                 for key in by_cycle.popleft()[1]:
                     if pending.pop(key, None) is not None:
                         counts["missing"] += 1
+            if work.encode_ns:
+                busy(work.encode_ns * stations)
             head = k.to_bytes(4, "little")
             burst = [head + s for s in suffixes]
             keys = [d[:6] for d in burst]
@@ -345,7 +401,9 @@ def describe(f: Floor) -> str:
 
 def main() -> int:
     if len(sys.argv) >= 3 and sys.argv[1] == "--serve":
-        serve(int(sys.argv[2]), batched="--plain" not in sys.argv[3:], shared="--shared" in sys.argv[3:])
+        work_ns = next((int(a.split("=", 1)[1]) for a in sys.argv[3:] if a.startswith("--work-ns=")), 0)
+        serve(int(sys.argv[2]), batched="--plain" not in sys.argv[3:], shared="--shared" in sys.argv[3:],
+              work_ns=work_ns)
         return 0
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--stations", type=int, default=62)
@@ -353,19 +411,29 @@ def main() -> int:
     ap.add_argument("--size", type=int, default=32, help="frame size (ML-III 32/48/64, ML-II 17/32)")
     ap.add_argument("--duration", default="10s")
     ap.add_argument("--json", action="store_true", help="print the results as JSON")
+    ap.add_argument("--work", default="0,0,0", metavar="SERVE,ENCODE,DECODE",
+                    help="keep each side's CPU busy as long as the cores take, per datagram: the server before each "
+                         "echo, the client per command before the burst and per answer after its stamp (e.g. "
+                         "0.9us,0.2us,0.8us; default none)")
+    ap.add_argument("--variant", choices=("all", "shared-batched"), default="all",
+                    help="all four variants (default), or only the one a packed worker's network is judged "
+                         "against")
     args = ap.parse_args()
     try:
         cycle = parse_duration_ns(args.cycle, default_unit="us")
         duration = parse_duration_ns(args.duration, default_unit="s") / 1e9
         if args.stations < 1 or duration <= 0:
             raise ValueError("--stations ≥ 1, --duration > 0")
+        work = Work.parse(args.work)
     except ValueError as exc:
         print(f"bench_floor.py: {exc}", file=sys.stderr)
         return 2
+    variants = [(True, True)] if args.variant == "shared-batched" else [(s, b) for s in (False, True)
+                                                                          for b in (False, True)]
     loop = new_event_loop()
     results = [loop.run_until_complete(measure_floor(args.stations, args.size, cycle, duration, batched,
-                                                     shared=shared))
-               for shared in (False, True) for batched in (False, True)]
+                                                     shared=shared, work=work))
+               for shared, batched in variants]
     loop.close()
     if args.json:
         print(json.dumps([asdict(r) for r in results], indent=1))

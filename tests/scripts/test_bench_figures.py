@@ -115,3 +115,40 @@ def test_windows_of_one_side_add_up(figures) -> None:
     assert (a.pct(a.cpu_a_s), a.per_cycle(a.wake_a), a.steal_pct()) == (2.5, 2.0, 10.0)  # 2 of 20 ticks
     f = a.figures()
     assert (f.due, f.answered, f.on_time) == (42, 40, 39) and f.cpu_per_exchange_us == 25_000.0  # 1 s / 40
+
+
+def test_work_takes_three_durations_per_datagram(floor) -> None:
+    assert floor.Work.parse("0.9us, 0.2us, 800") == floor.Work(900, 200, 800)
+    assert floor.Work.parse("0,0,0") == floor.Work()
+    with pytest.raises(ValueError, match="SERVE,ENCODE,DECODE"):
+        floor.Work.parse("1us,2us")
+    with pytest.raises(ValueError, match="--work: expected a duration"):
+        floor.Work.parse("1us,-2us,0")
+
+
+@pytest.mark.parametrize("batched, shared", [(True, True), (False, False)])
+def test_the_floor_with_the_cores_time_keeps_each_side_busy_in_the_chain(floor, batched, shared) -> None:
+    """``--work``: the server is busy *serve* per datagram before it echoes, the client *encode* per command
+    after the cycle's start, so no answer comes back sooner than 2 × encode + serve after its cycle began (a
+    lower bound on the monotonic clock, whatever the machine's load)."""
+    from mlink_sim.aio.udp import new_event_loop
+
+    loop = new_event_loop()
+    try:
+        f = loop.run_until_complete(floor.measure_floor(2, 32, 5 * MS, 0.3, batched=batched, shared=shared,
+                                                        work=floor.Work(300_000, 100_000, 50_000)))
+    finally:
+        loop.close()
+    assert f.exchanges > 0 and f.rtt_p50_ns >= 2 * 100_000 + 300_000
+
+
+def test_the_floor_refuses_a_malformed_work_with_exit_2() -> None:
+    import subprocess
+    import sys
+
+    from .scripts_loader import ROOT
+
+    r = subprocess.run([sys.executable, str(ROOT / "scripts" / "bench_floor.py"), "--work", "1us,2us"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "bench_floor.py: --work takes SERVE,ENCODE,DECODE" in r.stderr
+    assert "Traceback" not in r.stderr
