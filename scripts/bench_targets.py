@@ -59,9 +59,13 @@ def bounded_by(c: Any) -> str:
     fl = ref.get("cpu_per_exchange_us", 0.0)
     x = f" = {c.cpu_per_exchange_us / fl:.1f} × the floor's {fl:.1f}" if fl else ""
     busy = max(c.cpu_master, c.cpu_slaves) >= 90
+    chain = (f"; RTT p50 {format_ns(c.rtt_p50_ns)} against the floor's {format_ns(ref['rtt_p50_ns'])} (the chain a "
+             f"host stall can fall in; docs/performance.md, \"What bounds the missed answers\")"
+             if ref.get("rtt_p50_ns") and c.rtt_p50_ns else "")
     text = (f"{'CPU: ' if busy else ''}master {c.cpu_master:.0f} %, workers {c.cpu_slaves:.0f} % of a CPU; "
             f"{c.cpu_per_exchange_us:.1f} µs per exchange{x}; wake-ups per cycle {c.wakeups_master:.1f} / "
-            f"{c.wakeups_slaves:.1f} (floor {ref.get('wakeups_client', 0):.1f} / {ref.get('wakeups_server', 0):.1f})")
+            f"{c.wakeups_slaves:.1f} (floor {ref.get('wakeups_client', 0):.1f} / {ref.get('wakeups_server', 0):.1f})"
+            f"{chain}")
     return text + (f"; {'; '.join(c.notes)}" if c.notes else "")
 
 

@@ -152,3 +152,18 @@ def test_the_floor_refuses_a_malformed_work_with_exit_2() -> None:
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "bench_floor.py: --work takes SERVE,ENCODE,DECODE" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_a_missed_bound_names_the_chain_beside_the_floors(bench) -> None:
+    """Where the missed bound fails, the verdict gives the RTT p50 of the simulator and of its floor: the chain
+    between a command and its answer that a host stall can fall in (docs/performance.md)."""
+    floor_batched = {"batched": True, "missed_rate": 0.0006, "due": 3_720_000, "on_time": 3_717_768,
+                     "rtt_p50_ns": 98_751, "rtt_p99_ns": 315_391, "lateness_p99_ns": 50_000,
+                     "cpu_per_exchange_us": 4.2, "cpu_per_exchange_nospin_us": 2.5, "wakeups_client": 1.5,
+                     "wakeups_server": 1.0}
+    cell = bench.Cell("ML3", 62, MS, 1, duration_s=60.0, missed_rate=0.0016, rtt_p50_ns=175_999,
+                      rtt_p99_ns=419_839, cpu_per_exchange_us=6.2, floor_batched=floor_batched)
+    _, rows = bench.bench_targets.verdicts([cell])
+    missed = next(r for r in rows if r["target"].startswith("62 ML3") and r["bound"].startswith("missed"))
+    assert not missed["met"]
+    assert "RTT p50 176us against the floor's 98.75us (the chain a host stall can fall in" in missed["verdict"]
