@@ -33,7 +33,7 @@ from mlink_sim.wire import Link, decode, Kind
 S = StationState
 BASE = ["b1-01=3", "b1-02=3", "C1-01=1.0", "C1-02=1.0"]  # run and reference from the option: bUS is detected
 SEARCH = ["b3-01=1", "b3-24=1"]
-BUS, EF0 = 0x22, 0x27  # SI-T3 Table 26, the numbering U2-01 gives on the SI-ET3
+BUS, EF0, E5 = 0x22, 0x27, 0x39  # SI-T3 Table 26, the numbering U2-01 gives on the SI-ET3
 
 
 class Et3:
@@ -131,6 +131,28 @@ def test_another_fault_after_a_connection_loss_is_left_to_the_operator():
     assert "Disconnect" not in card.log
     assert net.core.state(0x21) is S.PHASE3 and card.station.drive.status.fault is Fault.EF0
     assert (net.core.view(0x21).alarm_name, net.core.view(0x21).fault) == ("EF0", True)
+
+
+def test_e5_left_by_a_frozen_watchdog_is_reset_and_the_drive_runs_again():
+    """The master's WDT count frozen for 8 cycles (its bits 4-7, which must advance every cycle): the SI-ET3
+    detects a watchdog timer fault in phase 3 and moves to phase 2 ("Phase 3: Synchronous communications"); the
+    drive trips E5 (SI-ET3 Table 26 "MECHATROLINK Watchdog Timer Error", F6-25 default 1: coast). The master names it
+    from U2-01 (39H, SI-T3 Table 26) and resets it as it does bUS: DISCONNECT + CONNECT, then runs the drive
+    again."""
+    from mlink_sim.faults import frames
+
+    net, card = running(BASE, speed_search=False)
+    net.fault = lambda direction, station, dg, now: frames.set_wdt_count(dg, 3) if direction == "cmd" else dg
+    net.run(8)
+    net.fault = None
+    net.run_until(lambda: of(net, Recovered), limit=500)
+    assert (E5, "E5", "alarm") in [(e.code, e.name, e.source) for e in of(net, AlarmRaised)]
+    assert "Disconnect" in card.log and card.log.index("AlmRd") < card.log.index("Disconnect")
+    assert net.core.state(0x21) is S.PHASE3 and card.station.drive.status.fault is None
+    assert len(of(net, Recovered)) == 1 and net.core.view(0x21).alarm_name is None
+    net.run_until(lambda: of(net, RunResumed), limit=2_000)  # no speed search: from standstill
+    net.run_until(lambda: net.core.view(0x21).output_freq >= 2990, limit=2_000)
+    assert card.station.drive.status.fault is None and card.station.drive.status.running
 
 
 def test_the_connection_faults_are_bus_and_e5():
