@@ -96,6 +96,13 @@ class Work:
             raise ValueError(f"--work: {exc}") from None
 
 
+def busy(ns: int) -> None:
+    """Keep this CPU busy for *ns* (``--work``: the time the cores would take, with none of their work)."""
+    end = time.monotonic_ns() + ns
+    while time.monotonic_ns() < end:
+        pass
+
+
 def _raise(exc: OSError) -> None:
     """A socket error while the floor reads: the measurement is void, say so (mmsg.drain would count it a datagram)."""
     raise exc
@@ -182,13 +189,6 @@ def _self_cpu_s() -> float:
 
 
 # ----------------------------------------------------------------------------------------------- the server
-def busy(ns: int) -> None:
-    """Keep this CPU busy for *ns* (``--work``: the time the cores would take, with none of their work)."""
-    end = time.monotonic_ns() + ns
-    while time.monotonic_ns() < end:
-        pass
-
-
 def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0) -> None:
     """``--serve N``: N station sockets in this one process, each echoing; prints ``{"ports": […]}``, runs until
     SIGTERM. *shared*: one socket for the N stations, as a packed worker's (``SlaveServer(shared=True)``): each
