@@ -1,14 +1,19 @@
 """Latency histogram: an HDR histogram of nanosecond values, 1 ns .. 10 s at 3 significant digits.
 
 :class:`LatencyHistogram` uses :class:`hdrh.histogram.HdrHistogram` (package ``hdrhistogram``) for its layout,
-its percentile rules and the HDR compressed transport form, but records into a sparse ``dict`` keyed by the
-index of the HDR counts array (a few hundred keys for real latencies, so copying, merging and summarising
-take microseconds to a millisecond instead of scanning 25 600 buckets, and a live report does not stall the
-cycle). ``HdrHistogram.record_value`` costs ~1.3 µs a call in CPython (``bin()``
-based leading-zero count, ctypes counters, min/max bookkeeping); the inlined index computation below costs
-0.25 – 0.4 µs (docs/report.md, "Cost on the recording path"). Summaries are computed from the non-zero
-buckets with HdrHistogram's own index ⇄ value functions (tests check they equal the library's figures); the
-counts are copied into an ``HdrHistogram`` only to encode it or for :meth:`LatencyHistogram.to_hdr`.
+its percentile rules and the HDR compressed transport form, but records into its own *paged* copy of the HDR
+counts array: one page of 1 024 counts per HDR bucket (a power of two of values), allocated when a value first
+falls in it. Real latencies fill two to four pages, so copying, merging and summarising touch a few thousand
+counts instead of 25 600, and a live report does not stall the cycle. ``HdrHistogram.record_value`` costs
+~1.3 µs a call in CPython (``bin()`` based leading-zero count, ctypes counters, min/max bookkeeping); the
+inlined index computation and two list indexings below cost about 40 ns compiled (docs/report.md, "Cost on the
+recording path"). Until session 16 the counts were a ``dict`` keyed by index: in the master of a 62-station
+network its lookups (hash probe, a compare of two int objects, a second lookup to store) were 10 % of the
+master's CPU (``perf`` of ``mlink-sim up configs/ml3-62-max.toml``; docs/performance.md, "Where the time goes,
+profiled (session 16)").
+Summaries are computed from the non-zero buckets with HdrHistogram's own index ⇄ value functions (tests check
+they equal the library's figures); the counts are copied into an ``HdrHistogram`` only to encode it or for
+:meth:`LatencyHistogram.to_hdr`.
 
 Index computation (same as ``HdrHistogram._counts_index_for`` for ``lowest_trackable_value == 1``, i.e.
 ``unit_magnitude == 0``; a test checks equality over the whole range)::
@@ -22,7 +27,6 @@ is never lost; ``max`` then reads 10 s).
 
 from __future__ import annotations
 
-from collections import defaultdict
 from collections.abc import Iterable
 
 from hdrh.histogram import HdrHistogram
@@ -50,14 +54,23 @@ _SUB_MASK: int = _LAYOUT.sub_bucket_mask                       # 2047
 _SHIFT: int = _LAYOUT.sub_bucket_half_count_magnitude          # 10
 _HALF: int = _LAYOUT.sub_bucket_half_count                     # 1024
 _BITS: int = _SHIFT + 1                                        # 11
+# The counts' pages (see the module docstring): page p holds indices p·1024 … p·1024 + 1023, one HDR bucket
+# each (a bucket of the layout is _HALF = 1024 indices wide, from the second on; the first, 0 … 2047, is pages 0
+# and 1), so that all 25 600 indices are covered by 25 pages.
+_PAGE: int = _HALF                                              # 1024 counts per page
+_PAGES: int = _COUNTS_LEN // _PAGE                              # 25
 # record() has these constants inlined (a global lookup each would cost ~10 %).
 assert _LAYOUT.unit_magnitude == 0 and (_SUB_MASK, _BITS, _SHIFT, _HALF) == (2047, 11, 10, 1024)
+assert _PAGES * _PAGE == _COUNTS_LEN
 
 
 def _index(ns: int) -> int:
     """Counts-array index of ``ns`` (reference implementation of the inlined code in ``record``)."""
     b = (ns | _SUB_MASK).bit_length() - _BITS
     return ((b + 1) << _SHIFT) + (ns >> b) - _HALF
+
+
+assert _index(HIGHEST_NS) < _COUNTS_LEN  # the largest value recorded has its page
 
 
 def _median_of_index(index: int) -> int:
@@ -82,26 +95,40 @@ class LatencyHistogram:
     (1000, 500)
     """
 
-    __slots__ = ("_counts",)
+    __slots__ = ("_pages",)
 
     def __init__(self) -> None:
-        self._counts: defaultdict[int, int] = defaultdict(int)   # HdrHistogram counts-array index -> count
+        # the HdrHistogram counts array in pages of 1 024 counts (None: no value there yet; module docstring)
+        self._pages: list[list[int] | None] = [None] * _PAGES
 
     # ------------------------------------------------------------------ hot path
     def record(self, ns: int) -> None:
-        """Count one value in nanoseconds (an ``int``). Negative → 0, above 10 s → 10 s. 0.25 – 0.4 µs."""
+        """Count one value in nanoseconds (an ``int``). Negative → 0, above 10 s → 10 s. About 40 ns compiled."""
         if ns < 0:
             ns = 0
         elif ns > 10_000_000_000:
             ns = 10_000_000_000
         b = (ns | 2047).bit_length() - 11
-        self._counts[((b + 1) << 10) + (ns >> b) - 1024] += 1
+        i = ((b + 1) << 10) + (ns >> b) - 1024
+        pages = self._pages
+        page = pages[i >> 10]
+        if page is None:
+            page = pages[i >> 10] = [0] * 1024
+        page[i & 1023] += 1
+
+    def _add(self, i: int, c: int) -> None:
+        """*c* more in counts-array index *i* (0 ≤ i < 25 600)."""
+        pages = self._pages
+        page = pages[i // _PAGE]
+        if page is None:
+            page = pages[i // _PAGE] = [0] * _PAGE
+        page[i % _PAGE] += c
 
     # ------------------------------------------------------------------ queries
     @property
     def count(self) -> int:
         """Number of recorded values."""
-        return sum(self._counts.values())
+        return sum(sum(page) for page in self._pages if page is not None)
 
     def __len__(self) -> int:
         return self.count
@@ -110,7 +137,7 @@ class LatencyHistogram:
         """Number of recorded values ≤ ``ns``, to the histogram's resolution (a value in ``ns``'s own bucket,
         at most 0.1 % above it, counts as well)."""
         top = _index(min(max(ns, 0), HIGHEST_NS))
-        return sum(c for i, c in self._counts.items() if i <= top)
+        return sum(c for i, c in self._nonzero() if i <= top)
 
     def to_hdr(self) -> HdrHistogram:
         """A new :class:`hdrh.histogram.HdrHistogram` holding these counts (~2 ms), for anything the summary
@@ -124,7 +151,13 @@ class LatencyHistogram:
         return h
 
     def _nonzero(self) -> list[tuple[int, int]]:
-        return sorted((i, c) for i, c in self._counts.items() if c)
+        """``(index, count)`` of the non-zero counts, by index."""
+        out: list[tuple[int, int]] = []
+        for p, page in enumerate(self._pages):
+            if page is not None:
+                base = p * _PAGE
+                out.extend((base + j, c) for j, c in enumerate(page) if c)
+        return out
 
     def percentile(self, p: float) -> int:
         """Value at percentile ``p`` (0..100) in ns, as ``HdrHistogram.get_value_at_percentile``; 0 when empty."""
@@ -172,9 +205,14 @@ class LatencyHistogram:
     # ------------------------------------------------------------------ combining and transport
     def merge(self, other: LatencyHistogram) -> None:
         """Add ``other``'s counts to this histogram (``other`` is unchanged)."""
-        counts = self._counts
-        for i, c in list(other._counts.items()):
-            counts[i] += c
+        pages = self._pages
+        for p, theirs in enumerate(list(other._pages)):
+            if theirs is not None:
+                mine = pages[p]
+                if mine is None:
+                    pages[p] = list(theirs)
+                else:
+                    pages[p] = [a + b for a, b in zip(mine, theirs)]
 
     @classmethod
     def merged(cls, histograms: Iterable[LatencyHistogram]) -> LatencyHistogram:
@@ -185,11 +223,11 @@ class LatencyHistogram:
         return out
 
     def reset(self) -> None:
-        self._counts = defaultdict(int)
+        self._pages = [None] * _PAGES
 
     def copy(self) -> LatencyHistogram:
         out = LatencyHistogram()
-        out._counts = defaultdict(int, self._counts)
+        out._pages = [None if page is None else list(page) for page in self._pages]
         return out
 
     def to_pairs(self) -> list[list[int]]:
@@ -205,7 +243,7 @@ class LatencyHistogram:
             i, c = (int(x) for x in pair)
             if not 0 <= i < _COUNTS_LEN or c < 0:
                 raise ValueError(f"bad histogram bucket {pair!r}")
-            out._counts[i] += c
+            out._add(i, c)
         return out
 
     def encode(self) -> str:
@@ -232,7 +270,9 @@ class LatencyHistogram:
                 f"(expected {LOWEST_NS}..{HIGHEST_NS}, {SIGNIFICANT_DIGITS} digits)"
             )
         out = cls()
-        out._counts = defaultdict(int, {i: int(c) for i, c in enumerate(h.counts[:_COUNTS_LEN]) if c})
+        for i, c in enumerate(h.counts[:_COUNTS_LEN]):
+            if c:
+                out._add(i, int(c))
         return out
 
     def __eq__(self, other: object) -> bool:

@@ -48,7 +48,27 @@ def test_copy_is_independent_and_sparse():
     c = h.copy()
     c.record(2_000)
     assert (h.count, c.count) == (1, 2)
-    assert len(h._counts) == 1
+    assert sum(page is not None for page in h._pages) == 1  # one page of counts, not the whole array
+
+
+def test_values_across_pages_merge_copy_and_travel_as_hdrh_counts_them():
+    """The paged counts (one page per HDR bucket) against hdrh's flat array: values in many pages, the first page
+    and the last index, merged into an empty histogram, into one with other pages, and into itself."""
+    rnd = random.Random(11)
+    values = [0, 1, 2047, 2048, HIGHEST_NS, HIGHEST_NS + 5] + [rnd.randrange(HIGHEST_NS) >> rnd.randrange(34)
+                                                              for _ in range(3000)]
+    ref = HdrHistogram(1, HIGHEST_NS, 3)
+    for v in values:
+        ref.record_value(min(v, HIGHEST_NS))
+    a, b = filled(values[::2]), filled(values[1::2])
+    merged = LatencyHistogram.merged([a, b])
+    assert [list(p) for p in merged.to_pairs()] == [[i, c] for i, c in enumerate(ref.counts) if c]
+    twice = merged.copy()
+    twice.merge(twice)
+    assert twice.count == 2 * merged.count == 2 * len(values)
+    assert LatencyHistogram.from_pairs(merged.to_pairs()) == merged
+    assert LatencyHistogram.decode(merged.encode()) == merged
+    assert merged.count_at_most(2047) == sum(1 for v in values if v <= 2047)
 
 
 def test_uniform_1_to_1000_us():
