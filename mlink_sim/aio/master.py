@@ -411,8 +411,12 @@ class Master:
         if send_burst is not None and len(out) > 1:  # the burst in one sendmmsg (mlink_sim.aio.mmsg)
             for _, exc in send_burst([(datagram, endpoints[station]) for station, datagram in out]):
                 self._on_error(exc)  # that datagram is lost, the others went
-            for station, _ in out:
-                metrics.record_sent(station)
+            sent_burst = getattr(metrics, "record_sent_burst", None)  # a sink of its own may count one by one
+            if sent_burst is not None:
+                sent_burst(out)
+            else:
+                for station, _ in out:
+                    metrics.record_sent(station)
         else:
             sendto = sock.sendto
             for station, datagram in out:
@@ -438,7 +442,8 @@ class Master:
         if sock is None:
             return
         faults = self.faults
-        on_response = self.core.on_response if faults is None or not faults.active else self.deliver
+        clean = faults is None or not faults.active
+        on_response = self.core.on_response if clean else self.deliver
         if self.stamped:  # recvmmsg, each answer with the time the kernel received it
             for batch in mmsg.drain(sock.recv_burst_stamped, limit, self._on_error):
                 for data, now in batch:
@@ -446,10 +451,14 @@ class Master:
             return
         burst = getattr(sock, "recv_burst", None)
         if burst is not None:  # recvmmsg: what is waiting in one call, each batch stamped with the time it was read
+            on_responses = self.core.on_responses if clean else None
             for batch in mmsg.drain(burst, limit, self._on_error):
                 now = _mono()
-                for data in batch:
-                    on_response(data, now)
+                if on_responses is not None:
+                    on_responses(batch, now)
+                else:
+                    for data in batch:
+                        on_response(data, now)
             return
         recv = sock.recv
         for _ in range(limit):

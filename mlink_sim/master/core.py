@@ -99,6 +99,12 @@ class MasterCore:
                 out.append((st.address, self._slot(st, cycle, now)))
         return out
 
+    def on_responses(self, datagrams: list[bytes], now: int) -> None:
+        """:meth:`on_response` of each of *datagrams* in order, all received at *now*: one batched read of the
+        socket (the loop compiled with the core, not run by the interpreter once per answer)."""
+        for datagram in datagrams:
+            self.on_response(datagram, now)
+
     def on_response(self, datagram: bytes, now: int) -> None:
         """Consume one response datagram received at *now*. Never raises on bad input (counted in ``drops``)."""
         self._now = now
@@ -148,11 +154,13 @@ class MasterCore:
             sent = self._answer_to(st, cycle)
         if sent is None or sent.send is not _CYCLIC or sent.sub_req is not None:
             return False
-        r = st.frames.response(datagram, cycle, st.comm_alm)
-        if r is None:
+        frames = st.frames
+        rwdt = frames.response(datagram, cycle, st.comm_alm)
+        if rwdt < 0:
             return False
         self._take(st, sent, now)
-        st.rwdt, st.status, st.output_freq, st.output_current, st.mon1, st.mon2, st.warning = r
+        st.rwdt = rwdt
+        st.status, st.output_freq, st.output_current, st.mon1, st.mon2, st.warning = frames.last
         if st.run_held or st.searching:
             restart.watch(st, self._emit)
         return True

@@ -65,7 +65,7 @@ class CyclicFrames:
     """Encode the cyclic INV_CTL command and decode its clean response for one station (see module docstring)."""
 
     __slots__ = ("link", "address", "size", "_codec", "_tcycle", "_wdt_at", "_body", "_template", "_dg", "_code",
-                 "_status_at", "_alarm_at", "_ml3", "_pick", "_unpack", "_rwdt_at", "_last", "_last_out", "_last_comm")
+                 "_status_at", "_alarm_at", "_ml3", "_pick", "_unpack", "_rwdt_at", "_last", "last", "_last_comm")
 
     def __init__(self, plan: StationPlan, tcycle_ns: int, codec: Codec) -> None:
         link, size = plan.link, plan.data_size
@@ -77,10 +77,11 @@ class CyclicFrames:
         self._tcycle = tcycle_ns
         self._wdt_at = datagram_offset("wdt", cmd)
         self._rwdt_at = datagram_offset("rwdt", rsp)
-        # the last clean response taken (response()), what it gave and the COMM_ALM it was judged against
+        # the last clean response taken (response()) and the COMM_ALM it was judged against
         self._last = b""
-        self._last_out: tuple[int, int, int, int, int, int, bool] = (0, 0, 0, 0, 0, 0, False)
         self._last_comm = 0
+        #: ``(status, output_freq, output_current, mon1, mon2, warning)`` of the last clean response taken
+        self.last: tuple[int, int, int, int, int, bool] = (0, 0, 0, 0, 0, False)
         self._body: Any = None
         self._template = bytearray()
         # the whole response (envelope, frame, INV_CTL body) in one struct: one unpack per datagram
@@ -107,36 +108,37 @@ class CyclicFrames:
         return patch_seal(tpl, CYCLE_AT, cycle, self._wdt_at, wdt)
 
     # ------------------------------------------------------------------ response
-    def response(self, dg: bytes, cycle: int, comm_alm: int) -> tuple[int, int, int, int, int, int, bool] | None:
-        """``(rwdt, status, output_freq, output_current, mon1, mon2, warning)`` of a clean INV_CTL response to the
-        command of *cycle*, or ``None``: the general path decides (see module docstring).
+    def response(self, dg: bytes, cycle: int, comm_alm: int) -> int:
+        """The RWDT of a clean INV_CTL response to the command of *cycle*, its other fields in :attr:`last`; or -1:
+        the general path decides (see module docstring). An int and a kept tuple, not a new tuple per answer: this
+        runs for every answer of every cycle.
 
         *comm_alm* is the station's COMM_ALM as last seen (ML-III): a response keeping the same communication
         warning (COMM_ALM 1-7, latched until ALM_CLR) is still clean, any change goes the general way.
 
         In the steady state, a response that differs from the last clean one only in its cycle (the one asked
         for), RWDT and FCS (:func:`~mlink_sim.wire.frame.steady_delta`, one C call) gives what the last one gave
-        with its RWDT, without being unpacked and checked field by field again."""
+        (:attr:`last` unchanged) with its RWDT, without being unpacked and checked field by field again."""
         last = self._last
         if last:
             d = steady_delta(dg, last, CYCLE_AT, self._rwdt_at)
             if d >= 0 and d & 0xFFFFFFFF == cycle and comm_alm == self._last_comm:
-                r = self._last_out
-                return d >> 32, r[1], r[2], r[3], r[4], r[5], r[6]
+                return d >> 32
         if len(dg) != self.size:
-            return None
+            return -1
         f = self._unpack(dg)
         if (f[0] != MAGIC or f[1] != self.link or f[2] != 2 or f[3] != self.address or f[4] != cycle
                 or f[6] != self._code):
-            return None
+            return -1
         cstat = f[self._status_at]
         if self._ml3:
             if cstat & _ML3_ALARMS or cstat >> 12 != comm_alm:
-                return None
+                return -1
         elif cstat & _ML2_TROUBLE or f[self._alarm_at]:  # type: ignore[index]  # an int on II (None: III)
-            return None
+            return -1
         if not fcs_ok(dg):
-            return None
-        out: tuple[int, int, int, int, int, int, bool] = self._pick(f) + (bool(cstat & 2),)
-        self._last, self._last_out, self._last_comm = dg, out, comm_alm
-        return out
+            return -1
+        picked: tuple[int, int, int, int, int, int] = self._pick(f)
+        self.last = picked[1:] + (bool(cstat & 2),)
+        self._last, self._last_comm = dg, comm_alm
+        return picked[0]

@@ -290,6 +290,18 @@ class NetworkMetrics:
             sm = self.station(station)
         sm.sent += 1
 
+    def record_sent_burst(self, burst: list[tuple[int, bytes]]) -> None:
+        """:meth:`record_sent` of each station of a cycle's burst (the master core's ``(station, datagram)``
+        pairs) in one call: the loop compiled here, not run by the interpreter once per command right after the
+        burst went out, while the worker it woke may be waiting for this CPU (docs/performance.md, "Where the time goes,
+        profiled (session 16)")."""
+        stations = self.stations
+        for station, _ in burst:
+            sm = stations.get(station)
+            if sm is None:
+                sm = self.station(station)
+            sm.sent += 1
+
     def record_rtt(self, station: int, ns: int) -> None:
         """A response matched to its command, ``ns`` after the command was sent (counts as answered)."""
         sm = self.stations.get(station)

@@ -36,8 +36,12 @@ class _Counting:
 
     def response(self, *a: Any) -> Any:
         r = self.inner.response(*a)
-        self.hits += r is not None
+        self.hits += r >= 0
         return r
+
+    @property
+    def last(self) -> Any:
+        return self.inner.last
 
 
 def _lossy(direction: str, station: int, datagram: bytes, now: int) -> Any:

@@ -293,3 +293,19 @@ def test_reset_keeps_the_commands_in_flight_so_answered_plus_missing_stays_withi
     for fig in [report, *report["station"].values()]:
         assert fig["answered"] + fig["missing"] <= fig["sent"]
     assert report["station"]["0x21"]["sent"] == 6 and report["station"]["0x21"]["answered"] == 6
+
+
+def test_a_burst_counts_each_station_sent_once_as_record_sent_does():
+    """``record_sent_burst`` (the master's one call per cycle) counts as ``record_sent`` per command, a station
+    not added before included."""
+    one, burst = NetworkMetrics(cycle_ns=1 * MS), NetworkMetrics(cycle_ns=1 * MS)
+    for m in (one, burst):
+        m.add_stations([0x21, 0x22])
+    cycles = [[(0x21, b"a"), (0x22, b"b")], [(0x21, b"a")], [(0x21, b"a"), (0x22, b"b"), (0x30, b"c")]]
+    for out in cycles:
+        for station, _ in out:
+            one.record_sent(station)
+        burst.record_sent_burst(out)
+    assert {a: sm.sent for a, sm in burst.stations.items()} == {a: sm.sent for a, sm in one.stations.items()} == {
+        0x21: 3, 0x22: 2, 0x30: 1}
+    assert burst.to_wire() == one.to_wire()
