@@ -147,7 +147,7 @@ class Station(abc.ABC):
         self._foreign_logged: set[str] = set()
         self._incidents: dict[str, int] = {}
         self.keep_outputs = True  #: False: compute the INV_CTL outputs every cycle (tests)
-        self._out_key: tuple[int, int] | None = None
+        self._out_key = -1  # DriveLink.outputs_key of self._out (-1: none)
         self._out: tuple[int, int, int, int] = (0, 0, 0, 0)
         self._last_refused: tuple[Any, ...] = ()
         self._show_station_error(now)
@@ -584,8 +584,8 @@ class Station(abc.ABC):
         cannot change, so they are kept under :meth:`DriveLink.outputs_key` (the per-cycle cost of a steady
         station); tests/cards/test_fast_path.py checks the kept values against fresh ones."""
         drive = self.drive
-        key = drive.outputs_key(sel_mon) if self.keep_outputs else None
-        if key is not None and key == self._out_key:
+        key = drive.outputs_key(sel_mon) if self.keep_outputs else -1
+        if key >= 0 and key == self._out_key:
             return self._out
         out = (drive.output_freq_raw(), drive.output_current_raw(), self.monitor(sel_mon & 0xF),
                self.monitor(sel_mon >> 4))

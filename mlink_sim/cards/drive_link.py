@@ -192,12 +192,14 @@ class DriveLink:
     def is_steady(self) -> bool:
         return self.drive.is_steady
 
-    def outputs_key(self, sel_mon: int) -> tuple[int, int] | None:
+    def outputs_key(self, sel_mon: int) -> int:
         """A key under which the INV_CTL response's output frequency, current, MON1 and MON2 stay the same: set
-        while the drive is steady and both SEL_MON codes show drive state (None: compute them)."""
+        while the drive is steady and both SEL_MON codes show drive state (-1: compute them). An int, the steady
+        epoch and the SEL_MON byte (``Int8ul`` in the wire declarations), so that the per-cycle check allocates
+        nothing."""
         d = self.drive
         static = self._mon_static
-        if d.is_steady and static[sel_mon & 0xF] and static[sel_mon >> 4 & 0xF]:
-            return d.steady_epoch, sel_mon
-        return None
+        if sel_mon <= 0xFF and d.is_steady and static[sel_mon & 0xF] and static[sel_mon >> 4 & 0xF]:
+            return d.steady_epoch << 8 | sel_mon
+        return -1
 

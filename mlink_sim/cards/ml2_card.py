@@ -253,9 +253,9 @@ class Ml2Station(Station):
                  now: int) -> tuple[int, int, int, int]:
         """INV_CTL (SI-T3 Table 16 / V7 Table 3 operation signals): the drive command; returns output
         frequency, output current, MON1, MON2."""
-        key = (sig, speed, torque)
-        if key != self._cmd_key:
-            self._cmd_key = key
+        ck = self._cmd_key  # compared field by field: a tuple built each cycle would be allocated and compared
+        if ck is None or ck[0] != sig or ck[1] != speed or ck[2] != torque:
+            self._cmd_key = (sig, speed, torque)
             cmd = DriveCommand(
                 forward=bool(sig & 0x0001), reverse=bool(sig & 0x0002), fault_reset=bool(sig & 0x0200),
                 external_fault=bool(sig & 0x0100), external_baseblock=bool(sig & 0x8000),

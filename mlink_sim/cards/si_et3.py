@@ -286,9 +286,9 @@ class SiEt3(Station):
                  now: int) -> tuple[int, int, int, int, int]:
         """INV_CTL (Table 20 INVCMD_CTRL): the drive command; returns INVCMD_STAT, output frequency, output
         current, MON1, MON2."""
-        key = (ctrl, speed, torque)
-        if key != self._cmd_key:
-            self._cmd_key = key
+        ck = self._cmd_key  # compared field by field: a tuple built each cycle would be allocated and compared
+        if ck is None or ck[0] != ctrl or ck[1] != speed or ck[2] != torque:
+            self._cmd_key = (ctrl, speed, torque)
             cmd = DriveCommand(
                 forward=bool(ctrl & 0x0001), reverse=bool(ctrl & 0x0002), fault_reset=bool(ctrl & 0x0200),
                 external_fault=bool(ctrl & 0x0400), external_baseblock=bool(ctrl & 0x1000),
