@@ -7,12 +7,16 @@ Four requests, each granted or refused on its own and reported in one line:
   delay them; the kernel's RT throttling (``/proc/sys/kernel/sched_rt_runtime_us``, 95 % by default) keeps the
   machine usable even while the master spins before a deadline;
 * **memory**: ``mlockall(MCL_CURRENT | MCL_FUTURE)``, so no page fault stalls a cycle;
-* **CPUs**: the master on a CPU of its own (the last one), the workers on the others (:func:`cpu_plan`);
 * **wake-up latency**: the kernel's PM QoS request for a CPU wake-up latency of 0 µs (:func:`hold_wakeup_latency`,
   ``/dev/cpu_dma_latency``, as ``cyclictest`` does), held until the process exits: an idle CPU polls instead of
   halting, so a datagram or a timer no longer waits for a halted CPU to wake up. On a virtual machine that wake-up
   is the hypervisor's, and it cost the 8-station 250 µs line here ≈ 30 µs per hop and, at times, whole cycles
-  (docs/timing.md, "Real-time scheduling"). The price is power: the machine's idle CPUs spin while the network runs.
+  (docs/timing.md, "Real-time scheduling"). The price is power: the machine's idle CPUs spin while the network runs;
+* **CPUs**: the master on a CPU of its own (the last one), the workers on the others (:func:`cpu_plan`), *only
+  where the wake-up latency is held*. Apart, every command and every answer wakes the other CPU; without the hold
+  that CPU has halted, and on this VM the round trip of 62 ML-III stations rose from 252–291 to 311–332 µs (p50)
+  for an ordinary user, whom the placement is the one thing granted. Left to itself the kernel runs the master
+  and the worker it wakes on one CPU (docs/performance.md, "Where the time goes, profiled (session 16)").
 
 Nothing here raises: a refusal (no ``CAP_SYS_NICE``, ``RLIMIT_MEMLOCK``, a container without the capability, no
 access to ``/dev/cpu_dma_latency``) is reported and the run goes on with ordinary scheduling.
@@ -41,6 +45,7 @@ _MCL_CURRENT, _MCL_FUTURE = 1, 2
 PM_QOS_PATH = "/dev/cpu_dma_latency"
 _held: dict[str, int] = {}  # path -> the open descriptor that holds this process's request
 _GRANTED = "CPU wake-up latency 0 µs"
+_UNPLACED = "CPUs left to the kernel (no wake-up latency held)"
 
 
 def cpu_plan(cpus: set[int] | None = None) -> tuple[set[int], set[int]]:
@@ -54,9 +59,10 @@ def cpu_plan(cpus: set[int] | None = None) -> tuple[set[int], set[int]]:
 
 
 def apply(priority: int, cpus: set[int] | None = None) -> str:
-    """Ask for SCHED_FIFO *priority*, locked memory, a CPU wake-up latency of 0 µs and the *cpus*; return what was
-    granted, e.g. ``"SCHED_FIFO 40, memory locked, CPU wake-up latency 0 µs, CPU 1"`` or ``"SCHED_FIFO refused
-    (Operation not permitted), …"``."""
+    """Ask for SCHED_FIFO *priority*, locked memory, a CPU wake-up latency of 0 µs and, if that is held, the
+    *cpus*; return what was granted, e.g. ``"SCHED_FIFO 40, memory locked, CPU wake-up latency 0 µs, CPU 1"``,
+    ``"SCHED_FIFO refused (Operation not permitted), …"`` or ``"…, CPU wake-up latency refused (Permission
+    denied), CPUs left to the kernel (no wake-up latency held)"`` (see the module docstring)."""
     parts = []
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
@@ -65,7 +71,9 @@ def apply(priority: int, cpus: set[int] | None = None) -> str:
         parts.append(f"SCHED_FIFO refused ({_why(exc)})")
     parts.append(_lock_memory())
     parts.append(hold_wakeup_latency())
-    if cpus:
+    if cpus and not wakeup_latency_held():
+        parts.append(_UNPLACED)
+    elif cpus:
         try:
             os.sched_setaffinity(0, cpus)
             parts.append(f"CPU {','.join(map(str, sorted(cpus)))}")

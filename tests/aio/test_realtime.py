@@ -28,7 +28,35 @@ def test_refusals_are_reported_not_raised(monkeypatch, tmp_path):
     text = realtime.apply(realtime.WORKER_PRIORITY, {0})
     assert text.startswith("SCHED_FIFO refused (Operation not permitted), ")
     assert "CPU wake-up latency refused (No such file or directory)" in text
-    assert text.endswith("CPU affinity refused (Operation not permitted)")
+    assert text.endswith("CPUs left to the kernel (no wake-up latency held)")  # not even asked: see below
+    device = tmp_path / "cpu_dma_latency"
+    device.write_bytes(b"")
+    monkeypatch.setattr(realtime, "PM_QOS_PATH", str(device))
+    try:
+        text = realtime.apply(realtime.WORKER_PRIORITY, {0})
+    finally:
+        realtime.release_wakeup_latency(str(device))
+    assert "CPU wake-up latency 0 µs" in text and text.endswith("CPU affinity refused (Operation not permitted)")
+
+
+def test_the_cpus_are_placed_only_where_the_wakeup_latency_is_held(monkeypatch, tmp_path):
+    """Apart, each command and answer wakes the other CPU; without the hold that CPU has halted and the round trip
+    grows (docs/performance.md, "Where the time goes, profiled (session 16)"), so the kernel keeps the placement."""
+    placed: list[set[int]] = []
+    monkeypatch.setattr(os, "sched_setscheduler", lambda *_a: None)
+    monkeypatch.setattr(os, "sched_setaffinity", lambda _pid, cpus: placed.append(set(cpus)))
+    monkeypatch.setattr(realtime, "PM_QOS_PATH", str(tmp_path / "no-such-device"))
+    text = realtime.apply(realtime.MASTER_PRIORITY, {1})
+    assert placed == [] and text.endswith("CPUs left to the kernel (no wake-up latency held)")
+    device = tmp_path / "cpu_dma_latency"
+    device.write_bytes(b"")
+    monkeypatch.setattr(realtime, "PM_QOS_PATH", str(device))
+    try:
+        text = realtime.apply(realtime.MASTER_PRIORITY, {1})
+    finally:
+        realtime.release_wakeup_latency(str(device))
+    assert placed == [{1}]
+    assert text.startswith("SCHED_FIFO 40, ") and text.endswith("CPU wake-up latency 0 µs, CPU 1")
 
 
 def test_wakeup_latency_request_is_an_s32_zero_held_open_until_released(tmp_path):
