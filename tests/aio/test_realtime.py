@@ -18,6 +18,18 @@ def test_cpu_plan_gives_the_master_a_cpu_of_its_own():
     assert realtime.cpu_plan({5}) == ({5}, {5})
 
 
+def _apply_held(monkeypatch, tmp_path, priority: int, cpus: set[int]) -> str:
+    """``realtime.apply`` with the wake-up latency request granted (a file standing in for the PM QoS device),
+    released afterwards."""
+    device = tmp_path / "cpu_dma_latency"
+    device.write_bytes(b"")
+    monkeypatch.setattr(realtime, "PM_QOS_PATH", str(device))
+    try:
+        return realtime.apply(priority, cpus)
+    finally:
+        realtime.release_wakeup_latency(str(device))
+
+
 def test_refusals_are_reported_not_raised(monkeypatch, tmp_path):
     def refuse(*_a):
         raise PermissionError(errno.EPERM, "Operation not permitted")
@@ -29,13 +41,7 @@ def test_refusals_are_reported_not_raised(monkeypatch, tmp_path):
     assert text.startswith("SCHED_FIFO refused (Operation not permitted), ")
     assert "CPU wake-up latency refused (No such file or directory)" in text
     assert text.endswith("CPUs left to the kernel (no wake-up latency held)")  # not even asked: see below
-    device = tmp_path / "cpu_dma_latency"
-    device.write_bytes(b"")
-    monkeypatch.setattr(realtime, "PM_QOS_PATH", str(device))
-    try:
-        text = realtime.apply(realtime.WORKER_PRIORITY, {0})
-    finally:
-        realtime.release_wakeup_latency(str(device))
+    text = _apply_held(monkeypatch, tmp_path, realtime.WORKER_PRIORITY, {0})
     assert "CPU wake-up latency 0 µs" in text and text.endswith("CPU affinity refused (Operation not permitted)")
 
 
@@ -48,13 +54,7 @@ def test_the_cpus_are_placed_only_where_the_wakeup_latency_is_held(monkeypatch, 
     monkeypatch.setattr(realtime, "PM_QOS_PATH", str(tmp_path / "no-such-device"))
     text = realtime.apply(realtime.MASTER_PRIORITY, {1})
     assert placed == [] and text.endswith("CPUs left to the kernel (no wake-up latency held)")
-    device = tmp_path / "cpu_dma_latency"
-    device.write_bytes(b"")
-    monkeypatch.setattr(realtime, "PM_QOS_PATH", str(device))
-    try:
-        text = realtime.apply(realtime.MASTER_PRIORITY, {1})
-    finally:
-        realtime.release_wakeup_latency(str(device))
+    text = _apply_held(monkeypatch, tmp_path, realtime.MASTER_PRIORITY, {1})
     assert placed == [{1}]
     assert text.startswith("SCHED_FIFO 40, ") and text.endswith("CPU wake-up latency 0 µs, CPU 1")
 
