@@ -17,7 +17,7 @@ declarations. Nothing here is declared a second time:
 * **response**: one ``unpack_from`` of the whole datagram: the envelope, the data frame (``RESPONSE_FRAME_*``)
   and the INV_CTL response body (``RESPONSE_MAIN``) in one format (:func:`~mlink_sim.wire.frame.datagram_struct`).
 
-:meth:`CyclicFrames.response` returns ``None`` for anything that is not a clean INV_CTL answer, e.g. a
+:meth:`CyclicFrames.response` returns -1 (not an RWDT) for anything that is not a clean INV_CTL answer, e.g. a
 non-zero ALARM byte or STATUS.ALM/WARNG (ML-II), CMD_STAT ALM or CMD_ALM or a COMM_ALM edge (ML-III), another
 code, a bad FCS or another size. The core then takes the general path, so alarms, phase errors and malformed
 input are all handled in one place. Which command an answer is for (on time or late) the core decides for both
