@@ -112,6 +112,10 @@ class Master:
         self.endpoints = dict(endpoints)
         self.metrics = metrics
         core.on_rtt = metrics.record_rtt  # what _pump would do with an Rtt event, without the event
+        #: a cycle's burst counted sent in one call (NetworkMetrics.record_sent_burst); a sink of its own, which
+        #: need only have record_sent, one command at a time
+        self._count_sent: Callable[[list[tuple[int, bytes]]], None] = getattr(
+            metrics, "record_sent_burst", self._count_sent_one_by_one)
         self.transport_errors: Counter[str] = Counter()
         self._loop = loop
         #: a socket.socket, or what stands in for it: a BurstSocket (batched calls), a capture's TappedSocket, an
@@ -411,12 +415,7 @@ class Master:
         if send_burst is not None and len(out) > 1:  # the burst in one sendmmsg (mlink_sim.aio.mmsg)
             for _, exc in send_burst([(datagram, endpoints[station]) for station, datagram in out]):
                 self._on_error(exc)  # that datagram is lost, the others went
-            sent_burst = getattr(metrics, "record_sent_burst", None)  # a sink of its own may count one by one
-            if sent_burst is not None:
-                sent_burst(out)
-            else:
-                for station, _ in out:
-                    metrics.record_sent(station)
+            self._count_sent(out)
         else:
             sendto = sock.sendto
             for station, datagram in out:
@@ -451,14 +450,9 @@ class Master:
             return
         burst = getattr(sock, "recv_burst", None)
         if burst is not None:  # recvmmsg: what is waiting in one call, each batch stamped with the time it was read
-            on_responses = self.core.on_responses if clean else None
+            on_batch = self.core.on_responses if clean else self._deliver_all
             for batch in mmsg.drain(burst, limit, self._on_error):
-                now = _mono()
-                if on_responses is not None:
-                    on_responses(batch, now)
-                else:
-                    for data in batch:
-                        on_response(data, now)
+                on_batch(batch, _mono())
             return
         recv = sock.recv
         for _ in range(limit):
@@ -470,6 +464,15 @@ class Master:
                 self._on_error(exc)
                 continue
             on_response(data, _mono())
+
+    def _deliver_all(self, datagrams: list[bytes], now: int) -> None:
+        """:meth:`deliver` of each of one read's answers (the faults' path of :meth:`read_responses`)."""
+        for datagram in datagrams:
+            self.deliver(datagram, now)
+
+    def _count_sent_one_by_one(self, out: list[tuple[int, bytes]]) -> None:
+        for station, _ in out:
+            self.metrics.record_sent(station)
 
     def impair_with(self, layer: Any) -> None:
         """Route this master's datagrams through the impairment *layer* (``aio/impaired.py``) while it has a

@@ -295,12 +295,8 @@ class NetworkMetrics:
         pairs) in one call: the loop compiled here, not run by the interpreter once per command right after the
         burst went out, while the worker it woke may be waiting for this CPU (docs/performance.md, "Where the time goes,
         profiled (session 16)")."""
-        stations = self.stations
         for station, _ in burst:
-            sm = stations.get(station)
-            if sm is None:
-                sm = self.station(station)
-            sm.sent += 1
+            self.record_sent(station)
 
     def record_rtt(self, station: int, ns: int) -> None:
         """A response matched to its command, ``ns`` after the command was sent (counts as answered)."""
