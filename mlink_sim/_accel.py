@@ -51,6 +51,7 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.cards.results",
     "mlink_sim.cards.reception",
     "mlink_sim.cards.watchdog",
+    "mlink_sim.cards.prediction",
     "mlink_sim.cards.alarms",
     "mlink_sim.cards.drive_link",
     "mlink_sim.cards.monitors",

@@ -17,6 +17,15 @@ is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it
   fell behind) is the same grouping; it is served in one pass, without building the groups. A datagram for no
   station hosted there (or shorter than 4 bytes) is counted in :attr:`Bus.unaddressed`, as a station on a bus
   ignores frames for others.
+* **Answers made ahead** (docs/cards.md, "The answer made ahead"). After each read a card may offer the answer to
+  the command it expects next (``Station.prediction``, :mod:`mlink_sim.cards.prediction`), kept on its
+  :class:`Port`. :meth:`Bus.serve` answers a datagram its prediction names straight away (one C call, no card
+  code), so that the cards' time is no longer between the master's commands and their answers; once the read's
+  answers are sent, :meth:`Bus.settle` hands those datagrams to their cards (``receive``, at the read's time), counts
+  any answer of theirs that differs from the one sent in :attr:`Port.mispredicted` (and in the card's
+  ``internal_errors``: it would be a bug, and it is logged), and takes every served card's
+  next prediction. Whatever else reaches a card between two reads (its ``poll``, a control request, an EEPROM
+  write) drops its prediction first (:meth:`Port.forget`).
 * :func:`due`: which stations' ``poll`` is due at a tick (``Station.next_deadline``): a scan of every hosted
   station once per millisecond.
 """
@@ -26,11 +35,15 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from .._log import get_logger
 from ..cards.base import Station
+from ..cards.prediction import Prediction
 
 __all__ = ["Bus", "Port", "due"]
 
 Batch = list[tuple[bytes, Any]]
+
+_log = get_logger("mlink_sim.aio.bus")
 
 
 class Port:
@@ -47,10 +60,13 @@ class Port:
         self.keep: int = keep
         self.on_eeprom: Callable[[Any], None] = on_eeprom
         self.receive: Callable[[bytes, Any, int], bytes | None] = station.receive
+        self.pred: Prediction | None = None  #: the card's answer to the command it expects next (Bus.serve)
+        self.mispredicted: int = 0  #: answers sent ahead that the card's own answer then differed from
 
     def serve(self, batch: Batch, out: Batch) -> None:
         """Answer *batch* (this station's datagrams of one read, oldest first), appending ``(answer, source)`` to
         *out* (a shared socket's list holds the other stations' answers too)."""
+        self.pred = None
         if len(batch) > self.keep:
             batch = _newest(batch, self.station.counters, self.keep)
         receive, clock = self.receive, self.clock
@@ -67,6 +83,7 @@ class Port:
 
     def serve_one(self, data: bytes, addr: Any, out: Batch) -> None:
         """:meth:`serve` of a read with one datagram for this station (never more than *keep*)."""
+        self.pred = None
         response = self.station.receive(data, addr, self.clock())
         if response is not None:
             out.append((response, addr))
@@ -75,25 +92,64 @@ class Port:
             self.on_eeprom(self.hosted)
 
 
-class Bus:
-    """The stations of one shared socket, by station address (see the module docstring)."""
+    def settle(self, data: bytes, addr: Any, answer: bytes, now: int) -> None:
+        """The card takes *data*, which *answer* was sent to ahead (:meth:`Bus.settle`)."""
+        station = self.station
+        response = station.receive(data, addr, now)
+        self.hosted.responses += 1
+        if response != answer:  # a bug: counted as the card's internal error too (the report's counters)
+            self.mispredicted += 1
+            station.counters.internal_errors += 1
+            if self.mispredicted == 1:
+                _log.error("answer_mispredicted", station=f"{station.address:02X}H", sent=answer.hex(),
+                           card=None if response is None else response.hex())
+        if station.eeprom_pending:
+            self.on_eeprom(self.hosted)
+        self.pred = station.prediction(now)
 
-    def __init__(self, ports: list[Port]) -> None:
+    def forget(self) -> None:
+        """Drop the card's prediction: something other than a read reached the card."""
+        self.pred = None
+
+
+class Bus:
+    """The stations of one shared socket, by station address (see the module docstring). *clock()*: the time a
+    read is stamped with, for the predictions (ns; the worker's ``time.monotonic_ns``)."""
+
+    def __init__(self, ports: list[Port], clock: Callable[[], int] | None = None) -> None:
         self.ports: dict[int, Port] = {int(p.station.address): p for p in ports}
         self.unaddressed: int = 0  #: datagrams for no station hosted here (or shorter than 4 bytes)
+        self.clock: Callable[[], int] = clock if clock is not None else (ports[0].clock if ports else _zero)
+        self.ahead: int = 0  #: answers sent ahead, from the cards' predictions
+        self._now: int = 0  # the last read's stamp
+        self._sent_ahead: list[tuple[Port, bytes, Any, bytes]] = []  # the last read's, until settle()
+        self._served: list[Port] = []  # the ports whose card took a datagram of the last read in it
 
     def serve(self, batch: Batch) -> Batch:
-        """The answers to one read of the shared socket, in the order the stations first appear in it."""
+        """The answers to one read of the shared socket, in the order the stations first appear in it; then
+        :meth:`settle`, once they are sent."""
         keys = [item[0][3] if len(item[0]) > 3 else -1 for item in batch]
         ports = self.ports
         if len(set(keys)) == len(keys):  # one datagram per station: the groups are the datagrams, in order
+            now = self._now = self.clock()
             out: Batch = []
+            sent_ahead, served = self._sent_ahead, self._served
             for key, item in zip(keys, batch):
                 port = ports.get(key)
                 if port is None:
                     self.unaddressed += 1
-                else:
-                    port.serve_one(item[0], item[1], out)
+                    continue
+                pred = port.pred
+                if pred is not None:
+                    data, addr = item
+                    answer = pred.answer_to(data, addr, now)
+                    if answer is not None:
+                        port.pred = None
+                        out.append((answer, addr))
+                        sent_ahead.append((port, data, addr, answer))
+                        continue
+                port.serve_one(item[0], item[1], out)
+                served.append(port)
             return out
         per: dict[int, Batch] = {}
         for item in batch:
@@ -112,6 +168,32 @@ class Bus:
             else:
                 port.serve(items, out)
         return out
+
+    def settle(self) -> None:
+        """After the last read's answers went out: the commands answered ahead go to their cards, at the read's
+        time (:meth:`Port.settle`), and every card that took a command in the read offers its next prediction."""
+        now = self._now
+        sent_ahead = self._sent_ahead
+        if sent_ahead:
+            self.ahead += len(sent_ahead)
+            for port, data, addr, answer in sent_ahead:
+                port.settle(data, addr, answer, now)
+            sent_ahead.clear()
+        served = self._served
+        if served:
+            for port in served:
+                port.pred = port.station.prediction(now)
+            served.clear()
+
+    @property
+    def mispredicted(self) -> int:
+        """Answers sent ahead that their card's own answer then differed from (0, unless a card's prediction is
+        wrong: each one is logged)."""
+        return sum(p.mispredicted for p in self.ports.values())
+
+
+def _zero() -> int:
+    return 0
 
 
 def _newest(batch: Batch, counters: Any, behind: int) -> Batch:

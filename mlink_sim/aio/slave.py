@@ -101,6 +101,7 @@ class SlaveServer:
         self.shared = shared
         self.arrival_poll = arrival_poll
         self._buses: list[Bus] = []  #: one per shared socket (its ``unaddressed`` count)
+        self._ports: dict[int, Port] = {}  #: each station's Port, by ``id(hs)`` (Port.forget)
         #: host-stall policy (docs/timing.md): 0 = strict, else the stall bound. With "absorb" a backlog that a
         #: stall of this worker of up to the bound left on a socket is answered in full (late, not superseded).
         self.absorb_ns = absorb_ns
@@ -210,7 +211,15 @@ class SlaveServer:
         up to ``_KEEP_BEHIND`` cycles is still answered in full (late, not lost): with 2, a 3-cycle hiccup of a
         worker on a busy machine became lost commands, reception failures and a bUS trip in the quickstart (3 of 6
         runs failed; with 8, 0 of 6)."""
-        return Port(hs.station, hs, self._keep_behind, self._collect_eeprom, time.monotonic_ns)
+        port = self._ports[id(hs)] = Port(hs.station, hs, self._keep_behind, self._collect_eeprom, time.monotonic_ns)
+        return port
+
+    def _forget(self, hs: HostedStation | None = None) -> None:
+        """Something other than a read is about to reach *hs*'s card (every card's, with None): drop its answer
+        made ahead (:meth:`Port.forget <mlink_sim.aio.bus.Port.forget>`)."""
+        for key, port in self._ports.items():
+            if hs is None or key == id(hs):
+                port.forget()
 
     def _receiver(self, hs: HostedStation) -> Callable[[list[tuple[bytes, Any]]], None]:
         """The batch handler of one station's own socket: the answers go back on it (one ``sendto``, or a burst
@@ -241,17 +250,21 @@ class SlaveServer:
     def _bus_receiver(self, group: list[HostedStation]) -> Callable[[list[tuple[bytes, Any]]], None]:
         """The batch handler of a shared socket (:class:`~mlink_sim.aio.bus.Bus`): each datagram to the station
         its address byte names, through that station's :class:`~mlink_sim.aio.bus.Port` (the same backlog rule
-        per station and source), and the answers of the read back in one burst."""
-        bus = Bus([self._port(hs) for hs in group])
+        per station and source), and the answers of the read back in one burst; then the cards take the commands
+        their predictions answered (:meth:`Bus.settle <mlink_sim.aio.bus.Bus.settle>`)."""
+        bus = Bus([self._port(hs) for hs in group], time.monotonic_ns)
         self._buses.append(bus)
-        serve = bus.serve
+        serve, settle = bus.serve, bus.settle
         first = group[0]  # its endpoint is the group's (set once the socket is bound)
 
         def on_batch(batch: list[tuple[bytes, Any]]) -> None:
             out = serve(batch)
             ep = first.endpoint
-            if out and ep is not None:
-                ep.send_burst(out)
+            try:
+                if out and ep is not None:
+                    ep.send_burst(out)
+            finally:
+                settle()
 
         return on_batch
 
@@ -274,6 +287,7 @@ class SlaveServer:
                 # commands that arrived meanwhile are read first, or they would count as the master's silence
                 # (2 cycles = bUS on an SI-T/V7; seen in tests/testbed/test_netns.py).
                 hs.endpoint.read_pending()
+            self._forget(hs)
             st.poll(now)
             self._collect_eeprom(hs)
         if self._capture is not None:
@@ -307,7 +321,9 @@ class SlaveServer:
                 path, (hs, generation, data) = self._pending_writes.popitem()
                 try:
                     await loop.run_in_executor(None, atomic_write, path, data)
+                    self._forget(hs)
                 except OSError as exc:
+                    self._forget(hs)
                     self.write_errors += 1
                     log.error("eeprom_write_failed", path=str(path), error=str(exc))
                     hs.station.eeprom_durable(generation, ok=False)
@@ -332,6 +348,8 @@ class SlaveServer:
         ns): the most recent events and the totals. Reading changes nothing."""
         return {**self.cpu(),
                 "unaddressed": self.unaddressed,
+                "answered_ahead": sum(bus.ahead for bus in self._buses),
+                "mispredicted": sum(bus.mispredicted for bus in self._buses),
                 "stalls": self.stalls.events("self", last=_STALLS_REPORTED, since=since),
                 "stall_totals": self.stalls.totals("self", since),
                 "stations": {f"{hs.station.address:#04x}": to_jsonable(hs.station.snapshot())
@@ -359,6 +377,7 @@ class SlaveServer:
             reply: dict[str, Any] = self.stats(since if isinstance(since, int) and not isinstance(since, bool)
                                                else 0)
         elif op in ("plant", "release"):  # a drive fault (aio/faults.py, docs/faults.md)
+            self._forget()
             reply = handle_plant_request(request, {hs.station.address: hs.station for hs in self.stations},
                                          self.plants, time.monotonic_ns())
         elif op == "cpu":

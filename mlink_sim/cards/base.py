@@ -28,6 +28,7 @@ from typing import Any, ClassVar, Final
 
 from mlink_sim.params import ParamError
 from mlink_sim.wire import DropReason, Frame, Kind, Link, WireError, decode, ml2, ml3
+from mlink_sim.wire.frame import Template
 
 from .._log import get_logger
 from .drive_link import DriveCommand, DriveLink, Fault
@@ -35,6 +36,7 @@ from .eeprom import EepromError, EepromImage, EepromWriteBack
 from .monitors import sel_mon_value, sel_ref_item
 from .paramstore import ParamStore
 from .phases import PhaseEvent, next_phase
+from .prediction import Prediction, predict
 from .reception import FailureKind, ReceptionMonitor
 from .results import Err
 from .settings import CARD_NAMES, CardOptions, CardSettings, param_table
@@ -82,6 +84,7 @@ class Station(abc.ABC):
     family: ClassVar[str] = ""
     prm_immediate: ClassVar[bool] = False  #: PRM_WR takes effect without CONFIG (SI-T/V7)
     has_cyc: ClassVar[bool] = True  #: the drive has the CyC/CYC minor fault (not the VS-606V7)
+    _cmd_wdt_at: ClassVar[int] = 0  #: the WDT byte's offset in an INV_CTL command datagram (the fast path's cards)
 
     address: int
     link: Link
@@ -140,6 +143,11 @@ class Station(abc.ABC):
         self._tx_at: int | None = None
         self._any_rx: int | None = None
         self._cmd_key: tuple[int, int, int] | None = None
+        # the fast path's steady state (a card's _fast_receive): the last command it took, its answers' template,
+        # and the cycle of an answer that repeated the one before (-1: none; self.prediction)
+        self._fast_cmd = b""
+        self._answer = Template(0)
+        self._steady_cycle = -1
         self.refs: dict[str, int] = {}  #: SEL_REF item -> last value (snapshot only)
         self.eeprom = EepromWriteBack()
         self._seen_fault: Fault | None = None
@@ -216,6 +224,7 @@ class Station(abc.ABC):
 
     def poll(self, now: int) -> None:
         """Let time pass: silence detection and the drive. Cheap; never raises."""
+        self._steady_cycle = -1
         try:
             if now > self._now:
                 self._now = now
@@ -235,6 +244,24 @@ class Station(abc.ABC):
         a worker that was held up must not take its own delay for the master's silence."""
         due = self._silence_deadline()
         return due is not None and now >= due
+
+    def prediction(self, now: int) -> Prediction | None:
+        """Right after :meth:`receive`: the answer to the command expected next, if the last answer was a fixed
+        point of the steady state (:mod:`mlink_sim.cards.prediction`), holding until the drive's next change or this
+        card's next :meth:`poll` deadline, whichever comes first; None if there is none or it would not hold at
+        *now*. The card's state is not touched."""
+        cycle = self._steady_cycle
+        if cycle < 0 or self._source is None or self.eeprom.wait is not None:
+            return None
+        until = self.drive.quiet_until()  # the first instant that may differ
+        deadline = self.next_deadline()
+        if deadline is not None and deadline < until:
+            until = deadline
+        until -= 1  # the last one that cannot
+        if until < now:
+            return None
+        return predict(self._source, self._fast_cmd, self._cmd_wdt_at, cycle, self.reception.cycles_per_comm,
+                       self.watchdog, self._answer, until)
 
     def next_deadline(self) -> int | None:
         """Absolute time (ns) when :meth:`poll` is next due, or None when nothing is pending."""
@@ -291,6 +318,7 @@ class Station(abc.ABC):
     # -- receive path ------------------------------------------------------------------------------
     def _receive(self, datagram: bytes, source: Hashable, now: int) -> bytes | None:
         c = self.counters
+        self._steady_cycle = -1
         if now > self._now:
             self._now = now
         self._any_rx = now

@@ -192,6 +192,11 @@ class DriveLink:
     def is_steady(self) -> bool:
         return self.drive.is_steady
 
+    def quiet_until(self) -> int:
+        """:meth:`Drive.quiet_until <mlink_sim.drive.drive.Drive.quiet_until>`: the first instant the drive may show
+        anything new (-1: now)."""
+        return self.drive.quiet_until()
+
     def outputs_key(self, sel_mon: int) -> int:
         """A key under which the INV_CTL response's output frequency, current, MON1 and MON2 stay the same: set
         while the drive is steady and both SEL_MON codes show drive state (-1: compute them). An int, the steady

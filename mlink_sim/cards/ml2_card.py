@@ -73,6 +73,7 @@ _KIND_COMMAND: Final = int(Kind.COMMAND)
 _KIND_RESPONSE: Final = int(Kind.RESPONSE)
 _CMDRDY: Final = int(M2Status.CMDRDY)
 _SUBRDY: Final = int(M2SubStatus.SUBCMDRDY)
+_WARNG: Final = int(M2Status.WARNG)
 _SUBWARN: Final = int(M2SubStatus.SUBCMDRDY | M2SubStatus.SUBWARNG)
 _MS: Final = 1_000_000
 _HALF_MS: Final = 500_000
@@ -119,6 +120,7 @@ class Ml2Station(Station):
     sub_handlers: ClassVar[Mapping[int, SubHandler]]  #: its sub-command table (SUB_HANDLERS, adjusted)
     v7: ClassVar[bool] = False
     mfi_mask: ClassVar[int] = 0x3F  #: operation signals bits 2–7 -> S3–S8 (SI-T3 Table 16); V7: S3–S7
+    _cmd_wdt_at: ClassVar[int] = _WDT_AT
 
     def __init__(self, *, settings: CardSettings, now: int, eeprom: bytes | None = None) -> None:
         # the parameters spelled out: mypyc (docs/performance.md, "Compiled cores") passes a **kwargs dict on
@@ -135,7 +137,6 @@ class Ml2Station(Station):
         self._rsp_pack = _RSP_DG[self.data_size][0].pack  # bound once: no lookup per datagram
         # the fast path's steady state (_fast_receive): the last command it took and its fields, and its answers'
         # template
-        self._fast_cmd = b""
         self._c_link = self._c_tcycle = self._c_sig = self._c_speed = self._c_torque = 0
         self._c_sel_ref = self._c_sel_mon = self._c_ref1 = self._c_ref2 = 0
         self._answer = Template(_RWDT_AT)
@@ -247,6 +248,10 @@ class Ml2Station(Station):
             else:
                 answer.body = self._rsp_pack(MAGIC, link, _KIND_RESPONSE, stn, 0, tcycle, _CMD_INV_CTL, alarm,
                                                word, ofreq, cur, sel_ref, sel_mon, mon1, mon2, 0)
+        elif tcycle == self.tcycle_ns and not word & _WARNG and self._out_key >= 0:
+            # a fixed point (self.prediction), as on the SI-ET3; and no communications warning in it: the answer
+            # that carries one drops it (Ml2Alarms.reported), so the next one differs
+            self._steady_cycle = cycle
         return answer.seal(cycle, rwdt)
 
     def _inv_ctl(self, sig: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,

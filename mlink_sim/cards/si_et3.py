@@ -127,6 +127,7 @@ class SiEt3(Station):
 
     card: ClassVar[str] = "si-et3"
     family: ClassVar[str] = "a1000"
+    _cmd_wdt_at: ClassVar[int] = _WDT_AT
     handlers: ClassVar[Mapping[int, Handler]]
     sub_handlers: ClassVar[Mapping[int, SubHandler]]
 
@@ -146,7 +147,6 @@ class SiEt3(Station):
         self._rsp_pack = _RSP_DG[self.data_size][0].pack  # bound once: no lookup per datagram
         # the fast path's steady state (_fast_receive): the last command it took and its fields, and its answers'
         # template
-        self._fast_cmd = b""
         self._c_tcycle = self._c_ctrl = self._c_ictrl = self._c_speed = self._c_torque = 0
         self._c_sel_ref = self._c_sel_mon = self._c_ref1 = self._c_ref2 = 0
         self._answer = Template(_RWDT_AT)
@@ -280,6 +280,10 @@ class SiEt3(Station):
             else:
                 answer.body = self._rsp_pack(MAGIC, _LINK, _KIND_RESPONSE, stn, 0, tcycle, _CMD_INV_CTL, 0, stat,
                                                invcmd_stat, 0, ofreq, cur, sel_ref, sel_mon, mon1, mon2)
+        elif tcycle == self.tcycle_ns and self._out_key >= 0:
+            # a fixed point (self.prediction): the answer repeated the last one, in the cycle CONNECT set (no
+            # transmission cycle fault counted), with outputs kept while the drive is steady
+            self._steady_cycle = cycle
         return answer.seal(cycle, rwdt)
 
     def _inv_ctl(self, ctrl: int, speed: int, torque: int, sel_ref: int, sel_mon: int, ref1: int, ref2: int,

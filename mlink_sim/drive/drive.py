@@ -14,16 +14,18 @@ import math
 from dataclasses import dataclass
 
 from .faults import Fault, minor_code
-from .integrate import CHANGED, IntegratorState, begin_search, steady_to, substep
+from .integrate import CHANGED, IntegratorState, begin_search, ol1_trip_ahead, steady_to, substep
 from .monitors import read_monitor, read_sel_mon
 from .motor import LoadSpec, vf_voltage
 from .settings import DriveSettings, Family, StopMethod, _ref_to_hz
 from .status import DriveStatus
 
-__all__ = ["Drive", "DriveCommand"]
+__all__ = ["Drive", "DriveCommand", "QUIET_FOREVER"]
 
 _MAX_EVENTS = 64
 INF = math.inf
+#: :meth:`Drive.quiet_until` of a steady drive with no timed event ahead (ns, beyond any clock here)
+QUIET_FOREVER = 1 << 62
 _EF_DELAY_NS = 500_000_000  # A1000 "EF": forward and reverse both on for longer than 0.5 s
 _ALARMS = (StopMethod.ALARM_ONLY, StopMethod.ALARM_RUN_D1_04, StopMethod.ALARM_RAMP)
 
@@ -519,6 +521,17 @@ class Drive:
     @property
     def is_steady(self) -> bool:
         return self._x.steady
+
+    def quiet_until(self) -> int:
+        """While the drive is steady: the time (ns) before which :meth:`advance` changes none of its outputs, its
+        status or its monitors (its next timed event, or :data:`QUIET_FOREVER`); -1 when it is not steady, has
+        something pending, or an oL1 trip lies ahead (:func:`~.integrate.ol1_trip_ahead`). The slave cards'
+        answer predictions (:mod:`mlink_sim.cards.prediction`) hold no longer than this."""
+        x = self._x
+        if not x.steady or x.pending or ol1_trip_ahead(x):
+            return -1
+        ev = self._event_at
+        return QUIET_FOREVER if ev is None else ev
 
     @property
     def command_in_effect(self) -> DriveCommand:

@@ -47,6 +47,7 @@ __all__ = [
     "begin_search",
     "restart_watch",
     "search_step",
+    "ol1_trip_ahead",
     "steady_to",
     "substep",
 ]
@@ -168,6 +169,15 @@ def steady_to(x: IntegratorState, span: int) -> int:
             return max(1, math.ceil(t_trip * 1e9))
     x.theta = i2 + (th - i2) * math.exp(-dt / x.tau)
     return 0
+
+
+def ol1_trip_ahead(x: IntegratorState) -> bool:
+    """In a steady state, the oL1 thermal state is heading for a trip: its current's level ``(I/Ir)^2`` is above
+    the trip level (:func:`steady_to` will find the instant). Below it, steady time never trips."""
+    if not x.ol1:
+        return False
+    i2 = x.I / x.Ir
+    return i2 * i2 > OL1_TRIP_LEVEL
 
 
 # ---------------------------------------------------------------------------------------------- sub-step

@@ -1,6 +1,7 @@
 """A slave worker's per-read path (mlink_sim.aio.bus), on real card cores and without sockets: the station byte
 picks the station, each station's datagrams keep their order, a backlog beyond *keep* per source is superseded,
-datagrams for no station are counted, and the tick's scan names exactly the stations whose poll is due."""
+datagrams for no station are counted, the tick's scan names exactly the stations whose poll is due, and the answers
+made ahead from the cards' predictions are the cards' own."""
 
 from __future__ import annotations
 
@@ -9,7 +10,10 @@ from typing import Any
 from mlink_sim.aio.bus import Bus, Port, due
 from mlink_sim.aio.slave import HostedStation
 from mlink_sim.cards import Station, create_card, settings_for
+from mlink_sim.cards.prediction import Prediction
+from mlink_sim.master import MasterCore, NetworkPlan, StationPlan
 from mlink_sim.wire import Frame, Kind, Link, decode, encode, ml2
+from mlink_sim.wire.frame import CYCLE_AT, steady_delta
 
 TCYCLE = 1_000_000
 SOURCE = ("127.0.0.1", 40000)
@@ -129,3 +133,63 @@ def test_due_names_the_stations_whose_poll_has_come() -> None:
     assert due([fresh, up], first) == [deadlines.index(first)]
     assert due([fresh, up], last) == [0, 1]
     assert due([up, fresh, up], last) == [0, 1, 2]
+
+
+def _line(link: Link, stations: int) -> tuple[MasterCore, dict[int, Station]]:
+    """A master core and its cards (SI-T3 on ML-II, SI-ET3 on ML-III), as ``scripts/bench_exchange.py`` builds them."""
+    card, size, first = ("si-t3", 17, 0x21) if link is Link.ML2 else ("si-et3", 32, 0x03)
+    plan = NetworkPlan(link, TCYCLE, tuple(StationPlan(first + i, link, data_size=size) for i in range(stations)))
+    cards = {sp.address: create_card(card, settings=settings_for(card, sp.address, size, []), now=0)
+             for sp in plan.stations}
+    return MasterCore(plan), cards
+
+
+def test_answers_made_ahead_are_the_cards_own_and_the_cards_take_every_command() -> None:
+    """docs/cards.md, "The answer made ahead": over a bring-up and a steady run of 6 SI-ET3 stations (Table 28's
+    line, shortened), the bus answers most commands from the cards' predictions; every answer it sends equals the one
+    the same card, fed the same commands at the same times without predictions, gives; after each read's settle the
+    cards' counters and drives are the reference cards' too."""
+    core, cards = _line(Link.ML3, 6)
+    _, reference = _line(Link.ML3, 6)
+    now = {"t": 0}
+    bus = Bus([Port(st, HostedStation(st, "127.0.0.1", 0), 8, [].append, lambda: now["t"]) for st in cards.values()],
+              lambda: now["t"])
+    for cycle in range(1, 1501):
+        t = cycle * TCYCLE
+        now["t"] = t + 50_000
+        batch = [(dg, SOURCE) for _, dg in core.on_cycle(cycle, t)]
+        out = bus.serve(batch)
+        want = [reference[dg[3]].receive(dg, SOURCE, now["t"]) for dg, _ in batch]
+        assert [a for a, _ in out] == [w for w in want if w is not None]
+        bus.settle()
+        for answer, _ in out:
+            core.on_response(answer, t + 100_000)
+        core.drain_events()
+        for st, ref in zip(cards.values(), reference.values()):
+            deadline = ref.next_deadline()
+            if deadline is not None and deadline <= t + 900_000:  # the worker's tick: poll the due ones
+                bus.ports[st.address].forget()
+                st.poll(t + 900_000)
+                ref.poll(t + 900_000)
+    assert {v.state.value for v in core.views().values()} == {"phase3"}
+    assert bus.mispredicted == 0 and bus.ahead > 0.8 * 6 * 1500, bus.ahead
+    for st, ref in zip(cards.values(), reference.values()):
+        assert st.counters.as_dict() == ref.counters.as_dict()
+        assert st.snapshot().drive == ref.snapshot().drive
+
+
+def test_an_answer_that_was_not_the_cards_is_counted_and_logged(caplog: Any) -> None:
+    """A prediction that the card's own answer then contradicts (a bug) is counted on its port, in the card's
+    ``internal_errors`` (the report's counters), and logged."""
+    core, cards = _line(Link.ML2, 1)
+    (st,) = cards.values()
+    port = Port(st, HostedStation(st, "127.0.0.1", 0), 8, [].append, lambda: 5 * TCYCLE)
+    bus = Bus([port])
+    dg = next(iter(core.on_cycle(1, TCYCLE)))[1]  # the master's first command (phase 1): the card answers it
+    wdt_at = st._cmd_wdt_at
+    port.pred = Prediction(SOURCE, dg, wdt_at, steady_delta(dg, dg, CYCLE_AT, wdt_at) & 0xF0_FFFF_FFFF, b"forged",
+                           10 * TCYCLE)
+    assert bus.serve([(dg, SOURCE)]) == [(b"forged", SOURCE)]
+    bus.settle()
+    assert bus.mispredicted == 1 == st.counters.internal_errors and bus.ahead == 1
+    assert "answer_mispredicted" in caplog.text

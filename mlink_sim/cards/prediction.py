@@ -1,0 +1,72 @@
+"""A card's answer to the command it expects next, made before that command comes (docs/cards.md, "The answer
+made ahead").
+
+In the steady state a card's per-cycle INV_CTL answer is a fixed point: the master sends the same command again
+with only its cycle number and WDT count advanced, and the card answers with the same fields, only the cycle and the
+RWDT count advanced. Right after such an answer, a card (``Station.prediction``) can therefore say exactly which
+command comes next and exactly what it will answer: a :class:`Prediction`. A slave worker checks each datagram of a
+read against its station's prediction (:meth:`Prediction.answer_to`: one C call, no card code) and sends the
+predicted answers at once; it hands the same datagrams to the card's ``receive`` right after the send, and counts any
+answer that differs from the one sent (``mlink_sim.aio.bus``). So the cards' work per cycle leaves the time between a
+command and its answer, and what the card does with the command stays the same, with the same ``now``.
+
+A prediction holds for a command that
+
+* comes from the connected master (the same source);
+* is the last command taken byte for byte but for its cycle, its WDT byte and its FCS, which is right
+  (:func:`~mlink_sim.wire.frame.steady_delta`);
+* carries the next cycle number (the last one plus the cycles of one communication cycle, so that the reception
+  monitor counts no failure: :mod:`mlink_sim.cards.reception`) and the master's WDT count advanced by one (the
+  watchdog's check holds: :mod:`mlink_sim.cards.watchdog`; the low nibble, the master's echo, is not read);
+* arrives before :attr:`Prediction.until`: while the drive is steady nothing it shows changes
+  (``Drive.quiet_until``), and before the card's next ``poll`` deadline no silence is counted.
+
+The card offers one only after an answer that repeated the one before in every field but the cycle and the RWDT,
+with nothing pending that the next answer would show differently (each card's ``_fast_receive`` says what).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Final
+
+from mlink_sim.wire.frame import CYCLE_AT, Template, steady_delta
+
+from .watchdog import Watchdog
+
+__all__ = ["Prediction", "predict"]
+
+#: The bits of :func:`~mlink_sim.wire.frame.steady_delta`'s result a prediction fixes: the cycle (bits 0-31) and
+#: the master's WDT count (bits 36-39); the WDT's low nibble (bits 32-35) is the master's echo of the RWDT.
+_EXPECT_MASK: Final = 0xF0_FFFF_FFFF
+_U32: Final = 0xFFFF_FFFF
+
+
+class Prediction:
+    """The answer a card will give to one command, known before it comes (see the module docstring)."""
+
+    def __init__(self, source: Any, command: bytes, wdt_at: int, expect: int, answer: bytes, until: int) -> None:
+        self.source: Any = source      #: the connected master
+        self.command: bytes = command  #: the command the next one repeats but for cycle, WDT and FCS
+        self.wdt_at: int = wdt_at      #: the WDT byte's offset in the command datagram
+        self.expect: int = expect      #: the next cycle | the master's next WDT count << 36
+        self.answer: bytes = answer    #: the answer datagram, sealed
+        self.until: int = until        #: the last ``now`` (ns) it holds for
+
+    def answer_to(self, datagram: bytes, source: Any, now: int) -> bytes | None:
+        """:attr:`answer` when *datagram* from *source* at *now* is the command predicted, else None."""
+        if now > self.until or source != self.source:
+            return None
+        d = steady_delta(datagram, self.command, CYCLE_AT, self.wdt_at)
+        if d < 0 or d & _EXPECT_MASK != self.expect:
+            return None
+        return self.answer
+
+
+def predict(source: Any, command: bytes, wdt_at: int, cycle: int, cycles_per_comm: int, watchdog: Watchdog,
+            template: Template, until: int) -> Prediction:
+    """The prediction after an answer to *cycle* from *template*: the next command's cycle and WDT count, and the
+    answer with the watchdog's next RWDT (its own count and the master's, each advanced by one)."""
+    nxt = (cycle + cycles_per_comm) & _U32
+    count = (watchdog.master + 1) & 0xF
+    rwdt = (watchdog.slave + 1) & 0xF | count << 4
+    return Prediction(source, command, wdt_at, nxt | count << 36, template.seal(nxt, rwdt), until)

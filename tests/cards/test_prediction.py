@@ -1,0 +1,153 @@
+"""A card's answer made ahead (mlink_sim.cards.prediction, docs/cards.md "The answer made ahead"): whenever a
+prediction answers a command, the card's own ``receive`` of that command at that time answers the same bytes."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mlink_sim.cards.prediction import Prediction
+from mlink_sim.drive.drive import QUIET_FOREVER
+from mlink_sim.wire import Kind, decode, encode, ml2, ml3
+from mlink_sim.wire.frame import with_fcs
+
+from .helpers import MS, Master, station
+from .test_fast_path import PARAMS, step
+
+CARDS = [("si-t3", 32), ("si-t3", 17), ("si-t-v7", 32), ("si-t-v7", 17), ("si-et3", 64), ("si-et3", 32)]
+
+
+class Checked:
+    """A master and its card, each command offered to the card's last prediction first, as a slave worker does
+    (mlink_sim.aio.bus): a predicted answer must be the card's own; a poll between commands drops the prediction."""
+
+    def __init__(self, card: str, size: int) -> None:
+        self.m = Master(station(card, params=PARAMS[card], frame_size=size))
+        self.m.bring_up()
+        self.pred: Prediction | None = None
+        self.hits = self.offered = 0
+
+    def deliver(self, datagram: bytes, source: Any = None) -> bytes | None:
+        m = self.m
+        source = m.source if source is None else source
+        predicted = None if self.pred is None else self.pred.answer_to(datagram, source, m.now)
+        real = m.st.receive(datagram, source, m.now)
+        self.offered += 1
+        if predicted is not None:
+            self.hits += 1
+            assert real == predicted
+        self.pred = m.st.prediction(m.now)
+        if real is not None and source == m.source:
+            m.slave_echo = decode(real, kind=Kind.RESPONSE).message.rwdt & 0xF
+        return real
+
+    def poll(self, now: int) -> None:
+        self.m.st.poll(now)
+        self.pred = None
+
+
+def _inv_ctl(ml3_link: bool, signals: int, speed: int, sel_mon: int = 0x21, ref: int = 0) -> Any:
+    if ml3_link:
+        return ml3.InvCtl(signals | (signals << 8 & 0xFF0000), 0, speed, 0, 0, sel_mon, ref, 0)
+    return ml2.InvCtl(signals, speed, 0, 0, sel_mon, ref, 0)
+
+
+@pytest.mark.parametrize("card, size", CARDS)
+@settings(max_examples=40, deadline=None)
+@given(steps=st.lists(step, min_size=1, max_size=60), repeat=st.integers(1, 30))
+def test_a_predicted_answer_is_the_cards_own(card: str, size: int, steps: list[dict], repeat: int) -> None:
+    """Random INV_CTL commands (skipped cycles, wrong WDTs, ALM_CLR, sub-commands), each sent *repeat* times so that
+    steady runs form: every answer a prediction gave equals the one the card gives the same command."""
+    c = Checked(card, size)
+    m = c.m
+    for s in steps:
+        for _ in range(repeat):
+            m.tick(s["skip"] + 1)
+            if m.ml3:
+                body: Any = ml3.InvCtl(s["signals"] | (s["signals"] << 8 & 0xFF0000), 0, s["speed"], s["torque"],
+                                       s["sel_ref"], s["sel_mon"], *s["refs"])
+                sub = ml3.PrmRd(0x0200, 2) if s["sub"] == "prm_rd" and size == 64 else None
+                kw: dict[str, Any] = {"cmd_ctrl": s["ctrl"]}
+            else:
+                body = ml2.InvCtl(s["signals"], s["speed"], s["torque"], s["sel_ref"], s["sel_mon"], *s["refs"])
+                sub = ml2.PrmRd(0x0200, 2) if s["sub"] == "prm_rd" and size == 32 else None
+                kw = {}
+            c.deliver(encode(m.command(body, sub, wdt=0x05 if s["wdt_bad"] else None, **kw)))
+            if s["skip"] == 2:
+                c.poll(m.now + MS // 2)
+
+
+@pytest.mark.parametrize("card, size", CARDS)
+def test_the_steady_state_is_answered_ahead_and_every_change_is_not(card: str, size: int) -> None:
+    """Long runs of one command are answered from the prediction; a corrupted FCS, a wrong WDT, a skipped cycle,
+    another station's byte, another source, an ALM_CLR edge, a new command, a late command (after the card's
+    silence deadline) and a poll between two commands are not, and the card's answers stay its own throughout: a
+    ramp, a steady run, a stop, and forward and reverse at once (EF after 0.5 s, A1000 / VS-606V7)."""
+    c = Checked(card, size)
+    m = c.m
+    fwd, both = 1, 3
+    plan: list[tuple[int, int, str]] = [(fwd, 3000, "run")] * 400
+    events = ["bad_fcs", "bad_wdt", "skip", "station", "other_source", "late", "poll"] + ["clear"] * m.ml3
+    for event in events:
+        plan += [(fwd, 3000, event)] + [(fwd, 3000, "run")] * 5
+    plan += [(fwd, 6000, "run")] * 300 + [(0, 0, "run")] * 300 + [(both, 3000, "run")] * 800
+    misses: dict[str, int] = {}
+    for signals, speed, what in plan:
+        m.tick(2 if what == "skip" else 1)
+        if what == "late":
+            m.now += 5 * MS
+        if what == "poll":
+            c.poll(m.now - MS // 2)
+        kw: dict[str, Any] = {"cmd_ctrl": 0x08} if what == "clear" and m.ml3 else {}
+        if what == "bad_wdt":
+            kw["wdt"] = 0x05
+        dg = bytearray(encode(m.command(_inv_ctl(m.ml3, signals, speed), **kw)))
+        if what == "bad_fcs":
+            dg[-1] ^= 0x10
+        elif what == "station":
+            dg[3] ^= 0x01
+            dg[-2:] = with_fcs(bytes(dg[:-2]))[-2:]
+        hits = c.hits
+        c.deliver(bytes(dg), ("10.9.9.9", 1) if what == "other_source" else None)
+        if what != "run":
+            misses[what] = c.hits - hits
+    assert misses == dict.fromkeys(misses, 0), misses  # none of the changes was answered ahead
+    assert set(misses) == set(events)
+    assert c.hits > 0.6 * c.offered, (c.hits, c.offered)  # and most of the steady state was
+
+
+@pytest.mark.parametrize("card, size", [("si-t3", 17), ("si-et3", 32)])
+def test_no_prediction_outside_the_steady_state(card: str, size: int) -> None:
+    """Before the connection, after a new command and during a ramp the card offers none; at rest it does, until
+    its silence deadline."""
+    m = Master(station(card, params=PARAMS[card], frame_size=size))
+    assert m.st.prediction(0) is None  # phase 1
+    m.bring_up()
+    m.send(_inv_ctl(m.ml3, 1, 6000))
+    assert m.st.prediction(m.now) is None  # the command just changed
+    for _ in range(5):
+        m.send(_inv_ctl(m.ml3, 1, 6000))
+    assert not m.st.drive.drive.is_steady and m.st.prediction(m.now) is None  # ramping (C1-01)
+    for _ in range(3000):  # stop again (C1-02): at rest, steady
+        m.send(_inv_ctl(m.ml3, 0, 0))
+    pred = m.st.prediction(m.now)
+    assert m.st.drive.drive.is_steady and pred is not None
+    assert pred.until == m.st.next_deadline() - 1 < QUIET_FOREVER  # the silence deadline bounds it
+    assert m.st.prediction(pred.until) is not None and m.st.prediction(pred.until + 1) is None
+
+
+def test_the_drive_is_quiet_until_its_next_event() -> None:
+    """Drive.quiet_until: -1 while not steady; its timed event (EF: forward and reverse for 0.5 s) bounds it."""
+    m = Master(station("si-et3", params=PARAMS["si-et3"], frame_size=32))
+    m.bring_up()
+    drive = m.st.drive.drive
+    assert drive.is_steady and drive.quiet_until() == QUIET_FOREVER  # at rest, nothing timed
+    m.send(_inv_ctl(True, 3, 0))  # forward and reverse at once, speed 0: still at rest, EF ahead
+    start = m.now
+    m.send(_inv_ctl(True, 3, 0))
+    assert drive.is_steady and drive.quiet_until() == start + 500 * MS
+    m.send(_inv_ctl(True, 1, 6000))
+    assert drive.quiet_until() == -1  # accelerating
