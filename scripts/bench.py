@@ -115,6 +115,8 @@ class Cell:
     cpu_per_exchange_nospin_us: float = 0.0  #: the same without the spin (the work an exchange itself costs)
     wakeups_master: float = 0.0     #: voluntary context switches per cycle
     wakeups_slaves: float = 0.0
+    ahead_pct: float = 0.0          #: answers the workers made ahead from the cards' predictions, % of exchanges
+    mispredicted: int = 0           #: of those, answers the card then contradicted (a bug: a note says so)
     steal_pct: float = 0.0          #: the hypervisor's steal over the window, % of all CPUs' time (bench_figures.steal_share)
     turns: int = 1                  #: the windows it was measured in, in turn with its floors (bench_figures.turns)
     floor: dict[str, Any] | None = None          #: bench_floor.Floor, plain system calls
@@ -195,10 +197,12 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         else:
             os.environ["MLINK_MMSG"] = saved
     report = metrics.report(meta=meta)
+    ahead = {k: int(slaves1.pop(k, 0.0) - slaves0.pop(k, 0.0)) for k in ("ahead", "mispredicted")}
     return Window(cell.cycle_ns, wall_s=wall, started=report["cycles"] - report["missed"], skipped=report["missed"],
                   sent=report["sent"], missing=report["missing"], late=report["late"], cpu_a_s=cpu_master_s,
                   cpu_b_s=sum(slaves1.get(k, 0.0) - v for k, v in slaves0.items()), spin_s=spun_s, wake_a=wake,
-                  wake_b=swake, ticks=ticks_between(host0, host1), rtt=metrics.rtt, lateness=metrics.lateness)
+                  wake_b=swake, ticks=ticks_between(host0, host1), rtt=metrics.rtt, lateness=metrics.lateness,
+                  ahead=ahead["ahead"], mispredicted=ahead["mispredicted"])
 
 
 def fill(cell: Cell, w: Window) -> None:
@@ -208,6 +212,11 @@ def fill(cell: Cell, w: Window) -> None:
     cell.late = w.late
     cell.cpu_master, cell.cpu_slaves = w.pct(w.cpu_a_s), w.pct(w.cpu_b_s)
     cell.wakeups_master, cell.wakeups_slaves = w.per_cycle(w.wake_a), w.per_cycle(w.wake_b)
+    cell.ahead_pct = round(100.0 * w.ahead / cell.exchanges, 2) if cell.exchanges else 0.0
+    cell.mispredicted = w.mispredicted
+    if w.mispredicted:
+        cell.notes.append(f"{w.mispredicted} answer(s) made ahead that the card contradicted (a bug; the workers' "
+                          "logs say answer_mispredicted)")
 
 
 def _states(session: NetworkSession) -> str:
@@ -221,14 +230,18 @@ def _states(session: NetworkSession) -> str:
 
 
 async def _slave_cpu(session: NetworkSession) -> dict[str, float]:
+    """Each worker's CPU seconds, by index; and, as ``"ahead"`` and ``"mispredicted"``, the answers all of them made
+    ahead so far and the ones of those their cards contradicted (``SlaveServer.cpu``)."""
     from mlink_sim.aio.slave import query_control
 
-    out: dict[str, float] = {}
+    out: dict[str, float] = {"ahead": 0.0, "mispredicted": 0.0}
     for w in session.worker_list:
         if w.alive and w.control_port:
             reply = await query_control("127.0.0.1", w.control_port, "cpu", timeout=1.0)
             if reply:
                 out[str(w.spec.index)] = float(reply.get("cpu_s", 0.0))
+                out["ahead"] += reply.get("answered_ahead", 0)
+                out["mispredicted"] += reply.get("mispredicted", 0)
     return out
 
 
@@ -433,7 +446,8 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
             fill(cell, ours[i])
         print(f"{link} {n:>2} stations {format_ns(cycle):>6} {cell.io:<7} " + (
               cell.status if cell.status != "ok" else f"missed {cell.missed_rate * 100:.2f}% rtt p99 "
-              f"{format_ns(cell.rtt_p99_ns)} {cell.cpu_per_exchange_us:.1f} µs/exchange ({cell.turns} turns)"),
+              f"{format_ns(cell.rtt_p99_ns)} {cell.cpu_per_exchange_us:.1f} µs/exchange, {cell.ahead_pct:.1f}% answered "
+              f"ahead ({cell.turns} turns)"),
               file=sys.stderr, flush=True)
     result: dict[bool, dict[str, Any]] = {}
     for batched, w in floors.items():

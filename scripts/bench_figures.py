@@ -96,6 +96,8 @@ class Window:
     spin_s: float = 0.0        #: of ``cpu_a_s``, the clock's spin before each deadline
     wake_a: int = 0            #: voluntary context switches
     wake_b: int = 0
+    ahead: int = 0             #: answers made ahead from the cards' predictions (the simulator's; 0 for a floor)
+    mispredicted: int = 0      #: of those, answers the card then contradicted
     ticks: tuple[int, ...] = ()  #: the host's CPU ticks over the window (``bench_floor.host_ticks`` deltas)
     rtt: LatencyHistogram = field(default_factory=LatencyHistogram)
     lateness: LatencyHistogram = field(default_factory=LatencyHistogram)
@@ -104,7 +106,7 @@ class Window:
     def add(self, other: Window) -> None:
         """Add *other*'s counts (a later turn of the same side) to these."""
         for name in ("wall_s", "started", "skipped", "sent", "missing", "late", "cpu_a_s", "cpu_b_s", "spin_s",
-                     "wake_a", "wake_b", "turns"):
+                     "wake_a", "wake_b", "ahead", "mispredicted", "turns"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
         if self.ticks and other.ticks:
             self.ticks = tuple(a + b for a, b in zip(self.ticks, other.ticks))

@@ -336,20 +336,21 @@ class SlaveServer:
     # -- control ----------------------------------------------------------------------------------------------
 
     def cpu(self) -> dict[str, Any]:
-        """This process's CPU use since start, and its arrival polls' counters (``{"op": "cpu"}``: small at any
-        station count)."""
+        """This process's CPU use since start, its arrival polls' counters, and the answers its shared ports made
+        ahead and any of those that the card then contradicted (``Bus.ahead``, ``Bus.mispredicted``) (``{"op":
+        "cpu"}``: small at any station count; ``stats`` has all of it too)."""
         wall = time.monotonic() - self._started_wall
         cpu = _cpu_seconds() - self._started_cpu
         return {"ok": True, "pid": os.getpid(), "wall_s": wall, "cpu_s": cpu,
-                "cpu_pct": 100.0 * cpu / wall if wall > 0 else 0.0, "arrival_poll": self._poll_stats()}
+                "cpu_pct": 100.0 * cpu / wall if wall > 0 else 0.0, "arrival_poll": self._poll_stats(),
+                "answered_ahead": sum(bus.ahead for bus in self._buses),
+                "mispredicted": sum(bus.mispredicted for bus in self._buses)}
 
     def stats(self, since: int = 0) -> dict[str, Any]:
         """Snapshot of every hosted station plus this process's CPU use and its stalls since *since* (monotonic
         ns): the most recent events and the totals. Reading changes nothing."""
         return {**self.cpu(),
                 "unaddressed": self.unaddressed,
-                "answered_ahead": sum(bus.ahead for bus in self._buses),
-                "mispredicted": sum(bus.mispredicted for bus in self._buses),
                 "stalls": self.stalls.events("self", last=_STALLS_REPORTED, since=since),
                 "stall_totals": self.stalls.totals("self", since),
                 "stations": {f"{hs.station.address:#04x}": to_jsonable(hs.station.snapshot())

@@ -170,7 +170,8 @@ def test_pm_qos_refused_exits_2_before_any_cell_runs(bench, monkeypatch, capsys)
 def test_a_cell_is_measured_in_turns_with_its_floors_and_their_counts_add_up(bench, monkeypatch, tmp_path) -> None:
     """A 25 s cell: three turns of 8.3 s, each the network, the plain floor, the batched floor, in that order
     (``bench_figures.turns``), so each side sees the same phases of the host; each side's figures are read from the
-    sum of its turns (missed from the summed counts, RTT from the merged histograms)."""
+    sum of its turns (missed from the summed counts, RTT from the merged histograms, the answers made ahead and any
+    the cards contradicted from the summed counts: a contradicted one is a note)."""
     from mlink_sim.aio import mmsg
 
     order: list[tuple[str, float]] = []
@@ -183,7 +184,9 @@ def test_a_cell_is_measured_in_turns_with_its_floors_and_their_counts_add_up(ben
         return w
 
     async def network(path, workers, turn, cell):
-        return window("network", turn, 300_000, 8)  # 8 of 800 answers later than the 250 µs cycle
+        w = window("network", turn, 300_000, 8)  # 8 of 800 answers later than the 250 µs cycle
+        w.ahead, w.mispredicted = 780, len(order) == 1  # answers made ahead; one contradicted, in the first turn
+        return w
 
     async def floor(n, size, cycle, turn, batched, absorb_ns, shared=False):
         return window("batched" if batched else "plain", turn, 300_000, 1 if batched else 4)
@@ -201,3 +204,5 @@ def test_a_cell_is_measured_in_turns_with_its_floors_and_their_counts_add_up(ben
     assert (cell.floor["turns"], cell.floor["missed_rate"]) == (3, 0.005)
     assert (cell.floor_batched["turns"], cell.floor_batched["missed_rate"]) == (3, 0.00125)
     assert cell.ref is cell.floor_batched and cell.cpu_master == 0.1  # 0.03 s of 25 s
+    assert (cell.ahead_pct, cell.mispredicted) == (97.5, 1)  # 3 × 780 of 2,400 answers made ahead
+    assert any("contradicted" in note for note in cell.notes)
