@@ -148,6 +148,7 @@ class Station(abc.ABC):
         self._fast_cmd = b""
         self._answer = Template(0)
         self._steady_cycle = -1
+        self._prediction: Prediction | None = None  # the one this card hands out, updated in place (prediction())
         self.refs: dict[str, int] = {}  #: SEL_REF item -> last value (snapshot only)
         self.eeprom = EepromWriteBack()
         self._seen_fault: Fault | None = None
@@ -249,19 +250,27 @@ class Station(abc.ABC):
         """Right after :meth:`receive`: the answer to the command expected next, if the last answer was a fixed
         point of the steady state (:mod:`mlink_sim.cards.prediction`), holding until the drive's next change or this
         card's next :meth:`poll` deadline, whichever comes first; None if there is none or it would not hold at
-        *now*. The card's state is not touched."""
+        *now*. The card's state is not touched. The card has one :class:`Prediction` object, updated in place by
+        each call that returns it: what the last call returned holds until the next call."""
         cycle = self._steady_cycle
-        if cycle < 0 or self._source is None or self.eeprom.wait is not None:
+        source = self._source
+        if cycle < 0 or source is None or self.eeprom.wait is not None:
             return None
-        until = self.drive.quiet_until()  # the first instant that may differ
-        deadline = self.next_deadline()
+        until = self.drive.quiet_until()  # the first instant that may differ (-1: now)
+        if until < 0:
+            return None
+        deadline = self.reception.deadline()  # connected: the silence deadline (next_deadline of a steady drive)
         if deadline is not None and deadline < until:
             until = deadline
         until -= 1  # the last one that cannot
         if until < now:
             return None
-        return predict(self._source, self._fast_cmd, self._cmd_wdt_at, cycle, self.reception.cycles_per_comm,
-                       self.watchdog, self._answer, until)
+        pred = self._prediction
+        if pred is None:
+            pred = self._prediction = Prediction(source, self._fast_cmd, self._cmd_wdt_at, 0, b"", until)
+        predict(pred, source, self._fast_cmd, cycle, self.reception.cycles_per_comm, self.watchdog, self._answer,
+                until)
+        return pred
 
     def next_deadline(self) -> int | None:
         """Absolute time (ns) when :meth:`poll` is next due, or None when nothing is pending."""

@@ -62,11 +62,14 @@ class Prediction:
         return self.answer
 
 
-def predict(source: Any, command: bytes, wdt_at: int, cycle: int, cycles_per_comm: int, watchdog: Watchdog,
-            template: Template, until: int) -> Prediction:
-    """The prediction after an answer to *cycle* from *template*: the next command's cycle and WDT count, and the
-    answer with the watchdog's next RWDT (its own count and the master's, each advanced by one)."""
+def predict(pred: Prediction, source: Any, command: bytes, cycle: int, cycles_per_comm: int, watchdog: Watchdog,
+            template: Template, until: int) -> None:
+    """*pred* made the prediction after an answer to *cycle* from *template* (in place: a card's one object): the
+    next command's cycle and WDT count, and the answer with the watchdog's next RWDT (its own count and the master's,
+    each advanced by one)."""
     nxt = (cycle + cycles_per_comm) & _U32
     count = (watchdog.master + 1) & 0xF
     rwdt = (watchdog.slave + 1) & 0xF | count << 4
-    return Prediction(source, command, wdt_at, nxt | count << 36, template.seal(nxt, rwdt), until)
+    pred.source, pred.command, pred.until = source, command, until
+    pred.expect = nxt | count << 36
+    pred.answer = template.seal(nxt, rwdt)
