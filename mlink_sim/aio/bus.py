@@ -91,7 +91,6 @@ class Port:
         if self.station.eeprom_pending:
             self.on_eeprom(self.hosted)
 
-
     def settle(self, data: bytes, addr: Any, answer: bytes, now: int) -> None:
         """The card takes *data*, which *answer* was sent to ahead (:meth:`Bus.settle`)."""
         station = self.station

@@ -31,9 +31,10 @@ from typing import Any, Final
 
 from mlink_sim.wire.frame import CYCLE_AT, Template, steady_delta
 
+from .reception import ReceptionMonitor
 from .watchdog import Watchdog
 
-__all__ = ["Prediction", "predict"]
+__all__ = ["Prediction", "offer"]
 
 #: The bits of :func:`~mlink_sim.wire.frame.steady_delta`'s result a prediction fixes: the cycle (bits 0-31) and
 #: the master's WDT count (bits 36-39); the WDT's low nibble (bits 32-35) is the master's echo of the RWDT.
@@ -62,14 +63,27 @@ class Prediction:
         return self.answer
 
 
-def predict(pred: Prediction, source: Any, command: bytes, cycle: int, cycles_per_comm: int, watchdog: Watchdog,
-            template: Template, until: int) -> None:
-    """*pred* made the prediction after an answer to *cycle* from *template* (in place: a card's one object): the
-    next command's cycle and WDT count, and the answer with the watchdog's next RWDT (its own count and the master's,
-    each advanced by one)."""
-    nxt = (cycle + cycles_per_comm) & _U32
+def offer(pred: Prediction | None, source: Any, command: bytes, wdt_at: int, cycle: int, quiet_until: int,
+          reception: ReceptionMonitor, watchdog: Watchdog, template: Template, now: int) -> Prediction | None:
+    """The prediction after an answer to *cycle* from *template* that was a fixed point (``Station.prediction``
+    decides that): the next command's cycle and WDT count, and the answer with the watchdog's next RWDT (its own
+    count and the master's, each advanced by one). It holds until the drive's *quiet_until* (-1: no prediction) or
+    the reception monitor's silence deadline, whichever comes first, and None is returned when that is before
+    *now*. *pred*, the card's one object, is updated in place (None: a new one)."""
+    if quiet_until < 0:
+        return None
+    until = quiet_until  # the first instant that may differ
+    deadline = reception.deadline()  # connected: the silence deadline (Station.next_deadline of a steady drive)
+    if deadline is not None and deadline < until:
+        until = deadline
+    until -= 1  # the last one that cannot
+    if until < now:
+        return None
+    nxt = (cycle + reception.cycles_per_comm) & _U32
     count = (watchdog.master + 1) & 0xF
-    rwdt = (watchdog.slave + 1) & 0xF | count << 4
-    pred.source, pred.command, pred.until = source, command, until
-    pred.expect = nxt | count << 36
-    pred.answer = template.seal(nxt, rwdt)
+    answer = template.seal(nxt, (watchdog.slave + 1) & 0xF | count << 4)
+    if pred is None:
+        return Prediction(source, command, wdt_at, nxt | count << 36, answer, until)
+    pred.source, pred.command, pred.wdt_at, pred.until = source, command, wdt_at, until
+    pred.expect, pred.answer = nxt | count << 36, answer
+    return pred

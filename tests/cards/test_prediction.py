@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from mlink_sim import _accel
 from mlink_sim.cards.prediction import Prediction
 from mlink_sim.drive.drive import QUIET_FOREVER
 from mlink_sim.wire import Kind, decode, encode, ml2, ml3
@@ -151,3 +152,16 @@ def test_the_drive_is_quiet_until_its_next_event() -> None:
     assert drive.is_steady and drive.quiet_until() == start + 500 * MS
     m.send(_inv_ctl(True, 1, 6000))
     assert drive.quiet_until() == -1  # accelerating
+
+
+@pytest.mark.skipif(_accel.MODE == "compiled", reason="breaks a card's typed attribute, which compiled (mypyc) classes "
+                    "refuse; runs in CI's pure pass (MLINK_PURE=1)")
+def test_a_card_that_cannot_predict_counts_an_internal_error_and_offers_none() -> None:
+    """Station.prediction never raises: a failure in it is the card's internal error, and no prediction."""
+    m = Master(station("si-et3", params=PARAMS["si-et3"], frame_size=32))
+    m.bring_up()
+    for _ in range(5):
+        m.send(_inv_ctl(True, 0, 0))
+    assert m.st.prediction(m.now) is not None
+    m.st._answer = None  # type: ignore[assignment]
+    assert m.st.prediction(m.now) is None and m.st.counters.internal_errors == 1
