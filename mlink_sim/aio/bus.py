@@ -104,7 +104,6 @@ class Port:
                            card=None if response is None else response.hex())
         if station.eeprom_pending:
             self.on_eeprom(self.hosted)
-        self.pred = station.prediction(now)
 
     def forget(self) -> None:
         """Drop the card's prediction: something other than a read reached the card."""
@@ -122,7 +121,7 @@ class Bus:
         self.ahead: int = 0  #: answers sent ahead, from the cards' predictions
         self._now: int = 0  # the last read's stamp
         self._sent_ahead: list[tuple[Port, bytes, Any, bytes]] = []  # the last read's, until settle()
-        self._served: list[Port] = []  # the ports whose card took a datagram of the last read in it
+        self._served: list[Port] = []  # the ports whose card took (or, after settle, takes) a command of the last read
 
     def serve(self, batch: Batch) -> Batch:
         """The answers to one read of the shared socket, in the order the stations first appear in it; then
@@ -146,6 +145,7 @@ class Bus:
                         port.pred = None
                         out.append((answer, addr))
                         sent_ahead.append((port, data, addr, answer))
+                        served.append(port)
                         continue
                 port.serve_one(item[0], item[1], out)
                 served.append(port)

@@ -217,9 +217,13 @@ class SlaveServer:
     def _forget(self, hs: HostedStation | None = None) -> None:
         """Something other than a read is about to reach *hs*'s card (every card's, with None): drop its answer
         made ahead (:meth:`Port.forget <mlink_sim.aio.bus.Port.forget>`)."""
-        for key, port in self._ports.items():
-            if hs is None or key == id(hs):
-                port.forget()
+        if hs is not None:
+            one = self._ports.get(id(hs))
+            if one is not None:
+                one.forget()
+            return
+        for port in self._ports.values():
+            port.forget()
 
     def _receiver(self, hs: HostedStation) -> Callable[[list[tuple[bytes, Any]]], None]:
         """The batch handler of one station's own socket: the answers go back on it (one ``sendto``, or a burst
@@ -321,15 +325,15 @@ class SlaveServer:
                 path, (hs, generation, data) = self._pending_writes.popitem()
                 try:
                     await loop.run_in_executor(None, atomic_write, path, data)
-                    self._forget(hs)
                 except OSError as exc:
-                    self._forget(hs)
                     self.write_errors += 1
                     log.error("eeprom_write_failed", path=str(path), error=str(exc))
-                    hs.station.eeprom_durable(generation, ok=False)
+                    ok = False
                 else:
                     log.info("eeprom_saved", path=str(path), bytes=len(data), generation=generation)
-                    hs.station.eeprom_durable(generation)  # written, fsync'd, renamed: the CONFIG may complete
+                    ok = True
+                self._forget(hs)
+                hs.station.eeprom_durable(generation, ok=ok)  # written, fsync'd, renamed: the CONFIG may complete
             if self._closing:
                 return
 

@@ -165,3 +165,24 @@ def test_a_card_that_cannot_predict_counts_an_internal_error_and_offers_none() -
     assert m.st.prediction(m.now) is not None
     m.st._answer = None  # type: ignore[assignment]
     assert m.st.prediction(m.now) is None and m.st.counters.internal_errors == 1
+
+
+@pytest.mark.parametrize("card, size", [("si-t3", 17), ("si-t-v7", 17)])
+def test_an_answer_carrying_a_warning_is_not_repeated_ahead_si_t3_table22(card: str, size: int) -> None:
+    """SI-T3 Table 22 / SI-T/V7 Table 7: a single reception failure is warning 96 (STATUS WARNG), reported in one
+    answer and then dropped (no reset). Two single gaps in a row give two equal answers with WARNG; the command after
+    them, on time, must not be answered ahead with the warning: the card answers it without one."""
+    c = Checked(card, size)
+    m = c.m
+    body = _inv_ctl(False, 0, 0)
+    for _ in range(20):
+        m.tick()
+        c.deliver(encode(m.command(body)))
+    for _ in range(2):  # one command lost each time, the next one on time: a single failure, twice
+        m.tick(2)
+        warned = decode(c.deliver(encode(m.command(body))), kind=Kind.RESPONSE)
+        assert warned.message.status & 0x02 and warned.message.alarm == 0x96  # WARNG, ALARM byte: warning 96
+    m.tick()
+    hits = c.hits
+    clean = decode(c.deliver(encode(m.command(body))), kind=Kind.RESPONSE)
+    assert not clean.message.status & 0x02 and clean.message.alarm == 0 and c.hits == hits  # dropped; not ahead
