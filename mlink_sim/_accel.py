@@ -57,6 +57,7 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.cards.monitors",
     "mlink_sim.cards.paramstore",
     "mlink_sim.cards.snapshot",
+    "mlink_sim.cards.parameters",
     "mlink_sim.cards.commands",
     "mlink_sim.cards.base",
     "mlink_sim.cards.ml2_card",

@@ -31,6 +31,7 @@ where ``sendmmsg``/``recvmmsg`` are available, unless ``--io plain``, which runs
     scripts/bench.py --targets                         # issue 21's five targets, ~12 min (--duration 10s: ~4 min)
     scripts/bench.py --render docs/bench.json --markdown   # an earlier run's table, as in docs/performance.md
     scripts/bench.py --targets --pm-qos                # the same with idle CPUs polling, floor and simulator alike
+    scripts/bench.py --targets --realtime              # as mlink-sim up runs as root: SCHED_FIFO, CPUs apart
     scripts/bench.py --stations 8 --cycles 250us --links ML3 --arrival-poll off   # without the workers' poll
 
 ``--targets`` runs the cells of the capacity targets (scripts/bench_targets.py: 62 ML-III and 30 ML-II stations
@@ -38,6 +39,13 @@ at 1 ms for 60 s, 8 ML-III stations at 250 µs for 30 s, and ML-III at 1 ms with
 knee) and prints met / not met for each bound, with the floor's figure beside it and, where a bound is not met,
 what bounds it (from the same run). ``--duration`` shortens every cell for a quick run. Exit status 0 either
 way: a benchmark reports, it does not gate.
+
+``--realtime`` runs the whole sweep as ``mlink-sim up`` runs by default where it may (``--realtime``: root or
+``CAP_SYS_NICE``): the master and the floors' clients at SCHED_FIFO 40 on the highest CPU, the workers and the
+floors' servers at SCHED_FIFO 30 on the others, memory locked, a CPU wake-up latency of 0 µs
+(``mlink_sim.aio.realtime``), floors and simulator alike; refused, the run does not start (exit 2). The JSON's
+``host.realtime`` says what was granted. Without it, every process runs with ordinary scheduling, as an
+unprivileged user's ``mlink-sim up`` does.
 
 ``--pm-qos`` holds the kernel's request for a CPU wake-up latency of 0 µs (``/dev/cpu_dma_latency``, as
 ``mlink-sim up --realtime`` does: ``mlink_sim.aio.realtime.hold_wakeup_latency``) for the whole run, so the floors
@@ -158,15 +166,20 @@ def write_config(path: Path, link: str, stations: int, cycle_ns: int, arrival_po
 
 
 # ----------------------------------------------------------------------------------------------- the network
-async def measure_network(config_path: Path, workers: int, duration_s: float, cell: Cell) -> Window:
+async def measure_network(config_path: Path, workers: int, duration_s: float, cell: Cell,
+                          rt: bool = False) -> Window:
     """One window of the network of *config_path*, its system calls as *cell.io* says (``MLINK_MMSG``, inherited
-    by the workers), measured for *duration_s* after bring-up; what it saw go wrong goes to *cell.notes*."""
+    by the workers), measured for *duration_s* after bring-up, with ``--realtime``'s requests if *rt*; what it saw
+    go wrong goes to *cell.notes*."""
     saved = os.environ.get("MLINK_MMSG")
     os.environ["MLINK_MMSG"] = "1" if cell.io == "batched" else "0"
     session = None
     try:
         config = load_config(config_path)
-        session = await NetworkSession.open(config, config_path, workers=workers, restart_slaves=False)
+        session = await NetworkSession.open(config, config_path, workers=workers, restart_slaves=False, realtime=rt)
+        refused = sorted(f"{who}: {what}" for who, what in session.realtime_granted.items() if "refused" in what)
+        if refused:
+            cell.notes.append("realtime refused: " + "; ".join(refused))
         not_up = await session.bring_up(timeout=20.0)
         if not_up:
             cell.notes.append(f"{len(not_up)} station(s) not up{_states(session)}")
@@ -401,7 +414,8 @@ def chart(cells: list[Cell], path: Path) -> None:
 
 # ----------------------------------------------------------------------------------------------- main
 def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycle: int, workers: int,
-             duration_s: float, ios: list[str], arrival_poll: str = "auto") -> list[Cell]:
+             duration_s: float, ios: list[str], arrival_poll: str = "auto",
+             cpus: tuple[set[int], set[int]] | None = None) -> list[Cell]:
     """One cell: the network once per I/O mode of *ios*, and both floors, each for *duration_s* in turns of at most
     ``bench_figures.TURN_S`` taken one after the other (network, floor, batched floor, network …), so that each
     sees the same phases of the host; never raises. The floors are shared by the cell's I/O modes."""
@@ -427,7 +441,10 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
             if cell.status != "ok":
                 continue
             try:
-                _add(ours, i, loop.run_until_complete(measure_network(path, cell.workers, turn, cell)))
+                if cpus is not None:  # the floor's client took the master's CPU: the session plans from them all
+                    os.sched_setaffinity(0, cpus[0] | cpus[1])
+                _add(ours, i, loop.run_until_complete(measure_network(path, cell.workers, turn, cell,
+                                                                      rt=cpus is not None)))
             except Exception as exc:  # noqa: BLE001 - one failed cell must not end the sweep
                 cell.status = f"failed: {type(exc).__name__}: {exc}"
         for batched in sides:
@@ -435,7 +452,7 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
                 continue
             try:
                 _add(floors, batched, loop.run_until_complete(
-                    floor_window(n, size, cycle, turn, batched, absorb_ns, shared=shared)))
+                    floor_window(n, size, cycle, turn, batched, absorb_ns, shared=shared, cpus=cpus)))
             except Exception as exc:  # noqa: BLE001 - the cell keeps its own figures
                 failed.add(batched)
                 for cell in cells:
@@ -545,6 +562,9 @@ def main() -> int:
     ap.add_argument("--pm-qos", action="store_true",
                     help="hold a CPU wake-up latency of 0 µs (/dev/cpu_dma_latency) for the whole run, floors and "
                          "simulator alike, as mlink-sim up --realtime does (root only)")
+    ap.add_argument("--realtime", action="store_true",
+                    help="as mlink-sim up --realtime (its default where permitted): SCHED_FIFO, locked memory, a "
+                         "wake-up latency of 0 µs and the master's CPU apart, floors and simulator alike (root only)")
     ap.add_argument("--arrival-poll", default="auto",
                     help="the workers' arrival poll ([network] arrival_poll): auto (the default, as mlink-sim up), "
                          "off, or a lead such as 80us (docs/performance.md)")
@@ -563,19 +583,29 @@ def main() -> int:
         if not realtime.wakeup_latency_held():
             print(f"bench.py: --pm-qos: {pm_qos}", file=sys.stderr)
             return 2
+    cpus, rt_granted = None, None
+    if args.realtime:
+        cpus = realtime.cpu_plan()
+        rt_granted = realtime.apply(realtime.MASTER_PRIORITY, cpus[0])  # asked once here, to refuse early
+        if "refused" in rt_granted:
+            print(f"bench.py: --realtime: {rt_granted}", file=sys.stderr)
+            return 2
     configure_logging(level="error")
     loop = new_event_loop()
     with tempfile.TemporaryDirectory(prefix="mlink-bench-") as tmp:
         cells = [c for link, n, cycle, seconds in plan
                  for c in run_cell(loop, Path(tmp), link, n, cycle, args.workers, seconds, args.io,
-                                   args.arrival_poll)]
+                                   args.arrival_poll, cpus)]
     loop.close()
     if pm_qos is not None:
         print(f"--pm-qos: {pm_qos}, held for the floors and the simulator alike")
+    if rt_granted is not None:
+        print(f"--realtime: {rt_granted} (the master and the floors' clients; the workers and the floors' servers "
+              "alike on the other CPUs)")
     print(markdown(cells) if args.markdown else table(cells))
     doc: dict[str, Any] = {
         "host": {"node": platform.node(), "cpus": os.cpu_count(), "python": platform.python_version(),
-                 "kernel": platform.release(), "load_avg": os.getloadavg(), "pm_qos": pm_qos,
+                 "kernel": platform.release(), "load_avg": os.getloadavg(), "pm_qos": pm_qos, "realtime": rt_granted,
                  "arrival_poll": args.arrival_poll},
         "cells": [asdict(c) for c in cells]}
     if args.targets:

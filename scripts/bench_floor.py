@@ -62,7 +62,7 @@ sys.path.insert(0, str(ROOT / "scripts"))
 
 from bench_figures import Window  # noqa: E402
 
-from mlink_sim.aio import mmsg  # noqa: E402
+from mlink_sim.aio import mmsg, realtime  # noqa: E402
 from mlink_sim.aio.preread import PreRead  # noqa: E402
 from mlink_sim.aio.ticker import CycleTimer  # noqa: E402
 from mlink_sim.aio.udp import bound_socket, close_watched, new_event_loop, open_batch_endpoint  # noqa: E402
@@ -189,12 +189,14 @@ def _self_cpu_s() -> float:
 
 
 # ----------------------------------------------------------------------------------------------- the server
-def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0) -> None:
+def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpus: set[int] | None = None) -> None:
     """``--serve N``: N station sockets in this one process, each echoing; prints ``{"ports": […]}``, runs until
     SIGTERM. *shared*: one socket for the N stations, as a packed worker's (``SlaveServer(shared=True)``): each
     read's datagrams echoed in one burst (``BatchEndpoint.send_burst``), offloaded bursts read as one buffer.
-    *work_ns*: the CPU is kept busy that long per datagram before the echo goes back (``--work``)."""
+    *work_ns*: the CPU is kept busy that long per datagram before the echo goes back (``--work``). *cpus*
+    (``--realtime-cpus``): the real-time requests of a slave worker, on those CPUs (``bench.py --realtime``)."""
     loop = new_event_loop()
+    granted = realtime.apply(realtime.WORKER_PRIORITY, cpus) if cpus else None
 
     async def main() -> None:
         endpoints: list[Any] = []
@@ -221,7 +223,7 @@ def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0) -> 
             for i in range(count):
                 endpoints.append(await open_batch_endpoint(echo_to(i), batched=batched))
             ports = [ep.local_address[1] for ep in endpoints]
-        print(json.dumps({"ports": ports}), flush=True)
+        print(json.dumps({"ports": ports, "realtime": granted}), flush=True)
         stop = asyncio.Event()
         loop.add_signal_handler(signal.SIGTERM, stop.set)
         await stop.wait()
@@ -247,18 +249,24 @@ def floor_from(window: Window, batched: bool, stations: int, shared: bool) -> Fl
 
 
 async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: float, batched: bool,
-                       catch_up_ns: int = 100_000_000, shared: bool = False, work: Work | None = None) -> Window:
+                       catch_up_ns: int = 100_000_000, shared: bool = False, work: Work | None = None,
+                       cpus: tuple[set[int], set[int]] | None = None) -> Window:
     """The floor of *stations* stations of frame size *size* at *cycle_ns*, measured for *duration_s* after a
     0.5 s warm-up; the server runs in a subprocess of this script. *catch_up_ns*: the clock's host-stall policy,
     as the network's (default: "absorb" up to 100 ms, the default of ``[network] stall_bound``); an answer is
     awaited as long (at least one cycle), as the master's answer window (``NetworkPlan.answer_window_ns``).
     *shared*: the stations share one socket of the server, as a packed worker's do (``mlink-sim up``); the
     batched client then reads offloaded bursts as one buffer, as the master does. *work*: each side keeps its CPU
-    busy as long as the cores would take (:class:`Work`), with none of their work."""
+    busy as long as the cores would take (:class:`Work`), with none of their work. *cpus*: ``(client CPUs, server
+    CPUs)``: both sides ask for what ``mlink-sim up --realtime`` asks for its master and its workers (SCHED_FIFO
+    at their priorities, locked memory, a wake-up latency of 0 µs, those CPUs; ``bench.py --realtime``)."""
     work = work or Work()
     proc = subprocess.Popen([sys.executable, __file__, "--serve", str(stations)] + ([] if batched else ["--plain"])
-                            + (["--shared"] if shared else []) + [f"--work-ns={work.serve_ns}"],
+                            + (["--shared"] if shared else []) + [f"--work-ns={work.serve_ns}"]
+                            + ([f"--realtime-cpus={realtime.format_cpus(cpus[1])}"] if cpus else []),
                             stdout=subprocess.PIPE)
+    if cpus:
+        realtime.apply(realtime.MASTER_PRIORITY, cpus[0])
     loop = asyncio.get_running_loop()
     sock: Any = None
     timer: CycleTimer | None = None
@@ -402,8 +410,10 @@ def describe(f: Floor) -> str:
 def main() -> int:
     if len(sys.argv) >= 3 and sys.argv[1] == "--serve":
         work_ns = next((int(a.split("=", 1)[1]) for a in sys.argv[3:] if a.startswith("--work-ns=")), 0)
+        cpus = next((realtime.parse_cpus(a.split("=", 1)[1]) for a in sys.argv[3:]
+                     if a.startswith("--realtime-cpus=")), None)
         serve(int(sys.argv[2]), batched="--plain" not in sys.argv[3:], shared="--shared" in sys.argv[3:],
-              work_ns=work_ns)
+              work_ns=work_ns, cpus=cpus)
         return 0
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--stations", type=int, default=62)

@@ -29,8 +29,8 @@ import ctypes.util
 import os
 import struct
 
-__all__ = ["MASTER_PRIORITY", "WORKER_PRIORITY", "PM_QOS_PATH", "cpu_plan", "apply", "hold_wakeup_latency",
-           "wakeup_latency_held", "release_wakeup_latency"]
+__all__ = ["MASTER_PRIORITY", "WORKER_PRIORITY", "PM_QOS_PATH", "cpu_plan", "format_cpus", "parse_cpus", "apply",
+           "hold_wakeup_latency", "wakeup_latency_held", "release_wakeup_latency"]
 
 #: SCHED_FIFO priorities (1–99): the clock above the workers, both below the kernel's own threads (50 is the
 #: priority of threaded IRQ handlers on PREEMPT_RT kernels; these stay under it).
@@ -56,6 +56,22 @@ def cpu_plan(cpus: set[int] | None = None) -> tuple[set[int], set[int]]:
         return cpus, cpus
     master = max(cpus)
     return {master}, cpus - {master}
+
+
+def format_cpus(cpus: set[int]) -> str:
+    """``{0, 2}`` → ``"0,2"``: the form of ``mlink-sim slave --cpus`` (:func:`parse_cpus`)."""
+    return ",".join(map(str, sorted(cpus)))
+
+
+def parse_cpus(text: str) -> set[int]:
+    """``"0,2"`` → ``{0, 2}``; ``ValueError`` for anything else (an empty list, a negative or non-numeric CPU)."""
+    try:
+        cpus = {int(part) for part in text.split(",")}
+    except ValueError:
+        raise ValueError(f"expected CPU numbers separated by commas (e.g. 0,2), got {text!r}") from None
+    if any(c < 0 for c in cpus):
+        raise ValueError(f"CPU numbers are 0 or above, got {text!r}")
+    return cpus
 
 
 def apply(priority: int, cpus: set[int] | None = None) -> str:

@@ -27,6 +27,7 @@ from ..metrics.stalls import StallLog
 from ..wire import Link
 from .faults import FaultControl
 from .heap import settle_heap
+from .realtime import cpu_plan as rt_cpu_plan, format_cpus as rt_format_cpus
 from .slave import query_control
 from .ticker import CycleTimer
 from .supervisor import Worker, WorkerError, WorkerSpec, plan_workers
@@ -208,6 +209,9 @@ class NetworkSession:
         self.run_dir = run_dir
         self._restart = restart_slaves
         self.realtime = realtime  #: SCHED_FIFO / mlockall / CPUs where permitted (aio/realtime.py)
+        #: (master CPUs, worker CPUs), planned once, before the master takes its CPU: a worker restarted later
+        #: would otherwise inherit the master's one CPU and plan itself onto it.
+        self.cpus = rt_cpu_plan() if realtime else None
         self.realtime_granted: dict[str, str] = {}  #: process -> what it was granted
         self._restart_tasks: set[asyncio.Task[Any]] = set()
         self._stopping = False
@@ -267,7 +271,7 @@ class NetworkSession:
         groups = plan_workers([st.address for st in self.config.station], self._n_workers)
         self.worker_list = [
             Worker(WorkerSpec(i, self.config_path, addrs, run_dir, self._state_dir,
-                              extra_args=self.config.network.slave_flags() + (["--realtime"] if self.realtime else [])
+                              extra_args=self.config.network.slave_flags() + self._realtime_flags()
                               + (["--shared-port"] if len(addrs) > 1 else [])),
                    on_exit=self._on_worker_exit)
             for i, addrs in enumerate(groups)
@@ -284,6 +288,11 @@ class NetworkSession:
             st["address"]: (_local_target(st["host"]), st["port"])
             for w in self.worker_list for st in (w.ready or {}).get("stations", [])
         }
+
+    def _realtime_flags(self) -> list[str]:
+        """``mlink-sim slave``'s flags for this session's real-time requests: none without ``--realtime``, else
+        ``--realtime --cpus LIST`` (the workers' CPUs of :attr:`cpus`)."""
+        return [] if self.cpus is None else ["--realtime", "--cpus", rt_format_cpus(self.cpus[1])]
 
     def _on_worker_exit(self, worker: Worker, code: int) -> None:
         names = ",".join(f"{a:02X}H" for a in worker.spec.addresses)
@@ -323,10 +332,10 @@ class NetworkSession:
         from ..metrics import host_info
 
         host_info()  # its first call reads the interpreter binary (~17 ms): not in the middle of a run
-        if self.realtime:
-            from .realtime import MASTER_PRIORITY, apply, cpu_plan
+        if self.cpus is not None:
+            from .realtime import MASTER_PRIORITY, apply
 
-            self.realtime_granted["master"] = apply(MASTER_PRIORITY, cpu_plan()[0])
+            self.realtime_granted["master"] = apply(MASTER_PRIORITY, self.cpus[0])
         settle_heap()  # before the clock starts: no full collection of the start-up heap mid-cycle
         clock = None
         catch_up = self.config.network.absorb_ns

@@ -38,7 +38,6 @@ from .paramstore import ParamStore
 from .phases import PhaseEvent, next_phase
 from .prediction import Prediction, offer
 from .reception import FailureKind, ReceptionMonitor
-from .results import Err
 from .settings import CARD_NAMES, CardOptions, CardSettings, param_table
 from .snapshot import DriveSnapshot, StationCounters, StationSnapshot
 from .watchdog import Watchdog
@@ -121,7 +120,7 @@ class Station(abc.ABC):
             p = table.by_name(name)
             table.check(p, raw)
             values[p.name] = raw
-        self._saved_params = saved
+        self.saved_params = saved  #: the values CONFIG_MOD = 1 last stored to EEPROM
         self.station_error: str | None = None
         self._mon_regs: dict[str, int] = {}  #: {"F6-23": register, "F6-24": register} read at power-up
         self._power_up(values, settings)
@@ -287,7 +286,7 @@ class Station(abc.ABC):
         is ``eeprom.taken`` (for :meth:`eeprom_durable`)."""
         if not self.eeprom.take():
             return None
-        return EepromImage(self.card, self._saved_params, self._history).to_bytes()
+        return EepromImage(self.card, self.saved_params, self._history).to_bytes()
 
     def eeprom_durable(self, generation: int, ok: bool = True) -> None:
         """The I/O layer's input: the image of *generation* is written, fsync'd and renamed (*ok*), or could not be
@@ -548,34 +547,6 @@ class Station(abc.ABC):
         self._bus_count = 0
         return self.drive.reset_fault(now)
 
-    def read_params(self, no: int, size: int) -> tuple[bytes, Err]:
-        """PRM_RD (SI-T3 Table 8, SI-ET3 PRM_RD, SI-T/V7 PRM_RD): PARAMETER (8 bytes) and the verdict."""
-        return self.store.read(no, size, self.drive.monitor)
-
-    def write_params(self, no: int, size: int, data: bytes, now: int) -> Err:
-        """PRM_WR (SI-T3 Table 9, SI-ET3 PRM_WR, SI-T/V7 PRM_WR)."""
-        if not self.drive.status.main_power_on:
-            return Err.UNDERVOLTAGE  # "During an undervoltage fault" / "Writing Error during Under Voltage"
-        err, changes = self.store.write(no, size, data)
-        if err is Err.OK:
-            if self.prm_immediate:
-                self._reconfigure(now)
-            self._log.debug("prm_wr", values=changes, pending=not self.prm_immediate)
-        return err
-
-    def config(self, mod: int, now: int, *, sub: bool = False) -> Err:
-        """CONFIG (SI-T3 Table 12, SI-ET3 Table 15, SI-T/V7 CONFIG): 0 = RAM, 1 = RAM and EEPROM. With
-        ``eeprom.enabled`` the EEPROM store is complete only once the image is durable (``EepromWriteBack.hold``)."""
-        if mod not in (0, 1):
-            return Err.DATA
-        if not self.prm_immediate and self.store.apply():
-            self._reconfigure(now)
-        if mod == 1:
-            self._saved_params = self.store.overrides()
-            self.eeprom.changed(config_sub=sub)
-            self._log.info("eeprom_dirty", reason="CONFIG_MOD=1", params=len(self._saved_params))
-        return Err.OK
-
     def select_refs(self, sel: int, *values: int) -> None:
         """Record REF values by the item their SEL_REF nibble selects (SI-T3 Table 17, SI-ET3 Table 21, SI-T/V7
         Table 4; unused codes are ignored)."""
@@ -603,12 +574,6 @@ class Station(abc.ABC):
             self._log.info("connect_refused", **fields)
 
     # -- helpers of the generations --------------------------------------------------------------------
-    def _reconfigure(self, now: int) -> None:
-        try:
-            self.drive.reconfigure(self.store.active, now)
-        except (KeyError, ValueError) as exc:  # a combination the model cannot take: keep the old settings
-            self._log.warning("drive_reconfigure_failed", reason=str(exc))
-
     def _outputs(self, sel_mon: int) -> tuple[int, int, int, int]:
         """Output frequency, output current, MON1 and MON2 of the INV_CTL response. While the drive is steady they
         cannot change, so they are kept under :meth:`DriveLink.outputs_key` (the per-cycle cost of a steady

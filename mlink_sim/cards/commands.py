@@ -9,8 +9,8 @@ same shape:
 * sub-command: ``handler(station, sub, now) -> (response body, Err)``.
 
 The handlers below do the same on both generations and use only the :class:`~mlink_sim.cards.base.Station`
-operations (``read_params``, ``write_params``, ``config``, ``alarm_clear``, ``sync_set``, ``select_refs``,
-``monitor``). The response body is the request's counterpart in the same wire module (:data:`RESPONSE_OF`,
+operations (``alarm_clear``, ``sync_set``, ``select_refs``, ``monitor``) and the parameter operations of
+:mod:`mlink_sim.cards.parameters` (PRM_RD, PRM_WR, CONFIG). The response body is the request's counterpart in the same wire module (:data:`RESPONSE_OF`,
 derived from the wire declarations). The generation's own handlers (CONNECT, DISCONNECT, ID_RD, ALM_RD,
 INV_CTL) are methods of its station class, next to the state they touch.
 """
@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 from mlink_sim.wire import Frame, ml2, ml3
 
+from . import parameters
 from .results import Err
 
 if TYPE_CHECKING:
@@ -64,18 +65,18 @@ def nop(station: Station, body: Any, frame: Frame, source: Hashable, now: int) -
 
 def prm_rd(station: Station, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
     """PRM_RD (SI-T3 Table 8, SI-ET3 PRM_RD, SI-T/V7 PRM_RD): PARAMETER is zero on an error."""
-    data, err = station.read_params(body.no, body.size)
+    data, err = parameters.read_params(station, body.no, body.size)
     return RESPONSE_OF[type(body)](body.no, body.size, data), err
 
 
 def prm_wr(station: Station, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
     """PRM_WR (SI-T3 Table 9, SI-ET3 PRM_WR, SI-T/V7 PRM_WR): the command is echoed."""
-    return body, station.write_params(body.no, body.size, body.data, now)
+    return body, parameters.write_params(station, body.no, body.size, body.data, now)
 
 
 def config(station: Station, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
     """CONFIG (SI-T3 Table 12, SI-ET3 Table 15, SI-T/V7 CONFIG)."""
-    return body, station.config(body.config_mod, now)
+    return body, parameters.config(station, body.config_mod, now)
 
 
 def alm_clr(station: Station, body: Any, frame: Frame, source: Hashable, now: int) -> tuple[Any, Err]:
@@ -99,17 +100,17 @@ def sub_nop(station: Station, sub: Any, now: int) -> tuple[Any, Err]:
 
 
 def sub_prm_rd(station: Station, sub: Any, now: int) -> tuple[Any, Err]:
-    data, err = station.read_params(sub.no, sub.size)
+    data, err = parameters.read_params(station, sub.no, sub.size)
     return RESPONSE_OF[type(sub)](sub.no, sub.size, data), err
 
 
 def sub_prm_wr(station: Station, sub: Any, now: int) -> tuple[Any, Err]:
-    return sub, station.write_params(sub.no, sub.size, sub.data, now)
+    return sub, parameters.write_params(station, sub.no, sub.size, sub.data, now)
 
 
 def sub_config(station: Station, sub: Any, now: int) -> tuple[Any, Err]:
     """The SI-T/V7 CONFIG sub-command (§7.2); the SI-T3 and the SI-ET3 have none."""
-    return sub, station.config(sub.config_mod, now, sub=True)
+    return sub, parameters.config(station, sub.config_mod, now, sub=True)
 
 
 def sub_inv_io(station: Station, sub: Any, now: int) -> tuple[Any, Err]:

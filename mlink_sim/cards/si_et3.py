@@ -501,7 +501,7 @@ MANUAL_TABLES: Mapping[int, tuple[str, str | None]] = MappingProxyType({
     12: ("Sub-Commands", "cards.si_et3.SUB_HANDLERS"),
     13: ("Main Commands and Sub-Commands", "wire.combinations.ML3_COMBINATIONS"),
     14: ("ID_CODE", "cards.idinfo.ml3_id_data"),
-    15: ("CONFIG_MOD", "cards.base.Station.config"),
+    15: ("CONFIG_MOD", "cards.parameters.config"),
     16: ("ALM_RD_MOD", "cards.si_et3.SiEt3._alm_data"),
     17: ("ALM_DATA", "cards.si_et3.SiEt3._alm_data"),
     18: ("COM_MOD", "cards.si_et3.SiEt3._check_connect"),

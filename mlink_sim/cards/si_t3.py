@@ -76,7 +76,7 @@ MANUAL_TABLES: Mapping[int, tuple[str, str | None]] = MappingProxyType({
     9: ("Example when writing in C1-01 (200H)", "cards.paramstore.ParamStore.write"),
     10: ("DEVICE_CODE", "cards.idinfo.ML2_ID_AREAS"),
     11: ("Vender Code (DEVICE_CODE = 0FH)", "cards.idinfo.ML2_ID_AREAS"),
-    12: ("CONFIG_MOD", "cards.base.Station.config"),
+    12: ("CONFIG_MOD", "cards.parameters.config"),
     13: ("ALM_RD_MOD", "cards.ml2_card.Ml2Station._alm_data"),
     14: ("ALM_DATA", "cards.ml2_card.Ml2Station._alm_data"),
     15: ("ALM_CLR_MOD", "cards.commands.alm_clr"),

@@ -58,7 +58,8 @@ def station_specs_from_config(
     return specs
 
 
-async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool = False) -> int:
+async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool = False,
+                 cpus: set[int] | None = None) -> int:
     """Serve until SIGINT / SIGTERM; the exit status, 128 + the signal's number (130 / 143)."""
     loop = asyncio.get_running_loop()
     stop, caught = stop_on_signals(loop)
@@ -66,7 +67,7 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
     settle_heap()  # before the first command arrives: no full collection of the start-up heap mid-cycle
     info = server.ready_info()
     if rt:  # docs/timing.md, "Real-time scheduling": below the master's clock, off its CPU
-        info["realtime"] = realtime.apply(realtime.WORKER_PRIORITY, realtime.cpu_plan()[1])
+        info["realtime"] = realtime.apply(realtime.WORKER_PRIORITY, cpus if cpus else realtime.cpu_plan()[1])
         if not ready_json:
             print(f"mlink-sim slave: realtime: {info['realtime']}", file=sys.stderr, flush=True)
     if ready_json:
@@ -134,10 +135,13 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
                    "(docs/performance.md).")
 @click.option("--realtime", "rt", is_flag=True,
               help="SCHED_FIFO, locked memory, off the master's CPU, where permitted (docs/timing.md).")
+@click.option("--cpus", "cpus_text", default=None, metavar="LIST",
+              help="With --realtime: the CPUs to run on, e.g. 0,2 (default: those this process may use but the "
+                   "highest, which the master of `mlink-sim up` takes).")
 @capture_options
 def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_path, only, endpoints, state_dir,
               control, log_json, log_level, ready_json, host_stalls, stall_bound, shared_port, arrival_poll, rt,
-              capture_path, capture_max) -> None:
+              cpus_text, capture_path, capture_max) -> None:
     """Serve one station over UDP until SIGINT/SIGTERM (or several stations of a --config)."""
     configure_logging(json=log_json, level=log_level)
     state = Path(state_dir) if state_dir else None
@@ -153,6 +157,10 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
         poll = parse_arrival_poll(arrival_poll)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--arrival-poll") from None
+    try:
+        cpus = realtime.parse_cpus(cpus_text) if cpus_text is not None else None
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--cpus") from None
     try:
         if config_path:
             if card or station_text:
@@ -183,7 +191,7 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
                          shared=shared_port, arrival_poll=poll)
     loop = new_event_loop()
     try:
-        code = loop.run_until_complete(_serve(server, ready_json, log_json, rt))
+        code = loop.run_until_complete(_serve(server, ready_json, log_json, rt, cpus))
     except OSError as exc:
         where = "" if isinstance(exc, BindError) else f" on {', '.join(f'{s.host}:{s.port}' for s in stations)}"
         click.echo(f"mlink-sim slave: cannot listen{where}: {exc.strerror or exc}", err=True)

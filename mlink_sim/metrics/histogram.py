@@ -11,6 +11,11 @@ recording path"). Until session 16 the counts were a ``dict`` keyed by index: in
 network its lookups (hash probe, a compare of two int objects, a second lookup to store) were 10 % of the
 master's CPU (``perf`` of ``mlink-sim up configs/ml3-62-max.toml``; docs/performance.md, "Where the time goes,
 profiled (session 16)").
+The pages are ``array.array("q")``, not lists: an array holds no object references, so a garbage collection
+visits it in one step instead of 1 024 (``tp_traverse`` visits only its type). As lists, the few hundred pages a 62-station master fills after a reset were
+young containers of 1 024 references each, and the first collections of the measuring window traversed them all:
+a generation-0 collection of 2.2 ms and a generation-1 collection of 4.2 ms, each in the middle of a cycle, in a
+15 s window (``gc.callbacks``; docs/performance.md, "What holds the CPU when answers come late (session 18)").
 Summaries are computed from the non-zero buckets with HdrHistogram's own index ⇄ value functions (tests check
 they equal the library's figures); the counts are copied into an ``HdrHistogram`` only to encode it or for
 :meth:`LatencyHistogram.to_hdr`.
@@ -27,6 +32,7 @@ is never lost; ``max`` then reads 10 s).
 
 from __future__ import annotations
 
+from array import array
 from collections.abc import Iterable
 
 from hdrh.histogram import HdrHistogram
@@ -62,6 +68,12 @@ _PAGES: int = _COUNTS_LEN // _PAGE                              # 25
 # record() has these constants inlined (a global lookup each would cost ~10 %).
 assert _LAYOUT.unit_magnitude == 0 and (_SUB_MASK, _BITS, _SHIFT, _HALF) == (2047, 11, 10, 1024)
 assert _PAGES * _PAGE == _COUNTS_LEN
+_ZERO_PAGE = array("q", bytes(8 * _PAGE))  # copied for each new page: 1 024 zero counts
+
+
+def _new_page() -> array[int]:
+    """A page of :data:`_PAGE` zero counts, which a garbage collection visits in one step (module docstring)."""
+    return array("q", _ZERO_PAGE)
 
 
 def _index(ns: int) -> int:
@@ -99,7 +111,7 @@ class LatencyHistogram:
 
     def __init__(self) -> None:
         # the HdrHistogram counts array in pages of 1 024 counts (None: no value there yet; module docstring)
-        self._pages: list[list[int] | None] = [None] * _PAGES
+        self._pages: list[array[int] | None] = [None] * _PAGES
 
     # ------------------------------------------------------------------ hot path
     def record(self, ns: int) -> None:
@@ -113,7 +125,7 @@ class LatencyHistogram:
         pages = self._pages
         page = pages[i >> 10]
         if page is None:
-            page = pages[i >> 10] = [0] * 1024
+            page = pages[i >> 10] = _new_page()
         page[i & 1023] += 1
 
     def _add(self, i: int, c: int) -> None:
@@ -121,7 +133,7 @@ class LatencyHistogram:
         pages = self._pages
         page = pages[i // _PAGE]
         if page is None:
-            page = pages[i // _PAGE] = [0] * _PAGE
+            page = pages[i // _PAGE] = _new_page()
         page[i % _PAGE] += c
 
     # ------------------------------------------------------------------ queries
@@ -210,9 +222,11 @@ class LatencyHistogram:
             if theirs is not None:
                 mine = pages[p]
                 if mine is None:
-                    pages[p] = list(theirs)
+                    pages[p] = array("q", theirs)
                 else:
-                    pages[p] = [a + b for a, b in zip(mine, theirs)]
+                    for j, c in enumerate(theirs):
+                        if c:
+                            mine[j] += c
 
     @classmethod
     def merged(cls, histograms: Iterable[LatencyHistogram]) -> LatencyHistogram:
@@ -227,7 +241,7 @@ class LatencyHistogram:
 
     def copy(self) -> LatencyHistogram:
         out = LatencyHistogram()
-        out._pages = [None if page is None else list(page) for page in self._pages]
+        out._pages = [None if page is None else array("q", page) for page in self._pages]
         return out
 
     def to_pairs(self) -> list[list[int]]:

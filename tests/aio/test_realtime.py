@@ -6,6 +6,7 @@ import errno
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -16,6 +17,32 @@ def test_cpu_plan_gives_the_master_a_cpu_of_its_own():
     assert realtime.cpu_plan({0, 1}) == ({1}, {0})
     assert realtime.cpu_plan({0, 1, 2, 3}) == ({3}, {0, 1, 2})
     assert realtime.cpu_plan({5}) == ({5}, {5})
+
+
+def test_cpu_lists_read_and_write_as_the_slave_cpus_flag_takes_them():
+    assert realtime.parse_cpus("0") == {0}
+    assert realtime.parse_cpus("2,0") == {0, 2}
+    assert realtime.format_cpus({2, 0}) == "0,2"
+    for bad in ("", "a", "0,,1", "-1", "0-3"):
+        with pytest.raises(ValueError, match="CPU"):
+            realtime.parse_cpus(bad)
+
+
+def test_a_session_plans_the_cpus_once_so_a_restarted_worker_keeps_off_the_masters(monkeypatch, tmp_path):
+    """The session plans (master CPUs, worker CPUs) when it is made, before its master takes its CPU, and every
+    worker it starts (a restart included) is told its CPUs: one started after the master was pinned would
+    otherwise plan itself from the master's single CPU, onto it."""
+    from mlink_sim.aio import session as session_mod
+    from mlink_sim.config import load_config
+
+    affinity = {0, 1}
+    monkeypatch.setattr(realtime.os, "sched_getaffinity", lambda pid: set(affinity))
+    path = Path(__file__).parents[2] / "configs" / "quickstart.toml"
+    s = session_mod.NetworkSession(load_config(path), path, realtime=True)
+    assert s.cpus == ({1}, {0})
+    affinity = {1}  # the master pinned itself: what a worker started now would inherit
+    assert s._realtime_flags() == ["--realtime", "--cpus", "0"]
+    assert session_mod.NetworkSession(load_config(path), path)._realtime_flags() == []
 
 
 def _apply_held(monkeypatch, tmp_path, priority: int, cpus: set[int]) -> str:

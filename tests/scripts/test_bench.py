@@ -167,6 +167,47 @@ def test_pm_qos_refused_exits_2_before_any_cell_runs(bench, monkeypatch, capsys)
     assert "bench.py: --pm-qos: CPU wake-up latency refused (Permission denied)" in capsys.readouterr().err
 
 
+def test_realtime_refused_exits_2_before_any_cell_runs(bench, monkeypatch, capsys) -> None:
+    def must_not_run(*_a, **_k):
+        raise AssertionError("a cell ran although --realtime was refused")
+
+    monkeypatch.setattr(bench, "run_cell", must_not_run)
+    monkeypatch.setattr(bench.realtime, "apply", lambda priority, cpus=None: (
+        "SCHED_FIFO refused (Operation not permitted), memory locked, CPU wake-up latency 0 µs, CPU 1"))
+    monkeypatch.setattr("sys.argv", ["bench.py", "--realtime", "--stations", "1", "--cycles", "1ms", "--links", "ML2"])
+    assert bench.main() == 2
+    assert "bench.py: --realtime: SCHED_FIFO refused (Operation not permitted)" in capsys.readouterr().err
+
+
+def test_realtime_asks_the_same_of_the_network_and_its_floors(bench, monkeypatch, tmp_path) -> None:
+    """With ``--realtime``'s CPU plan the network is opened with the session's real-time requests and both floors
+    get the same plan (client on the master's CPUs, server on the workers'); before each network turn the process
+    may run on every CPU again, so that the session plans from them all and not from the floor client's one."""
+    from mlink_sim.aio import mmsg
+
+    seen: list[tuple[str, object]] = []
+
+    async def network(path, workers, turn, cell, rt=False):
+        seen.append(("network", rt))
+        return bench.Window(1_000_000, wall_s=turn, started=10, sent=10)
+
+    async def floor(n, size, cycle, turn, batched, absorb_ns, shared=False, cpus=None):
+        seen.append(("floor", cpus))
+        return bench.Window(1_000_000, wall_s=turn, started=10, sent=10)
+
+    monkeypatch.setattr(bench, "measure_network", network)
+    monkeypatch.setattr(bench, "floor_window", floor)
+    monkeypatch.setattr(mmsg, "supported", lambda: True)
+    monkeypatch.setattr(bench.os, "sched_setaffinity", lambda pid, cpus: seen.append(("affinity", set(cpus))))
+    plan = ({1}, {0})
+    loop = bench.new_event_loop()
+    try:
+        bench.run_cell(loop, tmp_path, "ML3", 2, 1_000_000, 1, 1.0, ["batched"], cpus=plan)
+    finally:
+        loop.close()
+    assert seen == [("affinity", {0, 1}), ("network", True), ("floor", plan), ("floor", plan)]
+
+
 def test_a_cell_is_measured_in_turns_with_its_floors_and_their_counts_add_up(bench, monkeypatch, tmp_path) -> None:
     """A 25 s cell: three turns of 8.3 s, each the network, the plain floor, the batched floor, in that order
     (``bench_figures.turns``), so each side sees the same phases of the host; each side's figures are read from the
@@ -183,12 +224,12 @@ def test_a_cell_is_measured_in_turns_with_its_floors_and_their_counts_add_up(ben
         order.append((side, round(turn, 2)))
         return w
 
-    async def network(path, workers, turn, cell):
+    async def network(path, workers, turn, cell, rt=False):
         w = window("network", turn, 300_000, 8)  # 8 of 800 answers later than the 250 µs cycle
         w.ahead, w.mispredicted = 780, len(order) == 1  # answers made ahead; one contradicted, in the first turn
         return w
 
-    async def floor(n, size, cycle, turn, batched, absorb_ns, shared=False):
+    async def floor(n, size, cycle, turn, batched, absorb_ns, shared=False, cpus=None):
         return window("batched" if batched else "plain", turn, 300_000, 1 if batched else 4)
 
     monkeypatch.setattr(bench, "measure_network", network)
