@@ -1,0 +1,102 @@
+"""scripts/late_causes.py: late answers grouped into late cycles, and each named by what the perf samples show in
+its window (synthetic samples: no perf, no network)."""
+
+from __future__ import annotations
+
+import pytest
+
+from .scripts_loader import load_script
+
+MS = 1_000_000
+OURS = {100, 101}  # the master and its worker
+NAMES = {75: "kdamond.0", 7591: "memfd:sealed-91"}
+
+
+@pytest.fixture(scope="module")
+def lc():
+    yield from load_script("late_causes.py", "mlink_late_causes")
+
+
+def _samples(lc, start: int, end: int, cpu: int, pid: int, sym: str = "main") -> list:
+    """A sample each 50 µs of [start, end) on *cpu*."""
+    return [lc.Sample(t, cpu, pid, sym) for t in range(start, end, lc.SAMPLE_NS)]
+
+
+def _cycle(lc, sent: int = 10 * MS, rtt: int = 2 * MS):
+    log = lc.LateLog(capacity=64)
+    for _ in range(62):  # one cycle's 62 answers, all late
+        log.add(sent + rtt, rtt)
+    [cycle] = log.cycles()
+    return cycle
+
+
+def test_perf_script_lines_become_samples_by_time(lc) -> None:
+    lines = [  # perf script -F pid,cpu,time,event,ip,sym (the comm taken off by the reader)
+        "8464 [000] 12803.132803:                cpu-clock:  ffffffff8225295b pv_native_safe_halt",
+        "75 [001] 12803.132700:                cpu-clock:  ffffffff81aa1234 damon_pa_apply_scheme",
+        "10508 [001] 12803.132900:                cpu-clock:      7f9b3b77351f",
+        "10502 [000] 12803.132800:       sched:sched_switch:  ffffffff82258a08 __schedule",
+        "not a sample line",
+    ]
+    assert lc.parse_samples(lines) == [lc.Sample(12803132700000, 1, 75, "damon_pa_apply_scheme"),
+                                       lc.Sample(12803132803000, 0, 8464, "pv_native_safe_halt"),
+                                       lc.Sample(12803132900000, 1, 10508, "")]
+
+
+def test_late_answers_of_one_cycle_are_one_late_cycle_and_cycles_apart_are_two(lc) -> None:
+    log = lc.LateLog(capacity=4)
+    log.add(12 * MS, 2 * MS)        # sent at 10 ms
+    log.add(12 * MS + 50_000, 2 * MS)  # sent 50 µs later: the same cycle
+    log.add(13 * MS, 2 * MS)        # sent at 11 ms: the next cycle
+    log.add(13 * MS, 2 * MS)
+    log.add(14 * MS, 2 * MS)        # no room: counted, not kept
+    cycles = log.cycles()
+    assert [(c.sent, c.answers, c.end) for c in cycles] == [(10 * MS, 2, 12 * MS + 50_000), (11 * MS, 2, 13 * MS)]
+    assert log.dropped == 1
+
+
+def test_a_host_task_holding_a_cpu_is_named(lc) -> None:
+    c = _cycle(lc)
+    samples = (_samples(lc, 10 * MS, 11_800_000, 0, 75, "damon_pa_apply_scheme")  # 1.8 ms of 2 ms on CPU 0
+               + _samples(lc, 11_800_000, 12 * MS, 0, 101) + _samples(lc, 10 * MS, 12 * MS, 1, 0))
+    lc.attribute([c], sorted(samples, key=lambda s: s.t), OURS, 2, NAMES)
+    assert c.cause == "held by kdamond.0" and c.shares["held by kdamond.0"] == 0.9
+
+
+def test_a_cpu_without_samples_is_a_vcpu_not_run(lc) -> None:
+    c = _cycle(lc)
+    samples = _samples(lc, 10 * MS, 12 * MS, 0, 100) + _samples(lc, 10 * MS, 10_500_000, 1, 101)  # CPU 1: 1.5 ms gone
+    lc.attribute([c], sorted(samples, key=lambda s: s.t), OURS, 2, NAMES)
+    assert c.cause == "vCPU not running" and c.shares["vCPU not running"] == 0.75
+
+
+def test_the_collector_in_our_processes_is_named_and_our_own_work_otherwise(lc) -> None:
+    gc, busy, idle = _cycle(lc), _cycle(lc), _cycle(lc)
+    lc.attribute([gc], _samples(lc, 10 * MS, 12 * MS, 0, 100, "gc_collect_main")
+                 + _samples(lc, 10 * MS, 12 * MS, 1, 0), OURS, 2, NAMES)
+    lc.attribute([busy], sorted(_samples(lc, 10 * MS, 12 * MS, 0, 100) + _samples(lc, 10 * MS, 12 * MS, 1, 101),
+                                key=lambda s: s.t), OURS, 2, NAMES)
+    lc.attribute([idle], _samples(lc, 10 * MS, 12 * MS, 0, 0) + _samples(lc, 10 * MS, 12 * MS, 1, 0), OURS, 2, NAMES)
+    assert (gc.cause, busy.cause, idle.cause) == ("garbage collection", "own work", "unexplained")
+
+
+def test_the_summary_counts_cycles_and_answers_per_cause_as_a_share_of_all_answers(lc) -> None:
+    a, b, c = _cycle(lc), _cycle(lc), _cycle(lc)
+    a.cause = b.cause = "held by kdamond.0"
+    summary = lc.summarise([a, b, c], 62_000)
+    assert summary == {"held by kdamond.0": {"cycles": 2, "answers": 124, "pct_of_answers": 0.2},
+                       "unexplained": {"cycles": 1, "answers": 62, "pct_of_answers": 0.1}}
+
+
+def test_without_perf_or_root_it_exits_2_and_says_why(lc, monkeypatch, capsys) -> None:
+    monkeypatch.setattr("sys.argv", ["late_causes.py", "--duration", "1s"])
+    monkeypatch.setattr(lc.shutil, "which", lambda name: None)
+    assert lc.main() == 2
+    assert "perf is not installed" in capsys.readouterr().err
+    monkeypatch.setattr(lc.shutil, "which", lambda name: "/usr/bin/perf")
+    monkeypatch.setattr(lc.os, "geteuid", lambda: 1000)
+    assert lc.main() == 2
+    assert "needs root" in capsys.readouterr().err
+    monkeypatch.setattr("sys.argv", ["late_causes.py", "--stations", "63"])
+    assert lc.main() == 2
+    assert "--stations 1–62" in capsys.readouterr().err
