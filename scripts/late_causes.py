@@ -64,8 +64,7 @@ from mlink_sim.metrics import LatencyHistogram
 
 __all__ = ["Sample", "LateCycle", "LateLog", "attribute", "parse_samples", "summarise"]
 
-SAMPLE_NS = 100_000  #: perf's cpu-clock period: one sample per CPU each 100 µs of its time (at 50 µs perf disturbed a
-#: --realtime network: 1.0–5.0 % late against 0.13–0.29 % without it)
+SAMPLE_NS = 100_000  #: perf's cpu-clock period: one sample per CPU each 100 µs of its time, ≥ 10 in a late window
 PERF_LEAD_S = 1.0  #: perf records this long before the window opens: its start-up is not measured
 SAME_CYCLE_NS = 300_000  #: late answers whose commands went out closer than this are one late cycle
 MIN_SHARE = 0.3  #: the share of a late cycle's window a cause must hold on one CPU to be named

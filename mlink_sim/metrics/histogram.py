@@ -224,9 +224,7 @@ class LatencyHistogram:
                 if mine is None:
                     pages[p] = array("q", theirs)
                 else:
-                    for j, c in enumerate(theirs):
-                        if c:
-                            mine[j] += c
+                    pages[p] = array("q", [a + b for a, b in zip(mine.tolist(), theirs.tolist())])
 
     @classmethod
     def merged(cls, histograms: Iterable[LatencyHistogram]) -> LatencyHistogram:
