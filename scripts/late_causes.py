@@ -341,6 +341,9 @@ def main() -> int:
     except (RuntimeError, OSError, subprocess.SubprocessError) as exc:
         print(f"late_causes.py: {exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # perf, in the same process group, stopped with it
+        print("late_causes.py: interrupted, nothing written", file=sys.stderr)
+        return 130
     finally:
         loop.close()
     if args.json is not None:

@@ -10,8 +10,8 @@ same shape:
 
 The handlers below do the same on both generations and use only the :class:`~mlink_sim.cards.base.Station`
 operations (``alarm_clear``, ``sync_set``, ``select_refs``, ``monitor``) and the parameter operations of
-:mod:`mlink_sim.cards.parameters` (PRM_RD, PRM_WR, CONFIG). The response body is the request's counterpart in the same wire module (:data:`RESPONSE_OF`,
-derived from the wire declarations). The generation's own handlers (CONNECT, DISCONNECT, ID_RD, ALM_RD,
+:mod:`mlink_sim.cards.parameters` (PRM_RD, PRM_WR, CONFIG). The response body is the request's counterpart in the
+same wire module (:data:`RESPONSE_OF`, derived from the wire declarations). The generation's own handlers (CONNECT, DISCONNECT, ID_RD, ALM_RD,
 INV_CTL) are methods of its station class, next to the state they touch.
 """
 

@@ -157,6 +157,8 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
         poll = parse_arrival_poll(arrival_poll)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--arrival-poll") from None
+    if cpus_text is not None and not rt:
+        raise click.UsageError("--cpus places a worker that asks for --realtime; add --realtime")
     try:
         cpus = realtime.parse_cpus(cpus_text) if cpus_text is not None else None
     except ValueError as exc:
