@@ -196,7 +196,8 @@ def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpu
     *work_ns*: the CPU is kept busy that long per datagram before the echo goes back (``--work``). *cpus*
     (``--realtime-cpus``): the real-time requests of a slave worker, on those CPUs (``bench.py --realtime``)."""
     loop = new_event_loop()
-    granted = realtime.apply(realtime.WORKER_PRIORITY, cpus) if cpus else None
+    if cpus:
+        realtime.apply(realtime.WORKER_PRIORITY, cpus)  # as root (bench.py --realtime checked it) granted
 
     async def main() -> None:
         endpoints: list[Any] = []
@@ -223,7 +224,7 @@ def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpu
             for i in range(count):
                 endpoints.append(await open_batch_endpoint(echo_to(i), batched=batched))
             ports = [ep.local_address[1] for ep in endpoints]
-        print(json.dumps({"ports": ports, "realtime": granted}), flush=True)
+        print(json.dumps({"ports": ports}), flush=True)
         stop = asyncio.Event()
         loop.add_signal_handler(signal.SIGTERM, stop.set)
         await stop.wait()

@@ -12,8 +12,8 @@ network its lookups (hash probe, a compare of two int objects, a second lookup t
 master's CPU (``perf`` of ``mlink-sim up configs/ml3-62-max.toml``; docs/performance.md, "Where the time goes,
 profiled (session 16)").
 The pages are ``array.array("q")``, not lists: an array holds no object references, so a garbage collection
-visits it in one step instead of 1 024 (``tp_traverse`` visits only its type). As lists, the few hundred pages a 62-station master fills after a reset were
-young containers of 1 024 references each, and the first collections of the measuring window traversed them all:
+visits it in one step instead of 1 024 (``tp_traverse`` visits only its type). As lists, the few hundred pages a
+62-station master fills after a reset were young containers of 1 024 references each, and the first collections of the measuring window traversed them all:
 a generation-0 collection of 2.2 ms and a generation-1 collection of 4.2 ms, each in the middle of a cycle, in a
 15 s window (``gc.callbacks``; docs/performance.md, "What holds the CPU when answers come late (session 18)").
 Summaries are computed from the non-zero buckets with HdrHistogram's own index ⇄ value functions (tests check

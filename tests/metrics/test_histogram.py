@@ -200,3 +200,17 @@ def test_count_at_most_counts_the_values_up_to_a_bound():
     assert h.count_at_most(1 * MS) == 3  # 1.002 ms lies in another bucket than 1 ms (0.1 % resolution)
     assert h.count_at_most(99 * US) == 0 and h.count_at_most(HIGHEST_NS) == 5
     assert h.count_at_most(-1) == 0 and LatencyHistogram().count_at_most(1 * MS) == 0
+
+
+def test_a_page_of_counts_gives_the_collector_nothing_to_traverse() -> None:
+    """The counts' pages hold no object references (arrays, not lists of 1 024 ints), so a garbage collection in the
+    master does not walk every count of every page (mlink_sim/metrics/histogram.py, module docstring)."""
+    import gc
+
+    h = LatencyHistogram()
+    for ns in (3, 150_000, 300_000, 600_000, 2_000_000):
+        h.record(ns)
+    pages = [page for page in h._pages if page is not None]
+    assert len(pages) >= 4
+    assert all(len(gc.get_referents(page)) <= 1 for page in pages)  # at most its type
+    assert h.copy() == h and LatencyHistogram.merged([h, h]).count == 10
