@@ -23,9 +23,10 @@ too, by the same rule (cycles whose quarter is longer than the clock's spin): no
 read by a ``PreRead`` a quarter period before each deadline, in the clock's spin and at each cycle's start, each RTT
 up to the kernel's stamp, as ``mlink_sim.aio.master`` does.
 
-**With the cores' time** (``--work SERVE,ENCODE,DECODE``, off by default): the server keeps its CPU busy *SERVE*
-per datagram before each echo, the client *ENCODE* per command after the cycle's start and before the burst, and
-*DECODE* per answer after its stamp: a floor that takes as long as the simulator's cores and does none of their
+**With the cores' time** (``--work SERVE,ENCODE,DECODE[,SETTLE]``, off by default): the server keeps its CPU busy
+*SERVE* per datagram before each echo and *SETTLE* per datagram after the read's echoes went back (a worker's cards
+taking the commands they answered ahead: ``Bus.settle``), the client *ENCODE* per command after the cycle's start
+and before the burst, and *DECODE* per answer after its stamp: a floor that takes as long as the simulator's cores and does none of their
 work, to tell what the chain's length costs from what the simulator's I/O costs (docs/performance.md, "What bounds
 the missed answers"). ``--variant shared-batched`` measures only the floor a packed worker's network is judged
 against.
@@ -77,19 +78,22 @@ __all__ = ["Floor", "Work", "floor_from", "floor_window", "host_ticks", "measure
 class Work:
     """``--work``: the CPU time the cores take per datagram, spent busy with none of their work: *serve_ns* by the
     server before each echo (a card's ``receive``), *encode_ns* by the client per command before the burst goes
-    out (the master's encode), *decode_ns* per answer after it is read and stamped (the master's decode). A floor
-    with the cores' time and none of their work: what the chain's length alone costs on this machine."""
+    out (the master's encode), *decode_ns* per answer after it is read and stamped (the master's decode),
+    *settle_ns* by the server per datagram after the read's echoes went back (the cards' work after the send of
+    answers made ahead, ``Bus.settle``). A floor with the cores' time and none of their work: what the cores' CPU
+    alone costs on this machine, in the chain and after it."""
 
     serve_ns: int = 0
     encode_ns: int = 0
     decode_ns: int = 0
+    settle_ns: int = 0
 
     @classmethod
     def parse(cls, text: str) -> Work:
-        """``"SERVE,ENCODE,DECODE"``, each a duration (``0.9us``, ``900ns``; a bare number is in ns)."""
+        """``"SERVE,ENCODE,DECODE[,SETTLE]"``, each a duration (``0.9us``, ``900ns``; a bare number is in ns)."""
         parts = [p.strip() for p in text.split(",")]
-        if len(parts) != 3:
-            raise ValueError(f"--work takes SERVE,ENCODE,DECODE (three durations per datagram), not {text!r}")
+        if len(parts) not in (3, 4):
+            raise ValueError(f"--work takes SERVE,ENCODE,DECODE[,SETTLE] (durations per datagram), not {text!r}")
         try:
             return cls(*(parse_duration_ns(p, default_unit="ns") for p in parts))
         except ValueError as exc:
@@ -189,11 +193,13 @@ def _self_cpu_s() -> float:
 
 
 # ----------------------------------------------------------------------------------------------- the server
-def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpus: set[int] | None = None) -> None:
+def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpus: set[int] | None = None,
+          settle_ns: int = 0) -> None:
     """``--serve N``: N station sockets in this one process, each echoing; prints ``{"ports": […]}``, runs until
     SIGTERM. *shared*: one socket for the N stations, as a packed worker's (``SlaveServer(shared=True)``): each
     read's datagrams echoed in one burst (``BatchEndpoint.send_burst``), offloaded bursts read as one buffer.
-    *work_ns*: the CPU is kept busy that long per datagram before the echo goes back (``--work``). *cpus*
+    *work_ns*: the CPU is kept busy that long per datagram before the echo goes back, *settle_ns* per datagram
+    after the read's echoes went (``--work``). *cpus*
     (``--realtime-cpus``): the real-time requests of a slave worker, on those CPUs (``bench.py --realtime``)."""
     loop = new_event_loop()
     if cpus:
@@ -209,6 +215,8 @@ def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpu
                 sendto = endpoints[index].sendto
                 for data, addr in batch:
                     sendto(data, addr)
+                if settle_ns:
+                    busy(settle_ns * len(batch))
             return on_batch
 
         if shared:
@@ -216,6 +224,8 @@ def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpu
                 if work_ns:
                     busy(work_ns * len(batch))
                 endpoints[0].send_burst(batch)
+                if settle_ns:
+                    busy(settle_ns * len(batch))
 
             endpoints.append(await open_batch_endpoint(on_bus, batched=batched, burst=64 * count))
             endpoints[0].enable_gro()
@@ -263,7 +273,8 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
     at their priorities, locked memory, a wake-up latency of 0 µs, those CPUs; ``bench.py --realtime``)."""
     work = work or Work()
     proc = subprocess.Popen([sys.executable, __file__, "--serve", str(stations)] + ([] if batched else ["--plain"])
-                            + (["--shared"] if shared else []) + [f"--work-ns={work.serve_ns}"]
+                            + (["--shared"] if shared else []) + [f"--work-ns={work.serve_ns}",
+                                                                          f"--settle-ns={work.settle_ns}"]
                             + ([f"--realtime-cpus={realtime.format_cpus(cpus[1])}"] if cpus else []),
                             stdout=subprocess.PIPE)
     if cpus:
@@ -411,10 +422,11 @@ def describe(f: Floor) -> str:
 def main() -> int:
     if len(sys.argv) >= 3 and sys.argv[1] == "--serve":
         work_ns = next((int(a.split("=", 1)[1]) for a in sys.argv[3:] if a.startswith("--work-ns=")), 0)
+        settle_ns = next((int(a.split("=", 1)[1]) for a in sys.argv[3:] if a.startswith("--settle-ns=")), 0)
         cpus = next((realtime.parse_cpus(a.split("=", 1)[1]) for a in sys.argv[3:]
                      if a.startswith("--realtime-cpus=")), None)
         serve(int(sys.argv[2]), batched="--plain" not in sys.argv[3:], shared="--shared" in sys.argv[3:],
-              work_ns=work_ns, cpus=cpus)
+              work_ns=work_ns, cpus=cpus, settle_ns=settle_ns)
         return 0
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--stations", type=int, default=62)
@@ -422,10 +434,10 @@ def main() -> int:
     ap.add_argument("--size", type=int, default=32, help="frame size (ML-III 32/48/64, ML-II 17/32)")
     ap.add_argument("--duration", default="10s")
     ap.add_argument("--json", action="store_true", help="print the results as JSON")
-    ap.add_argument("--work", default="0,0,0", metavar="SERVE,ENCODE,DECODE",
+    ap.add_argument("--work", default="0,0,0", metavar="SERVE,ENCODE,DECODE[,SETTLE]",
                     help="keep each side's CPU busy as long as the cores take, per datagram: the server before each "
-                         "echo, the client per command before the burst and per answer after its stamp (e.g. "
-                         "0.9us,0.2us,0.8us; default none)")
+                         "echo, the client per command before the burst and per answer after its stamp, the "
+                         "server after the read's echoes went (e.g. 0.35us,0.3us,0.6us,1.7us; default none)")
     ap.add_argument("--variant", choices=("all", "shared-batched"), default="all",
                     help="all four variants (default), or only the one a packed worker's network is judged "
                          "against")

@@ -16,7 +16,8 @@ is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it
   through that station's :class:`Port`. A read with one datagram per station (every cycle's, unless the worker
   fell behind) is the same grouping; it is served in one pass, without building the groups. A datagram for no
   station hosted there (or shorter than 4 bytes) is counted in :attr:`Bus.unaddressed`, as a station on a bus
-  ignores frames for others.
+  ignores frames for others. A read with a backlog (the worker held up, or the master catching up on cycles) is
+  answered ahead too, as far as each card's prediction carries it (below).
 * **Answers made ahead** (docs/cards.md, "The answer made ahead"). After each read a card may offer the answer to
   the command it expects next (``Station.prediction``, :mod:`mlink_sim.cards.prediction`), kept on its
   :class:`Port`. :meth:`Bus.serve` answers a datagram its prediction names straight away (one C call, no card
@@ -24,7 +25,9 @@ is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it
   answers are sent, :meth:`Bus.settle` hands those datagrams to their cards (``receive``, at the read's time), counts
   any answer of theirs that differs from the one sent in :attr:`Port.mispredicted` (and in the card's
   ``internal_errors``: it would be a bug, and it is logged), and takes every served card's
-  next prediction. Whatever else reaches a card between two reads (its ``poll``, a control request, an EEPROM
+  next prediction. In a read with several commands for a station, the prediction is moved on from one to the next
+  (``Prediction.advance``), so a backlog is answered ahead as a cycle is; where it stops holding, the card takes the
+  commands answered so far and then the rest in the chain, in their order. Whatever else reaches a card between two reads (its ``poll``, a control request, an EEPROM
   write) drops its prediction first (:meth:`Port.forget`).
 * :func:`due`: which stations' ``poll`` is due at a tick (``Station.next_deadline``): a scan of every hosted
   station once per millisecond.
@@ -159,14 +162,53 @@ class Bus:
                 per[key] = [item]
             else:
                 items.append(item)
+        now = self._now = self.clock()
         out = []
+        served = self._served
         for key, items in per.items():
             port = ports.get(key)
             if port is None:
                 self.unaddressed += len(items)
-            else:
-                port.serve(items, out)
+                continue
+            n = self._run_ahead(port, items, now, out) if port.pred is not None and len(items) <= port.keep else 0
+            if n < len(items):
+                if n:  # the card takes the commands answered ahead before the next one
+                    self._settle_last(n, now)
+                port.serve(items[n:] if n else items, out)
+            served.append(port)
         return out
+
+    def _run_ahead(self, port: Port, items: Batch, now: int, out: Batch) -> int:
+        """A backlog (several commands for one station in a read): as many of *items*, in order, as the card's
+        prediction answers, each moved on to the next (:meth:`Prediction.advance
+        <mlink_sim.cards.prediction.Prediction.advance>`); their answers appended to *out*, the commands kept for
+        :meth:`settle`. Returns how many."""
+        pred = port.pred
+        port.pred = None
+        if pred is None:
+            return 0
+        sent_ahead = self._sent_ahead
+        n = 0
+        for data, addr in items:
+            answer = pred.answer_to(data, addr, now)
+            if answer is None:
+                break
+            out.append((answer, addr))
+            sent_ahead.append((port, data, addr, answer))
+            n += 1
+            if not pred.advance():
+                break
+        return n
+
+    def _settle_last(self, n: int, now: int) -> None:
+        """The card of the last *n* commands answered ahead takes them now, in order (:meth:`Port.settle`)."""
+        sent_ahead = self._sent_ahead
+        first = len(sent_ahead) - n
+        for i in range(first, len(sent_ahead)):
+            port, data, addr, answer = sent_ahead[i]
+            port.settle(data, addr, answer, now)
+        del sent_ahead[first:]
+        self.ahead += n
 
     def settle(self) -> None:
         """After the last read's answers went out: the commands answered ahead go to their cards, at the read's

@@ -247,9 +247,8 @@ class Station(abc.ABC):
 
     def prediction(self, now: int) -> Prediction | None:
         """Right after :meth:`receive`: the answer to the command expected next, if the last answer was a fixed
-        point of the steady state (:mod:`mlink_sim.cards.prediction`), holding until the drive's next change or this
-        card's next :meth:`poll` deadline, whichever comes first; None if there is none or it would not hold at
-        *now*. The card's state is not touched. The card has one :class:`Prediction` object, updated in place by
+        point of the steady state (:mod:`mlink_sim.cards.prediction`), holding until the drive's next change (a
+        :meth:`poll` in between must drop it); None if there is none or it would not hold at *now*. The card's state is not touched. The card has one :class:`Prediction` object, updated in place by
         each call that returns it: what the last call returned holds until the next call. Never raises."""
         try:
             cycle, source = self._steady_cycle, self._source

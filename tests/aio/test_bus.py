@@ -193,3 +193,61 @@ def test_an_answer_that_was_not_the_cards_is_counted_and_logged(caplog: Any) -> 
     bus.settle()
     assert bus.mispredicted == 1 == st.counters.internal_errors and bus.ahead == 1
     assert "answer_mispredicted" in caplog.text
+
+
+def _by_station(datagrams: list[bytes]) -> dict[int, list[bytes]]:
+    out: dict[int, list[bytes]] = {}
+    for dg in datagrams:
+        out.setdefault(dg[3], []).append(dg)
+    return out
+
+
+def test_a_backlog_is_answered_ahead_and_the_cards_take_every_command_in_order() -> None:
+    """docs/cards.md, "The answer made ahead": reads holding 2-5 cycles' commands at once (the master catching up
+    after a stall of its own, or a worker held up), now and then with another SEL_MON partway through. The bus
+    answers each station's run ahead as far as its card's prediction carries it, the rest in the chain, each
+    station's answers in its commands' order; every answer equals the one the same card, fed the same commands at
+    the same time without predictions, gives, and after each read's settle the cards are the reference cards. Reads
+    3-5 ms after the one before (past the cards' silence deadline: one communication cycle and 2 ms,
+    mlink_sim.cards.reception) are answered ahead too: no poll came between."""
+    core, cards = _line(Link.ML3, 6)
+    _, reference = _line(Link.ML3, 6)
+    now = {"t": 0}
+    bus = Bus([Port(st, HostedStation(st, "127.0.0.1", 0), 8, [].append, lambda: now["t"]) for st in cards.values()],
+              lambda: now["t"])
+    cycle = 0
+    backlogs = dict.fromkeys(range(2, 6), 0)
+    ahead_in = dict.fromkeys(range(2, 6), 0)
+    while cycle < 2400:
+        k = 1 if cycle < 600 or cycle % 7 else 2 + cycle % 4
+        t = (cycle + k) * TCYCLE
+        now["t"] = t + 50_000
+        batch = []
+        for i in range(k):
+            cycle += 1
+            if k > 1 and i == 1 and cycle % 3 == 0:  # another monitor selected partway through the backlog
+                core.set_control(0x03 + cycle % 6, sel_mon=0x41 if cycle % 2 else 0x21)
+            batch += [(dg, SOURCE) for _, dg in core.on_cycle(cycle, t)]
+        ahead = bus.ahead
+        out = bus.serve(batch)
+        want = [reference[dg[3]].receive(dg, SOURCE, now["t"]) for dg, _ in batch]
+        assert _by_station([a for a, _ in out]) == _by_station([w for w in want if w is not None])
+        bus.settle()
+        if k > 1:
+            backlogs[k] += 1
+            ahead_in[k] += bus.ahead - ahead
+        for answer, _ in out:
+            core.on_response(answer, t + 100_000)
+        core.drain_events()
+        for st, ref in zip(cards.values(), reference.values()):
+            deadline = ref.next_deadline()
+            if deadline is not None and deadline <= t + 900_000:
+                bus.ports[st.address].forget()
+                st.poll(t + 900_000)
+                ref.poll(t + 900_000)
+    assert min(backlogs.values()) > 50 and bus.mispredicted == 0
+    for k, n in backlogs.items():  # nearly all of them ran ahead (a station's new SEL_MON stops its run)
+        assert ahead_in[k] > 0.9 * n * 6 * k, (ahead_in, backlogs)
+    for st, ref in zip(cards.values(), reference.values()):
+        assert st.counters.as_dict() == ref.counters.as_dict()
+        assert st.snapshot().drive == ref.snapshot().drive

@@ -49,6 +49,29 @@ class Checked:
         self.m.st.poll(now)
         self.pred = None
 
+    def deliver_backlog(self, datagrams: list[bytes]) -> list[bytes | None]:
+        """*datagrams* read at once (a backlog, all at ``m.now``), as the bus serves them: the prediction answers as
+        many as it carries, moved on from each to the next; then the card takes them all in order, and each answer
+        made ahead must be the card's own."""
+        m = self.m
+        pred, predicted = self.pred, []
+        for datagram in datagrams:
+            answer = None if pred is None else pred.answer_to(datagram, m.source, m.now)
+            if answer is None:
+                break
+            predicted.append(answer)
+            if not pred.advance():  # type: ignore[union-attr]  # not None: it answered
+                break
+        real = [m.st.receive(datagram, m.source, m.now) for datagram in datagrams]
+        assert real[:len(predicted)] == predicted
+        self.offered += len(datagrams)
+        self.hits += len(predicted)
+        self.pred = m.st.prediction(m.now)
+        answered = [r for r in real if r is not None]
+        if answered:
+            m.slave_echo = decode(answered[-1], kind=Kind.RESPONSE).message.rwdt & 0xF
+        return real
+
 
 def _inv_ctl(ml3_link: bool, signals: int, speed: int, sel_mon: int = 0x21, ref: int = 0) -> Any:
     if ml3_link:
@@ -82,17 +105,62 @@ def test_a_predicted_answer_is_the_cards_own(card: str, size: int, steps: list[d
 
 
 @pytest.mark.parametrize("card, size", CARDS)
+@settings(max_examples=25, deadline=None)
+@given(steps=st.lists(step, min_size=1, max_size=30), repeat=st.integers(1, 12), backlog=st.integers(2, 8))
+def test_a_prediction_moved_on_through_a_backlog_answers_as_the_card_does(card: str, size: int, steps: list[dict],
+                                                                          repeat: int, backlog: int) -> None:
+    """A backlog (several commands for the station in one read, ``Prediction.advance``): random INV_CTL commands,
+    runs of *backlog* of them read at once; every answer the moved-on prediction gives is the card's own answer to
+    that command, taken after the ones before it."""
+    c = Checked(card, size)
+    m = c.m
+    for s in steps:
+        body = _inv_ctl(m.ml3, s["signals"], s["speed"], s["sel_mon"])
+        for _ in range(repeat):
+            run = []
+            for _ in range(backlog):
+                m.tick(s["skip"] + 1)
+                run.append(encode(m.command(body, wdt=0x05 if s["wdt_bad"] else None)))
+            c.deliver_backlog(run)
+
+
+@pytest.mark.parametrize("card, size", CARDS)
+def test_a_steady_backlog_is_answered_ahead_in_full(card: str, size: int) -> None:
+    """At rest, a read holding the next 8 commands is answered ahead in full, and the card's answers to them, taken
+    afterwards, are those (one a cycle on, the cycles, WDT and RWDT counts each advanced)."""
+    c = Checked(card, size)
+    m = c.m
+    body = _inv_ctl(m.ml3, 0, 0)
+    for _ in range(50):
+        m.tick()
+        c.deliver(encode(m.command(body)))
+    assert c.pred is not None
+    hits = c.hits
+    run = []
+    for _ in range(8):
+        m.tick()
+        run.append(encode(m.command(body)))
+    answers = c.deliver_backlog(run)
+    assert c.hits - hits == 8
+    frames = [decode(a, kind=Kind.RESPONSE) for a in answers if a is not None]
+    assert [f.cycle for f in frames] == [decode(d, kind=Kind.COMMAND).cycle for d in run]
+    rwdt = [f.message.rwdt for f in frames]
+    assert [(r & 0xF) for r in rwdt] == [((rwdt[0] & 0xF) + i) & 0xF for i in range(8)]
+    assert [(r >> 4) for r in rwdt] == [((rwdt[0] >> 4) + i) & 0xF for i in range(8)]
+
+
+@pytest.mark.parametrize("card, size", CARDS)
 def test_the_steady_state_is_answered_ahead_and_every_change_is_not(card: str, size: int) -> None:
     """Long runs of one command are answered from the prediction; a corrupted FCS, a wrong WDT, a skipped cycle,
-    another station's byte, another source, an ALM_CLR edge, a new command, a late command (after the card's
-    silence deadline) and a poll between two commands are not, and the card's answers stay its own throughout: a
+    another station's byte, another source, an ALM_CLR edge, a new command and a poll between two commands are not
+    (a late command, after the card's silence deadline and no poll, may be: it is checked like every other), and the card's answers stay its own throughout: a
     ramp, a steady run, a stop, and forward and reverse at once (EF after 0.5 s, A1000 / VS-606V7)."""
     c = Checked(card, size)
     m = c.m
     fwd, both = 1, 3
     plan: list[tuple[int, int, str]] = [(fwd, 3000, "run")] * 400
-    events = ["bad_fcs", "bad_wdt", "skip", "station", "other_source", "late", "poll"] + ["clear"] * m.ml3
-    for event in events:
+    events = ["bad_fcs", "bad_wdt", "skip", "station", "other_source", "poll"] + ["clear"] * m.ml3
+    for event in events[:5] + ["late"] + events[5:]:
         plan += [(fwd, 3000, event)] + [(fwd, 3000, "run")] * 5
     plan += [(fwd, 6000, "run")] * 300 + [(0, 0, "run")] * 300 + [(both, 3000, "run")] * 800
     misses: dict[str, int] = {}
@@ -113,17 +181,45 @@ def test_the_steady_state_is_answered_ahead_and_every_change_is_not(card: str, s
             dg[-2:] = with_fcs(bytes(dg[:-2]))[-2:]
         hits = c.hits
         c.deliver(bytes(dg), ("10.9.9.9", 1) if what == "other_source" else None)
-        if what != "run":
+        if what not in ("run", "late"):
             misses[what] = c.hits - hits
     assert misses == dict.fromkeys(misses, 0), misses  # none of the changes was answered ahead
     assert set(misses) == set(events)
     assert c.hits > 0.6 * c.offered, (c.hits, c.offered)  # and most of the steady state was
 
 
+@pytest.mark.parametrize("card, size", CARDS)
+def test_a_command_read_after_the_silence_deadline_is_answered_ahead_unless_a_poll_came_first(card: str,
+                                                                                              size: int) -> None:
+    """At rest, a command read 5 ms after the one before (a worker held up: the tick reads what queued before it
+    polls) is answered ahead, and the card's own answer is the same (no silence counted: no poll came between).
+    After a poll past the deadline (silence counted, SI-T3 Table 22), the prediction is gone."""
+    c = Checked(card, size)
+    m = c.m
+    body = _inv_ctl(m.ml3, 0, 0)
+    for _ in range(50):
+        m.tick()
+        c.deliver(encode(m.command(body)))
+    m.tick()
+    m.now += 5 * MS
+    hits = c.hits
+    c.deliver(encode(m.command(body)))
+    assert c.hits == hits + 1 and m.st.counters.reception_failures == 0
+    for _ in range(5):
+        m.tick()
+        c.deliver(encode(m.command(body)))
+    m.tick()
+    m.now += 5 * MS
+    c.poll(m.now - MS // 2)
+    hits = c.hits
+    c.deliver(encode(m.command(body)))
+    assert c.hits == hits and m.st.counters.reception_failures > 0
+
+
 @pytest.mark.parametrize("card, size", [("si-t3", 17), ("si-et3", 32)])
 def test_no_prediction_outside_the_steady_state(card: str, size: int) -> None:
-    """Before the connection, after a new command and during a ramp the card offers none; at rest it does, until
-    its silence deadline."""
+    """Before the connection, after a new command and during a ramp the card offers none; at rest it does, past its
+    silence deadline too (silence is counted by a poll, which drops the prediction first)."""
     m = Master(station(card, params=PARAMS[card], frame_size=size))
     assert m.st.prediction(0) is None  # phase 1
     m.bring_up()
@@ -136,8 +232,8 @@ def test_no_prediction_outside_the_steady_state(card: str, size: int) -> None:
         m.send(_inv_ctl(m.ml3, 0, 0))
     pred = m.st.prediction(m.now)
     assert m.st.drive.drive.is_steady and pred is not None
-    assert pred.until == m.st.next_deadline() - 1 < QUIET_FOREVER  # the silence deadline bounds it
-    assert m.st.prediction(pred.until) is not None and m.st.prediction(pred.until + 1) is None
+    assert pred.until == QUIET_FOREVER - 1  # at rest nothing timed bounds it; the silence deadline does not
+    assert m.st.prediction(m.st.next_deadline() + 10 * MS) is not None
 
 
 def test_the_drive_is_quiet_until_its_next_event() -> None:

@@ -117,11 +117,14 @@ def test_windows_of_one_side_add_up(figures) -> None:
     assert (f.due, f.answered, f.on_time) == (42, 40, 39) and f.cpu_per_exchange_us == 25_000.0  # 1 s / 40
 
 
-def test_work_takes_three_durations_per_datagram(floor) -> None:
+def test_work_takes_three_or_four_durations_per_datagram(floor) -> None:
     assert floor.Work.parse("0.9us, 0.2us, 800") == floor.Work(900, 200, 800)
+    assert floor.Work.parse("0.9us,0.2us,800,1.7us") == floor.Work(900, 200, 800, 1_700)
     assert floor.Work.parse("0,0,0") == floor.Work()
-    with pytest.raises(ValueError, match="SERVE,ENCODE,DECODE"):
+    with pytest.raises(ValueError, match=r"SERVE,ENCODE,DECODE\[,SETTLE\]"):
         floor.Work.parse("1us,2us")
+    with pytest.raises(ValueError, match="SERVE,ENCODE,DECODE"):
+        floor.Work.parse("1us,2us,3us,4us,5us")
     with pytest.raises(ValueError, match="--work: expected a duration"):
         floor.Work.parse("1us,-2us,0")
 
@@ -140,6 +143,21 @@ def test_the_floor_with_the_cores_time_keeps_each_side_busy_in_the_chain(floor, 
     finally:
         loop.close()
     assert f.exchanges > 0 and f.rtt_p50_ns >= 2 * 100_000 + 300_000
+
+
+def test_the_floor_settles_after_the_echoes_went_not_before(floor) -> None:
+    """``--work``'s SETTLE keeps the server busy after a read's echoes went back (a worker's ``Bus.settle``): with
+    4 ms of it per read, the answers still come back long before those 4 ms are over (before them, every answer
+    would be at least 4 ms late)."""
+    from mlink_sim.aio.udp import new_event_loop
+
+    loop = new_event_loop()
+    try:
+        f = loop.run_until_complete(floor.measure_floor(2, 32, 10 * MS, 0.3, batched=True, shared=True,
+                                                        work=floor.Work(settle_ns=2 * MS)))
+    finally:
+        loop.close()
+    assert f.exchanges > 0 and f.rtt_p50_ns < 4 * MS
 
 
 def test_the_floor_refuses_a_malformed_work_with_exit_2() -> None:
