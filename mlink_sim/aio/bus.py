@@ -27,8 +27,8 @@ is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it
   ``internal_errors``: it would be a bug, and it is logged), and takes every served card's
   next prediction. In a read with several commands for a station, the prediction is moved on from one to the next
   (``Prediction.advance``), so a backlog is answered ahead as a cycle is; where it stops holding, the card takes the
-  commands answered so far and then the rest in the chain, in their order. Whatever else reaches a card between two reads (its ``poll``, a control request, an EEPROM
-  write) drops its prediction first (:meth:`Port.forget`).
+  commands answered so far and then the rest in the chain, in their order. Whatever else reaches a card between
+  two reads (its ``poll``, a control request, an EEPROM write) drops its prediction first (:meth:`Port.forget`).
 * :func:`due`: which stations' ``poll`` is due at a tick (``Station.next_deadline``): a scan of every hosted
   station once per millisecond.
 """
