@@ -53,7 +53,9 @@ and the simulator run on CPUs that poll instead of halting when idle; refused (n
 (exit 2). The JSON's ``host.pm_qos`` says which way a run was made.
 
 Cells the manuals rule out are listed as such and not run: MECHATROLINK-II below 0.5 ms (17-byte) or beyond
-30 stations (SI-T3 Table 29). Loops are bounded by --duration; all traffic stays on loopback.
+30 stations (SI-T3 Table 29). Loops are bounded by --duration; all traffic stays on loopback. Ctrl-C or SIGTERM
+ends the run: the network or floor being measured is stopped, bench.py says so and exits 130 or 143 without
+writing; killed outright, its workers and the floor's server end with it (``PR_SET_PDEATHSIG``).
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ import dataclasses
 import json
 import os
 import platform
+import signal
 import sys
 import tempfile
 import time
@@ -536,6 +539,26 @@ def _parse(args: argparse.Namespace) -> list[tuple[str, int, int, float]]:
     return [(link, n, cycle, duration or 5.0) for link in links for n in stations for cycle in cycles]
 
 
+_SIGTERM_SEEN: list[int] = []  #: set by the SIGTERM handler: the interrupt it raised was a termination
+
+
+def _terminated(signum: int, frame: Any) -> None:
+    """SIGTERM while measuring: raised where the run is as KeyboardInterrupt (the one exception the event loop
+    lets through from a signal handler instead of logging it), remembered as a termination (exit 143)."""
+    _SIGTERM_SEEN.append(signum)
+    raise KeyboardInterrupt
+
+
+def _stop_what_runs(loop: asyncio.AbstractEventLoop) -> None:
+    """After an interrupt: cancel the measurement the loop was running and let it end (the network session closes,
+    the floor's server is terminated: their ``finally``), as ``asyncio.run`` does on its way out."""
+    tasks = asyncio.all_tasks(loop)
+    for task in tasks:
+        task.cancel()
+    if tasks:
+        loop.run_until_complete(asyncio.gather(*tasks, return_exceptions=True))
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--stations", default=",".join(map(str, STATIONS)), help="comma-separated station counts")
@@ -592,11 +615,19 @@ def main() -> int:
             return 2
     configure_logging(level="error")
     loop = new_event_loop()
-    with tempfile.TemporaryDirectory(prefix="mlink-bench-") as tmp:
-        cells = [c for link, n, cycle, seconds in plan
-                 for c in run_cell(loop, Path(tmp), link, n, cycle, args.workers, seconds, args.io,
-                                   args.arrival_poll, cpus)]
-    loop.close()
+    previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        with tempfile.TemporaryDirectory(prefix="mlink-bench-") as tmp:
+            cells = [c for link, n, cycle, seconds in plan
+                     for c in run_cell(loop, Path(tmp), link, n, cycle, args.workers, seconds, args.io,
+                                       args.arrival_poll, cpus)]
+    except KeyboardInterrupt:
+        _stop_what_runs(loop)
+        print(f"bench.py: {'terminated' if _SIGTERM_SEEN else 'interrupted'}, nothing written", file=sys.stderr)
+        return 143 if _SIGTERM_SEEN else 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        loop.close()
     if pm_qos is not None:
         print(f"--pm-qos: {pm_qos}, held for the floors and the simulator alike")
     if rt_granted is not None:

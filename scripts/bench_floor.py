@@ -66,6 +66,7 @@ from bench_figures import Window  # noqa: E402
 from mlink_sim.aio import mmsg, realtime  # noqa: E402
 from mlink_sim.aio.preread import PreRead  # noqa: E402
 from mlink_sim.aio.ticker import CycleTimer  # noqa: E402
+from mlink_sim.aio.supervisor import _die_with_parent  # noqa: E402
 from mlink_sim.aio.udp import bound_socket, close_watched, new_event_loop, open_batch_endpoint  # noqa: E402
 from mlink_sim.config import format_ns, parse_duration_ns  # noqa: E402
 from mlink_sim.metrics import LatencyHistogram  # noqa: E402
@@ -276,7 +277,7 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
                             + (["--shared"] if shared else []) + [f"--work-ns={work.serve_ns}",
                                                                           f"--settle-ns={work.settle_ns}"]
                             + ([f"--realtime-cpus={realtime.format_cpus(cpus[1])}"] if cpus else []),
-                            stdout=subprocess.PIPE)
+                            stdout=subprocess.PIPE, preexec_fn=_die_with_parent)  # killed client: no server left
     if cpus:
         realtime.apply(realtime.MASTER_PRIORITY, cpus[0])
     loop = asyncio.get_running_loop()

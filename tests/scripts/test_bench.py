@@ -1,9 +1,13 @@
 """scripts/bench.py and scripts/bench_targets.py: issue 21's targets judged against the floor of the same run, the
-tables and the rendering of earlier runs (no network: synthetic cells)."""
+tables and the rendering of earlier runs (no network: synthetic cells); and a run stopped by a signal (a real run
+of one station)."""
 
 from __future__ import annotations
 
 import json
+import os
+import signal
+import sys
 from dataclasses import asdict
 
 import pytest
@@ -247,3 +251,68 @@ def test_a_cell_is_measured_in_turns_with_its_floors_and_their_counts_add_up(ben
     assert cell.ref is cell.floor_batched and cell.cpu_master == 0.1  # 0.03 s of 25 s
     assert (cell.ahead_pct, cell.mispredicted) == (97.5, 1)  # 3 × 780 of 2,400 answers made ahead
     assert any("contradicted" in note for note in cell.notes)
+
+
+def _descendants(pid: int) -> set[int]:
+    """The processes below *pid* (Linux /proc), children of children included."""
+    parent: dict[int, int] = {}
+    for name in os.listdir("/proc"):
+        if name.isdigit():
+            try:
+                with open(f"/proc/{name}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if fields[0] != "Z":
+                parent[int(name)] = int(fields[1])
+    found, frontier = set(), {pid}
+    while frontier:
+        frontier = {p for p, pp in parent.items() if pp in frontier} - found
+        found |= frontier
+    return found
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("sig, code, word", [(signal.SIGTERM, 143, "terminated"), (signal.SIGINT, 130, "interrupted")])
+def test_a_signal_stops_the_run_writes_nothing_and_leaves_no_process_behind(tmp_path, sig, code, word) -> None:
+    """SIGTERM or Ctrl-C while a cell is measured: what runs is stopped on the way out, bench.py says so and exits
+    143 / 130 without a traceback and without writing, and none of its processes (the network's workers, a floor's
+    server) outlives it."""
+    import subprocess
+    import time
+
+    from .scripts_loader import ROOT
+
+    out = tmp_path / "bench.json"
+    proc = subprocess.Popen([sys.executable, str(ROOT / "scripts" / "bench.py"), "--stations", "1", "--cycles", "2ms",
+                             "--links", "ML3", "--duration", "20s", "--json", str(out), "--png", ""],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        kids: set[int] = set()
+        until = time.monotonic() + 60
+        while not kids and time.monotonic() < until:
+            time.sleep(0.2)
+            kids = _descendants(proc.pid)
+        assert kids, "bench.py started no process"
+        time.sleep(1.0)
+        kids |= _descendants(proc.pid)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == code, err
+    assert f"bench.py: {word}, nothing written" in err and "Traceback" not in err
+    assert not out.exists()
+    until = time.monotonic() + 10
+    while time.monotonic() < until and any(_alive(p) for p in kids):
+        time.sleep(0.2)
+    assert not [p for p in kids if _alive(p)]
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
