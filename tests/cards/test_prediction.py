@@ -124,16 +124,24 @@ def test_a_prediction_moved_on_through_a_backlog_answers_as_the_card_does(card: 
             c.deliver_backlog(run)
 
 
-@pytest.mark.parametrize("card, size", CARDS)
-def test_a_steady_backlog_is_answered_ahead_in_full(card: str, size: int) -> None:
-    """At rest, a read holding the next 8 commands is answered ahead in full, and the card's answers to them, taken
-    afterwards, are those (one a cycle on, the cycles, WDT and RWDT counts each advanced)."""
+def _at_rest(card: str, size: int) -> tuple[Checked, Any]:
+    """A card brought up and given 50 cycles of one command at rest (stopped, speed 0): it predicts; and that
+    command's body."""
     c = Checked(card, size)
     m = c.m
     body = _inv_ctl(m.ml3, 0, 0)
     for _ in range(50):
         m.tick()
         c.deliver(encode(m.command(body)))
+    return c, body
+
+
+@pytest.mark.parametrize("card, size", CARDS)
+def test_a_steady_backlog_is_answered_ahead_in_full(card: str, size: int) -> None:
+    """At rest, a read holding the next 8 commands is answered ahead in full, and the card's answers to them, taken
+    afterwards, are those (one a cycle on, the cycles, WDT and RWDT counts each advanced)."""
+    c, body = _at_rest(card, size)
+    m = c.m
     assert c.pred is not None
     hits = c.hits
     run = []
@@ -194,12 +202,8 @@ def test_a_command_read_after_the_silence_deadline_is_answered_ahead_unless_a_po
     """At rest, a command read 5 ms after the one before (a worker held up: the tick reads what queued before it
     polls) is answered ahead, and the card's own answer is the same (no silence counted: no poll came between).
     After a poll past the deadline (silence counted, SI-T3 Table 22), the prediction is gone."""
-    c = Checked(card, size)
+    c, body = _at_rest(card, size)
     m = c.m
-    body = _inv_ctl(m.ml3, 0, 0)
-    for _ in range(50):
-        m.tick()
-        c.deliver(encode(m.command(body)))
     m.tick()
     m.now += 5 * MS
     hits = c.hits
