@@ -618,13 +618,15 @@ def main() -> int:
     previous = signal.signal(signal.SIGTERM, _terminated)
     try:
         with tempfile.TemporaryDirectory(prefix="mlink-bench-") as tmp:
-            cells = [c for link, n, cycle, seconds in plan
-                     for c in run_cell(loop, Path(tmp), link, n, cycle, args.workers, seconds, args.io,
-                                       args.arrival_poll, cpus)]
-    except KeyboardInterrupt:
-        _stop_what_runs(loop)
-        print(f"bench.py: {'terminated' if _SIGTERM_SEEN else 'interrupted'}, nothing written", file=sys.stderr)
-        return 143 if _SIGTERM_SEEN else 130
+            try:
+                cells = [c for link, n, cycle, seconds in plan
+                         for c in run_cell(loop, Path(tmp), link, n, cycle, args.workers, seconds, args.io,
+                                           args.arrival_poll, cpus)]
+            except KeyboardInterrupt:
+                _stop_what_runs(loop)  # before its configuration's directory goes
+                print(f"bench.py: {'terminated' if _SIGTERM_SEEN else 'interrupted'}, nothing written",
+                      file=sys.stderr)
+                return 143 if _SIGTERM_SEEN else 130
     finally:
         signal.signal(signal.SIGTERM, previous)
         loop.close()
