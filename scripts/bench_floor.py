@@ -26,9 +26,10 @@ up to the kernel's stamp, as ``mlink_sim.aio.master`` does.
 **With the cores' time** (``--work SERVE,ENCODE,DECODE[,SETTLE]``, off by default): the server keeps its CPU busy
 *SERVE* per datagram before each echo and *SETTLE* per datagram after the read's echoes went back (a worker's cards
 taking the commands they answered ahead: ``Bus.settle``), the client *ENCODE* per command after the cycle's start
-and before the burst, and *DECODE* per answer after its stamp: a floor that takes as long as the simulator's cores and does none of their
-work, to tell what the chain's length costs from what the simulator's I/O costs (docs/performance.md, "What bounds
-the missed answers"). ``--variant shared-batched`` measures only the floor a packed worker's network is judged
+and before the burst, and *DECODE* per answer after its stamp: a floor that takes as long as the simulator's cores
+and does none of their work, to tell what the chain's length costs from what the simulator's I/O costs
+(docs/performance.md, "What bounds the missed answers"; with SETTLE, "A backlog answered ahead, and a floor that
+burns the simulator's CPU"). ``--variant shared-batched`` measures only the floor a packed worker's network is judged
 against.
 
 Missed, RTT and CPU per exchange are ``bench_figures.exchange_figures``, the simulator's own definition: missed =
@@ -274,8 +275,8 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
     at their priorities, locked memory, a wake-up latency of 0 µs, those CPUs; ``bench.py --realtime``)."""
     work = work or Work()
     proc = subprocess.Popen([sys.executable, __file__, "--serve", str(stations)] + ([] if batched else ["--plain"])
-                            + (["--shared"] if shared else []) + [f"--work-ns={work.serve_ns}",
-                                                                          f"--settle-ns={work.settle_ns}"]
+                            + (["--shared"] if shared else [])
+                            + [f"--work-ns={work.serve_ns}", f"--settle-ns={work.settle_ns}"]
                             + ([f"--realtime-cpus={realtime.format_cpus(cpus[1])}"] if cpus else []),
                             stdout=subprocess.PIPE, preexec_fn=_die_with_parent)  # killed client: no server left
     if cpus:

@@ -161,8 +161,9 @@ def test_a_steady_backlog_is_answered_ahead_in_full(card: str, size: int) -> Non
 def test_the_steady_state_is_answered_ahead_and_every_change_is_not(card: str, size: int) -> None:
     """Long runs of one command are answered from the prediction; a corrupted FCS, a wrong WDT, a skipped cycle,
     another station's byte, another source, an ALM_CLR edge, a new command and a poll between two commands are not
-    (a late command, after the card's silence deadline and no poll, may be: it is checked like every other), and the card's answers stay its own throughout: a
-    ramp, a steady run, a stop, and forward and reverse at once (EF after 0.5 s, A1000 / VS-606V7)."""
+    (a late command, after the card's silence deadline and no poll, may be: it is checked like every other), and
+    the card's answers stay its own throughout: a ramp, a steady run, a stop, and forward and reverse at once (EF
+    after 0.5 s, A1000 / VS-606V7)."""
     c = Checked(card, size)
     m = c.m
     fwd, both = 1, 3
