@@ -185,8 +185,7 @@ class Bus:
         :meth:`settle`. Returns how many."""
         pred = port.pred
         port.pred = None
-        if pred is None:
-            return 0
+        assert pred is not None  # serve calls it only with one
         sent_ahead = self._sent_ahead
         n = 0
         for data, addr in items:

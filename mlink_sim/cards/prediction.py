@@ -56,7 +56,7 @@ class Prediction:
     """The answer a card will give to one command, known before it comes (see the module docstring)."""
 
     def __init__(self, source: Any, command: bytes, wdt_at: int, expect: int, answer: bytes, until: int,
-                 body: bytes = b"", rwdt_at: int = 0, rwdt: int = 0, step: int = 0) -> None:
+                 body: bytes = b"", rwdt_at: int = 0, step: int = 0) -> None:
         self.source: Any = source      #: the connected master
         self.command: bytes = command  #: the command the next one repeats but for cycle, WDT and FCS
         self.wdt_at: int = wdt_at      #: the WDT byte's offset in the command datagram
@@ -64,10 +64,9 @@ class Prediction:
         self.answer: bytes = answer    #: the answer datagram, sealed
         self.until: int = until        #: the last ``now`` (ns) it holds for
         #: for :meth:`advance`: the answer without its FCS (cycle and RWDT zero; b"": it cannot advance), the RWDT
-        #: byte's offset in it, the RWDT :attr:`answer` carries, the cycles from one command to the next
+        #: byte's offset in it (the RWDT itself is read from :attr:`answer`), the cycles from one command to the next
         self.body: bytes = body
         self.rwdt_at: int = rwdt_at
-        self.rwdt: int = rwdt
         self.step: int = step
 
     def answer_to(self, datagram: bytes, source: Any, now: int) -> bytes | None:
@@ -91,8 +90,9 @@ class Prediction:
         nxt = ((expect & _U32) + self.step) & _U32
         count = ((expect >> 36) + 1) & 0xF
         self.expect = nxt | count << 36
-        self.rwdt = rwdt = (self.rwdt + 1) & 0xF | count << 4
-        self.answer = patch_seal(body, CYCLE_AT, nxt, self.rwdt_at, rwdt)
+        rwdt_at = self.rwdt_at
+        rwdt = (self.answer[rwdt_at] + 1) & 0xF | count << 4
+        self.answer = patch_seal(body, CYCLE_AT, nxt, rwdt_at, rwdt)
         return True
 
 
@@ -111,12 +111,11 @@ def offer(pred: Prediction | None, source: Any, command: bytes, wdt_at: int, cyc
     step = reception.cycles_per_comm
     nxt = (cycle + step) & _U32
     count = (watchdog.master + 1) & 0xF
-    rwdt = (watchdog.slave + 1) & 0xF | count << 4
-    answer = template.seal(nxt, rwdt)
+    answer = template.seal(nxt, (watchdog.slave + 1) & 0xF | count << 4)
     if pred is None:
         return Prediction(source, command, wdt_at, nxt | count << 36, answer, until, template.body, template.wdt_at,
-                          rwdt, step)
+                          step)
     pred.source, pred.command, pred.wdt_at, pred.until = source, command, wdt_at, until
-    pred.expect, pred.answer, pred.rwdt, pred.step = nxt | count << 36, answer, rwdt, step
+    pred.expect, pred.answer, pred.step = nxt | count << 36, answer, step
     pred.body, pred.rwdt_at = template.body, template.wdt_at
     return pred
