@@ -25,7 +25,8 @@ up to the kernel's stamp, as ``mlink_sim.aio.master`` does.
 
 **With the cores' time** (``--work SERVE,ENCODE,DECODE[,SETTLE]``, off by default): the server keeps its CPU busy
 *SERVE* per datagram before each echo and *SETTLE* per datagram after the read's echoes went back (a worker's cards
-taking the commands they answered ahead: ``Bus.settle``), the client *ENCODE* per command after the cycle's start
+taking the commands they answered ahead: ``Bus.settle``; on a shared socket after one ``sched_yield``, as the worker
+does, ``mmsg.yield_after_send``), the client *ENCODE* per command after the cycle's start
 and before the burst, and *DECODE* per answer after its stamp: a floor that takes as long as the simulator's cores
 and does none of their work, to tell what the chain's length costs from what the simulator's I/O costs
 (docs/performance.md, "What bounds the missed answers"; with SETTLE, "A backlog answered ahead, and a floor that
@@ -201,7 +202,7 @@ def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpu
     SIGTERM. *shared*: one socket for the N stations, as a packed worker's (``SlaveServer(shared=True)``): each
     read's datagrams echoed in one burst (``BatchEndpoint.send_burst``), offloaded bursts read as one buffer.
     *work_ns*: the CPU is kept busy that long per datagram before the echo goes back, *settle_ns* per datagram
-    after the read's echoes went (``--work``). *cpus*
+    after the read's echoes went (``--work``; shared, after a yield as the worker's, ``mmsg.yield_after_send``). *cpus*
     (``--realtime-cpus``): the real-time requests of a slave worker, on those CPUs (``bench.py --realtime``)."""
     loop = new_event_loop()
     if cpus:
@@ -222,11 +223,15 @@ def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpu
             return on_batch
 
         if shared:
+            pause = mmsg.yield_after_send() if settle_ns else None  # as the worker, before its settle
+
             def on_bus(batch: list[tuple[bytes, Any]]) -> None:
                 if work_ns:
                     busy(work_ns * len(batch))
                 endpoints[0].send_burst(batch)
                 if settle_ns:
+                    if pause is not None:
+                        pause()
                     busy(settle_ns * len(batch))
 
             endpoints.append(await open_batch_endpoint(on_bus, batched=batched, burst=64 * count))

@@ -33,6 +33,7 @@ from ..metrics.stalls import WORKER_STALL_NS, StallLog
 from ..faults.plant import PlantFaults
 from .bus import Bus, Port, due
 from .faults import handle_plant_request
+from .mmsg import yield_after_send
 from .state import atomic_write, eeprom_path, remove_stale_temps
 from .tapped import tap
 from .udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endpoint
@@ -261,12 +262,16 @@ class SlaveServer:
         serve, settle = bus.serve, bus.settle
         first = group[0]  # its endpoint is the group's (set once the socket is bound)
 
+        pause = yield_after_send()  # the master reads its answers before the settle (mmsg.yield_after_send)
+
         def on_batch(batch: list[tuple[bytes, Any]]) -> None:
             out = serve(batch)
             ep = first.endpoint
             try:
                 if out and ep is not None:
                     ep.send_burst(out)
+                    if pause is not None:
+                        pause()
             finally:
                 settle()
 

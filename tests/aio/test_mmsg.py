@@ -6,6 +6,7 @@ falls back to the per-datagram calls."""
 from __future__ import annotations
 
 import asyncio
+import os
 import socket
 import time
 
@@ -164,6 +165,13 @@ def test_stamps_are_opt_in(monkeypatch: pytest.MonkeyPatch) -> None:
     assert not mmsg.stamps_enabled()
     monkeypatch.setenv("MLINK_RX_STAMPS", "1")
     assert mmsg.stamps_enabled() is mmsg.stamps_supported()
+
+
+def test_the_yield_after_a_send_is_on_unless_switched_off(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("MLINK_YIELD", raising=False)
+    assert mmsg.yield_after_send() is getattr(os, "sched_yield", None)
+    monkeypatch.setenv("MLINK_YIELD", "off")
+    assert mmsg.yield_after_send() is None
 
 
 def test_switched_off_the_sockets_stay_plain(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -9,6 +9,7 @@ import time
 
 import pytest
 
+from mlink_sim.aio import slave as slave_module
 from mlink_sim.aio.slave import HostedStation, SlaveServer
 from mlink_sim.cards import create_card, settings_for
 from mlink_sim.config.units import parse_arrival_poll
@@ -153,6 +154,45 @@ async def test_shared_port_the_address_byte_picks_the_station() -> None:
     finally:
         master.close()
         await server.close()
+
+
+async def test_shared_port_yields_after_the_answers_went_and_before_the_cards_settle(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A packed worker sends a read's answers, yields once (``mmsg.yield_after_send``: the master, woken on this
+    CPU, reads them now, not after the cards' work), then settles (``Bus.settle``); with ``MLINK_YIELD=0``, no yield."""
+    events: list[str] = []
+    master = _client()
+    real_bus = slave_module.Bus
+
+    class SpyBus:  # the compiled Bus, its settle recorded
+        def __init__(self, *args: object) -> None:
+            self._bus = real_bus(*args)
+
+        def __getattr__(self, name: str) -> object:
+            return getattr(self._bus, name)
+
+        def settle(self) -> None:
+            events.append("settle")
+            self._bus.settle()
+
+    def pause() -> None:  # the answers are on the master's socket already
+        events.append("yield with answers waiting" if master.recv(4096, socket.MSG_PEEK) else "yield")
+
+    monkeypatch.setattr(slave_module, "Bus", SpyBus, raising=True)
+    for switch, expected in ((lambda: pause, ["yield with answers waiting", "settle"]), (lambda: None, ["settle"])):
+        monkeypatch.setattr(slave_module, "yield_after_send", switch)
+        events.clear()
+        server = await _shared_server(0x21, 0x22)
+        try:
+            addr = ("127.0.0.1", server.stations[0].port)
+            master.sendto(_nop_to(0x21, 1), addr)
+            master.sendto(_nop_to(0x22, 1), addr)
+            await asyncio.sleep(0.2)
+            assert events == expected * (len(events) // len(expected)) and events
+            assert sorted(await _answers(master, settle=0)) == [1, 1]
+        finally:
+            await server.close()
+    master.close()
 
 
 async def test_shared_port_keeps_each_stations_backlog_rule() -> None:
