@@ -67,8 +67,7 @@ from .msghdr import MMsgHdr as _MMsgHdr
 from .msghdr import MsgHdr as _MsgHdr
 
 __all__ = ["BurstSocket", "CAPACITY", "drain", "gso_supported", "stamps_enabled", "stamps_supported", "supported",
-           "yield_after_send",
-           "wrap"]
+           "wrap", "yield_after_send"]
 
 CAPACITY = 64  #: messages per system call (a burst of more is sent, or read, in several calls)
 _BUFSIZE = 4096  # bytes per received datagram, as the per-datagram reads (``recv(4096)``)
@@ -94,7 +93,7 @@ def supported() -> bool:
     """True where ``sendmmsg``/``recvmmsg`` can be called (Linux with glibc or musl) and ``MLINK_MMSG=0`` is not
     set in the environment (that switch keeps the per-datagram calls, to compare or to rule the batching out; the
     slave workers inherit it). Read whenever a socket is opened."""
-    return _calls is not None and os.environ.get("MLINK_MMSG", "").strip().lower() not in ("0", "off", "no", "false")
+    return _calls is not None and not _switched_off("MLINK_MMSG")
 
 
 def stamps_supported() -> bool:
@@ -116,8 +115,7 @@ def gso_supported() -> bool:
     """True where the batched calls are :func:`supported`, the kernel is Linux 4.18 or newer (``UDP_SEGMENT``;
     ``UDP_GRO`` needs 5.0, which :meth:`BurstSocket.enable_gro` finds out itself) and ``MLINK_GSO=0`` is not
     set (that switch keeps one ``sendmmsg`` message per datagram, to compare; the workers inherit it)."""
-    return _GSO_KERNEL and supported() and os.environ.get("MLINK_GSO", "").strip().lower() not in (
-        "0", "off", "no", "false")
+    return _GSO_KERNEL and supported() and not _switched_off("MLINK_GSO")
 
 
 def yield_after_send() -> Callable[[], None] | None:
@@ -132,11 +130,12 @@ def yield_after_send() -> Callable[[], None] | None:
     that CPU it returns at once (a system call, under a microsecond). Measured on the 2-vCPU bench machine,
     62 ML-III × 1 ms, 3 + 3 alternated runs of 20 s: missed 0.75 → 0.35 %, RTT p99 744 → 426 µs
     (docs/performance.md, "The worker yields after its send")."""
-    if not hasattr(os, "sched_yield"):
-        return None
-    if os.environ.get("MLINK_YIELD", "").strip().lower() in ("0", "off", "no", "false"):
-        return None
-    return os.sched_yield
+    return None if _switched_off("MLINK_YIELD") else getattr(os, "sched_yield", None)
+
+
+def _switched_off(name: str) -> bool:
+    """The environment switch *name* set to ``0``, ``off``, ``no`` or ``false`` (read when asked)."""
+    return os.environ.get(name, "").strip().lower() in ("0", "off", "no", "false")
 
 
 def _kernel_has_gso() -> bool:

@@ -179,8 +179,9 @@ async def test_shared_port_yields_after_the_answers_went_and_before_the_cards_se
         events.append("yield with answers waiting" if master.recv(4096, socket.MSG_PEEK) else "yield")
 
     monkeypatch.setattr(slave_module, "Bus", SpyBus, raising=True)
-    for switch, expected in ((lambda: pause, ["yield with answers waiting", "settle"]), (lambda: None, ["settle"])):
-        monkeypatch.setattr(slave_module, "yield_after_send", switch)
+    monkeypatch.setattr(slave_module.os, "sched_yield", pause)  # what mmsg.yield_after_send hands out
+    for switch, expected in (("1", ["yield with answers waiting", "settle"]), ("0", ["settle"])):
+        monkeypatch.setenv("MLINK_YIELD", switch)
         events.clear()
         server = await _shared_server(0x21, 0x22)
         try:
