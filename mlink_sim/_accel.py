@@ -56,6 +56,7 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.cards.drive_link",
     "mlink_sim.cards.monitors",
     "mlink_sim.cards.paramstore",
+    "mlink_sim.cards.writeback",
     "mlink_sim.cards.snapshot",
     "mlink_sim.cards.parameters",
     "mlink_sim.cards.commands",

@@ -51,9 +51,9 @@ _log = get_logger("mlink_sim.aio.bus")
 
 class Port:
     """One hosted station's share of a read (see the module docstring). *hosted*: the
-    :class:`~mlink_sim.aio.slave.HostedStation` whose ``responses`` count the answers; *on_eeprom(hosted)*: called
-    after a read that left the card with an EEPROM image to write; *clock()*: the time each datagram is handed to
-    the card at (ns; the worker's ``time.monotonic_ns``)."""
+    :class:`~mlink_sim.aio.slave.HostedStation` it serves (its ``responses`` read :attr:`responses`);
+    *on_eeprom(hosted)*: called after a read that left the card with an EEPROM image to write; *clock()*: the time
+    each datagram is handed to the card at (ns; the worker's ``time.monotonic_ns``)."""
 
     def __init__(self, station: Station, hosted: Any, keep: int, on_eeprom: Callable[[Any], None],
                  clock: Callable[[], int]) -> None:
@@ -64,6 +64,12 @@ class Port:
         self.on_eeprom: Callable[[Any], None] = on_eeprom
         self.receive: Callable[[bytes, Any, int], bytes | None] = station.receive
         self.pred: Prediction | None = None  #: the card's answer to the command it expects next (Bus.serve)
+        self.responses: int = 0  #: the answers sent (a native count: the per-cycle path touches no Python object)
+        if hosted is not None:  # the station's count goes on from a port it had before
+            before = getattr(hosted, "bus_port", None)
+            if before is not None:
+                self.responses = before.responses
+            hosted.bus_port = self
         self.mispredicted: int = 0  #: answers sent ahead that the card's own answer then differed from
 
     def serve(self, batch: Batch, out: Batch) -> None:
@@ -80,7 +86,7 @@ class Port:
                 out.append((response, addr))
                 n += 1
         if n:
-            self.hosted.responses += n
+            self.responses += n
         if self.station.eeprom_pending:
             self.on_eeprom(self.hosted)
 
@@ -90,7 +96,7 @@ class Port:
         response = self.station.receive(data, addr, self.clock())
         if response is not None:
             out.append((response, addr))
-            self.hosted.responses += 1
+            self.responses += 1
         if self.station.eeprom_pending:
             self.on_eeprom(self.hosted)
 
@@ -98,7 +104,7 @@ class Port:
         """The card takes *data*, which *answer* was sent to ahead (:meth:`Bus.settle`)."""
         station = self.station
         response = station.receive(data, addr, now)
-        self.hosted.responses += 1
+        self.responses += 1
         if response != answer:  # a bug: counted as the card's internal error too (the report's counters)
             self.mispredicted += 1
             station.counters.internal_errors += 1

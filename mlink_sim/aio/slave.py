@@ -68,7 +68,12 @@ class HostedStation:
     port: int
     endpoint: BatchEndpoint | None = None
     eeprom: Path | None = None
-    responses: int = field(default=0)
+    bus_port: Any = field(default=None, repr=False)  #: the mlink_sim.aio.bus.Port that serves it (it counts)
+
+    @property
+    def responses(self) -> int:
+        """The answers sent for this station (counted by its :class:`~mlink_sim.aio.bus.Port`)."""
+        return 0 if self.bus_port is None else int(self.bus_port.responses)
 
 
 class SlaveServer:

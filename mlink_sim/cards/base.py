@@ -28,7 +28,7 @@ from typing import Any, ClassVar, Final
 
 from mlink_sim.params import ParamError
 from mlink_sim.wire import DropReason, Frame, Kind, Link, WireError, decode, ml2, ml3
-from mlink_sim.wire.frame import Template
+from mlink_sim.wire.frame import CYCLE_AT, Template, steady_delta
 
 from .._log import get_logger
 from .drive_link import DriveCommand, DriveLink, Fault
@@ -357,6 +357,19 @@ class Station(abc.ABC):
         self._sent(now)
         return out
 
+    def _steady_delta(self, dg: bytes) -> int:
+        """:func:`~mlink_sim.wire.frame.steady_delta` of the command *dg* against the last one the fast path took
+        (-1: none yet, or *dg* differs from it in more than its cycle, WDT and FCS). When *dg* is the very datagram
+        the card's prediction was just checked against (the worker answered it ahead, :mod:`.prediction`), that
+        check's result: the same bytes against the same command, not compared a second time."""
+        fast = self._fast_cmd
+        if not fast:
+            return -1
+        pred = self._prediction
+        if pred is not None and pred.checked is dg and pred.command is fast:
+            return pred.delta
+        return steady_delta(dg, fast, CYCLE_AT, self._cmd_wdt_at)
+
     def _fast_receive(self, datagram: bytes, source: Hashable, now: int) -> object:
         """The cyclic INV_CTL without building frame objects (a card may implement it); :data:`SLOW` to take
         the general path. It must decide before :meth:`_accept` has run."""
@@ -371,7 +384,8 @@ class Station(abc.ABC):
 
     def _accept(self, cycle: int, tcycle_ns: int, wdt: int, code: int, source: Hashable, now: int) -> bool:
         """A well-formed command for this station: the connection, reception failures, the watchdog."""
-        if self._source is not None and source != self._source:
+        known = self._source  # the worker hands every datagram of one source the same address object: `is` first
+        if known is not None and source is not known and source != known:
             self._foreign(source)
             return False
         self.drive.drive.advance(now)  # the model itself: DriveLink.advance is only this

@@ -21,7 +21,7 @@ from mlink_sim.wire import (
     MAGIC, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, Unknown, encode, ml2,
 )
 from mlink_sim.wire.frame import (
-    CYCLE_AT, FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, steady_delta, Template,
+    FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, Template,
 )
 
 from . import commands
@@ -210,7 +210,7 @@ class Ml2Station(Station):
         path (tests/cards/test_fast_path.py). The steady state as on the SI-ET3 (``SiEt3._fast_receive``): a
         command that differs from the last one taken only in its cycle, WDT and FCS is not unpacked again, and
         the answer is the last one's template with the cycle and RWDT patched in while its other fields hold."""
-        d = steady_delta(dg, self._fast_cmd, CYCLE_AT, _WDT_AT) if self._fast_cmd else -1
+        d = self._steady_delta(dg)
         if d >= 0:  # the fields kept from the last command (native ints, no unpack)
             cycle, wdt, stn = d & 0xFFFFFFFF, d >> 32, self.address
             link, tcycle, sig = self._c_link, self._c_tcycle, self._c_sig

@@ -68,12 +68,18 @@ class Prediction:
         self.body: bytes = body
         self.rwdt_at: int = rwdt_at
         self.step: int = step
+        #: the last datagram :meth:`answer_to` compared with :attr:`command` (the ``bytes`` a read gave: immutable),
+        #: and what ``steady_delta`` gave: the card that then takes that very object does not compare it again
+        #: (``Station._steady_delta``)
+        self.checked: bytes = b""
+        self.delta: int = -1
 
     def answer_to(self, datagram: bytes, source: Any, now: int) -> bytes | None:
         """:attr:`answer` when *datagram* from *source* at *now* is the command predicted, else None."""
-        if now > self.until or source != self.source:
+        if now > self.until or (source is not self.source and source != self.source):
             return None
-        d = steady_delta(datagram, self.command, CYCLE_AT, self.wdt_at)
+        d = self.delta = steady_delta(datagram, self.command, CYCLE_AT, self.wdt_at)
+        self.checked = datagram
         if d < 0 or d & _EXPECT_MASK != self.expect:
             return None
         return self.answer

@@ -25,7 +25,7 @@ from mlink_sim.wire import (
     MAGIC, PROFILE_TYPE_INVERTER, CommAlm, Frame, Kind, Link, M3Cmd, Unknown, encode, ml3,
 )
 from mlink_sim.wire.frame import (
-    CYCLE_AT, FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, steady_delta, Template,
+    FCS_SIZE, HEADER_SIZE, datagram_offset, datagram_struct, fcs_ok, Template,
 )
 
 from . import commands
@@ -233,7 +233,7 @@ class SiEt3(Station):
         and FCS (:func:`~mlink_sim.wire.frame.steady_delta`, one C call) is not unpacked and checked field by field
         again, and the answer is its template (:class:`~mlink_sim.wire.frame.Template`) with the cycle and RWDT
         patched in, packed again only when one of its other fields changes."""
-        d = steady_delta(dg, self._fast_cmd, CYCLE_AT, _WDT_AT) if self._fast_cmd else -1
+        d = self._steady_delta(dg)
         if d >= 0:  # the fields kept from the last command (native ints, no unpack)
             cycle, wdt, stn = d & 0xFFFFFFFF, d >> 32, self.address
             tcycle, ctrl, ictrl = self._c_tcycle, self._c_ctrl, self._c_ictrl

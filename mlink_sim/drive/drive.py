@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Final
 
 from .faults import Fault, minor_code
 from .integrate import CHANGED, IntegratorState, begin_search, ol1_trip_ahead, steady_to, substep
@@ -24,8 +25,10 @@ __all__ = ["Drive", "DriveCommand", "QUIET_FOREVER"]
 
 _MAX_EVENTS = 64
 INF = math.inf
-#: :meth:`Drive.quiet_until` of a steady drive with no timed event ahead (ns, beyond any clock here)
-QUIET_FOREVER = 1 << 62
+#: :meth:`Drive.quiet_until` of a steady drive with no timed event ahead (ns, beyond any clock here: 2^61 ns is 73
+#: years). Final and below 2^62, so that compiled code keeps it a native int: 1 << 62 was a boxed one, looked up in
+#: the module's dict and subtracted as an object once per card and cycle (``cards.prediction.offer``).
+QUIET_FOREVER: Final = 1 << 61
 _EF_DELAY_NS = 500_000_000  # A1000 "EF": forward and reverse both on for longer than 0.5 s
 _ALARMS = (StopMethod.ALARM_ONLY, StopMethod.ALARM_RUN_D1_04, StopMethod.ALARM_RAMP)
 

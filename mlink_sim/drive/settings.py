@@ -18,7 +18,7 @@ import enum
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Final, NamedTuple
 
 from .faults import Fault
 from .search import SpeedSearch, a1000_search, v7_search
@@ -518,7 +518,7 @@ BUS_UF_PER_KW = 600.0
 #: i = I / E2-01, trip at theta >= OL1_TRIP_LEVEL.  Hot start at 100 % (theta = 1) then 150 %:
 #: theta(t) = 2.25 - 1.25 exp(-t/tau) reaches 1.21 at t = L1-02 (A1000: "150 % for L1-02 after
 #: continuous operation at rated current").  tau = L1-02 / ln(1.25 / (2.25 - 1.21)).
-OL1_TRIP_LEVEL = 1.21
+OL1_TRIP_LEVEL: Final = 1.21  # Final: the compiled integrator uses it as a constant, not a lookup
 OL1_TAU_PER_TRIP_TIME = 1.0 / math.log(1.25 / (2.25 - OL1_TRIP_LEVEL))
 
 

@@ -43,8 +43,8 @@ __all__ = ["MasterCore"]
 
 S = StationState
 _U32: Final = 0xFFFFFFFF
-_UP: Final = (S.PHASE2, S.PHASE3)  # states in which requests and INV_CTL are sent
 # the members the per-cycle paths compare with, each read once (an enum member is an attribute lookup per use)
+_PHASE2: Final = S.PHASE2  # with _PHASE3: the states in which requests and INV_CTL are sent
 _PHASE3: Final = S.PHASE3
 _PHASE1: Final = S.PHASE1
 _BRINGING: Final = frozenset((S.CONNECTING, S.SYNCING))  # counted against NetworkPlan.bringup_window
@@ -146,7 +146,10 @@ class MasterCore:
         """A clean answer to a cyclic INV_CTL, on time or late, straight from the bytes (:mod:`.fastpath`): what
         the general path does for it (:meth:`_observe`, :meth:`_advance`). False: the general path decides."""
         st = self._by_addr.get(datagram[3]) if len(datagram) >= HEADER_SIZE else None
-        if st is None or st.state not in _UP or st.alarm or st.fault or st.cmd_alm or st.comm_alm >= 8:
+        if st is None:
+            return False
+        state = st.state  # `is`, not `in` a tuple: compiled, that compares each enum member as an object
+        if (state is not _PHASE3 and state is not _PHASE2) or st.alarm or st.fault or st.cmd_alm or st.comm_alm >= 8:
             return False
         cycle = cycle_of(datagram)
         sent = st.outstanding  # the common answer, on time (_answer_to's first case)
@@ -320,7 +323,11 @@ class MasterCore:
             # the steady state, what the general lane below gives for it: no event falls due (Slave.due), the
             # cyclic INV_CTL (Slave.choose_main), no sub-command request (Slave.choose_sub)
             send, body, req = _CYCLIC, st.ctl_body, None
-            code = codec.main_slot.code_of(body)
+            if body is st.ctl_code_of:
+                code = st.ctl_code
+            else:
+                code = st.ctl_code = codec.main_slot.code_of(body)
+                st.ctl_code_of = body
             sub_body = sub_req = None
         else:
             due = st.due(cycle)

@@ -70,6 +70,9 @@ class Slave:
         self.disconnect_waiters: list[Request] = []
         self.control = Control()
         self.ctl_body = self.codec.inv_ctl(self.control)
+        #: the command code of ``ctl_body`` (its object: ``ctl_code_of``), looked up once per control, not per cycle
+        self.ctl_code_of: Any = None
+        self.ctl_code = 0
         #: after a recovery: the run command is held back (until standstill) or sent with the search input
         self.run_held = False
         self.searching = False

@@ -217,6 +217,23 @@ done:
     return result;
 }
 
+/* a and b are equal in their first n bytes but for the 4 bytes at c and the byte at w (both inside the n bytes):
+   three memcmp over the stretches around the two holes (which may overlap), not a test per byte. */
+static int
+same_but(const unsigned char *a, const unsigned char *b, Py_ssize_t n, Py_ssize_t c, Py_ssize_t w)
+{
+    Py_ssize_t s1 = c, e1 = c + 4, s2 = w, e2 = w + 1;
+    if (s2 < s1) {
+        s1 = w; e1 = w + 1; s2 = c; e2 = c + 4;
+    }
+    if (s2 < e1) {  /* the holes overlap: one hole from s1 to the later end */
+        e1 = e2 > e1 ? e2 : e1;
+        s2 = e2 = e1;
+    }
+    return memcmp(a, b, (size_t)s1) == 0 && memcmp(a + e1, b + e1, (size_t)(s2 - e1)) == 0
+           && memcmp(a + e2, b + e2, (size_t)(n - e2)) == 0;
+}
+
 static PyObject *
 fcsc_steady_delta(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -245,11 +262,8 @@ fcsc_steady_delta(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
                          cycle_at, wdt_at, now.n);
             goto done;
         }
-        Py_ssize_t i = 0;
-        for (; i < body; i++)
-            if (now.p[i] != before.p[i] && (i < cycle_at || i >= cycle_at + 4) && i != wdt_at)
-                break;
-        if (i == body && x25(now.p, body) == (uint16_t)(now.p[body] | (now.p[body + 1] << 8))) {
+        if (same_but(now.p, before.p, body, (Py_ssize_t)cycle_at, (Py_ssize_t)wdt_at)
+                && x25(now.p, body) == (uint16_t)(now.p[body] | (now.p[body + 1] << 8))) {
             const unsigned char *c = now.p + cycle_at;
             result = (long long)((uint32_t)c[0] | (uint32_t)c[1] << 8 | (uint32_t)c[2] << 16 | (uint32_t)c[3] << 24)
                      | (long long)now.p[wdt_at] << 32;

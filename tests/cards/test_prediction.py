@@ -106,6 +106,40 @@ def test_a_predicted_answer_is_the_cards_own(card: str, size: int, steps: list[d
 
 @pytest.mark.parametrize("card, size", CARDS)
 @settings(max_examples=25, deadline=None)
+@given(steps=st.lists(step, min_size=1, max_size=40), repeat=st.integers(1, 20))
+def test_the_datagram_a_prediction_checked_is_taken_as_a_copy_of_it_is(card: str, size: int, steps: list[dict],
+                                                                        repeat: int) -> None:
+    """A card takes the very datagram its prediction was checked against without comparing it with its last
+    command again (``Station._steady_delta`` reuses the check's result). Two cards, one offered each command's
+    object through its prediction first (as a worker does), the other a fresh copy of it and no prediction: the
+    same answers, and the same counters and state at the end."""
+    c = Checked(card, size)
+    m = c.m
+    other = Master(station(card, params=PARAMS[card], frame_size=size))
+    other.bring_up()  # the same commands at the same times as c's card had
+    twin = other.st
+    rest = {"signals": 0, "speed": 0, "sel_mon": 0x21, "refs": (0, 0), "skip": 0, "wdt_bad": False}
+    for s in [rest] * 20 + steps:  # a steady start: some answers are made ahead whatever the steps
+        body = _inv_ctl(m.ml3, s["signals"], s["speed"], s["sel_mon"], s["refs"][0])
+        for _ in range(repeat):
+            m.tick(s["skip"] + 1)
+            if s["skip"] == 2:  # a poll between two commands: the next one is not offered to the prediction
+                c.poll(m.now - MS // 2)
+                twin.poll(m.now - MS // 2)
+            dg = encode(m.command(body, wdt=0x05 if s["wdt_bad"] else None))
+            assert c.deliver(dg) == twin.receive(bytes(bytearray(dg)), m.source, m.now)
+        run = []  # and a backlog: the prediction checks (and moves on through) several before the card takes any
+        for _ in range(3):
+            m.tick()
+            run.append(encode(m.command(body)))
+        assert c.deliver_backlog(run) == [twin.receive(bytes(bytearray(dg)), m.source, m.now) for dg in run]
+    assert c.hits >= 15
+    assert twin.counters.as_dict() == m.st.counters.as_dict()
+    assert twin.snapshot() == m.st.snapshot()
+
+
+@pytest.mark.parametrize("card, size", CARDS)
+@settings(max_examples=25, deadline=None)
 @given(steps=st.lists(step, min_size=1, max_size=30), repeat=st.integers(1, 12), backlog=st.integers(2, 8))
 def test_a_prediction_moved_on_through_a_backlog_answers_as_the_card_does(card: str, size: int, steps: list[dict],
                                                                           repeat: int, backlog: int) -> None:

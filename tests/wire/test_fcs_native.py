@@ -140,6 +140,35 @@ def test_steady_delta_inverts_patch_seal_and_equals_the_cores_own(c, data):
         assert fn(now[:-1], previous, cycle_at, wdt_at) == -1
 
 
+def _pure_delta(now: bytes, previous: bytes, cycle_at: int, wdt_at: int) -> int:
+    """steady_delta spelt out byte by byte (the C module compares the stretches between the holes at once)."""
+    body = len(now) - 2
+    if len(now) != len(previous) or len(now) < 2:
+        return -1
+    if any(now[i] != previous[i] for i in range(body) if not cycle_at <= i < cycle_at + 4 and i != wdt_at):
+        return -1
+    if _pure_seal(now[:body]) != now:
+        return -1
+    return struct.unpack_from("<I", now, cycle_at)[0] | now[wdt_at] << 32
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.data())
+def test_steady_delta_compares_every_byte_outside_the_two_holes(c, data):
+    """Any two datagrams of one length, any offsets (the WDT byte before, after or inside the cycle field): the C
+    module's answer is the byte-by-byte one, whichever byte differs."""
+    body = data.draw(st.binary(min_size=5, max_size=70))
+    cycle_at = data.draw(st.integers(0, len(body) - 4))
+    wdt_at = data.draw(st.integers(0, len(body) - 1))
+    now = _pure_seal(body)
+    changed = bytearray(body)
+    for at in data.draw(st.lists(st.integers(0, len(body) - 1), max_size=3)):
+        changed[at] ^= data.draw(st.integers(1, 255))
+    previous = _pure_seal(bytes(changed))
+    assert c.steady_delta(now, previous, cycle_at, wdt_at) == _pure_delta(now, previous, cycle_at, wdt_at)
+    assert frame.steady_delta(now, previous, cycle_at, wdt_at) == _pure_delta(now, previous, cycle_at, wdt_at)
+
+
 @pytest.mark.parametrize("args, error", [
     ((b"\0" * 16, b"\0" * 16, 11, 0), ValueError),   # the cycle field runs into the FCS
     ((b"\0" * 16, b"\0" * 16, 0, 14), ValueError),   # the WDT byte is the FCS

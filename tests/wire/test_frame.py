@@ -4,7 +4,7 @@ cycle and the (R)WDT patched in and sealed, which :func:`steady_delta` reads bac
 
 from __future__ import annotations
 
-from mlink_sim.wire.frame import CYCLE_AT, FCS_SIZE, Template, cycle_of, fcs_ok, steady_delta
+from mlink_sim.wire.frame import CYCLE_AT, FCS_SIZE, Template, cycle_of, fcs_ok, patch_seal, steady_delta
 
 FIELDS = (0x0C, 0x0300_0004, 6000, 120, 0x21, 0x43, 17, 0, 1_000_000)
 BODY = bytes(range(44))  # a 32-byte ML-III answer without its FCS (envelope 12 + data 32)
@@ -35,3 +35,22 @@ def test_its_datagrams_carry_the_cycle_and_the_wdt_and_steady_delta_reads_them_b
     before = t.seal(7, 0x10)
     assert steady_delta(dg, before, 4, RWDT_AT) == 0x1234_5678 | 0xA5 << 32
     assert steady_delta(dg, before, 4, RWDT_AT + 1) == -1  # the WDT byte is not where it was said to be
+
+
+def test_the_last_datagram_sealed_is_handed_out_again_for_the_same_cycle_wdt_and_body() -> None:
+    """A card's answer made ahead and its own answer to that command are sealed from one template: the second is
+    the first object again (no copy, no FCS); any other cycle, WDT or body is sealed anew, and every datagram is
+    the body with the cycle and the WDT patched in and sealed."""
+    t = Template(RWDT_AT)
+    t.body = BODY
+    first = t.seal(41, 0x21)
+    assert t.seal(41, 0x21) is first
+    assert first == patch_seal(BODY, CYCLE_AT, 41, RWDT_AT, 0x21)
+    for cycle, wdt in ((42, 0x21), (41, 0x22)):
+        other = t.seal(cycle, wdt)
+        assert other is not first and other == patch_seal(BODY, CYCLE_AT, cycle, RWDT_AT, wdt)
+    again = t.seal(41, 0x21)  # only the last one is kept
+    assert again is not first and again == first
+    t.body = bytes(BODY[:-1]) + b"\xee"  # packed again (a field changed): a new body
+    changed = t.seal(41, 0x21)
+    assert changed != first and changed == patch_seal(t.body, CYCLE_AT, 41, RWDT_AT, 0x21)
