@@ -68,7 +68,7 @@ class HostedStation:
     port: int
     endpoint: BatchEndpoint | None = None
     eeprom: Path | None = None
-    bus_port: Any = field(default=None, repr=False)  #: the mlink_sim.aio.bus.Port that serves it (it counts)
+    bus_port: Any = field(default=None, repr=False, compare=False)  #: the aio.bus.Port that serves it (it counts)
 
     @property
     def responses(self) -> int:

@@ -57,6 +57,19 @@ def _answered(out: list[tuple[bytes, Any]]) -> list[tuple[int, int, Any]]:
     return [(f.station, f.cycle, addr) for f, addr in ((decode(d, kind=Kind.RESPONSE), a) for d, a in out)]
 
 
+def test_a_station_counts_its_answers_on_across_the_ports_that_serve_it() -> None:
+    """The count lives on the Port (a native int); the HostedStation reads it, and a Port made again for the same
+    station (a socket set up again) goes on from it."""
+    first = _port(0x21)
+    hosted = first.hosted
+    assert hosted.responses == 0
+    first.serve([(_nop(0x21, 1), SOURCE), (_nop(0x21, 2), SOURCE)], [])
+    assert hosted.responses == 2 and first.responses == 2
+    again = Port(first.station, hosted, 8, [].append, Clock())
+    again.serve([(_nop(0x21, 3), SOURCE)], [])
+    assert hosted.responses == 3 and hosted.bus_port is again
+
+
 def test_the_station_byte_picks_the_station_and_the_stations_keep_their_first_order() -> None:
     """docs/wire-format.md, byte 3: the station address (F6-20, SI-T3 Table 4). Stations are served in the order
     they first appear in the read, each station's datagrams in arrival order."""
