@@ -15,7 +15,7 @@ from mlink_sim.drive.drive import QUIET_FOREVER
 from mlink_sim.wire import Kind, decode, encode, ml2, ml3
 from mlink_sim.wire.frame import with_fcs
 
-from .helpers import MS, Master, station
+from .helpers import MASTER, MS, Master, station
 from .test_fast_path import PARAMS, step
 
 CARDS = [("si-t3", 32), ("si-t3", 17), ("si-t-v7", 32), ("si-t-v7", 17), ("si-et3", 64), ("si-et3", 32)]
@@ -127,7 +127,7 @@ def test_the_datagram_a_prediction_checked_is_taken_as_a_copy_of_it_is(card: str
                 c.poll(m.now - MS // 2)
                 twin.poll(m.now - MS // 2)
             dg = encode(m.command(body, wdt=0x05 if s["wdt_bad"] else None))
-            assert c.deliver(dg) == twin.receive(bytes(bytearray(dg)), m.source, m.now)
+            assert c.deliver(dg) == twin.receive(bytes(bytearray(dg)), m.source, m.now)  # bytes(dg) is dg itself
         run = []  # and a backlog: the prediction checks (and moves on through) several before the card takes any
         for _ in range(3):
             m.tick()
@@ -136,6 +136,24 @@ def test_the_datagram_a_prediction_checked_is_taken_as_a_copy_of_it_is(card: str
     assert c.hits >= 15
     assert twin.counters.as_dict() == m.st.counters.as_dict()
     assert twin.snapshot() == m.st.snapshot()
+
+
+@pytest.mark.parametrize("card, size", CARDS)
+def test_the_connected_master_is_its_address_not_the_object_that_carried_it(card: str, size: int) -> None:
+    """docs/cards.md "Who may change a station": a station is owned by the source address (IP and port) whose
+    CONNECT it accepted (SI-T3 CONNECT "Establish Connection", SI-ET3 Table 9). The card and its prediction test the
+    source by identity first (a worker hands one source's datagrams the same object); an equal address in another
+    object is still that master: answered, ahead as before, never counted foreign."""
+    c, body = _at_rest(card, size)
+    m = c.m
+    m.source = (m.source[0], m.source[1])  # the same address, a new tuple
+    assert m.source == MASTER and m.source is not MASTER
+    hits = c.hits
+    for _ in range(30):
+        m.tick()
+        assert c.deliver(encode(m.command(body))) is not None
+    assert c.hits - hits >= 25 and m.st.counters.foreign_source == 0
+    assert m.st.snapshot().connected_source == MASTER
 
 
 @pytest.mark.parametrize("card, size", CARDS)
