@@ -80,7 +80,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 
 import bench_targets  # noqa: E402
-from bench_figures import Window, turns  # noqa: E402
+from bench_figures import During, Window, turns  # noqa: E402
 from bench_tables import MD_HEAD, chart, markdown, table  # noqa: E402,F401  (MD_HEAD: bench.MD_HEAD, as before)
 from bench_floor import floor_from, floor_window, host_ticks, proc_wakeups, self_wakeups, ticks_between  # noqa: E402
 
@@ -171,10 +171,12 @@ def write_config(path: Path, link: str, stations: int, cycle_ns: int, arrival_po
 
 # ----------------------------------------------------------------------------------------------- the network
 async def measure_network(config_path: Path, workers: int, duration_s: float, cell: Cell,
-                          rt: bool = False) -> Window:
+                          rt: bool = False, during: During | None = None) -> Window:
     """One window of the network of *config_path*, its system calls as *cell.io* says (``MLINK_MMSG``, inherited
     by the workers), measured for *duration_s* after bring-up, with ``--realtime``'s requests if *rt*; what it saw
-    go wrong goes to *cell.notes*."""
+    go wrong goes to *cell.notes*. *during(pids, duration_s)*, if given, is awaited instead of the window's sleep
+    (it must last *duration_s*): the master's process id first, then the workers' (``scripts/bench_recovery.py``
+    stops them)."""
     saved = os.environ.get("MLINK_MMSG")
     os.environ["MLINK_MMSG"] = "1" if cell.io == "batched" else "0"
     session = None
@@ -195,7 +197,7 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         cpu0, wall0 = time.process_time(), time.monotonic()
         slaves0 = await _slave_cpu(session)
         wake0, swake0, host0 = self_wakeups(), sum(proc_wakeups(p) for p in pids), host_ticks()
-        await asyncio.sleep(duration_s)
+        await (during([os.getpid(), *pids], duration_s) if during is not None else asyncio.sleep(duration_s))
         host1 = host_ticks()
         wall = time.monotonic() - wall0
         cpu_master_s = time.process_time() - cpu0

@@ -30,14 +30,19 @@ A floor whose own missed rate is above the targets' margin cannot carry the load
 
 from __future__ import annotations
 
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 from mlink_sim.metrics import LatencyHistogram
 
-__all__ = ["ExchangeFigures", "TURN_S", "Window", "exchange_figures", "steal_share", "turns"]
+__all__ = ["During", "ExchangeFigures", "TURN_S", "Window", "exchange_figures", "steal_share", "turns"]
 
 TURN_S = 10.0  #: the longest turn of one side of a cell before the other sides take theirs
+
+#: What a side's window awaits instead of its plain sleep: ``during(pids, duration_s)``, lasting *duration_s*, with
+#: the process ids of the side (the master or the floor's client first); ``scripts/bench_recovery.py`` stops them.
+During = Callable[[list[int], float], Awaitable[None]]
 
 
 def turns(duration_s: float) -> list[float]:

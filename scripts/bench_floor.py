@@ -63,7 +63,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 
-from bench_figures import Window  # noqa: E402
+from bench_figures import During, Window  # noqa: E402
 
 from mlink_sim.aio import mmsg, realtime  # noqa: E402
 from mlink_sim.aio.preread import PreRead  # noqa: E402
@@ -268,7 +268,7 @@ def floor_from(window: Window, batched: bool, stations: int, shared: bool) -> Fl
 
 async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: float, batched: bool,
                        catch_up_ns: int = 100_000_000, shared: bool = False, work: Work | None = None,
-                       cpus: tuple[set[int], set[int]] | None = None) -> Window:
+                       cpus: tuple[set[int], set[int]] | None = None, during: During | None = None) -> Window:
     """The floor of *stations* stations of frame size *size* at *cycle_ns*, measured for *duration_s* after a
     0.5 s warm-up; the server runs in a subprocess of this script. *catch_up_ns*: the clock's host-stall policy,
     as the network's (default: "absorb" up to 100 ms, the default of ``[network] stall_bound``); an answer is
@@ -277,7 +277,9 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
     batched client then reads offloaded bursts as one buffer, as the master does. *work*: each side keeps its CPU
     busy as long as the cores would take (:class:`Work`), with none of their work. *cpus*: ``(client CPUs, server
     CPUs)``: both sides ask for what ``mlink-sim up --realtime`` asks for its master and its workers (SCHED_FIFO
-    at their priorities, locked memory, a wake-up latency of 0 µs, those CPUs; ``bench.py --realtime``)."""
+    at their priorities, locked memory, a wake-up latency of 0 µs, those CPUs; ``bench.py --realtime``).
+    *during(pids, duration_s)*, if given, is awaited instead of the window's sleep (it must last *duration_s*):
+    the client's process id, then the server's (``scripts/bench_recovery.py`` stops them)."""
     work = work or Work()
     proc = subprocess.Popen([sys.executable, __file__, "--serve", str(stations)] + ([] if batched else ["--plain"])
                             + (["--shared"] if shared else [])
@@ -393,7 +395,7 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
         counts.update(missed=0, missing=0, sent=len(pending), cycles=0)  # in flight: as the master's reset_metrics
         wall0, cpu0, scpu0, spun0 = time.monotonic(), _self_cpu_s(), proc_cpu_s(proc.pid), timer.spun_ns
         wake0, swake0, host0 = self_wakeups(), proc_wakeups(proc.pid), host_ticks()
-        await asyncio.sleep(duration_s)
+        await (during([os.getpid(), proc.pid], duration_s) if during is not None else asyncio.sleep(duration_s))
         host1 = host_ticks()
         wall = time.monotonic() - wall0
         cpu, scpu = _self_cpu_s() - cpu0, proc_cpu_s(proc.pid) - scpu0

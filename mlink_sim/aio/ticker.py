@@ -63,6 +63,20 @@ _ERRORS_LOGGED_IN_FULL = 10       # then only when the error count is a power of
 _timerfd_ok: bool | None = None
 
 
+def learn_wake_error(q: int, error_ns: int, cap_ns: int) -> int:
+    """The adaptive spin's estimate of the wake-up source's 99th-percentile error, *q*, after one wake-up *error_ns*
+    late (from the armed target): up by ``_Q_UP_NS`` when above it, down by ``_Q_DOWN_NS`` when not (equilibrium at
+    1 % above), never beyond *cap_ns* (an overload leaves no huge estimate behind). An error beyond *cap_ns* leaves
+    it as it is: that is a stall of the host or of this loop, not the source's error, and no spin up to the cap
+    could have covered it; counted, a host that stalls twice a second drives the spin to its cap (docs/timing.md,
+    "What the spin learns from")."""
+    if error_ns <= q:
+        return q - _Q_DOWN_NS if q > _Q_DOWN_NS else q
+    if error_ns <= cap_ns and q < cap_ns:
+        return q + _Q_UP_NS
+    return q
+
+
 def available_strategies() -> list[str]:
     """Strategies usable on this machine (``"auto"`` is always accepted as well)."""
     global _timerfd_ok
@@ -310,13 +324,7 @@ class CycleTimer:
             self._rearm_early(d - self._spin, now)
             return
         if self._adaptive:
-            q = self._q
-            if now - self._target > q:
-                if q < self._spin_max:  # bounded, so a long overload does not leave a huge estimate behind
-                    q += _Q_UP_NS
-            elif q > _Q_DOWN_NS:
-                q -= _Q_DOWN_NS
-            self._q = q
+            self._q = q = learn_wake_error(self._q, now - self._target, self._spin_max)
             self._spin = self._clamp_spin(q + _SPIN_MARGIN_NS)
         idle = self.idle
         spin_from = now

@@ -15,6 +15,7 @@ import pytest
 from structlog.testing import capture_logs
 
 from mlink_sim.aio import STRATEGIES, CycleTimer, available_strategies
+from mlink_sim.aio.ticker import learn_wake_error
 
 try:
     import uvloop
@@ -239,6 +240,21 @@ def test_spin_settings():
     assert CycleTimer(MS, lambda *a: None, strategy="thread+spin", spin_ns=0).spin_ns == 0
     # an adaptive spin never exceeds its cap (default half a period for timerfd/thread)
     assert CycleTimer(100_000, lambda *a: None, strategy="thread+spin").spin_ns <= 50_000
+
+
+def test_the_adaptive_spin_learns_the_sources_error_not_the_stalls():
+    """docs/timing.md, "What the spin learns from": a host that stalls twice a second for 3 ms, each stall followed
+    by a few wake-ups late by the catch-up, must not drive the spin to its cap (half a period) as it did."""
+    cap = 500_000
+    q = 60_000  # timerfd's starting point
+    assert learn_wake_error(q, 61_000, cap) > q  # above the estimate: up
+    assert learn_wake_error(q, 59_000, cap) < q  # within: down
+    assert learn_wake_error(q, 3 * MS, cap) == q  # beyond the cap, a stall: not the source's error
+    for k in range(20_000):  # 20 s at 1 ms: the source's error is 20-40 µs; every 500 cycles a 3 ms stall, and the
+        phase = k % 500      # catch-up after it makes the next 7 wake-ups late too, each less (counted, it goes to the cap)
+        error = 3 * MS - phase * 300_000 if phase < 8 else 20_000 + (k * 7919) % 20_000
+        q = learn_wake_error(q, error, cap)
+    assert 20_000 <= q <= 45_000  # it follows the source's error, whatever the stalls
 
 
 @pytest.mark.parametrize("kwargs", [

@@ -1,0 +1,298 @@
+#!/usr/bin/env python3
+"""Recovery from host stalls: the simulator against its floor, both stopped by the same injected stalls.
+
+On a small shared machine the 1 ms cells of issue 21 miss more than their floor mostly in bursts: a host stall of
+a few ms (a kernel thread, the hypervisor) makes every answer of the cycles it covers late, and the simulator then
+takes longer than the floor to get back to answering within a cycle (docs/performance.md, "What bounds the 1 ms
+cells"). This script measures that recovery on purpose instead of waiting for the host to stall.
+
+For one cell (``--link``, ``--stations``, ``--cycle``) it measures, in turns of ``--duration`` each:
+
+* the simulator (a network as ``scripts/bench.py`` brings it up: the master in this process, the slave workers),
+  once undisturbed and once with stalls injected;
+* its floor (``scripts/bench_floor.py``: one server process for all the stations, a client on the same
+  ``CycleTimer``, the simulator's system calls), the same two ways.
+
+A stall is ``SIGSTOP`` of the chosen processes for ``--stall``, then ``SIGCONT``, every ``--every``, made by a helper
+process, ``scripts/stall_inject.py`` (standard library only, so that starting it costs next to no CPU; SCHED_FIFO
+where granted, so that its timing does not depend on what it stops). ``--who`` chooses what stops: ``master`` (the master, or the floor's client), ``workers`` (the slave
+workers, or the floor's server) or ``both``. The helper continues whatever it stopped on every way out (its end, a
+SIGTERM, its parent's death) and reports the stalls it made, measured.
+
+The figure per side, from the missed exchanges of the two windows (``bench_figures``: due but not answered within
+a cycle): **cycles missed per stall** = (missed with stalls − missed without, scaled to the same number of
+exchanges due) ÷ stations ÷ stalls made. Both sides stamp a command when it is sent, so what a stall costs by
+itself depends on what it stops: stopping the server alone makes late the answers of the cycles it covers (about
+stall ÷ cycle cycles); stopping the client as well delays the commands too, and a floor then loses next to nothing.
+Whatever the simulator loses beyond its floor is its recovery: the last line gives the difference and the ratio.
+
+    scripts/bench_recovery.py                                     # 62 ML-III @ 1 ms, 3 ms stalls of both, 10 s turns
+    scripts/bench_recovery.py --who workers --stall 5ms --every 250ms
+    scripts/bench_recovery.py --stations 30 --link ML2 --rounds 3 --json recovery.json
+    flock -x /tmp/mlink-cpu.lock .venv/bin/python scripts/bench_recovery.py …   # as every timing on a shared machine
+
+Loops are bounded by ``--duration`` × ``--rounds``; traffic stays on loopback. Exit status: 0 with the figures
+(a benchmark reports, it does not gate), 2 for bad options or a window that could not be measured (the message
+says why), 130/143 on Ctrl-C/SIGTERM (nothing written; every stopped process continued).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import platform
+import signal
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "scripts"))
+
+import bench  # noqa: E402
+from bench_figures import During, Window  # noqa: E402
+from bench_floor import floor_window  # noqa: E402
+from stall_inject import signal_all  # noqa: E402
+
+from mlink_sim._files import write_atomically  # noqa: E402
+from mlink_sim.aio import mmsg  # noqa: E402
+from mlink_sim.aio.udp import new_event_loop  # noqa: E402
+from mlink_sim.cli.logs import configure_logging  # noqa: E402
+from mlink_sim.config import format_ns, load_config, parse_duration_ns  # noqa: E402
+
+__all__ = ["Recovery", "recovery", "stalled_pids"]
+
+WHO = ("both", "master", "workers")
+
+
+# ----------------------------------------------------------------------------------------------- the injector
+def stalled_pids(who: str, pids: list[int]) -> list[int]:
+    """The processes of a side that *who* stops; *pids*: the master (or the floor's client) first, then the workers
+    (or the floor's server)."""
+    return {"both": pids, "master": pids[:1], "workers": pids[1:]}[who]
+
+
+def injecting(who: str, stall_ns: int, every_ns: int, reports: list[dict[str, Any]]) -> During:
+    """A window's ``during``: ``scripts/stall_inject.py`` stops the side's processes as *who* says, from now until
+    the window's end; its report goes to *reports*. Cancelled, it terminates the helper, which continues them."""
+    async def during(pids: list[int], duration_s: float) -> None:
+        chosen = stalled_pids(who, pids)
+        start = time.monotonic_ns()
+        proc = await asyncio.create_subprocess_exec(
+            sys.executable, str(ROOT / "scripts" / "stall_inject.py"), str(stall_ns), str(every_ns), str(start),
+            str(start + round(duration_s * 1e9)), *map(str, chosen), stdout=asyncio.subprocess.PIPE)
+        try:
+            out, _ = await proc.communicate()
+        finally:
+            if proc.returncode is None:
+                proc.terminate()
+                await proc.wait()
+            signal_all(chosen, signal.SIGCONT)
+        if proc.returncode != 0:
+            raise RuntimeError(f"scripts/stall_inject.py exited {proc.returncode}")
+        reports.append(json.loads(out))
+    return during
+
+
+# ----------------------------------------------------------------------------------------------- the figures
+@dataclass
+class Recovery:
+    """One side's two windows and the stalls made in the second."""
+
+    side: str                       #: simulator / floor
+    stations: int
+    cycle_ns: int
+    calm: Window | None = None      #: undisturbed
+    stalled: Window | None = None   #: with stalls injected
+    stalls_ns: list[int] = field(default_factory=list)  #: the stalls made, measured
+
+    def add(self, stalled: bool, w: Window) -> None:
+        mine = self.stalled if stalled else self.calm
+        if mine is None:
+            setattr(self, "stalled" if stalled else "calm", w)
+        else:
+            mine.add(w)
+
+    def figures(self) -> dict[str, Any]:
+        assert self.calm is not None and self.stalled is not None
+        return recovery(self.calm, self.stalled, self.stalls_ns, self.stations)
+
+
+def _missed(w: Window) -> tuple[int, int]:
+    fig = w.figures()
+    return fig.due - fig.on_time, fig.due
+
+
+def recovery(calm: Window, stalled: Window, stalls_ns: list[int], stations: int) -> dict[str, Any]:
+    """The figures of one side (module docstring): the missed rates of *calm* and *stalled*, and the cycles missed
+    per stall beyond the calm rate."""
+    missed_calm, due_calm = _missed(calm)
+    missed_stalled, due_stalled = _missed(stalled)
+    rate_calm = missed_calm / due_calm if due_calm else 0.0
+    excess = missed_stalled - rate_calm * due_stalled
+    n = len(stalls_ns)
+    per_stall = excess / stations / n if n and stations else 0.0
+    stall_ns = statistics.median(stalls_ns) if stalls_ns else 0
+    return {"stalls": n, "stall_median_ns": int(stall_ns), "stall_max_ns": max(stalls_ns, default=0),
+            "missed_rate_calm": rate_calm, "missed_rate_stalled": missed_stalled / due_stalled if due_stalled else 0.0,
+            "cycles_per_stall": round(per_stall, 2)}
+
+
+def table(sides: list[Recovery]) -> str:
+    rows = [f"{'side':<10} {'stalls':>6} {'stall p50/max':>15} {'missed calm':>12} {'missed stalled':>15} "
+            f"{'cycles missed per stall':>24}"]
+    figs = {}
+    for r in sides:
+        f = figs[r.side] = r.figures()
+        rows.append(f"{r.side:<10} {f['stalls']:>6} "
+                    f"{format_ns(f['stall_median_ns']) + ' / ' + format_ns(f['stall_max_ns']):>15} "
+                    f"{f['missed_rate_calm'] * 100:>11.2f}% {f['missed_rate_stalled'] * 100:>14.2f}% "
+                    f"{f['cycles_per_stall']:>24.2f}")
+    for side, f in figs.items():
+        if f["missed_rate_calm"] > f["missed_rate_stalled"]:
+            rows.append(f"! {side}: it missed more undisturbed ({f['missed_rate_calm'] * 100:.2f} %) than with the stalls: "
+                        "something else disturbed its calm turns; more --rounds tell it apart")
+    sim, floor = figs.get("simulator"), figs.get("floor")
+    if sim and floor:
+        extra = sim["cycles_per_stall"] - floor["cycles_per_stall"]
+        ratio = f" ({sim['cycles_per_stall'] / floor['cycles_per_stall']:.1f}×)" if floor["cycles_per_stall"] > 0 else ""
+        rows.append(f"the simulator's recovery: {extra:+.2f} cycles missed per stall beyond its floor's{ratio}")
+    return "\n".join(rows)
+
+
+# ----------------------------------------------------------------------------------------------- the run
+@dataclass(frozen=True)
+class Plan:
+    link: str
+    stations: int
+    cycle_ns: int
+    stall_ns: int
+    every_ns: int
+    duration_s: float
+    rounds: int
+    who: str
+    workers: int
+
+
+def _plan(args: argparse.Namespace) -> Plan:
+    """The run *args* ask for; ValueError with the reason for a bad option."""
+    link = args.link.strip().upper()
+    if link not in bench.LINKS:
+        raise ValueError("--link takes ML2 or ML3")
+    cycle = parse_duration_ns(args.cycle, default_unit="us")
+    stall, every = parse_duration_ns(args.stall, default_unit="ms"), parse_duration_ns(args.every, default_unit="ms")
+    duration = parse_duration_ns(args.duration, default_unit="s")
+    if args.stations < 1 or args.rounds < 1 or args.workers < 1:
+        raise ValueError("--stations, --rounds and --workers are at least 1")
+    if not 0 < stall < every:
+        raise ValueError("--stall must be > 0 and shorter than --every")
+    if duration < 2 * every:
+        raise ValueError("--duration must hold at least two --every periods")
+    reason = bench.applicable(link, args.stations, cycle)
+    if reason:
+        raise ValueError(reason)
+    return Plan(link, args.stations, cycle, stall, every, duration / 1e9, args.rounds, args.who, args.workers)
+
+
+def _order(round_: int) -> Iterator[tuple[str, bool]]:
+    """Each round's turns; every other round the other way round, so that neither way always goes first."""
+    turns = [("simulator", False), ("simulator", True), ("floor", False), ("floor", True)]
+    return iter(turns if round_ % 2 == 0 else turns[::-1])
+
+
+def run(loop: asyncio.AbstractEventLoop, tmp: Path, plan: Plan) -> list[Recovery]:
+    path = tmp / "network.toml"
+    size = bench.write_config(path, plan.link, plan.stations, plan.cycle_ns)
+    absorb_ns = load_config(path).network.absorb_ns
+    workers = min(plan.workers, plan.stations)
+    io = "batched" if mmsg.supported() else "plain"
+    sides = {s: Recovery(s, plan.stations, plan.cycle_ns) for s in ("simulator", "floor")}
+    for round_ in range(plan.rounds):
+        for side, stalled in _order(round_):
+            reports: list[dict[str, Any]] = []
+            during = injecting(plan.who, plan.stall_ns, plan.every_ns, reports) if stalled else None
+            if side == "simulator":
+                cell = bench.Cell(plan.link, plan.stations, plan.cycle_ns, workers, plan.duration_s, io,
+                                  layout="shared" if workers < plan.stations else "station")
+                w = loop.run_until_complete(bench.measure_network(path, workers, plan.duration_s, cell,
+                                                                  during=during))
+                if cell.notes:
+                    raise RuntimeError("the network: " + "; ".join(cell.notes))
+            else:
+                w = loop.run_until_complete(floor_window(plan.stations, size, plan.cycle_ns, plan.duration_s,
+                                                         io == "batched", absorb_ns, shared=workers < plan.stations,
+                                                         during=during))
+            sides[side].add(stalled, w)
+            for report in reports:
+                sides[side].stalls_ns += report["stalls_ns"]
+            fig = w.figures()
+            print(f"round {round_ + 1} {side:<9} {'stalled' if stalled else 'calm':<7} missed "
+                  f"{fig.missed_rate * 100:.2f}%" + (f", {len(reports[0]['stalls_ns'])} stalls "
+                                                     f"({reports[0]['scheduling']})" if reports else ""),
+                  file=sys.stderr, flush=True)
+    return list(sides.values())
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--link", default="ML3", help="ML2 or ML3 (default ML3)")
+    ap.add_argument("--stations", type=int, default=62, help="stations on the line (default 62)")
+    ap.add_argument("--cycle", default="1ms", help="transmission cycle (default 1ms)")
+    ap.add_argument("--stall", default="3ms", help="how long each stall stops the processes (default 3ms)")
+    ap.add_argument("--every", default="500ms", help="one stall per this period (default 500ms)")
+    ap.add_argument("--who", choices=WHO, default="both",
+                    help="what the stalls stop: the master (the floor's client), the workers (its server) or both")
+    ap.add_argument("--duration", default="10s", help="each turn's measuring time (default 10s)")
+    ap.add_argument("--rounds", type=int, default=1, help="rounds of the four turns (default 1)")
+    ap.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 1) - 1),
+                    help="slave worker processes (default: one per CPU but one, as bench.py)")
+    ap.add_argument("--json", type=Path, default=None, help="also write the figures here")
+    args = ap.parse_args()
+    try:
+        plan = _plan(args)
+    except ValueError as exc:
+        print(f"bench_recovery.py: {exc}", file=sys.stderr)
+        return 2
+    configure_logging(level="error")
+    loop = new_event_loop()
+    previous = signal.signal(signal.SIGTERM, bench._terminated)
+    try:
+        with tempfile.TemporaryDirectory(prefix="mlink-recovery-") as tmp:
+            try:
+                sides = run(loop, Path(tmp), plan)
+            except KeyboardInterrupt:
+                bench._stop_what_runs(loop)
+                print(f"bench_recovery.py: {'terminated' if bench._SIGTERM_SEEN else 'interrupted'}, nothing written",
+                      file=sys.stderr)
+                return 143 if bench._SIGTERM_SEEN else 130
+            except (RuntimeError, OSError, ValueError) as exc:
+                print(f"bench_recovery.py: a window could not be measured: {exc}", file=sys.stderr)
+                return 2
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        loop.close()
+    print(f"{plan.link} {plan.stations} stations @ {format_ns(plan.cycle_ns)}, stalls of {format_ns(plan.stall_ns)} "
+          f"every {format_ns(plan.every_ns)} stopping {plan.who}, {plan.rounds} × {plan.duration_s:g} s turns")
+    print(table(sides))
+    if args.json is not None:
+        doc = {"host": {"node": platform.node(), "cpus": os.cpu_count(), "kernel": platform.release(),
+                        "load_avg": os.getloadavg()},
+               "plan": {**plan.__dict__},
+               "sides": {r.side: {**r.figures(), "stalls_ns": r.stalls_ns,
+                                  "calm": r.calm.summary() if r.calm else None,
+                                  "stalled": r.stalled.summary() if r.stalled else None} for r in sides}}
+        write_atomically(args.json, json.dumps(doc, indent=1))
+        print(f"wrote {args.json}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
