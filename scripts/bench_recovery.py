@@ -33,7 +33,8 @@ Whatever the simulator loses beyond its floor is its recovery: the last line giv
 
 Loops are bounded by ``--duration`` × ``--rounds``; traffic stays on loopback. Exit status: 0 with the figures
 (a benchmark reports, it does not gate), 2 for bad options or a window that could not be measured (the message
-says why), 130/143 on Ctrl-C/SIGTERM (nothing written; every stopped process continued).
+says why), 1 when ``--json`` could not be written (the table is printed first), 130/143 on Ctrl-C/SIGTERM
+(nothing written; every stopped process continued).
 """
 
 from __future__ import annotations
@@ -182,14 +183,20 @@ class Plan:
     workers: int
 
 
+def _duration(option: str, text: str, unit: str) -> int:
+    try:
+        return parse_duration_ns(text, default_unit=unit)
+    except ValueError as exc:
+        raise ValueError(f"{option}: {exc}") from None
+
+
 def _plan(args: argparse.Namespace) -> Plan:
     """The run *args* ask for; ValueError with the reason for a bad option."""
     link = args.link.strip().upper()
     if link not in bench.LINKS:
         raise ValueError("--link takes ML2 or ML3")
-    cycle = parse_duration_ns(args.cycle, default_unit="us")
-    stall, every = parse_duration_ns(args.stall, default_unit="ms"), parse_duration_ns(args.every, default_unit="ms")
-    duration = parse_duration_ns(args.duration, default_unit="s")
+    cycle, stall = _duration("--cycle", args.cycle, "us"), _duration("--stall", args.stall, "ms")
+    every, duration = _duration("--every", args.every, "ms"), _duration("--duration", args.duration, "s")
     if args.stations < 1 or args.rounds < 1 or args.workers < 1:
         raise ValueError("--stations, --rounds and --workers are at least 1")
     if not 0 < stall < every:
@@ -258,6 +265,8 @@ def main() -> int:
     args = ap.parse_args()
     try:
         plan = _plan(args)
+        if args.json is not None and not args.json.resolve().parent.is_dir():
+            raise ValueError(f"--json: no directory {args.json.resolve().parent}")
     except ValueError as exc:
         print(f"bench_recovery.py: {exc}", file=sys.stderr)
         return 2
@@ -289,7 +298,12 @@ def main() -> int:
                "sides": {r.side: {**r.figures(), "stalls_ns": r.stalls_ns,
                                   "calm": r.calm.summary() if r.calm else None,
                                   "stalled": r.stalled.summary() if r.stalled else None} for r in sides}}
-        write_atomically(args.json, json.dumps(doc, indent=1))
+        try:
+            write_atomically(args.json, json.dumps(doc, indent=1))
+        except OSError as exc:
+            print(f"bench_recovery.py: could not write {args.json}: {exc} (the table above is the run's)",
+                  file=sys.stderr)
+            return 1
         print(f"wrote {args.json}", file=sys.stderr)
     return 0
 

@@ -143,6 +143,8 @@ def test_the_helper_refuses_bad_arguments(args) -> None:
     (["--duration", "600ms"], "two --every periods"),
     (["--link", "ML2", "--stations", "31"], "at most 30 stations"),
     (["--link", "ML9"], "ML2 or ML3"),
+    (["--stall", "soon"], "--stall"),
+    (["--json", "/nonexistent-dir/r.json"], "--json: no directory /nonexistent-dir"),
 ])
 def test_bad_options_exit_2_with_the_reason(option, reason) -> None:
     out = subprocess.run([sys.executable, str(ROOT / "scripts" / "bench_recovery.py"), *option],
