@@ -71,16 +71,17 @@ import sys
 import tempfile
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 
 import bench_targets  # noqa: E402
-from bench_figures import During, Window, turns  # noqa: E402
+from bench_figures import During, Window, add_window, turns  # noqa: E402
 from bench_tables import MD_HEAD, chart, markdown, table  # noqa: E402,F401  (MD_HEAD: bench.MD_HEAD, as before)
 from bench_floor import floor_from, floor_window, host_ticks, proc_wakeups, self_wakeups, ticks_between  # noqa: E402
 
@@ -91,6 +92,8 @@ from mlink_sim.aio.udp import new_event_loop  # noqa: E402
 from mlink_sim.cli.logs import configure_logging  # noqa: E402
 from mlink_sim.config import format_ns, load_config, parse_duration_ns  # noqa: E402
 from mlink_sim.config.units import parse_arrival_poll  # noqa: E402
+
+T = TypeVar("T")
 
 STATIONS = (1, 8, 9, 15, 30, 62)  # the issue's sweep, plus 8 for the 250 µs × 8 stations target
 CYCLES = ("250us", "500us", "1ms", "2ms")
@@ -312,7 +315,7 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
             try:
                 if cpus is not None:  # the floor's client took the master's CPU: the session plans from them all
                     os.sched_setaffinity(0, cpus[0] | cpus[1])
-                _add(ours, i, loop.run_until_complete(measure_network(path, cell.workers, turn, cell,
+                add_window(ours, i, loop.run_until_complete(measure_network(path, cell.workers, turn, cell,
                                                                       rt=cpus is not None)))
             except Exception as exc:  # noqa: BLE001 - one failed cell must not end the sweep
                 cell.status = f"failed: {type(exc).__name__}: {exc}"
@@ -320,7 +323,7 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
             if batched in failed:
                 continue
             try:
-                _add(floors, batched, loop.run_until_complete(
+                add_window(floors, batched, loop.run_until_complete(
                     floor_window(n, size, cycle, turn, batched, absorb_ns, shared=shared, cpus=cpus)))
             except Exception as exc:  # noqa: BLE001 - the cell keeps its own figures
                 failed.add(batched)
@@ -347,13 +350,6 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
     for cell in cells:
         cell.floor, cell.floor_batched = result.get(False), result.get(True)
     return cells
-
-
-def _add(windows: dict[Any, Window], key: Any, w: Window) -> None:
-    if key in windows:
-        windows[key].add(w)
-    else:
-        windows[key] = w
 
 
 def render(paths: list[Path], as_markdown: bool, png: Path | None) -> int:
@@ -425,6 +421,34 @@ def _stop_what_runs(loop: asyncio.AbstractEventLoop) -> None:
         loop.run_until_complete(asyncio.gather(*tasks, return_exceptions=True))
 
 
+class Interrupted(Exception):
+    """Ctrl-C or SIGTERM ended a :func:`measuring` run; *code* is the exit status (130 / 143)."""
+
+    def __init__(self, code: int) -> None:
+        super().__init__(code)
+        self.code = code
+
+
+def measuring(prog: str, work: Callable[[asyncio.AbstractEventLoop, Path], T]) -> T:
+    """``work(loop, tmp)`` on a fresh event loop with a temporary directory, logging errors only, SIGTERM raised as
+    an interrupt meanwhile. Ctrl-C or SIGTERM: what the loop ran is stopped (before the directory goes), *prog*
+    says "interrupted" or "terminated, nothing written", and :class:`Interrupted` carries 130 or 143 out."""
+    configure_logging(level="error")
+    loop = new_event_loop()
+    previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        with tempfile.TemporaryDirectory(prefix="mlink-bench-") as tmp:
+            try:
+                return work(loop, Path(tmp))
+            except KeyboardInterrupt:
+                _stop_what_runs(loop)
+                print(f"{prog}: {'terminated' if _SIGTERM_SEEN else 'interrupted'}, nothing written", file=sys.stderr)
+                raise Interrupted(143 if _SIGTERM_SEEN else 130) from None
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        loop.close()
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--stations", default=",".join(map(str, STATIONS)), help="comma-separated station counts")
@@ -479,23 +503,12 @@ def main() -> int:
         if "refused" in rt_granted:
             print(f"bench.py: --realtime: {rt_granted}", file=sys.stderr)
             return 2
-    configure_logging(level="error")
-    loop = new_event_loop()
-    previous = signal.signal(signal.SIGTERM, _terminated)
     try:
-        with tempfile.TemporaryDirectory(prefix="mlink-bench-") as tmp:
-            try:
-                cells = [c for link, n, cycle, seconds in plan
-                         for c in run_cell(loop, Path(tmp), link, n, cycle, args.workers, seconds, args.io,
-                                           args.arrival_poll, cpus)]
-            except KeyboardInterrupt:
-                _stop_what_runs(loop)  # before its configuration's directory goes
-                print(f"bench.py: {'terminated' if _SIGTERM_SEEN else 'interrupted'}, nothing written",
-                      file=sys.stderr)
-                return 143 if _SIGTERM_SEEN else 130
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-        loop.close()
+        cells = measuring("bench.py", lambda loop, tmp: [
+            c for link, n, cycle, seconds in plan
+            for c in run_cell(loop, tmp, link, n, cycle, args.workers, seconds, args.io, args.arrival_poll, cpus)])
+    except Interrupted as exc:
+        return exc.code
     if pm_qos is not None:
         print(f"--pm-qos: {pm_qos}, held for the floors and the simulator alike")
     if rt_granted is not None:

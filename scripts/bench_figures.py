@@ -36,7 +36,7 @@ from typing import Any
 
 from mlink_sim.metrics import LatencyHistogram
 
-__all__ = ["During", "ExchangeFigures", "TURN_S", "Window", "exchange_figures", "steal_share", "turns"]
+__all__ = ["During", "ExchangeFigures", "TURN_S", "Window", "add_window", "exchange_figures", "steal_share", "turns"]
 
 TURN_S = 10.0  #: the longest turn of one side of a cell before the other sides take theirs
 
@@ -146,6 +146,14 @@ class Window:
     def steal_pct(self) -> float:
         """The hypervisor's steal over the windows, % of all CPUs' time (:func:`steal_share`)."""
         return steal_share(self.ticks)
+
+
+def add_window(windows: dict[Any, Window], key: Any, w: Window) -> None:
+    """*w* added to the window of *key* in *windows* (a later turn of that side), or kept as its first."""
+    if key in windows:
+        windows[key].add(w)
+    else:
+        windows[key] = w
 
 
 def steal_share(ticks: tuple[int, ...]) -> float:

@@ -47,10 +47,8 @@ import platform
 import signal
 import statistics
 import sys
-import tempfile
 import time
-from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -59,14 +57,12 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 
 import bench  # noqa: E402
-from bench_figures import During, Window  # noqa: E402
+from bench_figures import During, Window, add_window  # noqa: E402
 from bench_floor import floor_window  # noqa: E402
 from stall_inject import signal_all  # noqa: E402
 
 from mlink_sim._files import write_atomically  # noqa: E402
 from mlink_sim.aio import mmsg  # noqa: E402
-from mlink_sim.aio.udp import new_event_loop  # noqa: E402
-from mlink_sim.cli.logs import configure_logging  # noqa: E402
 from mlink_sim.config import format_ns, load_config, parse_duration_ns  # noqa: E402
 
 __all__ = ["Recovery", "recovery", "stalled_pids"]
@@ -96,7 +92,7 @@ def injecting(who: str, stall_ns: int, every_ns: int, reports: list[dict[str, An
             if proc.returncode is None:
                 proc.terminate()
                 await proc.wait()
-            signal_all(chosen, signal.SIGCONT)
+            signal_all(chosen, signal.SIGCONT)  # the helper continues them itself; this covers one killed outright
         if proc.returncode != 0:
             raise RuntimeError(f"scripts/stall_inject.py exited {proc.returncode}")
         reports.append(json.loads(out))
@@ -106,45 +102,27 @@ def injecting(who: str, stall_ns: int, every_ns: int, reports: list[dict[str, An
 # ----------------------------------------------------------------------------------------------- the figures
 @dataclass
 class Recovery:
-    """One side's two windows and the stalls made in the second."""
+    """One side's windows, undisturbed (``False``) and stalled (``True``), each its turns added up, and the stalls
+    made in the stalled ones."""
 
     side: str                       #: simulator / floor
     stations: int
-    cycle_ns: int
-    calm: Window | None = None      #: undisturbed
-    stalled: Window | None = None   #: with stalls injected
+    windows: dict[bool, Window] = field(default_factory=dict)
     stalls_ns: list[int] = field(default_factory=list)  #: the stalls made, measured
 
-    def add(self, stalled: bool, w: Window) -> None:
-        mine = self.stalled if stalled else self.calm
-        if mine is None:
-            setattr(self, "stalled" if stalled else "calm", w)
-        else:
-            mine.add(w)
-
     def figures(self) -> dict[str, Any]:
-        assert self.calm is not None and self.stalled is not None
-        return recovery(self.calm, self.stalled, self.stalls_ns, self.stations)
-
-
-def _missed(w: Window) -> tuple[int, int]:
-    fig = w.figures()
-    return fig.due - fig.on_time, fig.due
+        return recovery(self.windows[False], self.windows[True], self.stalls_ns, self.stations)
 
 
 def recovery(calm: Window, stalled: Window, stalls_ns: list[int], stations: int) -> dict[str, Any]:
     """The figures of one side (module docstring): the missed rates of *calm* and *stalled*, and the cycles missed
     per stall beyond the calm rate."""
-    missed_calm, due_calm = _missed(calm)
-    missed_stalled, due_stalled = _missed(stalled)
-    rate_calm = missed_calm / due_calm if due_calm else 0.0
-    excess = missed_stalled - rate_calm * due_stalled
+    fc, fs = calm.figures(), stalled.figures()
     n = len(stalls_ns)
-    per_stall = excess / stations / n if n and stations else 0.0
-    stall_ns = statistics.median(stalls_ns) if stalls_ns else 0
-    return {"stalls": n, "stall_median_ns": int(stall_ns), "stall_max_ns": max(stalls_ns, default=0),
-            "missed_rate_calm": rate_calm, "missed_rate_stalled": missed_stalled / due_stalled if due_stalled else 0.0,
-            "cycles_per_stall": round(per_stall, 2)}
+    per_stall = (fs.missed_rate - fc.missed_rate) * fs.due / stations / n if n and stations else 0.0
+    return {"stalls": n, "stall_median_ns": int(statistics.median(stalls_ns)) if n else 0,
+            "stall_max_ns": max(stalls_ns, default=0), "missed_rate_calm": fc.missed_rate,
+            "missed_rate_stalled": fs.missed_rate, "cycles_per_stall": round(per_stall, 2)}
 
 
 def table(sides: list[Recovery]) -> str:
@@ -209,10 +187,12 @@ def _plan(args: argparse.Namespace) -> Plan:
     return Plan(link, args.stations, cycle, stall, every, duration / 1e9, args.rounds, args.who, args.workers)
 
 
-def _order(round_: int) -> Iterator[tuple[str, bool]]:
+_TURNS = [("simulator", False), ("simulator", True), ("floor", False), ("floor", True)]
+
+
+def _order(round_: int) -> list[tuple[str, bool]]:
     """Each round's turns; every other round the other way round, so that neither way always goes first."""
-    turns = [("simulator", False), ("simulator", True), ("floor", False), ("floor", True)]
-    return iter(turns if round_ % 2 == 0 else turns[::-1])
+    return _TURNS if round_ % 2 == 0 else _TURNS[::-1]
 
 
 def run(loop: asyncio.AbstractEventLoop, tmp: Path, plan: Plan) -> list[Recovery]:
@@ -221,7 +201,7 @@ def run(loop: asyncio.AbstractEventLoop, tmp: Path, plan: Plan) -> list[Recovery
     absorb_ns = load_config(path).network.absorb_ns
     workers = min(plan.workers, plan.stations)
     io = "batched" if mmsg.supported() else "plain"
-    sides = {s: Recovery(s, plan.stations, plan.cycle_ns) for s in ("simulator", "floor")}
+    sides = {s: Recovery(s, plan.stations) for s in ("simulator", "floor")}
     for round_ in range(plan.rounds):
         for side, stalled in _order(round_):
             reports: list[dict[str, Any]] = []
@@ -237,7 +217,7 @@ def run(loop: asyncio.AbstractEventLoop, tmp: Path, plan: Plan) -> list[Recovery
                 w = loop.run_until_complete(floor_window(plan.stations, size, plan.cycle_ns, plan.duration_s,
                                                          io == "batched", absorb_ns, shared=workers < plan.stations,
                                                          during=during))
-            sides[side].add(stalled, w)
+            add_window(sides[side].windows, stalled, w)
             for report in reports:
                 sides[side].stalls_ns += report["stalls_ns"]
             fig = w.figures()
@@ -270,34 +250,22 @@ def main() -> int:
     except ValueError as exc:
         print(f"bench_recovery.py: {exc}", file=sys.stderr)
         return 2
-    configure_logging(level="error")
-    loop = new_event_loop()
-    previous = signal.signal(signal.SIGTERM, bench._terminated)
     try:
-        with tempfile.TemporaryDirectory(prefix="mlink-recovery-") as tmp:
-            try:
-                sides = run(loop, Path(tmp), plan)
-            except KeyboardInterrupt:
-                bench._stop_what_runs(loop)
-                print(f"bench_recovery.py: {'terminated' if bench._SIGTERM_SEEN else 'interrupted'}, nothing written",
-                      file=sys.stderr)
-                return 143 if bench._SIGTERM_SEEN else 130
-            except (RuntimeError, OSError, ValueError) as exc:
-                print(f"bench_recovery.py: a window could not be measured: {exc}", file=sys.stderr)
-                return 2
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-        loop.close()
+        sides = bench.measuring("bench_recovery.py", lambda loop, tmp: run(loop, tmp, plan))
+    except bench.Interrupted as exc:
+        return exc.code
+    except (RuntimeError, OSError, ValueError) as exc:
+        print(f"bench_recovery.py: a window could not be measured: {exc}", file=sys.stderr)
+        return 2
     print(f"{plan.link} {plan.stations} stations @ {format_ns(plan.cycle_ns)}, stalls of {format_ns(plan.stall_ns)} "
           f"every {format_ns(plan.every_ns)} stopping {plan.who}, {plan.rounds} × {plan.duration_s:g} s turns")
     print(table(sides))
     if args.json is not None:
         doc = {"host": {"node": platform.node(), "cpus": os.cpu_count(), "kernel": platform.release(),
                         "load_avg": os.getloadavg()},
-               "plan": {**plan.__dict__},
-               "sides": {r.side: {**r.figures(), "stalls_ns": r.stalls_ns,
-                                  "calm": r.calm.summary() if r.calm else None,
-                                  "stalled": r.stalled.summary() if r.stalled else None} for r in sides}}
+               "plan": asdict(plan),
+               "sides": {r.side: {**r.figures(), "stalls_ns": r.stalls_ns, "calm": r.windows[False].summary(),
+                                  "stalled": r.windows[True].summary()} for r in sides}}
         try:
             write_atomically(args.json, json.dumps(doc, indent=1))
         except OSError as exc:

@@ -66,7 +66,8 @@ _timerfd_ok: bool | None = None
 def learn_wake_error(q: int, error_ns: int, cap_ns: int) -> int:
     """The adaptive spin's estimate of the wake-up source's 99th-percentile error, *q*, after one wake-up *error_ns*
     late (from the armed target): up by ``_Q_UP_NS`` when above it, down by ``_Q_DOWN_NS`` when not (equilibrium at
-    1 % above), never beyond *cap_ns* (an overload leaves no huge estimate behind). An error beyond *cap_ns* leaves
+    1 % above); it stops rising at *cap_ns* (an overload leaves no huge estimate behind; the spin itself is clamped
+    to the cap). Called once per wake-up, on the clock's hot path: a few compares. An error beyond *cap_ns* leaves
     it as it is: that is a stall of the host or of this loop, not the source's error, and no spin up to the cap
     could have covered it; counted, a host that stalls twice a second drives the spin to its cap (docs/timing.md,
     "What the spin learns from")."""

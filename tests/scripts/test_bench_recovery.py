@@ -69,25 +69,27 @@ def test_cycles_missed_per_stall_beyond_the_calm_rate(rec) -> None:
     assert (f["stalls"], f["stall_median_ns"], f["stall_max_ns"]) == (5, 3 * MS, 3_100_000)
 
 
+def _side(rec, side: str, calm: list, stalled: list, stalls: int):
+    """A side whose undisturbed and stalled turns are *calm* and *stalled*, added up as a run adds them."""
+    r = rec.Recovery(side, 8)
+    for key, windows in ((False, calm), (True, stalled)):
+        for w in windows:
+            rec.add_window(r.windows, key, w)
+    r.stalls_ns = [3 * MS] * stalls
+    return r
+
+
 def test_the_table_says_what_the_simulator_loses_beyond_its_floor(rec) -> None:
-    sides = []
-    for side, late in (("simulator", 5 * 4), ("floor", 5 * 1)):
-        r = rec.Recovery(side, 8, MS)
-        r.add(False, _window(rec, 1000, 8, late_cycles=0))
-        r.add(True, _window(rec, 1000, 8, late_cycles=late))
-        r.stalls_ns = [3 * MS] * 5
-        sides.append(r)
+    sides = [_side(rec, side, [_window(rec, 1000, 8, late_cycles=0)], [_window(rec, 1000, 8, late_cycles=late)], 5)
+             for side, late in (("simulator", 5 * 4), ("floor", 5 * 1))]
     text = rec.table(sides)
     assert "+3.00 cycles missed per stall beyond its floor's (4.0×)" in text
 
 
 def test_windows_of_one_side_add_up(rec) -> None:
-    r = rec.Recovery("floor", 8, MS)
-    r.add(True, _window(rec, 1000, 8, late_cycles=3))
-    r.add(True, _window(rec, 1000, 8, late_cycles=3))
-    r.add(False, _window(rec, 2000, 8, late_cycles=0))
-    r.stalls_ns = [3 * MS] * 6
-    assert r.stalled is not None and r.stalled.sent == 16000
+    r = _side(rec, "floor", [_window(rec, 2000, 8, late_cycles=0)],
+              [_window(rec, 1000, 8, late_cycles=3), _window(rec, 1000, 8, late_cycles=3)], 6)
+    assert r.windows[True].sent == 16000
     assert r.figures()["cycles_per_stall"] == 1.0
 
 
@@ -153,9 +155,7 @@ def test_bad_options_exit_2_with_the_reason(option, reason) -> None:
 
 
 def test_a_side_that_missed_more_undisturbed_is_flagged(rec) -> None:
-    r = rec.Recovery("floor", 8, MS)
-    r.add(False, _window(rec, 1000, 8, late_cycles=5))  # a host hiccup in the undisturbed turn
-    r.add(True, _window(rec, 1000, 8, late_cycles=2))
-    r.stalls_ns = [3 * MS] * 2
+    r = _side(rec, "floor", [_window(rec, 1000, 8, late_cycles=5)],  # a host hiccup in the undisturbed turn
+              [_window(rec, 1000, 8, late_cycles=2)], 2)
     assert r.figures()["cycles_per_stall"] < 0
     assert "! floor: it missed more undisturbed (0.50 %) than with the stalls" in rec.table([r])
