@@ -21,12 +21,16 @@ Wake-up sources (``strategy``), measured in ``docs/timing.md`` with ``scripts/be
 Invariant at every on-time call: ``deadline_ns <= now_ns < deadline_ns + period_ns``. If whole periods went by
 (a host stall: blocked loop, long callback, a descheduled process), either
 
-* the calls for them are made at once, in order, each with its own (past) deadline and ``skipped = 0``, when
+* the calls for them are made at once, in order, each with its own (past) deadline, ``skipped = 0`` and the time
+  its own call begins as ``now_ns`` (its commands' round trips count from when they go out), when
   the stall is no longer than ``catch_up_ns`` (the host-stall policy ``absorb``, docs/timing.md); or
 * they are not made (``catch_up_ns = 0``, the policy ``strict``, or a longer stall): the next call is for the
   most recent deadline, ``skipped`` says how many were dropped, and the one after is on the next future deadline.
 
-Either way ``on_stall(deadline_ns, now_ns, cycles_behind, absorbed)`` is told once per such wake-up.
+Either way ``on_stall(deadline_ns, now_ns, cycles_behind, absorbed)`` is told once per such wake-up. Between two
+cycles run back to back the clock yields its CPU once (``os.sched_yield``, :func:`~mlink_sim.aio.mmsg.yield_after_send`):
+a cycle's send woke its slaves on this CPU, and without the yield they wait behind the whole catch-up
+(docs/timing.md, "The catch-up yields").
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ from collections.abc import Callable
 
 from .._log import get_logger
 from ._timerfd import TimerFD, make_abs_sleeper, set_thread_timer_slack, timerfd_supported
+from .mmsg import yield_after_send
 
 __all__ = ["CycleTimer", "available_strategies", "STRATEGIES"]
 
@@ -166,6 +171,8 @@ class CycleTimer:
         self._caught_up_total = 0
         self._errors = 0
         self._spun_ns = 0
+        #: called between two cycles of a catch-up (os.sched_yield; None with MLINK_YIELD=0)
+        self._between = yield_after_send()
         # lazy proxy with bound context: resolved per call, so it follows later structlog.configure()
         self._log = get_logger(__name__, strategy=self._strategy, period_ns=period_ns)
         # per-source resources
@@ -348,12 +355,16 @@ class CycleTimer:
                 on_stall(d, now, behind, absorbed)
             if absorbed:  # host-stall policy "absorb": the missed cycles run now, late but in order
                 self._caught_up_total += behind
+                between = self._between
                 for _ in range(behind):
                     self._run(k, d, now, 0)
                     if not self._running:
                         return
                     k += 1
                     d += period
+                    if between is not None:  # the slaves this cycle's send woke run now, not after the catch-up
+                        between()
+                    now = mono()  # each cycle starts when it runs: its commands' round trips count from there
             else:
                 skipped = behind
                 k += skipped

@@ -301,6 +301,70 @@ def test_catch_up_runs_the_cycles_a_stall_delayed_in_order(loop_kind):
 
 
 @pytest.mark.parametrize("loop_kind", LOOPS)
+def test_each_caught_up_cycle_starts_when_it_runs(loop_kind):
+    """A caught-up cycle's now_ns is the time its call begins, not the wake-up's: its commands' round trips count
+    from when they go out (docs/timing.md, "The catch-up yields")."""
+    def work(rec, cycle):
+        _, deadline, now, _ = rec.calls[-1]
+        if len(rec.calls) == 3:
+            time.sleep(4.5 * MS / 1e9)
+        elif now - deadline >= MS:  # a caught-up cycle: takes 0.2 ms, as encoding a full line's commands may
+            end = time.monotonic_ns() + MS // 5
+            while time.monotonic_ns() < end:
+                pass
+
+    async def main():
+        rec = Recorder(want=12, action=work)
+        timer = CycleTimer(MS, rec, strategy="auto", start_ns=time.monotonic_ns() + 2 * MS, catch_up_ns=50 * MS)
+        timer.start()
+        await rec.done.wait()
+        timer.stop()
+        return rec.calls
+
+    calls = run_on(loop_kind, main)
+    caught = [i for i, (_, deadline, now, _) in enumerate(calls) if now - deadline >= MS]
+    assert len(caught) >= 3
+    for i in caught:  # the call after a caught-up one began after that one's 0.2 ms
+        assert calls[i + 1][2] - calls[i][2] >= MS // 5
+        assert calls[i + 1][1] == calls[i][1] + MS and calls[i + 1][1] <= calls[i + 1][2]
+
+
+@pytest.mark.parametrize("switch", ["default", "MLINK_YIELD=0"])
+def test_the_catch_up_yields_the_cpu_between_its_cycles_and_only_there(monkeypatch, switch):
+    """docs/timing.md, "The catch-up yields": a cycle's send wakes its slaves; between two cycles run back to back
+    the clock yields once, so that they need not wait behind the whole catch-up. On time, it never yields (the
+    clock sleeps or spins then); with MLINK_YIELD=0 it does not yield at all."""
+    events: list[object] = []
+    monkeypatch.setattr(os, "sched_yield", lambda: events.append("yield"))
+    if switch != "default":
+        monkeypatch.setenv("MLINK_YIELD", "0")
+
+    def block_once(rec, cycle):
+        events.append(rec.calls[-1])
+        if len(rec.calls) == 3:
+            time.sleep(4.5 * MS / 1e9)  # > 3 periods, within the bound
+
+    async def main():
+        rec = Recorder(want=12, action=block_once)
+        timer = CycleTimer(MS, rec, strategy="auto", start_ns=time.monotonic_ns() + 2 * MS, catch_up_ns=50 * MS)
+        timer.start()
+        await rec.done.wait()
+        timer.stop()
+        return timer
+
+    timer = run_on("asyncio", main)
+    yields = [i for i, e in enumerate(events) if e == "yield"]
+    if switch != "default":
+        assert not yields and timer.caught_up_total >= 3
+        return
+    assert len(yields) == timer.caught_up_total >= 3  # one after each caught-up cycle
+    for i in yields:  # each right after a cycle run late by a period or more, and before the next cycle
+        _cycle, deadline, now, _ = events[i - 1]
+        assert now - deadline >= MS
+        assert i + 1 < len(events) and events[i + 1] != "yield"
+
+
+@pytest.mark.parametrize("loop_kind", LOOPS)
 def test_stall_beyond_the_bound_is_skipped_and_reported(loop_kind):
     stalls = []
 
