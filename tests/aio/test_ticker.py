@@ -300,6 +300,20 @@ def test_catch_up_runs_the_cycles_a_stall_delayed_in_order(loop_kind):
     run_on(loop_kind, main)
 
 
+def run_with_a_stall(loop_kind: str, action) -> tuple[list[tuple[int, int, int, int]], CycleTimer]:
+    """12 cycles of 1 ms with the policy "absorb" (50 ms), *action(rec, cycle)* after each call (it makes the
+    stall); the calls and the stopped timer."""
+    async def main():
+        rec = Recorder(want=12, action=action)
+        timer = CycleTimer(MS, rec, strategy="auto", start_ns=time.monotonic_ns() + 2 * MS, catch_up_ns=50 * MS)
+        timer.start()
+        await rec.done.wait()
+        timer.stop()
+        return rec.calls, timer
+
+    return run_on(loop_kind, main)
+
+
 @pytest.mark.parametrize("loop_kind", LOOPS)
 def test_each_caught_up_cycle_starts_when_it_runs(loop_kind):
     """A caught-up cycle's now_ns is the time its call begins, not the wake-up's: its commands' round trips count
@@ -313,15 +327,7 @@ def test_each_caught_up_cycle_starts_when_it_runs(loop_kind):
             while time.monotonic_ns() < end:
                 pass
 
-    async def main():
-        rec = Recorder(want=12, action=work)
-        timer = CycleTimer(MS, rec, strategy="auto", start_ns=time.monotonic_ns() + 2 * MS, catch_up_ns=50 * MS)
-        timer.start()
-        await rec.done.wait()
-        timer.stop()
-        return rec.calls
-
-    calls = run_on(loop_kind, main)
+    calls, _ = run_with_a_stall(loop_kind, work)
     caught = [i for i, (_, deadline, now, _) in enumerate(calls) if now - deadline >= MS]
     assert len(caught) >= 3
     for i in caught:  # the call after a caught-up one began after that one's 0.2 ms
@@ -344,15 +350,7 @@ def test_the_catch_up_yields_the_cpu_between_its_cycles_and_only_there(monkeypat
         if len(rec.calls) == 3:
             time.sleep(4.5 * MS / 1e9)  # > 3 periods, within the bound
 
-    async def main():
-        rec = Recorder(want=12, action=block_once)
-        timer = CycleTimer(MS, rec, strategy="auto", start_ns=time.monotonic_ns() + 2 * MS, catch_up_ns=50 * MS)
-        timer.start()
-        await rec.done.wait()
-        timer.stop()
-        return timer
-
-    timer = run_on("asyncio", main)
+    _, timer = run_with_a_stall("asyncio", block_once)
     yields = [i for i, e in enumerate(events) if e == "yield"]
     if switch != "default":
         assert not yields and timer.caught_up_total >= 3
