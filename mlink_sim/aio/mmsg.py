@@ -129,7 +129,8 @@ def yield_after_send() -> Callable[[], None] | None:
     idles. Yielding once after the send lets the master run (or be moved) at once; where nothing else waits on
     that CPU it returns at once (a system call, under a microsecond). Measured on the 2-vCPU bench machine,
     62 ML-III × 1 ms, 3 + 3 alternated runs of 20 s: missed 0.75 → 0.35 %, RTT p99 744 → 426 µs
-    (docs/performance.md, "The worker yields after its send")."""
+    (docs/performance.md, "The worker yields after its send"). The master's clock calls it too, between two cycles
+    of a catch-up after a stall, for the same reason (docs/timing.md, "The catch-up yields")."""
     return None if _switched_off("MLINK_YIELD") else getattr(os, "sched_yield", None)
 
 
