@@ -7,6 +7,9 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
+from typing import Any
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -21,3 +24,13 @@ def load_script(filename: str, module_name: str) -> Iterator[ModuleType]:
     spec.loader.exec_module(module)
     yield module
     del sys.modules[module_name]
+
+
+def script_fixture(name: str, filename: str) -> Any:
+    """A module-scoped fixture *name* that yields scripts/*filename* loaded as ``mlink_<its stem>``
+    (:func:`load_script`): ``bench = script_fixture("bench", "bench.py")``."""
+    @pytest.fixture(scope="module", name=name)
+    def fixture() -> Iterator[ModuleType]:
+        yield from load_script(filename, "mlink_" + Path(filename).stem)
+
+    return fixture

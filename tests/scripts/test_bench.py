@@ -12,12 +12,10 @@ from dataclasses import asdict
 
 import pytest
 
-from .scripts_loader import load_script
+from .scripts_loader import script_fixture
 
 
-@pytest.fixture(scope="module")
-def bench():
-    yield from load_script("bench.py", "mlink_bench")
+bench = script_fixture("bench", "bench.py")
 
 
 def _floor(**kw):

@@ -3,14 +3,11 @@
 
 from __future__ import annotations
 
-import pytest
 
-from .scripts_loader import load_script
+from .scripts_loader import script_fixture
 
 
-@pytest.fixture(scope="module")
-def bench():
-    yield from load_script("bench_capture.py", "mlink_bench_capture")
+bench = script_fixture("bench", "bench_capture.py")
 
 
 def _virtual(added_us: float, drift: float) -> dict:

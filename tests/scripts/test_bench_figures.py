@@ -7,19 +7,13 @@ import pytest
 
 from mlink_sim.metrics import LatencyHistogram
 
-from .scripts_loader import load_script
+from .scripts_loader import script_fixture
 
 MS = 1_000_000
 
 
-@pytest.fixture(scope="module")
-def figures():
-    yield from load_script("bench_figures.py", "mlink_bench_figures")
-
-
-@pytest.fixture(scope="module")
-def bench():
-    yield from load_script("bench.py", "mlink_bench")
+figures = script_fixture("figures", "bench_figures.py")
+bench = script_fixture("bench", "bench.py")
 
 
 def _rtt(*values: int) -> LatencyHistogram:
@@ -67,9 +61,7 @@ def test_targets_say_when_the_floor_itself_is_saturated(bench) -> None:
     assert "saturated" not in text and not any(r.get("floor_saturated") for r in rows)
 
 
-@pytest.fixture(scope="module")
-def floor():
-    yield from load_script("bench_floor.py", "mlink_bench_floor")
+floor = script_fixture("floor", "bench_floor.py")
 
 
 def test_the_floor_counts_by_the_shared_definition(floor) -> None:

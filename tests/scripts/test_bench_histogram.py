@@ -4,14 +4,11 @@ from __future__ import annotations
 
 import json
 
-import pytest
 
-from .scripts_loader import load_script
+from .scripts_loader import script_fixture
 
 
-@pytest.fixture(scope="module")
-def bench():
-    yield from load_script("bench_histogram.py", "mlink_bench_histogram")
+bench = script_fixture("bench", "bench_histogram.py")
 
 
 def test_rtt_like_values_centre_near_200_us(bench) -> None:

@@ -14,20 +14,14 @@ import pytest
 
 from mlink_sim.metrics import LatencyHistogram
 
-from .scripts_loader import ROOT, load_script
+from .scripts_loader import ROOT, script_fixture
 
 MS = 1_000_000
 INJECT = ROOT / "scripts" / "stall_inject.py"
 
 
-@pytest.fixture(scope="module")
-def rec():
-    yield from load_script("bench_recovery.py", "mlink_bench_recovery")
-
-
-@pytest.fixture(scope="module")
-def inj():
-    yield from load_script("stall_inject.py", "mlink_stall_inject")
+rec = script_fixture("rec", "bench_recovery.py")
+inj = script_fixture("inj", "stall_inject.py")
 
 
 @pytest.fixture

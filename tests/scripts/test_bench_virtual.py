@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import pytest
 
-from .scripts_loader import load_script
+from .scripts_loader import script_fixture
 
 
-@pytest.fixture(scope="module")
-def bench():
-    yield from load_script("bench_virtual.py", "mlink_bench_virtual")
+bench = script_fixture("bench", "bench_virtual.py")
 
 
 def test_run_is_the_up_code_path_on_the_virtual_clock(bench):

@@ -2,18 +2,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 
-import pytest
-
-from .scripts_loader import ROOT, load_script
+from .scripts_loader import ROOT, script_fixture
 
 
-@pytest.fixture(scope="module")
-def golden() -> Iterator[ModuleType]:
-    yield from load_script("golden_capture.py", "mlink_golden_capture")
+golden = script_fixture("golden", "golden_capture.py")
 
 
 def test_golden_capture_is_the_scripts_output(golden: ModuleType, tmp_path: Path) -> None:

@@ -3,18 +3,15 @@ its window (synthetic samples: no perf, no network)."""
 
 from __future__ import annotations
 
-import pytest
 
-from .scripts_loader import load_script
+from .scripts_loader import script_fixture
 
 MS = 1_000_000
 OURS = {100, 101}  # the master and its worker
 NAMES = {75: "kdamond.0", 7591: "memfd:sealed-91"}
 
 
-@pytest.fixture(scope="module")
-def lc():
-    yield from load_script("late_causes.py", "mlink_late_causes")
+lc = script_fixture("lc", "late_causes.py")
 
 
 def _samples(lc, start: int, end: int, cpu: int, pid: int, sym: str = "main") -> list:

@@ -10,12 +10,10 @@ import pytest
 
 from mlink_sim.metrics.stalls import longest_named_ms
 
-from .scripts_loader import load_script
+from .scripts_loader import script_fixture
 
 
-@pytest.fixture(scope="module")
-def soak():
-    yield from load_script("soak.py", "mlink_soak")
+soak = script_fixture("soak", "soak.py")
 
 
 def test_parse_stop(soak):
