@@ -123,8 +123,10 @@ class Bus:
     """The stations of one shared socket, by station address (see the module docstring). *clock()*: the time a
     read is stamped with, for the predictions (ns; the worker's ``time.monotonic_ns``)."""
 
-    def __init__(self, ports: list[Port], clock: Callable[[], int] | None = None) -> None:
+    def __init__(self, ports: list[Port], clock: Callable[[], int] | None = None, *, newest_first: bool = True) -> None:
         self.ports: dict[int, Port] = {int(p.station.address): p for p in ports}
+        #: a backlog's answers made ahead go out newest cycle first (:meth:`serve`); False keeps each station's order
+        self.newest_first: bool = newest_first
         self.unaddressed: int = 0  #: datagrams for no station hosted here (or shorter than 4 bytes)
         self.clock: Callable[[], int] = clock if clock is not None else (ports[0].clock if ports else _zero)
         self.ahead: int = 0  #: answers sent ahead, from the cards' predictions
@@ -171,17 +173,23 @@ class Bus:
         now = self._now = self.clock()
         out = []
         served = self._served
+        runs: list[tuple[int, int]] = []  # where out holds a station's backlog answered ahead in full
         for key, items in per.items():
             port = ports.get(key)
             if port is None:
                 self.unaddressed += len(items)
                 continue
+            start = len(out)
             n = self._run_ahead(port, items, now, out) if port.pred is not None and len(items) <= port.keep else 0
             if n < len(items):
                 if n:  # the card takes the commands answered ahead before the next one
                     self._settle_last(n, now)
                 port.serve(items[n:] if n else items, out)
+            elif n > 1:
+                runs.append((start, len(out)))
             served.append(port)
+        if runs and self.newest_first:
+            return _newest_first(out, runs)
         return out
 
     def _run_ahead(self, port: Port, items: Batch, now: int, out: Batch) -> int:
@@ -240,6 +248,22 @@ class Bus:
 
 def _zero() -> int:
     return 0
+
+
+def _newest_first(out: Batch, runs: list[tuple[int, int]]) -> Batch:
+    """*out* sent newest cycle first: the answers of each run (``out[start:end]``, one station's backlog answered
+    ahead, oldest first) ranked by how many of the run come after them, every other answer ranked first; rank by
+    rank, in the order of *out*. So every station's newest answer leads, and the oldest go last (the module
+    docstring, "A backlog's answers")."""
+    depth = max(end - start for start, end in runs)
+    rank = [0] * len(out)
+    for start, end in runs:
+        for i in range(start, end - 1):
+            rank[i] = end - 1 - i
+    ranked: list[Batch] = [[] for _ in range(depth)]
+    for r, item in zip(rank, out):
+        ranked[r].append(item)
+    return [item for group in ranked for item in group]
 
 
 def _newest(batch: Batch, counters: Any, behind: int) -> Batch:

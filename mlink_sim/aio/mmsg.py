@@ -67,7 +67,7 @@ from .msghdr import MMsgHdr as _MMsgHdr
 from .msghdr import MsgHdr as _MsgHdr
 
 __all__ = ["BurstSocket", "CAPACITY", "drain", "gso_supported", "stamps_enabled", "stamps_supported", "supported",
-           "wrap", "yield_after_send"]
+           "switched_off", "wrap", "yield_after_send"]
 
 CAPACITY = 64  #: messages per system call (a burst of more is sent, or read, in several calls)
 _BUFSIZE = 4096  # bytes per received datagram, as the per-datagram reads (``recv(4096)``)
@@ -93,7 +93,7 @@ def supported() -> bool:
     """True where ``sendmmsg``/``recvmmsg`` can be called (Linux with glibc or musl) and ``MLINK_MMSG=0`` is not
     set in the environment (that switch keeps the per-datagram calls, to compare or to rule the batching out; the
     slave workers inherit it). Read whenever a socket is opened."""
-    return _calls is not None and not _switched_off("MLINK_MMSG")
+    return _calls is not None and not switched_off("MLINK_MMSG")
 
 
 def stamps_supported() -> bool:
@@ -115,7 +115,7 @@ def gso_supported() -> bool:
     """True where the batched calls are :func:`supported`, the kernel is Linux 4.18 or newer (``UDP_SEGMENT``;
     ``UDP_GRO`` needs 5.0, which :meth:`BurstSocket.enable_gro` finds out itself) and ``MLINK_GSO=0`` is not
     set (that switch keeps one ``sendmmsg`` message per datagram, to compare; the workers inherit it)."""
-    return _GSO_KERNEL and supported() and not _switched_off("MLINK_GSO")
+    return _GSO_KERNEL and supported() and not switched_off("MLINK_GSO")
 
 
 def yield_after_send() -> Callable[[], None] | None:
@@ -131,10 +131,10 @@ def yield_after_send() -> Callable[[], None] | None:
     62 ML-III × 1 ms, 3 + 3 alternated runs of 20 s: missed 0.75 → 0.35 %, RTT p99 744 → 426 µs
     (docs/performance.md, "The worker yields after its send"). The master's clock calls it too, between two cycles
     of a catch-up after a stall, for the same reason (docs/timing.md, "The catch-up yields")."""
-    return None if _switched_off("MLINK_YIELD") else getattr(os, "sched_yield", None)
+    return None if switched_off("MLINK_YIELD") else getattr(os, "sched_yield", None)
 
 
-def _switched_off(name: str) -> bool:
+def switched_off(name: str) -> bool:
     """The environment switch *name* set to ``0``, ``off``, ``no`` or ``false`` (read when asked)."""
     return os.environ.get(name, "").strip().lower() in ("0", "off", "no", "false")
 

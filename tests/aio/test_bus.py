@@ -15,7 +15,7 @@ from mlink_sim.cards import Station, create_card, settings_for
 from mlink_sim.cards.prediction import Prediction
 from mlink_sim.master import MasterCore, NetworkPlan, StationPlan
 from mlink_sim.wire import Frame, Kind, Link, decode, encode, ml2
-from mlink_sim.wire.frame import CYCLE_AT, steady_delta
+from mlink_sim.wire.frame import CYCLE_AT, cycle_of, steady_delta
 
 TCYCLE = 1_000_000
 SOURCE = ("127.0.0.1", 40000)
@@ -224,7 +224,7 @@ def test_a_backlog_is_answered_ahead_and_the_cards_take_every_command_in_order(c
     """docs/cards.md, "The answer made ahead": reads holding 2-5 cycles' commands at once (the master catching up
     after a stall of its own, or a worker held up), now and then with another SEL_MON partway through. The bus
     answers each station's run ahead as far as its card's prediction carries it, the rest in the chain, each
-    station's answers in its commands' order; every answer equals the one the same card, fed the same commands at
+    station's answers to its commands in their order; every answer equals the one the same card, fed the same commands at
     the same time without predictions, gives, and after each read's settle the cards are the reference cards. Reads
     3-5 ms after the one before (past the cards' silence deadline: one communication cycle and 2 ms,
     mlink_sim.cards.reception) are answered ahead too: no poll came between. With a communication cycle of two
@@ -250,7 +250,8 @@ def test_a_backlog_is_answered_ahead_and_the_cards_take_every_command_in_order(c
         ahead = bus.ahead
         out = bus.serve(batch)
         want = [reference[dg[3]].receive(dg, SOURCE, now["t"]) for dg, _ in batch]
-        assert _by_station([a for a, _ in out]) == _by_station([w for w in want if w is not None])
+        got = _by_station([a for a, _ in out])  # the order on the wire: the test after this one
+        assert {st: sorted(a, key=cycle_of) for st, a in got.items()} == _by_station([w for w in want if w is not None])
         bus.settle()
         if k > 1:
             backlogs[k] += 1
@@ -270,3 +271,68 @@ def test_a_backlog_is_answered_ahead_and_the_cards_take_every_command_in_order(c
     for st, ref in zip(cards.values(), reference.values()):
         assert st.counters.as_dict() == ref.counters.as_dict()
         assert st.snapshot().drive == ref.snapshot().drive
+
+
+def _steady_line(stations: int, newest_first: bool = True) -> tuple[MasterCore, Bus, dict[str, int]]:
+    """A line of *stations* SI-ET3 stations run to phase 3 and a steady state through a :class:`Bus` (one read per
+    cycle), with the time the reads are stamped with."""
+    core, cards = _line(Link.ML3, stations)
+    now = {"t": 0, "cycle": 0}
+    bus = Bus([Port(st, HostedStation(st, "127.0.0.1", 0), 8, [].append, lambda: now["t"]) for st in cards.values()],
+              lambda: now["t"], newest_first=newest_first)
+    for cycle in range(1, 1201):
+        t = cycle * TCYCLE
+        now["t"] = t + 50_000
+        out = bus.serve([(dg, SOURCE) for _, dg in core.on_cycle(cycle, t)])
+        bus.settle()
+        for answer, _ in out:
+            core.on_response(answer, t + 100_000)
+        core.drain_events()
+    now["cycle"] = 1200
+    assert {v.state.value for v in core.views().values()} == {"phase3"}
+    return core, bus, now
+
+
+def _backlog(core: MasterCore, bus: Bus, now: dict[str, int], k: int) -> list[tuple[int, int]]:
+    """The next *k* cycles' commands in one read; (station, cycle) of the answers, in the order they go out."""
+    batch = []
+    for _ in range(k):
+        now["cycle"] += 1
+        batch += [(dg, SOURCE) for _, dg in core.on_cycle(now["cycle"], now["cycle"] * TCYCLE)]
+    now["t"] = now["cycle"] * TCYCLE + 50_000
+    out = bus.serve(batch)
+    bus.settle()
+    return [(a[3], cycle_of(a)) for a, _ in out]
+
+
+def test_a_backlog_answered_ahead_goes_out_newest_cycle_first() -> None:
+    """A read holding three cycles' commands for each of three stations, all answered ahead: every station's answer
+    to the newest cycle goes out first (the stations in their order), then the cycle before, the oldest last. The
+    oldest were due at the master before this read was even made; the newest still can be in time (docs/cards.md,
+    "A backlog's answers"). The cards still take the commands in their order (the test before this one)."""
+    core, bus, now = _steady_line(3)
+    ahead = bus.ahead
+    k = now["cycle"]
+    assert _backlog(core, bus, now, 3) == [(s, k + c) for c in (3, 2, 1) for s in (3, 4, 5)]
+    assert bus.ahead - ahead == 9 and bus.mispredicted == 0
+
+
+def test_a_backlog_keeps_its_order_where_it_was_not_all_answered_ahead_or_when_switched_off() -> None:
+    """A station whose prediction stops partway (another SEL_MON: the card answers the rest itself) keeps its answers
+    in its commands' order, ahead of the older answers of the others; ``newest_first=False`` (the worker's
+    ``MLINK_NEWEST_FIRST=0``) keeps every station's order."""
+    core, bus, now = _steady_line(3)
+    k = now["cycle"]
+    now["cycle"] += 1
+    batch = [(dg, SOURCE) for _, dg in core.on_cycle(k + 1, (k + 1) * TCYCLE)]
+    core.set_control(4, sel_mon=0x21)
+    now["cycle"] += 1
+    batch += [(dg, SOURCE) for _, dg in core.on_cycle(k + 2, (k + 2) * TCYCLE)]
+    now["t"] = (k + 2) * TCYCLE + 50_000
+    out = bus.serve(batch)
+    bus.settle()
+    assert [(a[3], cycle_of(a)) for a, _ in out] == [(3, k + 2), (4, k + 1), (4, k + 2), (5, k + 2), (3, k + 1),
+                                                     (5, k + 1)]
+    core, bus, now = _steady_line(3, newest_first=False)
+    k = now["cycle"]
+    assert _backlog(core, bus, now, 2) == [(s, k + c) for s in (3, 4, 5) for c in (1, 2)]

@@ -165,8 +165,8 @@ async def test_shared_port_yields_after_the_answers_went_and_before_the_cards_se
     real_bus = slave_module.Bus
 
     class SpyBus:  # the compiled Bus, its settle recorded
-        def __init__(self, *args: object) -> None:
-            self._bus = real_bus(*args)
+        def __init__(self, *args: object, **kwargs: object) -> None:
+            self._bus = real_bus(*args, **kwargs)
 
         def __getattr__(self, name: str) -> object:
             return getattr(self._bus, name)

@@ -14,7 +14,8 @@ from master_fakes import MS, Net
 from mlink_sim import _accel
 from mlink_sim.master import StationPlan
 from mlink_sim.master.fastpath import CyclicFrames
-from mlink_sim.wire import Link, ml2, ml3
+from mlink_sim.wire import Kind, Link, decode, ml2, ml3
+from mlink_sim.wire.frame import cycle_of
 
 CASES = [(Link.ML2, 17), (Link.ML2, 32), (Link.ML3, 32), (Link.ML3, 64)]
 IDS = ["ML-II-17B", "ML-II-32B", "ML-III-32B", "ML-III-64B"]
@@ -140,3 +141,81 @@ def test_late_answers_to_the_cyclic_inv_ctl_take_the_fast_path_too(net_of: Calla
     assert late_answers >= 2 * 190  # nearly every answer of the 200 cycles, both stations
     if COUNTED:
         assert sum(st.frames.hits for st in fast.core._stations) - hits0 >= late_answers
+
+
+@pytest.mark.parametrize("link, size", CASES, ids=IDS)
+def test_an_answer_older_than_one_taken_is_counted_but_shows_nothing(net_of: Callable[..., Net], link: Link,
+                                                                     size: int) -> None:
+    """Answers that arrive out of order (a worker answers its backlog newest cycle first, docs/cards.md; or the
+    network reorders): each even cycle's answer 1.3 ms late, after the next cycle's. Every answer is counted (an RTT
+    or a ``Late``), but what a station shows (RWDT, STATUS, output frequency, MON1/MON2) is the newest answer's, never
+    an older one that came after it; both paths alike."""
+    fast, slow, _, _ = _pair(net_of, link, size)
+    _both(fast, slow, lambda n: n.run(200))
+    first = fast.core.addresses[0]
+    _both(fast, slow, lambda n: n.core.set_control(first, forward=True, speed_ref=6000))
+    delivered: dict[int, list[tuple[int, bytes]]] = {}
+
+    def swap(direction: str, station: int, dg: bytes, now: int, net: Net) -> Any:
+        if direction != "rsp":
+            return dg
+        extra = 1_300_000 if cycle_of(dg) % 2 == 0 else 0
+        delivered.setdefault(id(net), []).append((now + net.latency + extra, dg))
+        return dg, extra
+
+    for n in (fast, slow):
+        n.fault = lambda d, st, dg, now, n=n: swap(d, st, dg, now, n)
+    responses0 = [v.responses for v in fast.core.views().values()]
+    _both(fast, slow, lambda n: n.run(501))
+
+    assert fast.events == slow.events
+    assert fast.core.views() == slow.core.views()
+    end = fast.cycle * fast.tcycle
+    for address, view in fast.core.views().items():
+        mine = [(at, dg) for at, dg in delivered[id(fast)] if dg[3] == address and at < end]
+        newest = max(mine, key=lambda item: cycle_of(item[1]))[1]
+        last = max(mine)[1]  # the last to arrive: an even cycle's, older than the newest
+        assert cycle_of(last) < cycle_of(newest)
+        answer = decode(newest, kind=Kind.RESPONSE).message
+        assert view.rwdt == answer.rwdt != decode(last, kind=Kind.RESPONSE).message.rwdt
+        assert (view.output_freq, view.mon1, view.mon2) == (answer.body.output_freq, answer.body.mon1, answer.body.mon2)
+        assert view.state.value == "phase3"
+    arrived = [sum(1 for at, dg in delivered[id(fast)] if dg[3] == a and at < end) for a in fast.core.addresses]
+    assert [v.responses for v in fast.core.views().values()] == [r + n for r, n in zip(responses0, arrived)]
+
+
+
+@pytest.mark.parametrize("slave_factory", ["card"], indirect=True)  # the fake slave takes no cycle going back
+@pytest.mark.parametrize("link, size", CASES, ids=IDS)
+def test_an_older_command_the_slave_took_last_shows_what_it_answered(net_of: Callable[..., Net], link: Link,
+                                                                       size: int) -> None:
+    """Commands reordered on the way (the impairment ``reorder``): the slave takes cycle k+1, then k. Its answer to
+    k is the newer one (its RWDT count one further, cards.watchdog), so the station shows it, and with it the WDT
+    fault the reordering caused (SI-T3 Table 24 "WDT count fault in a synchronous frame": ML-II E5H, ML-III COMM_ALM
+    CH), on both paths alike; the master then clears it and the station is back in phase 3."""
+    fast, slow, _, _ = _pair(net_of, link, size)
+    _both(fast, slow, lambda n: n.run(200))
+    first = fast.core.addresses[0]
+    held = {"n": 0}
+
+    def overtake(direction: str, station: int, dg: bytes, now: int) -> Any:
+        if direction == "cmd" and station == first and held["n"] < 2 and cycle_of(dg) % 2 == 0:
+            held["n"] += 1
+            return dg, MS + MS // 2  # arrives after the next cycle's command
+        return dg
+
+    events0 = [len(n.events) for n in (fast, slow)]
+    for n in (fast, slow):
+        n.fault = overtake
+    fast.run(40)
+    held["n"] = 0
+    slow.run(40)
+    for n in (fast, slow):
+        n.fault = None
+    _both(fast, slow, lambda n: n.run(400))
+
+    assert fast.events == slow.events
+    assert fast.core.views() == slow.core.views()
+    raised = [e for e in fast.events[events0[0]:] if type(e).__name__ == "AlarmRaised" and e.station == first]
+    assert {"WDT_ERROR", "WDT_ERR"} & {e.name for e in raised}, raised
+    assert fast.core.view(first).state.value == "phase3"
