@@ -4,7 +4,8 @@
 **Server** (a subprocess): ONE process serving N station sockets, as a packed slave worker does: the same
 ``BatchEndpoint`` per station (``mlink_sim.aio.udp``, watched with ``loop.add_reader``, every waiting datagram read
 in one wake-up), each datagram sent straight back to its source from the station's own socket. No card, no
-decode, no 1 ms tick.
+decode, no 1 ms tick. Sharing one socket (``--shared``), a read holding several cycles' commands is echoed newest
+cycle first, as the worker answers a backlog (``MLINK_NEWEST_FIRST=0`` switches both off).
 
 **Client** (in the calling process): the master's I/O with no core. One UDP socket, the same ``CycleTimer``
 (timerfd + adaptive spin, the spin reading one answer at a time), and at each cycle: read the answers waiting,
@@ -196,6 +197,13 @@ def _self_cpu_s() -> float:
 
 
 # ----------------------------------------------------------------------------------------------- the server
+def newest_cycle_first(batch: list[tuple[bytes, Any]]) -> list[tuple[bytes, Any]]:
+    """A read holding several cycles' commands, echoed newest cycle first (bytes 0-3: the client's cycle number), each
+    cycle's in arrival order: what a packed worker does with a backlog answered ahead (docs/cards.md, "A backlog's
+    answers")."""
+    return sorted(batch, key=lambda item: -int.from_bytes(item[0][:4], "little"))
+
+
 def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpus: set[int] | None = None,
           settle_ns: int = 0) -> None:
     """``--serve N``: N station sockets in this one process, each echoing; prints ``{"ports": […]}``, runs until
@@ -224,10 +232,13 @@ def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpu
 
         if shared:
             pause = mmsg.yield_after_send() if settle_ns else None  # as the worker, before its settle
+            newest_first = not mmsg.switched_off("MLINK_NEWEST_FIRST")  # as the worker's Bus
 
             def on_bus(batch: list[tuple[bytes, Any]]) -> None:
                 if work_ns:
                     busy(work_ns * len(batch))
+                if newest_first and batch[0][0][:4] != batch[-1][0][:4]:  # more than one cycle's
+                    batch = newest_cycle_first(batch)
                 endpoints[0].send_burst(batch)
                 if settle_ns:
                     if pause is not None:

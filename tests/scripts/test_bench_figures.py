@@ -177,3 +177,15 @@ def test_a_missed_bound_names_the_chain_beside_the_floors(bench) -> None:
     missed = next(r for r in rows if r["target"].startswith("62 ML3") and r["bound"].startswith("missed"))
     assert not missed["met"]
     assert "RTT p50 176us against the floor's 98.75us (the chain a host stall can fall in" in missed["verdict"]
+
+
+def test_the_shared_floor_echoes_a_backlog_newest_cycle_first(floor) -> None:
+    """As a packed worker answers a backlog (docs/cards.md, "A backlog's answers"): a read holding several cycles'
+    datagrams (the client's: cycle number, then station index) is echoed newest cycle first, each cycle's in
+    arrival order; a read cut in the middle of a burst too."""
+    def dg(cycle: int, station: int) -> tuple[bytes, str]:
+        return cycle.to_bytes(4, "little") + station.to_bytes(2, "little") + bytes(30), f"s{station}"
+
+    read = [dg(7, 2), dg(8, 0), dg(8, 1), dg(8, 2), dg(9, 0), dg(9, 1), dg(9, 2), dg(256, 0)]
+    assert floor.newest_cycle_first(read) == [dg(256, 0), dg(9, 0), dg(9, 1), dg(9, 2), dg(8, 0), dg(8, 1), dg(8, 2),
+                                              dg(7, 2)]
