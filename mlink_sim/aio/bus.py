@@ -29,6 +29,12 @@ is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it
   (``Prediction.advance``), so a backlog is answered ahead as a cycle is; where it stops holding, the card takes the
   commands answered so far and then the rest in the chain, in their order. Whatever else reaches a card between
   two reads (its ``poll``, a control request, an EEPROM write) drops its prediction first (:meth:`Port.forget`).
+* **A backlog's answers** go out newest cycle first (:func:`_newest_first`): in a read with several commands for a
+  station, all answered ahead, those answers are ranked by how many of its commands in the read come after them, and sent
+  rank by rank, every other answer in the first. The older commands' answers are due at the master already (their
+  cycle began a transmission cycle before the newer one's); the newest can still be on time. The cards take every
+  command in its order all the same (:meth:`Bus.settle`). ``Bus(newest_first=False)`` (the worker's
+  ``MLINK_NEWEST_FIRST=0``) keeps each station's order (docs/cards.md, "A backlog's answers").
 * :func:`due`: which stations' ``poll`` is due at a tick (``Station.next_deadline``): a scan of every hosted
   station once per millisecond.
 """
@@ -135,8 +141,8 @@ class Bus:
         self._served: list[Port] = []  # the ports whose card took (or, after settle, takes) a command of the last read
 
     def serve(self, batch: Batch) -> Batch:
-        """The answers to one read of the shared socket, in the order the stations first appear in it; then
-        :meth:`settle`, once they are sent."""
+        """The answers to one read of the shared socket, in the order the stations first appear in it (a backlog's
+        newest cycle first: the module docstring); then :meth:`settle`, once they are sent."""
         keys = [item[0][3] if len(item[0]) > 3 else -1 for item in batch]
         ports = self.ports
         if len(set(keys)) == len(keys):  # one datagram per station: the groups are the datagrams, in order

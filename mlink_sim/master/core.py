@@ -136,7 +136,7 @@ class MasterCore:
         self._take(st, sent, now)
         msg = frame.message
         reply = st.codec.reply(msg, sent.code)
-        if _newest(st, sent.cycle, msg.rwdt):
+        if _shows(st, sent.cycle, msg.rwdt):
             st.rwdt = msg.rwdt
             self._observe(st, reply)
         if expects(st.state, Ev.ANSWERED):
@@ -163,7 +163,7 @@ class MasterCore:
         if rwdt < 0:
             return False
         self._take(st, sent, now)
-        if _newest(st, cycle, rwdt):
+        if _shows(st, cycle, rwdt):
             st.rwdt = rwdt
             st.status, st.output_freq, st.output_current, st.mon1, st.mon2, st.warning = frames.last
             if st.run_held or st.searching:
@@ -189,7 +189,7 @@ class MasterCore:
     def _take(self, st: Slave, sent: Sent, now: int) -> None:
         """Count the answer to *sent*: ``Rtt`` when it is the outstanding command, else ``Late``. A late answer
         still tells the truth (the command was executed), so it is processed; handlers check the current state,
-        so nothing is done twice (what the station shows from it: :func:`_newest`)."""
+        so nothing is done twice (what the station shows from it: :func:`_shows`)."""
         if sent is st.outstanding or st.inflight.pop(sent.cycle, None) is sent:
             if sent is st.outstanding:
                 st.outstanding = None
@@ -608,18 +608,19 @@ class MasterCore:
             raise KeyError(f"no station {station:02X}H in the plan") from None
 
 
-def _newest(st: Slave, cycle: int, rwdt: int) -> bool:
+def _shows(st: Slave, cycle: int, rwdt: int) -> bool:
     """Whether the answer to the command of *cycle*, with *rwdt*, sets what *st* shows (RWDT, status, alarms): False
-    only for an answer the slave made before one already taken, which then came after it (a worker answers its
-    backlog newest cycle first, ``mlink_sim.aio.bus``). That answer is still counted and its command's outcome
-    processed (``_take``, ``_advance``); the newer answer already showed the slave after both commands.
+    only for an answer the slave made before the one shown, which came after it (a worker answers its backlog newest
+    cycle first, ``mlink_sim.aio.bus``). That answer is still counted and its command's outcome processed
+    (``_take``, ``_advance``); the answer shown already showed the slave after both commands.
 
-    "Made before" needs both: a command *cycle* older than the newest taken (the envelope's u32 cycle number,
-    docs/wire-format.md) and a slave count (RWDT bits 0–3, incremented with each answer: ``cards.watchdog``) behind
+    "Made before" needs both: a command *cycle* older than the one shown (the envelope's u32 cycle number,
+    docs/wire-format.md) and a slave count (RWDT bits 0–3, one further with each answer: ``cards.watchdog``) behind
     the one shown, by 1–8. Commands the network reordered fail the second: the slave took the older command last,
-    so its answer is the newer one (and may carry the WDT fault the reordering caused, SI-T/V7 Table 9)."""
-    newest = st.newest
-    if newest >= 0 and (cycle - newest) & _U32 > 0x7FFFFFFF and (rwdt - st.rwdt) & 0xF > 7:
+    so its answer is the newer one, and it may carry the WDT fault the reordering caused (SI-T3 Table 24 and SI-T/V7
+    Table 9 "WDT count fault in a synchronous frame"; SI-ET3 COMM_ALM CH "WDT error")."""
+    shown = st.shown
+    if shown >= 0 and (cycle - shown) & _U32 > 0x7FFFFFFF and (rwdt - st.rwdt) & 0xF > 7:
         return False
-    st.newest = cycle
+    st.shown = cycle
     return True

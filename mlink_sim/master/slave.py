@@ -64,8 +64,8 @@ class Slave:
         self.inflight: dict[int, Sent] = {}
         self.expired: Sent | None = None
         self.answered: int | None = None
-        #: the command cycle of the answer the station shows (-1: none yet; MasterCore's _newest)
-        self.newest = -1
+        #: the command cycle of the answer the station shows (-1: none yet; core._shows)
+        self.shown = -1
         self.silent = 0
         self.main_q: deque[Request] = deque()
         self.sub_q: deque[Request] = deque()
