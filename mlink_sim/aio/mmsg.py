@@ -3,7 +3,8 @@
 :class:`BurstSocket` stands in for a non-blocking UDP ``socket.socket`` (``sendto``, ``recv``, ``recvfrom``,
 ``fileno``, ``getsockname``, ``close`` are the socket's own) and adds three batched calls:
 
-* ``send_burst([(datagram, addr), …])``: the whole burst in one ``sendmmsg`` (the master's N commands);
+* ``send_burst([(datagram, addr), …])``: the whole burst in one ``sendmmsg`` (the master's N commands; a worker's
+  answers, however many cycles they answer);
 * ``recv_burst(limit)``: every datagram waiting, up to *limit*, in one ``recvmmsg`` (the master's answers);
 * ``recvfrom_burst(limit)``: the same with each source address (a slave station's commands);
 * ``recv_burst_stamped(limit)``: as ``recv_burst``, each datagram with the time the kernel received it
@@ -19,21 +20,29 @@ read needs no second system call to learn that the socket is empty. Other socket
 ``recvmmsg``, and the package index has no well-kept wrapper (the one found, ``pysockmmsg`` 0.0.2 of 2021, is a
 0.0 release with no activity since). A compiled extension would need a compiler on every machine that installs
 the package. ctypes on libc needs nothing: a ctypes call costs about a microsecond more than a method of
-``socket.socket``, and one call per burst spreads that over the burst. Buffers, ``iovec`` and ``mmsghdr``
-arrays are allocated once per socket; a burst copies its datagrams into the buffer with one slice assignment
-and rewrites the message headers only when the burst's layout (sizes, destinations) changes.
+``socket.socket``, and one call per burst spreads that over the burst. The read buffers and headers are
+allocated once per socket; a burst copies its datagrams into the send buffer with one slice assignment, and its
+headers are laid out once per shape (sizes, destinations; the socket keeps its last few,
+:mod:`mlink_sim.aio.sendlayout`).
 
 **Segmentation offload.** Where the kernel has it (Linux ≥ 4.18, :func:`gso_supported`; ``MLINK_GSO=0`` turns
-it off), ``send_burst`` sends the datagrams of a burst that go to one destination with one size as *one*
-``sendmsg`` with ``UDP_SEGMENT``: the kernel builds one packet for the group and cuts it into the datagrams only
-where it must (before a device without the offload; at the receiving socket unless that socket asked for
-``UDP_GRO``). Each datagram on a network is an ordinary UDP datagram. A socket that reads with ``UDP_GRO``
-(:meth:`BurstSocket.enable_gro`) gets such a group as one buffer with its segment size, and the reads cut it
-again (one ``recvmmsg`` for up to four buffers, one ``struct`` call to cut each), so every caller still sees one
-datagram per frame. On this 2-vCPU machine the kernel's path costs about
-10 µs of CPU per datagram on loopback; a group of 62 costs about as much as one datagram (docs/performance.md,
-"One port per worker, one packet per burst"). It pays where many stations share a port: the slave workers of
-``mlink-sim up`` (``SlaveServer(shared=True)``).
+it off), ``send_burst`` sends the datagrams of a burst that go to one destination with one size as *one* message of
+its ``sendmmsg``, with ``UDP_SEGMENT`` (up to 64 datagrams to a message, 128 where the kernel takes them,
+:mod:`mlink_sim.aio.sendlayout`): the
+kernel builds one packet for the group and cuts it into the datagrams only where it must (before a device without
+the offload; at the receiving socket unless that socket asked for ``UDP_GRO``). Each datagram on a network is an
+ordinary UDP datagram. A socket that reads with ``UDP_GRO`` (:meth:`BurstSocket.enable_gro`) gets such a group as
+one buffer with its segment size, and the reads cut it again (one ``recvmmsg`` for up to four buffers, one
+``struct`` call to cut each), so every caller still sees one datagram per frame. On this 2-vCPU machine the
+kernel's path costs about 10 µs of CPU per datagram on loopback; a group of 62 costs about as much as one datagram
+(docs/performance.md, "One port per worker, one packet per burst"). It pays where many stations share a port: the
+slave workers of ``mlink-sim up`` (``SlaveServer(shared=True)``).
+
+**One system call per burst**, whatever its size (up to 1024 messages), and one offloaded send per group of up to
+128 datagrams. A worker that answers two cycles' commands after a stall (124 answers at 62 stations) sends them as
+one packet; cut at 64 into two, the master woke on the first, ran, and found the second half a cycle late
+(docs/performance.md, "A backlog in one system call"). ``MLINK_ONE_CALL=0`` cuts a burst every 64 datagrams
+again (to compare).
 
 Where the calls are missing (not Linux, no libc, a platform ctypes cannot load) :func:`supported` is False and
 callers keep the per-datagram calls: the transport works the same either way (``mlink_sim.aio.master``,
@@ -65,11 +74,12 @@ from .msghdr import NAME_SIZE as _NAME_SIZE
 from .msghdr import IoVec as _IoVec
 from .msghdr import MMsgHdr as _MMsgHdr
 from .msghdr import MsgHdr as _MsgHdr
+from .sendlayout import MAX_VECTOR, Group, Layout, Shapes, encode
 
 __all__ = ["BurstSocket", "CAPACITY", "drain", "gso_supported", "stamps_enabled", "stamps_supported", "supported",
            "switched_off", "wrap", "yield_after_send"]
 
-CAPACITY = 64  #: messages per system call (a burst of more is sent, or read, in several calls)
+CAPACITY = 64  #: messages per read (more waiting are read in several calls); a send takes up to sendlayout.MAX_VECTOR
 _BUFSIZE = 4096  # bytes per received datagram, as the per-datagram reads (``recv(4096)``)
 # Kernel receive timestamps: <asm-generic/socket.h> SO_TIMESTAMPNS (= SO_TIMESTAMPNS_OLD, 35; on x86-64 and
 # aarch64 its timespec has a 64-bit tv_sec), cmsg type SCM_TIMESTAMPNS = SO_TIMESTAMPNS at level SOL_SOCKET.
@@ -77,11 +87,6 @@ _BUFSIZE = 4096  # bytes per received datagram, as the per-datagram reads (``rec
 # struct timespec (tv_sec, tv_nsec: two int64), CMSG_SPACE(16) = 32 bytes. Other architectures (sparc, parisc,
 # mips number the option differently) keep the reads stamped by the reader.
 _SO_TIMESTAMPNS = 35
-# Segmentation offload, <linux/udp.h>: UDP_SEGMENT (Linux 4.18) and UDP_GRO (Linux 5.0) at level SOL_UDP (17); the
-# GRO control message carries the segment size as an int. At most 64 segments per send (UDP_MAX_SEGMENTS: 64 in
-# 4.18, 128 since 5.4): a burst is split at CAPACITY = 64 anyway.
-_UDP_SEGMENT = 103
-_GSO_BYTES = 60_000  # one offloaded send at most (the IP datagram it builds must stay below 64 KiB)
 _NO_GSO = (errno.EINVAL, errno.EIO, errno.ENOPROTOOPT, errno.EOPNOTSUPP)  # the offload refused (not a lost datagram)
 _CTL_SIZE = 32
 _STAMPS_ARCH = platform.machine() in ("x86_64", "amd64", "aarch64", "arm64")
@@ -152,25 +157,6 @@ def _kernel_has_gso() -> bool:
 _GSO_KERNEL = _kernel_has_gso()
 
 
-def _groups(layout: list[tuple[int, Any]]) -> list[tuple[list[int], Any, list[tuple[int, int, bytes]]]] | None:
-    """The sends of a burst of *layout* with ``UDP_SEGMENT``: its datagrams grouped by (destination, size), each
-    group's in their order and at most :data:`_GSO_BYTES` long (a datagram alone goes with ``sendto``), with the
-    control message that names the segment size; None when no two datagrams share a destination and a size (then
-    ``sendmmsg`` is the cheaper call)."""
-    by: dict[tuple[Any, int], list[int]] = {}
-    for i, (n, addr) in enumerate(layout):
-        by.setdefault((addr, n), []).append(i)
-    if len(by) == len(layout):
-        return None
-    groups = []
-    for (addr, n), indices in by.items():
-        per = max(1, _GSO_BYTES // max(1, n))
-        for start in range(0, len(indices), per):
-            chunk = indices[start:start + per]
-            groups.append((chunk, addr, [(_SOL_UDP, _UDP_SEGMENT, struct.pack("=H", n))] if len(chunk) > 1 else []))
-    return groups
-
-
 def wrap(sock: socket.socket) -> Any:
     """*sock* as a :class:`BurstSocket` where the batched calls are :func:`supported`, else *sock* itself."""
     return BurstSocket(sock) if supported() and sock.type == socket.SOCK_DGRAM else sock
@@ -195,21 +181,6 @@ def drain(burst: Callable[[int], list[Any]], limit: int, on_error: Callable[[OSE
         limit -= want
 
 
-def _encode(addr: Any) -> bytes | None:
-    """The ``struct sockaddr`` of a numeric ``(host, port)`` (IPv4) or ``(host, port[, flowinfo, scope_id])``
-    (IPv6); None for anything else (a name: the caller sends that datagram with ``sendto``)."""
-    try:
-        host, port = str(addr[0]), int(addr[1])
-        if ":" in host:
-            flow = int(addr[2]) if len(addr) > 2 else 0
-            scope = int(addr[3]) if len(addr) > 3 else 0
-            return struct.pack("=HHI16sI", socket.AF_INET6, socket.htons(port), flow,
-                               socket.inet_pton(socket.AF_INET6, host.split("%")[0]), scope)
-        return struct.pack("=HH4s8x", socket.AF_INET, socket.htons(port), socket.inet_pton(socket.AF_INET, host))
-    except (OSError, TypeError, ValueError, IndexError, OverflowError, struct.error):
-        return None
-
-
 def _decode(name: bytes) -> Any:
     """A source address as ``socket.recvfrom`` gives it."""
     family = int.from_bytes(name[:2], sys.byteorder)
@@ -232,8 +203,8 @@ class BurstSocket:
     """A non-blocking UDP socket with batched sends and reads (see the module docstring)."""
 
     __slots__ = ("sock", "sendto", "recv", "recvfrom", "fileno", "getsockname", "close", "setsockopt", "_fd",
-                 "_cap", "_smsgs", "_siov", "_sdata", "_sview", "_skey", "_names", "_rmsgs", "_riov", "_rbuf",
-                 "_rview", "_rnames", "_rnview", "_rwords", "_stride", "_len_at", "_namelen_at", "_bufsize",
+                 "_cap", "_slay", "_shapes", "_step", "_sdata", "_sview", "_skey", "_names", "_rmsgs", "_riov",
+                 "_rbuf", "_rview", "_rnames", "_rnview", "_rwords", "_stride", "_len_at", "_namelen_at", "_bufsize",
                  "_sources", "_rctl", "_rctlq", "_ctllen_at", "stamped", "_gso", "_sgroups", "gro", "_coalesced",
                  "_gleft", "_gerr")
 
@@ -246,12 +217,13 @@ class BurstSocket:
                                                                        sock.setsockopt)
         self._fd = sock.fileno()
         self._cap = capacity
-        # sending: headers and iovecs, rewritten when the burst's layout changes; the datagrams in one buffer
-        self._smsgs = (_MMsgHdr * capacity)()
-        self._siov = (_IoVec * capacity)()
+        # sending: the datagrams in one buffer, the headers laid out once per shape (mlink_sim.aio.sendlayout)
         self._sdata = ctypes.create_string_buffer(capacity * 128)
         self._sview = memoryview(self._sdata).cast("B")
         self._skey: tuple[tuple[int, ...], tuple[Any, ...]] | None = None  #: the sizes and destinations laid out
+        self._slay: Layout | None = None  #: their headers (None: a destination is not numeric)
+        self._shapes = Shapes()
+        self._step = capacity if switched_off("MLINK_ONE_CALL") else MAX_VECTOR  #: messages per sendmmsg at most
         self._names: dict[Any, Any] = {}  # addr -> its struct sockaddr (a ctypes buffer), None: not numeric
         # reading: one fixed slot (datagram buffer, source address) per message
         self._bufsize = bufsize
@@ -278,8 +250,8 @@ class BurstSocket:
         self._ctllen_at = (_MMsgHdr.msg_hdr.offset + _MsgHdr.msg_controllen.offset) // 4  # its low 32 bits
         self.stamped = False  #: True once enable_stamps() succeeded
         # segmentation offload (see "Segmentation offload" in the module docstring)
-        self._gso = gso_supported()  #: a burst's datagrams of one size to one destination go in one sendmsg
-        self._sgroups: list[tuple[list[int], Any, list[tuple[int, int, bytes]]]] | None = None
+        self._gso = gso_supported()  #: a burst's datagrams of one size to one destination go as one message
+        self._sgroups: list[Group] | None = None  #: the groups of the shape laid out (None: one message each)
         self.gro = False  #: True once enable_gro() succeeded
         self._coalesced: Any = None  #: the UDP_GRO reads (gro.CoalescedReads), once enable_gro() succeeded
         self._gleft: deque[tuple[bytes, Any]] = deque()  #: segments read but not handed over yet (recv/recvfrom)
@@ -309,15 +281,17 @@ class BurstSocket:
 
     # ------------------------------------------------------------------ sending
     def send_burst(self, items: Sequence[tuple[bytes, Any]]) -> list[tuple[int, OSError]]:
-        """Send every ``(datagram, addr)`` of *items* in order, in one ``sendmmsg`` per :data:`CAPACITY`
-        datagrams. Returns the datagrams that were not sent, ``[(index, OSError), …]`` (empty when all went)."""
+        """Send every ``(datagram, addr)`` of *items* in order, in one ``sendmmsg`` (one per
+        :data:`~mlink_sim.aio.sendlayout.MAX_VECTOR` messages; per :data:`CAPACITY` datagrams with
+        ``MLINK_ONE_CALL=0``). Returns the datagrams that were not sent, ``[(index, OSError), …]`` (empty when all
+        went)."""
         failures: list[tuple[int, OSError]] = []
-        cap = self._cap
-        if len(items) <= cap:
+        step = self._step
+        if len(items) <= step:
             self._send_chunk(items, 0, failures)
         else:
-            for start in range(0, len(items), cap):
-                self._send_chunk(items[start:start + cap], start, failures)
+            for start in range(0, len(items), step):
+                self._send_chunk(items[start:start + step], start, failures)
         return failures
 
     def _send_chunk(self, items: Sequence[tuple[bytes, Any]], first: int,
@@ -326,88 +300,74 @@ class BurstSocket:
             return
         datas, addrs = zip(*items)  # two tuples in C: the layout's check is a tuple compare (identical addresses)
         sizes = tuple(map(len, datas))
-        if (sizes, addrs) != self._skey and not self._lay_out(sizes, addrs):
+        lay = self._slay
+        if (sizes, addrs) != self._skey:
+            lay = self._shape(sizes, addrs)
+        if lay is None:
             for i, (data, addr) in enumerate(items):  # a destination given by name: the datagrams one by one
                 try:
                     self.sendto(data, addr)
                 except OSError as exc:
                     failures.append((first + i, exc))
             return
-        groups = self._sgroups
-        if groups is not None:
-            self._send_groups(datas, groups, first, failures)
-            return
         blob = b"".join(datas)
         self._sview[:len(blob)] = blob
-        send = _calls[0]  # type: ignore[index]  # not None: checked in __init__
-        fd, msgs, n = self._fd, self._smsgs, len(items)
-        sent = send(fd, msgs, n, 0)
-        if sent == n:
-            return
-        i = 0
-        while True:  # a datagram failed (or the call was interrupted): its error, then the rest after it
+        n = lay.count
+        sent = _calls[0](self._fd, lay.msgs, n, 0)  # type: ignore[index]  # not None: checked in __init__
+        if sent != n:
+            self._send_rest(lay, sent, items, first, failures)
+
+    def _send_rest(self, lay: Layout, sent: int, items: Sequence[tuple[bytes, Any]], first: int,
+                   failures: list[tuple[int, OSError]]) -> None:
+        """A message of *lay* failed (or the call was interrupted) after *sent*: its datagrams' error, then the
+        messages after it. Where the kernel refuses the offload (a route whose device cannot do it; an error of
+        ``_NO_GSO`` on a message of several segments) this socket sends without it from then on, and the datagrams
+        not sent yet go one by one."""
+        send, fd, msgs, n, j = _calls[0], self._fd, lay.msgs, lay.count, 0  # type: ignore[index]
+        while True:
             if sent > 0:
-                i += sent
+                j += sent
             else:
                 err = ctypes.get_errno() if sent < 0 else errno.EIO
                 if err != errno.EINTR:
-                    failures.append((first + i, OSError(err, os.strerror(err))))  # that datagram is lost
-                    i += 1
-            if i >= n:
+                    carried = lay.members[j]
+                    if len(carried) > 1 and lay.groups is not None and err in _NO_GSO:
+                        self._gso, self._slay, self._skey, self._sgroups = False, None, None, None
+                        self._shapes.clear()
+                        for i in (i for rest in lay.members[j:] for i in rest):
+                            try:
+                                self.sendto(*items[i])
+                            except OSError as exc:
+                                failures.append((first + i, exc))
+                        return
+                    failures.extend((first + i, OSError(err, os.strerror(err))) for i in carried)  # those are lost
+                    j += 1
+            if j >= n:
                 return
-            sent = send(fd, ctypes.byref(msgs, i * _HDR_SIZE), n - i, 0)
+            sent = send(fd, ctypes.byref(msgs, j * _HDR_SIZE), n - j, 0)
 
-    def _send_groups(self, datas: Sequence[bytes], groups: list[tuple[list[int], Any, Any]],
-                     first: int, failures: list[tuple[int, OSError]]) -> None:
-        """The burst as one ``sendmsg`` with ``UDP_SEGMENT`` per group of datagrams of one size to one destination
-        (their order kept within the group; datagrams to different sockets have no order to keep). Where the
-        kernel refuses the offload (a route whose device cannot do it) that group goes datagram by datagram and
-        this socket uses ``sendmmsg`` from then on."""
-        sock = self.sock
-        for indices, addr, cmsg in groups:
-            try:
-                if len(indices) == 1:
-                    sock.sendto(datas[indices[0]], addr)
-                elif len(indices) == len(datas):  # one group, the whole burst (its indices in order)
-                    sock.sendmsg([b"".join(datas)], cmsg, 0, addr)
-                else:
-                    sock.sendmsg([b"".join([datas[i] for i in indices])], cmsg, 0, addr)
-            except OSError as exc:
-                if len(indices) == 1 or exc.errno not in _NO_GSO:
-                    failures.extend((first + i, exc) for i in indices)  # that group is lost, the others went
-                    continue
-                self._gso, self._sgroups, self._skey = False, None, None  # refused: sendmmsg from now on
-                for i in indices:
-                    try:
-                        sock.sendto(datas[i], addr)
-                    except OSError as one:
-                        failures.append((first + i, one))
-
-    def _lay_out(self, sizes: tuple[int, ...], addrs: tuple[Any, ...]) -> bool:
-        """Point the send headers at datagrams of *sizes* to *addrs*; False when a destination is not a numeric
-        address."""
-        layout = list(zip(sizes, addrs))
+    def _shape(self, sizes: tuple[int, ...], addrs: tuple[Any, ...]) -> Layout | None:
+        """The :class:`~mlink_sim.aio.sendlayout.Layout` of a burst of *sizes* to *addrs* (laid out once, kept
+        among the socket's last few shapes); None when a destination is not a numeric address."""
         total = sum(sizes)
-        if total > len(self._sview):
+        if total > len(self._sview):  # the buffer moves: every shape laid out over it goes
             self._sdata = ctypes.create_string_buffer(max(total, 2 * len(self._sview)))
             self._sview = memoryview(self._sdata).cast("B")
-        base, iov, off = ctypes.addressof(self._sdata), ctypes.addressof(self._siov), 0
-        for i, (n, addr) in enumerate(layout):
-            name = self._names.get(addr, False)
-            if name is False:
-                raw = _encode(addr)
-                name = self._names[addr] = None if raw is None else ctypes.create_string_buffer(raw, len(raw))
-            if name is None:
-                self._skey, self._sgroups = None, None
-                return False
-            self._siov[i].iov_base, self._siov[i].iov_len = base + off, n
-            hdr = self._smsgs[i].msg_hdr
-            hdr.msg_iov, hdr.msg_iovlen = iov + i * ctypes.sizeof(_IoVec), 1
-            hdr.msg_name, hdr.msg_namelen = ctypes.addressof(name), len(name)
-            off += n
-        self._skey = (sizes, addrs)
-        self._sgroups = _groups(layout) if self._gso else None
-        return True
+            self._shapes.clear()
+        key = (sizes, addrs)
+        lay = self._shapes.get(key, lambda: Layout.build(sizes, addrs, ctypes.addressof(self._sdata), self._gso,
+                                                         self._name))
+        self._skey, self._slay = key, lay
+        self._sgroups = None if lay is None else lay.groups
+        return lay
+
+    def _name(self, addr: Any) -> Any:
+        """*addr*'s ``struct sockaddr`` as a ctypes buffer kept for the socket's life; None: not numeric."""
+        name = self._names.get(addr, False)
+        if name is False:
+            raw = encode(addr)
+            name = self._names[addr] = None if raw is None else ctypes.create_string_buffer(raw, len(raw))
+        return name
 
     # ------------------------------------------------------------------ reading
     def _receive(self, limit: int) -> int:

@@ -1,12 +1,11 @@
 """Segmentation offload (mlink_sim.aio.mmsg, "Segmentation offload"): a burst's datagrams of one size to one
-destination leave in one ``sendmsg`` with ``UDP_SEGMENT`` and still arrive as separate datagrams, in order; a socket
+destination leave as one offloaded message (``UDP_SEGMENT``) and still arrive as separate datagrams, in order; a socket
 that reads with ``UDP_GRO`` gets such a burst as one buffer and every read cuts it again (the batched reads and the
 per-datagram ``recv``/``recvfrom``); where the kernel refuses the offload the burst still goes; ``MLINK_GSO=0``
 switches it off; a capture's socket never reads coalesced buffers."""
 
 from __future__ import annotations
 
-import errno
 import socket
 import struct
 import time
@@ -36,23 +35,6 @@ def _settle() -> None:
 
 def _plain_reads(sock: socket.socket) -> list[bytes]:
     return [data for data, _ in _drain(sock)]
-
-
-def test_datagrams_to_one_destination_are_grouped_by_size_in_order() -> None:
-    a, b = ("127.0.0.1", 1), ("127.0.0.1", 2)
-    layout = [(46, a), (46, b), (46, a), (10, a), (46, a)]
-    groups = mmsg._groups(layout)
-    assert groups is not None
-    assert [(idx, addr) for idx, addr, _ in groups] == [([0, 2, 4], a), ([1], b), ([3], a)]
-    assert groups[0][2] == [(17, 103, (46).to_bytes(2, "little"))]  # SOL_UDP, UDP_SEGMENT, the segment size
-    assert groups[1][2] == [] and groups[2][2] == []  # alone: a plain sendto
-    assert mmsg._groups([(46, a), (46, b)]) is None  # nothing shared: sendmmsg is the cheaper call
-
-
-def test_a_large_group_is_cut_below_64_kib() -> None:
-    layout = [(20_000, ("127.0.0.1", 1))] * 7
-    groups = mmsg._groups(layout)
-    assert groups is not None and [idx for idx, _, _ in groups] == [[0, 1, 2], [3, 4, 5], [6]]
 
 
 def test_an_offloaded_burst_reaches_a_plain_socket_as_separate_datagrams() -> None:
@@ -132,23 +114,27 @@ def test_gro_and_the_kernels_stamps_exclude_each_other() -> None:
         b.close()
 
 
-class _NoOffload(socket.socket):
-    """A socket whose route refuses the offload, as a device without checksum offload does (EIO)."""
-
-    def sendmsg(self, buffers: Any, ancdata: Any = (), flags: int = 0, address: Any = None) -> int:
-        if ancdata:
-            raise OSError(errno.EIO, "Input/output error")
-        return super().sendmsg(buffers, ancdata, flags, address)
+_SO_NO_CHECK = 11  # <asm-generic/socket.h>: no UDP checksum on send, which the kernel's offload refuses (EINVAL)
 
 
-def test_an_offload_the_kernel_refuses_falls_back_and_loses_nothing() -> None:
-    tx, rx = mmsg.BurstSocket(_udp(_NoOffload)), _udp()
+def _no_offload() -> socket.socket:
+    """A socket whose every offloaded send the kernel refuses, as a route whose device cannot checksum does."""
+    s = _udp()
+    s.setsockopt(socket.SOL_SOCKET, _SO_NO_CHECK, 1)
+    return s
+
+
+@pytest.mark.parametrize("lead", [0, 3], ids=["refused-first", "refused-after-singles"])
+def test_an_offload_the_kernel_refuses_falls_back_and_loses_nothing(lead: int) -> None:
+    tx, rx, other = mmsg.BurstSocket(_no_offload()), _udp(), _udp()
     try:
-        items = [(bytes([i]) * 30, rx.getsockname()) for i in range(5)]
+        singles = [(b"s" * (i + 1), other.getsockname()) for i in range(lead)]  # one message each, sent first
+        items = singles + [(bytes([i]) * 30, rx.getsockname()) for i in range(70)]  # two offloaded messages
         assert tx.send_burst(items) == []
-        assert not tx._gso and tx._sgroups is None  # sendmmsg from then on
+        assert not tx._gso and tx._sgroups is None  # one message per datagram from then on
         assert tx.send_burst(items) == []
-        assert _plain_reads(rx) == [d for d, _ in items] * 2
+        assert _plain_reads(rx) == [d for d, _ in items[lead:]] * 2
+        assert _plain_reads(other) == [d for d, _ in singles] * 2
     finally:
         tx.close()
         rx.close()
