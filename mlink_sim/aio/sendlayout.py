@@ -56,7 +56,7 @@ _CMSG_SPACE = _CMSG_HDR + (2 + _ALIGN - 1) // _ALIGN * _ALIGN
 _CMSG = struct.Struct("=QiiH" if _ALIGN == 8 else "=IiiH")
 _IOV = ctypes.sizeof(IoVec)
 
-Group = tuple[list[int], Any, list[tuple[int, int, bytes]]]
+Group = tuple[list[int], Any, int]  #: a group's datagram indices, its destination and its segment size
 
 
 def encode(addr: Any) -> bytes | None:
@@ -96,8 +96,9 @@ def max_segments() -> int:
 def groups(layout: list[tuple[int, Any]], most: int = MAX_SEGMENTS) -> list[Group] | None:
     """The sends of a burst of *layout* (``(size, destination)`` per datagram) with ``UDP_SEGMENT``: its datagrams
     grouped by (destination, size), each group's in their order, at most *most* datagrams (:func:`max_segments`)
-    and :data:`GSO_BYTES` long, with the control message that names the segment size (none for a datagram alone);
-    None when no two datagrams share a destination and a size (then one message per datagram is as good)."""
+    and :data:`GSO_BYTES` long, with their size (the segment size of the control message :class:`Layout` gives a
+    group of more than one); None when no two datagrams share a destination and a size (then one message per
+    datagram is as good)."""
     by: dict[tuple[Any, int], list[int]] = {}
     for i, (n, addr) in enumerate(layout):
         by.setdefault((addr, n), []).append(i)
@@ -108,7 +109,7 @@ def groups(layout: list[tuple[int, Any]], most: int = MAX_SEGMENTS) -> list[Grou
         per = max(1, min(most, GSO_BYTES // max(1, n)))
         for start in range(0, len(indices), per):
             chunk = indices[start:start + per]
-            out.append((chunk, addr, [(SOL_UDP, UDP_SEGMENT, struct.pack("=H", n))] if len(chunk) > 1 else []))
+            out.append((chunk, addr, n))
     return out
 
 
