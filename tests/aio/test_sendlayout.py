@@ -74,10 +74,12 @@ def _backlog(here: Any) -> list[tuple[bytes, Any]]:
     return [(bytes([cycle, station]) * 32, here) for cycle in (2, 1) for station in range(62)]
 
 
-@pytest.mark.parametrize("gso", [True, False], ids=["offload", "one-message-each"])
-def test_a_backlog_of_124_answers_goes_in_one_system_call_in_order(gso: bool, monkeypatch: pytest.MonkeyPatch) -> None:
-    if not gso:
-        monkeypatch.setenv("MLINK_GSO", "0")
+@pytest.mark.parametrize("switch", ["", "MLINK_GSO", "MLINK_ONE_CALL"],
+                         ids=["offload", "one-message-each", "switched-off"])
+def test_a_backlog_of_124_answers_goes_in_one_system_call_in_order(switch: str,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    if switch:
+        monkeypatch.setenv(switch, "0")
     elif not mmsg.gso_supported():
         pytest.skip("UDP segmentation offload not available here")
     counts = _counting(monkeypatch)
@@ -85,16 +87,17 @@ def test_a_backlog_of_124_answers_goes_in_one_system_call_in_order(gso: bool, mo
     try:
         items = _backlog(rx.getsockname())
         assert tx.send_burst(items) == []
-        assert len(counts) == 1  # one sendmmsg
-        # one offloaded message of 124 (two of 64 and 60 on a kernel that takes 64), or one per datagram
-        assert counts == ([1 if sendlayout.max_segments() >= 124 else 2] if gso else [124])
+        if switch == "MLINK_ONE_CALL":  # cut every 64 datagrams, as before session 26
+            assert len(counts) == 2
+        else:  # one sendmmsg: one offloaded message of 124 (two of 64 and 60 on a kernel that takes 64), or 124
+            assert counts == ([124] if switch else [1 if sendlayout.max_segments() >= 124 else 2])
         assert [d for d, _ in _drain(rx)] == [d for d, _ in items]
     finally:
         tx.close()
         rx.close()
 
 
-def test_a_gro_reader_gets_a_backlog_in_one_read(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_gro_reader_gets_a_backlog_in_one_read() -> None:
     if not mmsg.gso_supported():
         pytest.skip("UDP segmentation offload not available here")
     tx, rx = mmsg.BurstSocket(_udp()), mmsg.BurstSocket(_udp())
@@ -106,20 +109,6 @@ def test_a_gro_reader_gets_a_backlog_in_one_read(monkeypatch: pytest.MonkeyPatch
         buffers = 1 if sendlayout.max_segments() >= len(items) else 2  # one offloaded send (two of one call)
         assert rx.recv_burst(buffers) == [d for d, _ in items]  # read at once, cut again, in order
         assert rx.recv_burst() == []
-    finally:
-        tx.close()
-        rx.close()
-
-
-def test_switched_off_a_burst_is_cut_every_64_datagrams(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("MLINK_ONE_CALL", "0")
-    counts = _counting(monkeypatch)
-    tx, rx = mmsg.BurstSocket(_udp()), _udp()
-    try:
-        items = _backlog(rx.getsockname())
-        assert tx.send_burst(items) == []
-        assert len(counts) == 2
-        assert [d for d, _ in _drain(rx)] == [d for d, _ in items]
     finally:
         tx.close()
         rx.close()
