@@ -9,6 +9,7 @@ import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import textwrap
@@ -364,3 +365,80 @@ def test_netns_testbed_runs_where_the_forward_chain_drops_bridged_frames(ip, ipt
     finally:
         subprocess.run([ipt, "-w", "-D", *drop[3:]], capture_output=True)
         cleanup(prefix, ip)
+
+
+_BACKLOG_READER = """
+import json, socket, sys, time
+from mlink_sim.aio import mmsg
+sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+sock.bind((sys.argv[1], 0))
+sock.setblocking(False)
+rx = mmsg.BurstSocket(sock)
+gro = sys.argv[2] == "gro" and rx.enable_gro()
+print(sock.getsockname()[1], flush=True)
+got, reads, end = [], 0, time.monotonic() + 5
+while len(got) < 124 and time.monotonic() < end:
+    batch = rx.recv_burst(512)
+    if batch:
+        reads += 1
+        got += [d.hex() for d in batch]
+    else:
+        time.sleep(0.001)
+print(json.dumps({"gro": gro, "reads": reads, "got": got}), flush=True)
+"""
+
+
+@pytest.mark.netns
+@pytest.mark.parametrize("read", ["gro", "plain"])
+def test_a_workers_backlog_crosses_a_veth_whole_and_in_order(ip, read):
+    """A worker's 124 answers to two cycles (``mlink_sim.aio.sendlayout``: one offloaded send where the kernel takes
+    128 segments) leave the host over a veth into a namespace, as in a testbed: every datagram arrives, in order;
+    a reader with ``UDP_GRO`` reads them in one call."""
+    from mlink_sim.aio import mmsg, sendlayout
+
+    if not mmsg.gso_supported():
+        pytest.skip("UDP segmentation offload not available here")
+    tag = _prefix("gso")
+    host, peer, octet = f"{tag}a", f"{tag}b", 16 + os.getpid() % 200
+    here, there = f"10.254.{octet}.1", f"10.254.{octet}.2"
+
+    def run(*args: str) -> None:
+        subprocess.run([ip, *args], check=True, capture_output=True, timeout=10)
+
+    try:
+        run("netns", "add", tag)
+        run("link", "add", host, "type", "veth", "peer", "name", peer)
+        run("link", "set", peer, "netns", tag)
+        run("addr", "add", f"{here}/30", "dev", host)
+        run("link", "set", host, "up")
+        run("-n", tag, "addr", "add", f"{there}/30", "dev", peer)
+        run("-n", tag, "link", "set", peer, "up")
+        reader = subprocess.Popen([ip, "netns", "exec", tag, sys.executable, "-c", _BACKLOG_READER, there, read],
+                                  stdout=subprocess.PIPE, text=True, cwd=REPO)
+        try:
+            assert reader.stdout is not None
+            port = int(reader.stdout.readline())
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            sock.bind((here, 0))
+            tx = mmsg.BurstSocket(sock)
+            items = [(bytes([cycle, station]) * 32, (there, port)) for cycle in (2, 1) for station in range(62)]
+            try:
+                assert tx.send_burst(items) == []
+                assert [len(idx) for idx in sendlayout.members_of(tx._sgroups or [])] == (
+                    [124] if sendlayout.max_segments() >= 124 else [64, 60])
+            finally:
+                tx.close()
+            out, _ = reader.communicate(timeout=15)
+        finally:
+            if reader.poll() is None:
+                reader.kill()
+                reader.wait()
+        result = json.loads(out)
+        assert result["got"] == [d.hex() for d, _ in items]
+        if read == "gro":
+            assert result["gro"]
+            if sendlayout.max_segments() >= 124:
+                assert result["reads"] == 1  # one offloaded send: one buffer, read at once
+    finally:
+        subprocess.run([ip, "netns", "del", tag], capture_output=True, timeout=10)
+        subprocess.run([ip, "link", "del", host], capture_output=True, timeout=10)
