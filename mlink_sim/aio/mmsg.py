@@ -28,9 +28,9 @@ headers are laid out once per shape (sizes, destinations; the socket keeps its l
 **Segmentation offload.** Where the kernel has it (Linux ≥ 4.18, :func:`gso_supported`; ``MLINK_GSO=0`` turns
 it off), ``send_burst`` sends the datagrams of a burst that go to one destination with one size as *one* message of
 its ``sendmmsg``, with ``UDP_SEGMENT`` (up to 64 datagrams to a message, 128 where the kernel takes them,
-:mod:`mlink_sim.aio.sendlayout`): the
-kernel builds one packet for the group and cuts it into the datagrams only where it must (before a device without
-the offload; at the receiving socket unless that socket asked for ``UDP_GRO``). Each datagram on a network is an
+:mod:`mlink_sim.aio.sendlayout`): the kernel builds one packet for the group and cuts it into the datagrams only
+where it must (before a device without the offload; at the receiving socket unless that socket asked for
+``UDP_GRO``). Each datagram on a network is an
 ordinary UDP datagram. A socket that reads with ``UDP_GRO`` (:meth:`BurstSocket.enable_gro`) gets such a group as
 one buffer with its segment size, and the reads cut it again (one ``recvmmsg`` for up to four buffers, one
 ``struct`` call to cut each), so every caller still sees one datagram per frame. On this 2-vCPU machine the

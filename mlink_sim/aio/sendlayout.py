@@ -15,8 +15,9 @@ groups leaves in **one** system call, and a group of up to 128 datagrams (where 
 Before session 26 each group was its own ``sendmsg`` and a burst was cut every 64 datagrams: a worker's 124
 answers to two cycles after a stall went in two sends, and the master, woken by the first, could run before the
 second arrived and find it a cycle late. One system call alone did not stop that (the kernel delivers the
-messages of a ``sendmmsg`` one after the other, and the master read between them in about a third of such sends);
-one send of 124 segments does (docs/performance.md, "A backlog in one system call").
+messages of a ``sendmmsg`` one after the other, and the master read between them in about a quarter of such
+sends); one send of 124 segments does (2 of 217 such sends read in two parts in the trace; docs/performance.md,
+"A backlog in one system call").
 
 Limits, all from the kernel:
 
