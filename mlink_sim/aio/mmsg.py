@@ -205,7 +205,7 @@ class BurstSocket:
     __slots__ = ("sock", "sendto", "recv", "recvfrom", "fileno", "getsockname", "close", "setsockopt", "_fd",
                  "_cap", "_slay", "_shapes", "_step", "_sdata", "_sview", "_skey", "_names", "_rmsgs", "_riov",
                  "_rbuf", "_rview", "_rnames", "_rnview", "_rwords", "_stride", "_len_at", "_namelen_at", "_bufsize",
-                 "_sources", "_rctl", "_rctlq", "_ctllen_at", "stamped", "_gso", "_sgroups", "gro", "_coalesced",
+                 "_sources", "_rctl", "_rctlq", "_ctllen_at", "stamped", "_gso", "gro", "_coalesced",
                  "_gleft", "_gerr")
 
     def __init__(self, sock: socket.socket, capacity: int = CAPACITY, bufsize: int = _BUFSIZE) -> None:
@@ -251,7 +251,6 @@ class BurstSocket:
         self.stamped = False  #: True once enable_stamps() succeeded
         # segmentation offload (see "Segmentation offload" in the module docstring)
         self._gso = gso_supported()  #: a burst's datagrams of one size to one destination go as one message
-        self._sgroups: list[Group] | None = None  #: the groups of the shape laid out (None: one message each)
         self.gro = False  #: True once enable_gro() succeeded
         self._coalesced: Any = None  #: the UDP_GRO reads (gro.CoalescedReads), once enable_gro() succeeded
         self._gleft: deque[tuple[bytes, Any]] = deque()  #: segments read but not handed over yet (recv/recvfrom)
@@ -332,19 +331,30 @@ class BurstSocket:
                 if err != errno.EINTR:
                     carried = lay.members[j]
                     if len(carried) > 1 and lay.groups is not None and err in _NO_GSO:
-                        self._gso, self._slay, self._skey, self._sgroups = False, None, None, None
-                        self._shapes.clear()
-                        for i in (i for rest in lay.members[j:] for i in rest):
-                            try:
-                                self.sendto(*items[i])
-                            except OSError as exc:
-                                failures.append((first + i, exc))
+                        self._refused([i for rest in lay.members[j:] for i in rest], items, first, failures)
                         return
                     failures.extend((first + i, OSError(err, os.strerror(err))) for i in carried)  # those are lost
                     j += 1
             if j >= n:
                 return
             sent = send(fd, ctypes.byref(msgs, j * _HDR_SIZE), n - j, 0)
+
+    def _refused(self, left: list[int], items: Sequence[tuple[bytes, Any]], first: int,
+                 failures: list[tuple[int, OSError]]) -> None:
+        """The kernel refused the offload: this socket sends one message per datagram from now on, and the
+        datagrams of *items* at *left*, not sent yet, go one by one."""
+        self._gso, self._slay, self._skey = False, None, None
+        self._shapes.clear()
+        for i in left:
+            try:
+                self.sendto(*items[i])
+            except OSError as exc:
+                failures.append((first + i, exc))
+
+    @property
+    def _sgroups(self) -> list[Group] | None:
+        """The offload's groups of the shape last laid out (None: one message per datagram, or none laid out)."""
+        return None if self._slay is None else self._slay.groups
 
     def _shape(self, sizes: tuple[int, ...], addrs: tuple[Any, ...]) -> Layout | None:
         """The :class:`~mlink_sim.aio.sendlayout.Layout` of a burst of *sizes* to *addrs* (laid out once, kept
@@ -358,7 +368,6 @@ class BurstSocket:
         lay = self._shapes.get(key, lambda: Layout.build(sizes, addrs, ctypes.addressof(self._sdata), self._gso,
                                                          self._name))
         self._skey, self._slay = key, lay
-        self._sgroups = None if lay is None else lay.groups
         return lay
 
     def _name(self, addr: Any) -> Any:

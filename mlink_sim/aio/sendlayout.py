@@ -79,7 +79,7 @@ def encode(addr: Any) -> bytes | None:
 def max_segments() -> int:
     """The most datagrams this kernel takes in one offloaded send: 128 where it takes a send of 128 one-byte
     segments to a socket of its own on loopback (Linux 6.18 here), else :data:`MAX_SEGMENTS`. Asked once per
-    process, the first time a group of more than 64 is laid out. Why it matters: the kernel hands a socket that
+    process, the first time a socket lays out a burst with the offload. Why it matters: the kernel hands a socket that
     reads with ``UDP_GRO`` one offloaded send as one buffer, all of it at once; two sends arrive one after the other,
     and the reader may run between them (a worker's answers to two cycles: docs/performance.md, "A backlog in one
     system call")."""
@@ -148,11 +148,7 @@ class Layout:
             offsets.append(off)
             off += n
         layout = list(zip(sizes, addrs))
-        grouped = None
-        if gso:
-            grouped = groups(layout)
-            if grouped is not None and len(grouped) > 1 and max(map(len, members_of(grouped))) == MAX_SEGMENTS:
-                grouped = groups(layout, max_segments())  # a group was cut at 64: one send of it where it can be
+        grouped = groups(layout, max_segments()) if gso else None
         members = [[i] for i in range(len(sizes))] if grouped is None else members_of(grouped)
         count = len(members)
         msgs, iov = (MMsgHdr * count)(), (IoVec * len(sizes))()

@@ -22,8 +22,8 @@ from .test_mmsg import _drain
 pytestmark = pytest.mark.skipif(not mmsg.gso_supported(), reason="UDP segmentation offload not available here")
 
 
-def _udp(cls: type[socket.socket] = socket.socket) -> socket.socket:
-    s = cls(socket.AF_INET, socket.SOCK_DGRAM)
+def _udp() -> socket.socket:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     s.bind(("127.0.0.1", 0))
     s.setblocking(False)
     return s
