@@ -25,6 +25,14 @@ Loads (bounded in time, loopback only; each load process ends itself even if thi
 Example (the sweep in docs/timing.md, ≈ 3 min on 2 cores):
 
     .venv/bin/python scripts/bench_timers.py --seconds 1 --json /tmp/timers.json
+
+``--arm`` measures instead what arming the clock's timer costs (docs/timing.md, "The clock's timer, armed a cycle
+ahead"): ``timerfd_settime`` for a target ``--arm-ahead`` away (default 200 µs) that becomes the CPU's earliest
+timer, the same call behind an earlier timer (as ``mlink_sim.aio._timerfd.LookaheadTimer`` arms the one after
+the next), and a plain system call (``getppid``) for scale; µs per call, p50 / p90 / p99 of ``--arm-calls`` calls
+each (≈ 1 s):
+
+    .venv/bin/python scripts/bench_timers.py --arm
 """
 
 from __future__ import annotations
@@ -48,6 +56,7 @@ import structlog
 
 from mlink_sim._files import write_atomically
 from mlink_sim.aio import CycleTimer, available_strategies
+from mlink_sim.aio._timerfd import TimerFD, timerfd_supported
 
 try:
     import uvloop
@@ -240,6 +249,39 @@ def _fmt(r: dict) -> str:
             f"{r['max_us']:>7.1f} {r['missed']:>6} {r['cpu_pct']:>6.1f} {r['spin_us']:>5.0f} {r['bg_pct']:>4.0f}")
 
 
+def arm_costs(calls: int, ahead_ns: int) -> dict[str, dict[str, float]]:
+    """µs per call (p50 / p90 / p99) of arming a timerfd that becomes the earliest timer, of arming one behind an
+    earlier timer, and of ``getppid`` (see the module docstring, ``--arm``)."""
+    first, second = TimerFD(), TimerFD()
+    pc, mono = time.perf_counter_ns, time.monotonic_ns
+    earliest: list[int] = []
+    behind: list[int] = []
+    syscall: list[int] = []
+    try:
+        for _ in range(calls):
+            now = mono()
+            t0 = pc()
+            first.set_abs(now + ahead_ns)  # nothing earlier is armed by us: the CPU's next timer event
+            t1 = pc()
+            second.set_abs(now + 2 * ahead_ns)  # behind *first*: the timer device is left as it is
+            t2 = pc()
+            os.getppid()
+            t3 = pc()
+            earliest.append(t1 - t0)
+            behind.append(t2 - t1)
+            syscall.append(t3 - t2)
+            first.disarm()
+            second.disarm()
+    finally:
+        first.close()
+        second.close()
+    out = {}
+    for name, xs in (("earliest", earliest), ("behind an earlier one", behind), ("getppid", syscall)):
+        xs.sort()
+        out[name] = {f"p{p}": round(_pct(xs, p / 100), 2) for p in (50, 90, 99)}
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=1.0, help="measured seconds per cell (default 1.0)")
@@ -257,7 +299,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--busy-budget", type=float, default=60.0,
                     help="total seconds spent waiting for a quiet machine and re-running (default 60)")
     ap.add_argument("--json", type=Path, default=None, help="write rows and metadata here")
+    ap.add_argument("--arm", action="store_true", help="measure what arming a timerfd costs instead (see above)")
+    ap.add_argument("--arm-calls", type=int, default=20_000, help="calls per figure of --arm (default 20000)")
+    ap.add_argument("--arm-ahead", type=_parse_period, default=200_000,
+                    help="how far ahead --arm arms the earliest timer (default 200us)")
     args = ap.parse_args(argv)
+    if args.arm:
+        if not timerfd_supported():
+            print("bench_timers.py --arm: no timerfd on this machine", file=sys.stderr)
+            return 2
+        if args.arm_calls < 1:
+            ap.error("--arm-calls must be at least 1")
+        costs = arm_costs(args.arm_calls, args.arm_ahead)
+        print(f"# timerfd_settime, µs per call, {args.arm_calls} calls, {platform.platform()}")
+        for name, q in costs.items():
+            print(f"{name:<22} " + "  ".join(f"{k} {v:6.2f}" for k, v in q.items()))
+        if args.json is not None:
+            write_atomically(args.json, json.dumps({"arm": costs, "calls": args.arm_calls,
+                                                    "ahead_ns": args.arm_ahead}, indent=1))
+        return 0
 
     structlog.configure(wrapper_class=structlog.make_filtering_bound_logger(logging.INFO))
     periods = [_parse_period(p) for p in args.periods.split(",") if p.strip()]

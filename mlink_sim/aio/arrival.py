@@ -33,7 +33,8 @@ import asyncio
 import time
 from collections.abc import Callable
 
-from ._timerfd import TimerFD, timerfd_supported
+from ._timerfd import LookaheadTimer, TimerFD, timerfd_supported
+from .mmsg import switched_off
 
 __all__ = ["ArrivalPoll"]
 
@@ -41,6 +42,10 @@ SAMPLES = 16  #: gaps between bursts from which the cycle is learned (their medi
 SAME_BURST_NS = 20_000  #: reads closer than this are one burst (the rest of a burst read a moment later)
 LATE_SAMPLES = 32  #: polls from whose timer wake-ups the lead is adapted (the second latest of them, ≈ p97)
 LEAD_MARGIN_NS = 15_000  #: the lead: that wake-up's lateness and this much more (the shortest lead)
+#: how far a poll armed a cycle ahead may begin before / after the one asked for, and still be kept (a burst's
+#: arrival moves the next one's due time by the master's jitter; earlier costs that much spin, later that much lead)
+LOOKAHEAD_EARLY_NS = 10_000
+LOOKAHEAD_LATE_NS = 5_000
 _mono = time.monotonic_ns
 
 
@@ -68,7 +73,10 @@ class ArrivalPoll:
         self._polling = False
         self._gaps: list[int] = []
         self._until = 0  # the end of the poll set: the due time plus the lead
-        self._tfd: TimerFD | None = TimerFD()
+        # the next poll armed a cycle ahead once the cycle is learned (LookaheadTimer); MLINK_LOOKAHEAD=0: one timerfd
+        self._tfd: LookaheadTimer | TimerFD | None = (
+            TimerFD() if switched_off("MLINK_LOOKAHEAD") else LookaheadTimer(0, early_ns=LOOKAHEAD_EARLY_NS,
+                                                                          late_ns=LOOKAHEAD_LATE_NS))
         self._tfd.watch(loop, self._on_timer)
 
     @classmethod
@@ -97,6 +105,8 @@ class ArrivalPoll:
                 gaps.sort()
                 self.period_ns = gaps[SAMPLES // 2]
                 gaps.clear()
+                if isinstance(self._tfd, LookaheadTimer):  # the poll after the next, a learned cycle later
+                    self._tfd.period_ns = self.period_ns
         period, tfd = self.period_ns, self._tfd
         if tfd is None or not period or (self.max_period_ns is not None and period > self.max_period_ns):
             self._due = 0
@@ -145,8 +155,11 @@ class ArrivalPoll:
 
     def stats(self) -> dict[str, int]:
         """The poll's counters, for the worker's stats."""
-        return {"period_ns": self.period_ns, "windows": self.windows, "caught": self.caught, "spun_ns": self.spun_ns,
-                "lead_ns": self.wake_lead_ns}
+        stats = {"period_ns": self.period_ns, "windows": self.windows, "caught": self.caught,
+                 "spun_ns": self.spun_ns, "lead_ns": self.wake_lead_ns}
+        if isinstance(self._tfd, LookaheadTimer):  # polls whose timer was already set a cycle ahead, and the others
+            stats["timer_kept"], stats["timer_rearmed"] = self._tfd.kept, self._tfd.rearmed
+        return stats
 
     def close(self) -> None:
         tfd, self._tfd = self._tfd, None

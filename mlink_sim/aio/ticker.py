@@ -42,8 +42,8 @@ import time
 from collections.abc import Callable
 
 from .._log import get_logger
-from ._timerfd import TimerFD, make_abs_sleeper, set_thread_timer_slack, timerfd_supported
-from .mmsg import yield_after_send
+from ._timerfd import LookaheadTimer, TimerFD, make_abs_sleeper, set_thread_timer_slack, timerfd_supported
+from .mmsg import switched_off, yield_after_send
 
 __all__ = ["CycleTimer", "available_strategies", "STRATEGIES"]
 
@@ -177,7 +177,7 @@ class CycleTimer:
         self._log = get_logger(__name__, strategy=self._strategy, period_ns=period_ns)
         # per-source resources
         self._handle: asyncio.TimerHandle | asyncio.Handle | None = None
-        self._tfd: TimerFD | None = None
+        self._tfd: LookaheadTimer | TimerFD | None = None
         self._thread: threading.Thread | None = None
         self._queue: queue.SimpleQueue[int | None] | None = None
         self._coarse = False
@@ -242,7 +242,8 @@ class CycleTimer:
         self._loop = loop
         src = self._source
         if src == "timerfd":
-            self._tfd = TimerFD()
+            # the next wake-up armed a cycle ahead (LookaheadTimer's docstring); MLINK_LOOKAHEAD=0: one timerfd
+            self._tfd = TimerFD() if switched_off("MLINK_LOOKAHEAD") else LookaheadTimer(self._period)
             self._tfd.watch(loop, self._on_wake)
             self._arm = self._tfd.set_abs
         elif src == "thread":

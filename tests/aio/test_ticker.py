@@ -15,6 +15,7 @@ import pytest
 from structlog.testing import capture_logs
 
 from mlink_sim.aio import STRATEGIES, CycleTimer, available_strategies
+from mlink_sim.aio.mmsg import switched_off
 from mlink_sim.aio.ticker import learn_wake_error
 
 try:
@@ -163,8 +164,8 @@ def test_stop_releases_resources_and_is_idempotent(strategy, loop_kind):
         timer.start()
         await rec.done.wait()
         assert timer.running
-        if strategy.startswith("timerfd"):
-            assert len(_open_fds() - fds_before) == 1
+        if strategy.startswith("timerfd"):  # two in turn, the next wake-up armed a cycle ahead (LookaheadTimer)
+            assert len(_open_fds() - fds_before) == (1 if switched_off("MLINK_LOOKAHEAD") else 2)
         if strategy.startswith("thread"):
             assert len(_wake_threads()) == threads_before + 1
         timer.stop()
