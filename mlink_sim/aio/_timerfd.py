@@ -139,8 +139,9 @@ class LookaheadTimer:
     Why: arming a timer that becomes the CPU's earliest makes the kernel reprogram the CPU's timer device, and on
     a virtual machine that is the hypervisor's work. On the 2-vCPU bench machine a ``timerfd_settime`` 200 µs
     ahead took 7.0 µs (median) against 1.8 µs for one behind an earlier timer and 0.35 µs for a plain system
-    call (``scripts/bench_timers.py --arm``). Here the next wake-up was armed a period ago, so it is usually already set; the call arms the one
-    after it, which lies behind it, and the device is reprogrammed only by the expiry itself, as it is anyway.
+    call (``scripts/bench_timers.py --arm``). Here the next wake-up was armed a period ago, so it is usually
+    already set; the call arms the one after it, which lies behind it, and the device is reprogrammed only by the
+    expiry itself, as it is anyway.
 
     :meth:`set_abs` keeps the timer already set for the next wake-up when it is at most *early_ns* before the
     target or *late_ns* after it (an adaptive spin moves the target by nanoseconds a cycle); otherwise it re-arms
