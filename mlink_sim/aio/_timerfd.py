@@ -169,6 +169,11 @@ class LookaheadTimer:
     def period_ns(self, value: int) -> None:
         self._period = int(value)
 
+    @property
+    def early_ns(self) -> int:
+        """How far before its target a kept wake-up may come (the owner spins it out)."""
+        return self._early
+
     def set_abs(self, target_ns: int) -> None:
         """Wake at *target_ns* (within the tolerances of the class docstring) and, a period later, once more
         unless moved before then."""

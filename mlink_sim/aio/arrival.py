@@ -34,7 +34,7 @@ import time
 from collections.abc import Callable
 
 from ._timerfd import LookaheadTimer, TimerFD, timerfd_supported
-from .mmsg import switched_off
+from .mmsg import switched_on
 
 __all__ = ["ArrivalPoll"]
 
@@ -73,10 +73,10 @@ class ArrivalPoll:
         self._polling = False
         self._gaps: list[int] = []
         self._until = 0  # the end of the poll set: the due time plus the lead
-        # the next poll armed a cycle ahead once the cycle is learned (LookaheadTimer); MLINK_LOOKAHEAD=0: one timerfd
+        # MLINK_LOOKAHEAD=1: the next poll armed a cycle ahead once the cycle is learned (LookaheadTimer), as the clock's
         self._tfd: LookaheadTimer | TimerFD | None = (
-            TimerFD() if switched_off("MLINK_LOOKAHEAD") else LookaheadTimer(0, early_ns=LOOKAHEAD_EARLY_NS,
-                                                                          late_ns=LOOKAHEAD_LATE_NS))
+            LookaheadTimer(0, early_ns=LOOKAHEAD_EARLY_NS, late_ns=LOOKAHEAD_LATE_NS) if switched_on("MLINK_LOOKAHEAD")
+            else TimerFD())
         self._tfd.watch(loop, self._on_timer)
 
     @classmethod

@@ -77,7 +77,7 @@ from .msghdr import MsgHdr as _MsgHdr
 from .sendlayout import MAX_VECTOR, Group, Layout, Shapes, encode
 
 __all__ = ["BurstSocket", "CAPACITY", "drain", "gso_supported", "stamps_enabled", "stamps_supported", "supported",
-           "switched_off", "wrap", "yield_after_send"]
+           "switched_off", "switched_on", "wrap", "yield_after_send"]
 
 CAPACITY = 64  #: messages per read (more waiting are read in several calls); a send takes up to sendlayout.MAX_VECTOR
 _BUFSIZE = 4096  # bytes per received datagram, as the per-datagram reads (``recv(4096)``)
@@ -113,7 +113,7 @@ def stamps_enabled() -> bool:
     cycle. Off by default: on the 2-vCPU bench machine it lowered the CPU per exchange at 15 ML-III stations × 1 ms
     but raised the missed exchanges at 30 ML-II stations × 1 ms (docs/performance.md, "Fewer wake-ups of the
     master")."""
-    return stamps_supported() and os.environ.get("MLINK_RX_STAMPS", "").strip().lower() in ("1", "on", "yes", "true")
+    return stamps_supported() and switched_on("MLINK_RX_STAMPS")
 
 
 def gso_supported() -> bool:
@@ -142,6 +142,11 @@ def yield_after_send() -> Callable[[], None] | None:
 def switched_off(name: str) -> bool:
     """The environment switch *name* set to ``0``, ``off``, ``no`` or ``false`` (read when asked)."""
     return os.environ.get(name, "").strip().lower() in ("0", "off", "no", "false")
+
+
+def switched_on(name: str) -> bool:
+    """The environment switch *name* set to ``1``, ``on``, ``yes`` or ``true`` (read when asked): an opt-in."""
+    return os.environ.get(name, "").strip().lower() in ("1", "on", "yes", "true")
 
 
 def _kernel_has_gso() -> bool:

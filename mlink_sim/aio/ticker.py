@@ -43,7 +43,7 @@ from collections.abc import Callable
 
 from .._log import get_logger
 from ._timerfd import LookaheadTimer, TimerFD, make_abs_sleeper, set_thread_timer_slack, timerfd_supported
-from .mmsg import switched_off, yield_after_send
+from .mmsg import switched_on, yield_after_send
 
 __all__ = ["CycleTimer", "available_strategies", "STRATEGIES"]
 
@@ -182,6 +182,9 @@ class CycleTimer:
         self._queue: queue.SimpleQueue[int | None] | None = None
         self._coarse = False
         self._arm: Callable[[int], None] = self._arm_call_at
+        #: how early a wake-up may come and still be spun out rather than re-armed: the lookahead timer's tolerance
+        #: (a wake-up it kept from a cycle ago may come that much before the target; a re-arm would cost a wake-up)
+        self._early_ok = 0
 
     # ------------------------------------------------------------------ public
     @property
@@ -242,8 +245,10 @@ class CycleTimer:
         self._loop = loop
         src = self._source
         if src == "timerfd":
-            # the next wake-up armed a cycle ahead (LookaheadTimer's docstring); MLINK_LOOKAHEAD=0: one timerfd
-            self._tfd = TimerFD() if switched_off("MLINK_LOOKAHEAD") else LookaheadTimer(self._period)
+            # MLINK_LOOKAHEAD=1: the next wake-up armed a cycle ahead (LookaheadTimer; docs/timing.md, "The clock's
+            # timer, armed a cycle ahead": less CPU, a later p99 wake-up, so off by default)
+            self._tfd = LookaheadTimer(self._period) if switched_on("MLINK_LOOKAHEAD") else TimerFD()
+            self._early_ok = self._tfd.early_ns if isinstance(self._tfd, LookaheadTimer) else 0
             self._tfd.watch(loop, self._on_wake)
             self._arm = self._tfd.set_abs
         elif src == "thread":
@@ -329,7 +334,7 @@ class CycleTimer:
         mono = _mono
         now = mono()
         d = self._deadline
-        if now < d and d - now > self._spin:
+        if now < d and d - now > self._spin + self._early_ok:
             self._rearm_early(d - self._spin, now)
             return
         if self._adaptive:

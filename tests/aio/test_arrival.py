@@ -91,10 +91,12 @@ def test_no_poll_above_the_longest_cycle() -> None:
         loop.close()
 
 
-async def test_bursts_on_a_socket_are_read_in_the_poll_and_none_is_lost() -> None:
+@pytest.mark.parametrize("lookahead", ["0", "1"])
+async def test_bursts_on_a_socket_are_read_in_the_poll_and_none_is_lost(lookahead, monkeypatch) -> None:
     """Bursts of 3 datagrams every 4 ms from another thread, read with a 1 ms lead (2 ms of poll around each):
     once the cycle is learned the poll reads bursts (not only the reader's wake-ups), and every datagram reaches
-    the receiver once."""
+    the receiver once; with MLINK_LOOKAHEAD=1 too, each poll then armed a cycle ahead (kept) or re-armed."""
+    monkeypatch.setenv("MLINK_LOOKAHEAD", lookahead)
     got: list[bytes] = []
     ep = await open_batch_endpoint(lambda batch: got.extend(d for d, _ in batch))
     assert ep.poll_arrivals(parse_arrival_poll("1ms")) and ep.poll is not None
@@ -124,6 +126,10 @@ async def test_bursts_on_a_socket_are_read_in_the_poll_and_none_is_lost() -> Non
         gaps = sorted(b - a for a, b in zip(sent_at, sent_at[1:]))
         assert 3_000 * US <= stats["period_ns"] <= max(12_000 * US, 2 * gaps[len(gaps) // 2]), gaps
         assert 1 <= stats["caught"] <= stats["windows"] and stats["spun_ns"] > 0
+        if lookahead == "1":
+            assert stats["timer_kept"] + stats["timer_rearmed"] >= 1
+        else:
+            assert "timer_kept" not in stats
     finally:
         ep.close()
     assert ep.poll is None

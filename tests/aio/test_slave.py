@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from mlink_sim.aio.mmsg import switched_off
+from mlink_sim.aio.mmsg import switched_on
 from mlink_sim.aio import slave as slave_module
 from mlink_sim.aio.slave import HostedStation, SlaveServer
 from mlink_sim.cards import create_card, settings_for
@@ -252,7 +252,7 @@ async def test_arrival_poll_on_each_shared_socket_or_a_lone_station_s_only() -> 
             endpoints = {id(hs.endpoint): hs.endpoint for hs in server.stations}.values()
             assert sum(ep is not None and ep.poll is not None for ep in endpoints) == polls
             keys = {"period_ns", "windows", "caught", "spun_ns", "lead_ns"}
-            if not switched_off("MLINK_LOOKAHEAD"):  # the poll's timer armed a cycle ahead: kept / re-armed
+            if switched_on("MLINK_LOOKAHEAD"):  # the poll's timer armed a cycle ahead: kept / re-armed
                 keys |= {"timer_kept", "timer_rearmed"}
             assert set(server.cpu()["arrival_poll"]) == (keys if polls else set())
         finally:

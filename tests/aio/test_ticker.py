@@ -15,7 +15,8 @@ import pytest
 from structlog.testing import capture_logs
 
 from mlink_sim.aio import STRATEGIES, CycleTimer, available_strategies
-from mlink_sim.aio.mmsg import switched_off
+from mlink_sim.aio._timerfd import LookaheadTimer
+from mlink_sim.aio.mmsg import switched_on
 from mlink_sim.aio.ticker import learn_wake_error
 
 try:
@@ -92,6 +93,29 @@ def test_each_strategy_runs_20_cycles_at_1ms(strategy, loop_kind):
     run_on(loop_kind, main)
 
 
+@pytest.mark.skipif("timerfd" not in AVAILABLE, reason="no timerfd here")
+@pytest.mark.parametrize("loop_kind", LOOPS)
+def test_the_lookahead_timer_keeps_the_schedule_and_arms_ahead(loop_kind, monkeypatch):
+    """MLINK_LOOKAHEAD=1 (docs/timing.md, "The clock's timer, armed a cycle ahead"): the same exact schedule, with
+    each wake-up after the first already armed a cycle before (kept) or, where the spin moved it, re-armed."""
+    monkeypatch.setenv("MLINK_LOOKAHEAD", "1")
+
+    async def main():
+        rec = Recorder(want=30)
+        start = time.monotonic_ns() + 2 * MS
+        timer = CycleTimer(MS, rec, strategy="timerfd+spin", start_ns=start)
+        timer.start()
+        tfd = timer._tfd
+        assert isinstance(tfd, LookaheadTimer)
+        await rec.done.wait()
+        timer.stop()
+        assert_schedule(rec.calls, start, MS)
+        assert tfd.closed
+        assert tfd.kept + tfd.rearmed >= len(rec.calls) and tfd.kept >= 1
+
+    run_on(loop_kind, main)
+
+
 @pytest.mark.parametrize("loop_kind", LOOPS)
 def test_deadlines_are_exact_multiples_with_awkward_period(loop_kind):
     period = 333_333  # not a divisor of anything: float arithmetic would drift
@@ -164,8 +188,8 @@ def test_stop_releases_resources_and_is_idempotent(strategy, loop_kind):
         timer.start()
         await rec.done.wait()
         assert timer.running
-        if strategy.startswith("timerfd"):  # two in turn, the next wake-up armed a cycle ahead (LookaheadTimer)
-            assert len(_open_fds() - fds_before) == (1 if switched_off("MLINK_LOOKAHEAD") else 2)
+        if strategy.startswith("timerfd"):  # two in turn with MLINK_LOOKAHEAD=1 (LookaheadTimer)
+            assert len(_open_fds() - fds_before) == (2 if switched_on("MLINK_LOOKAHEAD") else 1)
         if strategy.startswith("thread"):
             assert len(_wake_threads()) == threads_before + 1
         timer.stop()
