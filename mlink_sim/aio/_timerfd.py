@@ -149,30 +149,17 @@ class LookaheadTimer:
     expired for a target already served (after a stall) is re-armed too, which clears it, so it wakes nobody.
     """
 
-    __slots__ = ("_fds", "_armed", "_period", "_early", "_late", "_fired", "kept", "rearmed")
+    __slots__ = ("_fds", "_armed", "period_ns", "early_ns", "_late", "_fired", "kept", "rearmed")
 
     def __init__(self, period_ns: int, *, early_ns: int = 5_000, late_ns: int = 1_000) -> None:
         self._fds = (TimerFD(), TimerFD())
         self._armed = [0, 0]  # the target each is set for (0: not set)
-        self._period = int(period_ns)
-        self._early = int(early_ns)
+        self.period_ns = int(period_ns)  #: how far after a target the one after it is armed (the owner may change it)
+        self.early_ns = int(early_ns)  #: how far before its target a kept wake-up may come (the owner spins it out)
         self._late = int(late_ns)
         self._fired = 0  # the one that woke us last: free to be armed a period ahead
         self.kept = 0  #: set_abs calls whose target was already set a period ago
         self.rearmed = 0  #: set_abs calls that had to move the next wake-up
-
-    @property
-    def period_ns(self) -> int:
-        return self._period
-
-    @period_ns.setter
-    def period_ns(self, value: int) -> None:
-        self._period = int(value)
-
-    @property
-    def early_ns(self) -> int:
-        """How far before its target a kept wake-up may come (the owner spins it out)."""
-        return self._early
 
     def set_abs(self, target_ns: int) -> None:
         """Wake at *target_ns* (within the tolerances of the class docstring) and, a period later, once more
@@ -181,21 +168,16 @@ class LookaheadTimer:
         j = 1 - i
         armed = self._armed
         g = armed[j]
-        if g and target_ns - self._early <= g <= target_ns + self._late:
+        if g and target_ns - self.early_ns <= g <= target_ns + self._late:
             self.kept += 1
         else:
             self.rearmed += 1
             self._fds[j].set_abs(target_ns)
             armed[j] = target_ns
-        ahead = target_ns + self._period  # from the target asked for, not the one kept: no drift
+        ahead = target_ns + self.period_ns  # from the target asked for, not the one kept: no drift
         self._fds[i].set_abs(ahead)
         armed[i] = ahead
         self._fired = j  # the next wake-up is j's: then i holds the one after
-
-    def disarm(self) -> None:
-        for fd in self._fds:
-            fd.disarm()
-        self._armed[:] = [0, 0]
 
     def watch(self, loop: Any, on_expiry: Callable[[], None]) -> None:
         """Have *loop* call *on_expiry* when either timerfd expires (see :meth:`TimerFD.watch`)."""
