@@ -10,6 +10,13 @@ timerfd) and reads the socket without blocking until the burst is there, for at 
 then the reader (``loop.add_reader``) has it again. A wake-up before the burst costs the worker its spin; a
 wake-up when the burst comes costs the chain of the exchange.
 
+Between two empty reads the poll yields its CPU (``os.sched_yield``; ``MLINK_POLL_YIELD=0`` keeps it spinning,
+to compare). The master that sends the burst may be queued on that very CPU: Linux packs the two processes on one
+CPU here, and a spinning worker held the master's cycle up until its poll gave up, a lead past the burst's due
+time. With idle CPUs polling (``bench.py --pm-qos``), 8 ML-III × 250 µs, the clock's lateness p99 was 159–162 µs
+without the yield and 29–32 µs with it (docs/performance.md, "The arrival poll yields"). Where nothing else is
+queued, the call returns at once.
+
 The lead adapts: a poll that begins *lead_ns* ahead spins for that long less the timer's own wake-up, so the
 poll begins, instead, the timer's late wake-up (the second latest of the last :data:`LATE_SAMPLES`, ≈ p97) plus
 :data:`LEAD_MARGIN_NS` ahead, at most *lead_ns*; a burst the reader had instead of the poll sets it back to
@@ -20,7 +27,11 @@ on time and the spin shrinks to the margin.
 The learned cycle is the median of the gaps between the last :data:`SAMPLES` bursts (reads less than
 :data:`SAME_BURST_NS` apart are one burst). With a ``max_period_ns`` (as "auto" sets) the poll is armed only while
 that cycle is at most it: at 1 ms the wake-up is a small part of the cycle, and a poll there did not lower the
-missed exchanges at 62 ML-III stations (docs/performance.md). The setting (``auto``, ``off``, a lead) is parsed by
+missed exchanges at 62 ML-III stations (docs/performance.md). Such a poll also stands down while the kernel holds
+the CPU wake-up latency at 0 (``mlink-sim up --realtime``, ``bench.py --pm-qos``, asked once a second): idle CPUs
+then poll, the timer wakes the worker on time, and at 8 ML-III × 250 µs the poll only cost CPU (22.1 against
+19.6 µs per exchange) and held the master's clock up (lateness p99 28 against 5 µs; docs/performance.md, "The
+arrival poll yields"). The setting (``auto``, ``off``, a lead) is parsed by
 :func:`mlink_sim.config.units.parse_arrival_poll`. "auto" polls from at most
 :data:`~mlink_sim.config.units.AUTO_POLL_LEAD_NS` before the burst is due, at cycles up to
 :data:`~mlink_sim.config.units.AUTO_POLL_MAX_PERIOD_NS` (500 µs). 80 µs, because a timerfd woke the halted worker
@@ -30,11 +41,13 @@ missed exchanges at 62 ML-III stations (docs/performance.md). The setting (``aut
 from __future__ import annotations
 
 import asyncio
+import os
 import time
 from collections.abc import Callable
 
 from ._timerfd import LookaheadTimer, TimerFD, timerfd_supported
-from .mmsg import switched_on
+from .mmsg import switched_off, switched_on
+from .realtime import wakeup_latency_limit
 
 __all__ = ["ArrivalPoll"]
 
@@ -46,14 +59,18 @@ LEAD_MARGIN_NS = 15_000  #: the lead: that wake-up's lateness and this much more
 #: arrival moves the next one's due time by the master's jitter; earlier costs that much spin, later that much lead)
 LOOKAHEAD_EARLY_NS = 10_000
 LOOKAHEAD_LATE_NS = 5_000
+#: how often a poll with a longest cycle ("auto") asks the kernel whether idle CPUs poll (its CPU wake-up latency
+#: held at 0: ``realtime.wakeup_latency_limit``); while they do, it stands down
+QOS_RECHECK_NS = 1_000_000_000
 _mono = time.monotonic_ns
 
 
 class ArrivalPoll:
     """Polls with *read* (non-blocking: True when it handed a burst over) from *lead_ns* before the next burst is
     due to *lead_ns* after. The owner calls :meth:`arrived` with the time of every burst read (by the poll or by
-    the reader); :meth:`close` stops it. *max_period_ns*: poll only while the learned cycle is at most this (None:
-    at any cycle). :meth:`create` gives None where no timerfd can be made (the reader alone then)."""
+    the reader); :meth:`close` stops it. *max_period_ns*: poll only while the learned cycle is at most this and
+    idle CPUs halt (the kernel does not hold the CPU wake-up latency at 0; asked once a second); None: at any
+    cycle, always. :meth:`create` gives None where no timerfd can be made (the reader alone then)."""
 
     def __init__(self, loop: asyncio.AbstractEventLoop, read: Callable[[], bool], lead_ns: int,
                  max_period_ns: int | None) -> None:
@@ -73,11 +90,14 @@ class ArrivalPoll:
         self._polling = False
         self._gaps: list[int] = []
         self._until = 0  # the end of the poll set: the due time plus the lead
+        self.idle_cpus_poll = False  #: an "auto" poll stands down: the kernel holds the CPU wake-up latency at 0
+        self._qos_at = 0  # when an "auto" poll asks that again
         # MLINK_LOOKAHEAD=1: the next poll armed a cycle ahead once the cycle is learned (LookaheadTimer), as the clock's
         self._tfd: LookaheadTimer | TimerFD | None = (
             LookaheadTimer(0, early_ns=LOOKAHEAD_EARLY_NS, late_ns=LOOKAHEAD_LATE_NS) if switched_on("MLINK_LOOKAHEAD")
             else TimerFD())
         self._tfd.watch(loop, self._on_timer)
+        self._pause = None if switched_off("MLINK_POLL_YIELD") else getattr(os, "sched_yield", None)
 
     @classmethod
     def create(cls, loop: asyncio.AbstractEventLoop, read: Callable[[], bool],
@@ -107,8 +127,11 @@ class ArrivalPoll:
                 gaps.clear()
                 if isinstance(self._tfd, LookaheadTimer):  # the poll after the next, a learned cycle later
                     self._tfd.period_ns = self.period_ns
-        period, tfd = self.period_ns, self._tfd
-        if tfd is None or not period or (self.max_period_ns is not None and period > self.max_period_ns):
+        period, tfd, longest = self.period_ns, self._tfd, self.max_period_ns
+        if longest is not None and period and now_ns >= self._qos_at:
+            self._qos_at = now_ns + QOS_RECHECK_NS
+            self.idle_cpus_poll = wakeup_latency_limit() == 0
+        if tfd is None or not period or (longest is not None and (period > longest or self.idle_cpus_poll)):
             self._due = 0
             return
         lead = min(self.lead_ns, period // 2)
@@ -133,11 +156,14 @@ class ArrivalPoll:
         self.woke(start - self.poll_at_ns)
         end = self._until
         self._polling = True
+        pause = self._pause
         try:
             while now < end:
                 if read():
                     self.caught += 1
                     break
+                if pause is not None:
+                    pause()
                 now = _mono()
         finally:
             self._polling = False
@@ -156,7 +182,7 @@ class ArrivalPoll:
     def stats(self) -> dict[str, int]:
         """The poll's counters, for the worker's stats."""
         stats = {"period_ns": self.period_ns, "windows": self.windows, "caught": self.caught,
-                 "spun_ns": self.spun_ns, "lead_ns": self.wake_lead_ns}
+                 "spun_ns": self.spun_ns, "lead_ns": self.wake_lead_ns, "idle_cpus_poll": int(self.idle_cpus_poll)}
         if isinstance(self._tfd, LookaheadTimer):  # polls whose timer was already set a cycle ahead, and the others
             stats["timer_kept"], stats["timer_rearmed"] = self._tfd.kept, self._tfd.rearmed
         return stats

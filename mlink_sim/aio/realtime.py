@@ -30,7 +30,7 @@ import os
 import struct
 
 __all__ = ["MASTER_PRIORITY", "WORKER_PRIORITY", "PM_QOS_PATH", "cpu_plan", "format_cpus", "parse_cpus", "apply",
-           "hold_wakeup_latency", "wakeup_latency_held", "release_wakeup_latency"]
+           "hold_wakeup_latency", "wakeup_latency_held", "wakeup_latency_limit", "release_wakeup_latency"]
 
 #: SCHED_FIFO priorities (1–99): the clock above the workers, both below the kernel's own threads (50 is the
 #: priority of threaded IRQ handlers on PREEMPT_RT kernels; these stay under it).
@@ -121,6 +121,24 @@ def hold_wakeup_latency(path: str | None = None) -> str:
 def wakeup_latency_held(path: str | None = None) -> bool:
     """True while this process holds the request of :func:`hold_wakeup_latency`."""
     return (PM_QOS_PATH if path is None else path) in _held
+
+
+def wakeup_latency_limit(path: str | None = None) -> int | None:
+    """The CPU wake-up latency the kernel holds now for the whole system, in µs: the least of every process's
+    request (this one's, ``mlink-sim up --realtime``'s, ``bench.py --pm-qos``'s, a tuning daemon's); 0 means idle
+    CPUs poll. None where it cannot be read (the device is root's only, or missing). Opening the device adds a
+    request of the default value, which changes nothing, and closing it withdraws that again."""
+    try:
+        fd = os.open(PM_QOS_PATH if path is None else path, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return None
+    try:
+        raw = os.read(fd, 4)
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+    return struct.unpack("=i", raw)[0] if len(raw) == 4 else None
 
 
 def release_wakeup_latency(path: str | None = None) -> None:

@@ -12,13 +12,19 @@ import time
 import pytest
 
 from mlink_sim.aio._timerfd import timerfd_supported
-from mlink_sim.aio.arrival import LATE_SAMPLES, LEAD_MARGIN_NS, SAMPLES, ArrivalPoll
+from mlink_sim.aio.arrival import LATE_SAMPLES, LEAD_MARGIN_NS, QOS_RECHECK_NS, SAMPLES, ArrivalPoll
 from mlink_sim.aio.udp import open_batch_endpoint
 from mlink_sim.config.units import AUTO_POLL_LEAD_NS, AUTO_POLL_MAX_PERIOD_NS, parse_arrival_poll
 
 pytestmark = pytest.mark.skipif(not timerfd_supported(), reason="no timerfd here")
 
 US = 1_000
+
+
+@pytest.fixture(autouse=True)
+def _cpus_halt(monkeypatch):
+    """Idle CPUs halt, whatever this machine holds now (a CI runner's own PM QoS request must not decide)."""
+    monkeypatch.setattr("mlink_sim.aio.arrival.wakeup_latency_limit", lambda: None)
 
 
 class _Recorder:
@@ -176,4 +182,68 @@ def test_the_lead_follows_the_timer_s_late_wake_ups_and_a_missed_burst_restores_
         assert r.poll.stats()["lead_ns"] == 80 * US
     finally:
         r.poll.close()
+        loop.close()
+
+
+@pytest.mark.parametrize("switch", ["", "0"])
+def test_the_poll_yields_the_cpu_between_empty_reads(switch, monkeypatch) -> None:
+    """While it waits for a burst the poll gives its CPU to any process queued on it (``sched_yield`` after each
+    empty read): the master, packed on the same CPU, must run to send the very burst the poll waits for
+    (docs/performance.md, "The arrival poll yields"). None after the read that got the burst; none with
+    MLINK_POLL_YIELD=0."""
+    yields: list[int] = []
+    reads: list[int] = []
+    monkeypatch.setattr("os.sched_yield", lambda: yields.append(len(reads)))
+    monkeypatch.setenv("MLINK_POLL_YIELD", switch)
+
+    def read() -> bool:
+        reads.append(1)
+        return len(reads) == 4  # the burst is there at the fourth read
+
+    loop = asyncio.new_event_loop()
+    poll = ArrivalPoll(loop, read, 80 * US, None)
+    try:
+        now = time.monotonic_ns()
+        poll._due, poll._until, poll.poll_at_ns = now, now + 10**9, now  # a poll set, due now, ending in 1 s
+        poll._on_timer()
+        assert len(reads) == 4 and poll.caught == 1 and poll.windows == 1
+        assert yields == ([] if switch == "0" else [1, 2, 3])  # one after each empty read, in between
+    finally:
+        poll.close()
+        loop.close()
+
+
+def test_auto_stands_down_while_idle_cpus_poll_and_a_lead_given_does_not(monkeypatch) -> None:
+    """"auto" (a longest cycle) is armed only while idle CPUs halt: while the kernel holds the CPU wake-up latency
+    at 0 (``mlink-sim up --realtime``, ``bench.py --pm-qos``) the timer wakes the worker on time and the poll only
+    costs CPU (docs/performance.md, "The arrival poll yields"). Asked once a second, not per burst. A lead given
+    polls anyway."""
+    limit = [0]
+    asked: list[int] = []
+
+    def wakeup_latency_limit() -> int:
+        asked.append(limit[0])
+        return limit[0]
+
+    monkeypatch.setattr("mlink_sim.aio.arrival.wakeup_latency_limit", wakeup_latency_limit)
+    loop = asyncio.new_event_loop()
+    auto = _Recorder(loop, 80 * US, 500 * US)
+    lead = _Recorder(loop, 80 * US, None)
+    try:
+        t = [10**9 + k * 250 * US for k in range(SAMPLES + 1)]
+        auto.feed(t)
+        lead.feed(t)
+        assert auto.poll.period_ns == 250 * US and not auto.poll.armed and auto.set == []
+        assert auto.poll.stats()["idle_cpus_poll"] == 1
+        assert lead.poll.armed and lead.poll.stats()["idle_cpus_poll"] == 0
+        assert len(asked) == 1  # the lead given never asks; "auto" once so far
+        limit[0] = 2_000_000_000  # the request withdrawn: the CPUs halt again
+        more = [t[-1] + k * 250 * US for k in range(1, 400)]  # < 1 s later: not asked yet
+        auto.feed(more)
+        assert len(asked) == 1 and not auto.poll.armed
+        auto.feed([more[-1] + QOS_RECHECK_NS])
+        assert len(asked) == 2 and auto.poll.armed and auto.poll.stats()["idle_cpus_poll"] == 0
+    finally:
+        auto.poll.close()
+        lead.poll.close()
         loop.close()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 import os
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -109,12 +110,26 @@ def test_wakeup_latency_on_this_kernel_reads_back_zero_while_held():
     """On the real device (root): while a process holds its request, the device reads back the machine's
     effective constraint, 0 µs; without permission the refusal says why."""
     code = ("import struct; from mlink_sim.aio import realtime as r; print(r.hold_wakeup_latency()); "
-            "print(struct.unpack('=i', open(r.PM_QOS_PATH, 'rb').read(4))[0] if r.wakeup_latency_held() else '-')")
+            "print(struct.unpack('=i', open(r.PM_QOS_PATH, 'rb').read(4))[0] if r.wakeup_latency_held() else '-'); "
+            "print(r.wakeup_latency_limit())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=30).stdout.split("\n")
     if out[0] == "CPU wake-up latency 0 µs":
-        assert out[1] == "0"
+        assert out[1] == "0" and out[2] == "0"  # wakeup_latency_limit reads the same
     else:
-        assert out[0].startswith("CPU wake-up latency refused (")
+        assert out[0].startswith("CPU wake-up latency refused (") and out[2] == "None"  # unreadable: unknown
+
+
+def test_the_wakeup_latency_limit_is_the_device_s_s32_or_none(tmp_path):
+    """What the kernel holds for the whole system: the s32 the device reads back (µs; 0: idle CPUs poll); None
+    where it cannot be read (missing, root's only) or reads short."""
+    device = tmp_path / "cpu_dma_latency"
+    device.write_bytes(struct.pack("=i", 2_000_000_000))  # PM_QOS_DEFAULT_VALUE: no request held
+    assert realtime.wakeup_latency_limit(str(device)) == 2_000_000_000
+    device.write_bytes(struct.pack("=i", 0))
+    assert realtime.wakeup_latency_limit(str(device)) == 0
+    device.write_bytes(b"\0\0")
+    assert realtime.wakeup_latency_limit(str(device)) is None
+    assert realtime.wakeup_latency_limit(str(tmp_path / "missing")) is None
 
 
 def test_granted_in_a_child_process_says_what_it_got():

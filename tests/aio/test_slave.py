@@ -251,7 +251,7 @@ async def test_arrival_poll_on_each_shared_socket_or_a_lone_station_s_only() -> 
         try:
             endpoints = {id(hs.endpoint): hs.endpoint for hs in server.stations}.values()
             assert sum(ep is not None and ep.poll is not None for ep in endpoints) == polls
-            keys = {"period_ns", "windows", "caught", "spun_ns", "lead_ns"}
+            keys = {"period_ns", "windows", "caught", "spun_ns", "lead_ns", "idle_cpus_poll"}
             if switched_on("MLINK_LOOKAHEAD"):  # the poll's timer armed a cycle ahead: kept / re-armed
                 keys |= {"timer_kept", "timer_rearmed"}
             assert set(server.cpu()["arrival_poll"]) == (keys if polls else set())
