@@ -41,12 +41,11 @@ arrival poll yields"). The setting (``auto``, ``off``, a lead) is parsed by
 from __future__ import annotations
 
 import asyncio
-import os
 import time
 from collections.abc import Callable
 
 from ._timerfd import LookaheadTimer, TimerFD, timerfd_supported
-from .mmsg import switched_off, switched_on
+from .mmsg import switched_on, yielder
 from .realtime import wakeup_latency_limit
 
 __all__ = ["ArrivalPoll"]
@@ -92,12 +91,13 @@ class ArrivalPoll:
         self._until = 0  # the end of the poll set: the due time plus the lead
         self.idle_cpus_poll = False  #: an "auto" poll stands down: the kernel holds the CPU wake-up latency at 0
         self._qos_at = 0  # when an "auto" poll asks that again
-        # MLINK_LOOKAHEAD=1: the next poll armed a cycle ahead once the cycle is learned (LookaheadTimer), as the clock's
+        # MLINK_LOOKAHEAD=1: the next poll armed a cycle ahead once the cycle is learned (LookaheadTimer), as the
+        # clock's
         self._tfd: LookaheadTimer | TimerFD | None = (
-            LookaheadTimer(0, early_ns=LOOKAHEAD_EARLY_NS, late_ns=LOOKAHEAD_LATE_NS) if switched_on("MLINK_LOOKAHEAD")
-            else TimerFD())
+            LookaheadTimer(0, early_ns=LOOKAHEAD_EARLY_NS, late_ns=LOOKAHEAD_LATE_NS)
+            if switched_on("MLINK_LOOKAHEAD") else TimerFD())
         self._tfd.watch(loop, self._on_timer)
-        self._pause = None if switched_off("MLINK_POLL_YIELD") else getattr(os, "sched_yield", None)
+        self._pause = yielder("MLINK_POLL_YIELD")  #: os.sched_yield between two empty reads (None: switched off)
 
     @classmethod
     def create(cls, loop: asyncio.AbstractEventLoop, read: Callable[[], bool],

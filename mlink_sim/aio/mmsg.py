@@ -77,7 +77,7 @@ from .msghdr import MsgHdr as _MsgHdr
 from .sendlayout import MAX_VECTOR, Group, Layout, Shapes, encode
 
 __all__ = ["BurstSocket", "CAPACITY", "drain", "gso_supported", "stamps_enabled", "stamps_supported", "supported",
-           "switched_off", "switched_on", "wrap", "yield_after_send"]
+           "switched_off", "switched_on", "wrap", "yield_after_send", "yielder"]
 
 CAPACITY = 64  #: messages per read (more waiting are read in several calls); a send takes up to sendlayout.MAX_VECTOR
 _BUFSIZE = 4096  # bytes per received datagram, as the per-datagram reads (``recv(4096)``)
@@ -136,7 +136,14 @@ def yield_after_send() -> Callable[[], None] | None:
     62 ML-III × 1 ms, 3 + 3 alternated runs of 20 s: missed 0.75 → 0.35 %, RTT p99 744 → 426 µs
     (docs/performance.md, "The worker yields after its send"). The master's clock calls it too, between two cycles
     of a catch-up after a stall, for the same reason (docs/timing.md, "The catch-up yields")."""
-    return None if switched_off("MLINK_YIELD") else getattr(os, "sched_yield", None)
+    return yielder("MLINK_YIELD")
+
+
+def yielder(switch: str) -> Callable[[], None] | None:
+    """``os.sched_yield``, or ``None`` where the call does not exist or the environment switch *switch* is set to
+    ``0`` (to compare): the worker's yield after its send and the clock's in a catch-up (``MLINK_YIELD``,
+    :func:`yield_after_send`), the arrival poll's between two empty reads (``MLINK_POLL_YIELD``)."""
+    return None if switched_off(switch) else getattr(os, "sched_yield", None)
 
 
 def switched_off(name: str) -> bool:

@@ -403,8 +403,8 @@ class NetworkConfig(BaseModel):
     stall_bound: DurationNs = Field(100_000_000, description="longest stall 'absorb' absorbs, e.g. '100ms'")
     arrival_poll: str = Field(
         "auto", description="the slave workers' arrival poll: 'auto' busy-polls from 80us before each burst of "
-        "commands is due at cycles up to 500us where idle CPUs halt, a lead such as '80us' does so at any cycle, 'off' never "
-        "(docs/performance.md, 'The worker's arrival poll')")
+        "commands is due at cycles up to 500us where idle CPUs halt, a lead such as '80us' does so at any cycle, "
+        "'off' never (docs/performance.md, 'The worker's arrival poll')")
 
     @model_validator(mode="after")
     def _jitter(self) -> NetworkConfig:

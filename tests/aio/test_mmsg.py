@@ -172,6 +172,9 @@ def test_the_yield_after_a_send_is_on_unless_switched_off(monkeypatch: pytest.Mo
     assert mmsg.yield_after_send() is getattr(os, "sched_yield", None)
     monkeypatch.setenv("MLINK_YIELD", "off")
     assert mmsg.yield_after_send() is None
+    assert mmsg.yielder("MLINK_POLL_YIELD") is getattr(os, "sched_yield", None)  # each switch its own
+    monkeypatch.setenv("MLINK_POLL_YIELD", "0")
+    assert mmsg.yielder("MLINK_POLL_YIELD") is None
 
 
 def test_switched_off_the_sockets_stay_plain(monkeypatch: pytest.MonkeyPatch) -> None:
