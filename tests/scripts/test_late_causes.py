@@ -3,6 +3,9 @@ its window (synthetic samples: no perf, no network)."""
 
 from __future__ import annotations
 
+import asyncio
+import os
+from pathlib import Path
 
 from .scripts_loader import script_fixture
 
@@ -97,3 +100,90 @@ def test_without_perf_or_root_it_exits_2_and_says_why(lc, monkeypatch, capsys) -
     monkeypatch.setattr("sys.argv", ["late_causes.py", "--stations", "63"])
     assert lc.main() == 2
     assert "--stations 1–62" in capsys.readouterr().err
+
+
+# --sched: where the answering process was when the commands went out (synthetic scheduler events)
+WORKER = 101
+
+
+def test_perf_script_scheduler_lines_become_switches_and_wakeups_by_time(lc) -> None:
+    lines = [  # perf script -F trace:comm,pid,cpu,time,event,trace (the comm taken off by the reader)
+        "101 [001] 100.000200: sched:sched_switch: prev_comm=python3 prev_pid=101 prev_prio=120 prev_state=S ==> "
+        "next_comm=swapper/1 next_pid=0 next_prio=120",
+        "0 [001] 100.000100: sched:sched_wakeup: comm=python3 pid=101 prio=120 target_cpu=001",
+        "75 [000] 100.000300: sched:sched_switch: prev_comm=kdamond.0 prev_pid=75 prev_prio=120 prev_state=R+ ==> "
+        "next_comm=kworker/0:2 mm_percpu next_pid=12 next_prio=120",
+        "8464 [000] 100.000400:                cpu-clock:  ffffffff8225295b pv_native_safe_halt",
+    ]
+    switches, wakeups = lc.parse_sched(lines)
+    assert switches == [lc.Switch(100000200000, 1, 101, "S", 0), lc.Switch(100000300000, 0, 75, "R+", 12)]
+    assert wakeups == [lc.Wakeup(100000100000, 101, 1)]
+
+
+def _late(lc, sent: int):
+    return lc.LateCycle(sent, 8, sent + 300_000)
+
+
+def test_the_answerer_s_state_at_the_send_running_waiting_or_asleep_and_how_late_it_was_woken(lc) -> None:
+    S, W = lc.Switch, lc.Wakeup
+    switches = [
+        S(1 * MS, 1, 0, "R", WORKER),             # 1 ms: in (its poll)
+        S(1 * MS + 80_000, 1, WORKER, "S", 0),    # out asleep
+        S(2 * MS + 70_000, 1, 0, "R", WORKER),    # woken 50 µs after the 2 ms send, on a CPU 70 µs after it
+        S(2 * MS + 150_000, 1, WORKER, "R+", 75),  # preempted by kdamond.0
+        S(4 * MS, 1, 75, "S", WORKER),
+        S(4 * MS + 50_000, 1, WORKER, "S", 0),
+        S(5 * MS + 160_000, 1, 0, "R", WORKER),
+        S(5 * MS + 200_000, 1, WORKER, "S", 0),
+        S(6 * MS + 30_000, 1, 0, "R", WORKER),
+        S(6 * MS + 60_000, 1, 1234, "R", 0),       # another task: ignored
+        S(7 * MS + 500_000, 1, WORKER, "S", 0),
+        S(8 * MS + 90_000, 1, 0, "R", WORKER),     # woken at 7.95 ms, on a CPU only 90 µs after the 8 ms send
+    ]
+    wakeups = [W(2 * MS + 50_000, WORKER, 1), W(5 * MS + 120_000, WORKER, 1), W(6 * MS + 20_000, WORKER, 1),
+               W(6 * MS + 25_000, 1234, 0), W(7 * MS + 950_000, WORKER, 1)]
+    cycles = [_late(lc, t) for t in (1 * MS + 40_000, 2 * MS, 3 * MS, 5 * MS, 6 * MS, 7 * MS, 8 * MS)]
+    lc.answerer_states(cycles, switches, wakeups, {WORKER})
+    assert [(c.answerer, c.woken_us, c.running_us) for c in cycles] == [
+        ("running at the send", None, None),
+        ("asleep, woken 40–100 µs after", 50.0, 70.0),
+        ("waiting for a CPU at the send", None, 1000.0),
+        ("asleep, woken over 100 µs after", 120.0, 160.0),
+        ("asleep, woken within 40 µs", 20.0, 30.0),
+        ("running at the send", None, None),  # on a CPU since 6.03 ms
+        ("waiting for a CPU at the send", None, 90.0),
+    ]
+    nothing = [_late(lc, 1 * MS)]
+    lc.answerer_states(nothing, [], [], {WORKER})
+    assert nothing[0].answerer == "not seen"
+    summary = lc.summarise(cycles, 8_000, "answerer")
+    assert summary["running at the send"] == {"cycles": 2, "answers": 16, "pct_of_answers": 0.2}
+
+
+def test_the_floor_s_processes_are_its_client_and_server_never_perf(lc, monkeypatch) -> None:
+    """perf is started before the floor's Popen is watched: its samples are a host task's, not the floor's."""
+    made, seen = [], {}
+
+    class Proc:
+        def __init__(self, argv, **kwargs) -> None:
+            self.pid = 5000 + len(made)
+            made.append(argv[0])
+
+    async def floor_window(*args, **kwargs) -> None:
+        lc.bench_floor.subprocess.Popen(["python", "server"])
+
+    def judge(side, log, answers, samples, names, ours, events=([], []), answerers=None):
+        seen.update(ours=ours, answerers=answerers)
+        return {}
+
+    monkeypatch.setattr(lc.subprocess, "Popen", Proc)
+    monkeypatch.setattr(lc._Perf, "samples", lambda self: ([], {}, ([], [])))
+    monkeypatch.setattr(lc.bench_floor, "floor_window", floor_window)
+    monkeypatch.setattr(lc, "_judge", judge)
+    monkeypatch.setattr(lc, "PERF_LEAD_S", 0.0)
+    asyncio.run(lc._floor(8, 32, 250_000, 1.0, Path("/tmp"), sched=True))
+    perf_pid, server_pid = 5000, 5001  # started in that order
+    assert made == ["perf", "python"]
+    assert seen["ours"] == {os.getpid(), server_pid} and seen["answerers"] == {server_pid}
+    assert perf_pid not in seen["ours"]
+    assert lc.subprocess.Popen is Proc  # put back
