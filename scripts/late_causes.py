@@ -18,7 +18,13 @@ from the commands' send to the last late answer. Each late cycle is named by the
 * **own work** otherwise, if the measured processes (the simulator's, or the floor's) ran for most of the
   window on one CPU; else **unexplained**.
 
-A share below :data:`MIN_SHARE` names nothing (unexplained).
+A share below :data:`MIN_SHARE` names nothing (unexplained). The same is done for the floor (``--floor``: the
+batched floor of ``scripts/bench_floor.py``, one process serving all the stations on one socket), one after the
+other, so the two can be compared. Both run with ordinary scheduling: with ``mlink-sim up``'s real-time requests
+(SCHED_FIFO, the master's CPU apart) the record itself raised the network's late answers from 0.13–0.29 %
+(``bench.py --realtime``, no perf) to 1.8–6.0 %, so this script does not offer them. Root only (``perf`` over
+every CPU), with ``perf`` installed (Debian: ``linux-perf``); otherwise exit 2. Late cycles of the moments perf
+was not yet or no longer recording are counted apart ("outside the perf record").
 
 ``--sched`` records the scheduler's switches and wake-ups in the same ``perf`` record, and says for each late cycle
 where **the process that answers** (the worker; the floor's server) was when the commands went out
@@ -27,14 +33,6 @@ woken and not yet run), or **asleep**, and then how long after the send the kern
 40–100 µs, over 100 µs: a halted vCPU that the hypervisor ran late). A second table counts the late cycles and
 answers so. The record adds perf's own cost of every switch and wake-up, not measured apart (docs/performance.md,
 "Where the worker was when answers came late").
-
-The same is done for the floor (``--floor``: the
-batched floor of ``scripts/bench_floor.py``, one process serving all the stations on one socket), one after the
-other, so the two can be compared. Both run with ordinary scheduling: with ``mlink-sim up``'s real-time requests
-(SCHED_FIFO, the master's CPU apart) the record itself raised the network's late answers from 0.13–0.29 %
-(``bench.py --realtime``, no perf) to 1.8–6.0 %, so this script does not offer them. Root only (``perf`` over
-every CPU), with ``perf`` installed (Debian: ``linux-perf``); otherwise exit 2. Late cycles of the moments perf
-was not yet or no longer recording are counted apart ("outside the perf record").
 
     scripts/late_causes.py --stations 62 --links ML3 --cycles 1ms --duration 15s --floor
     scripts/late_causes.py --stations 30 --links ML2 --json late.json

@@ -91,8 +91,8 @@ class ArrivalPoll:
         self._until = 0  # the end of the poll set: the due time plus the lead
         self.idle_cpus_poll = False  #: an "auto" poll stands down: the kernel holds the CPU wake-up latency at 0
         self._qos_at = 0  # when an "auto" poll asks that again
-        # MLINK_LOOKAHEAD=1: the next poll armed a cycle ahead once the cycle is learned (LookaheadTimer), as the
-        # clock's
+        # MLINK_LOOKAHEAD=1: the next poll armed a cycle ahead once the cycle is learned (LookaheadTimer), like
+        # the clock's timer
         self._tfd: LookaheadTimer | TimerFD | None = (
             LookaheadTimer(0, early_ns=LOOKAHEAD_EARLY_NS, late_ns=LOOKAHEAD_LATE_NS)
             if switched_on("MLINK_LOOKAHEAD") else TimerFD())

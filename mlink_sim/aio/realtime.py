@@ -129,15 +129,10 @@ def wakeup_latency_limit(path: str | None = None) -> int | None:
     CPUs poll. None where it cannot be read (the device is root's only, or missing). Opening the device adds a
     request of the default value, which changes nothing, and closing it withdraws that again."""
     try:
-        fd = os.open(PM_QOS_PATH if path is None else path, os.O_RDONLY | os.O_CLOEXEC)
+        with open(PM_QOS_PATH if path is None else path, "rb", buffering=0) as device:
+            raw = device.read(4)
     except OSError:
         return None
-    try:
-        raw = os.read(fd, 4)
-    except OSError:
-        return None
-    finally:
-        os.close(fd)
     return struct.unpack("=i", raw)[0] if len(raw) == 4 else None
 
 
