@@ -313,7 +313,9 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
             if cell.status != "ok":
                 continue
             try:
-                if cpus is not None:  # the floor's client took the master's CPU: the session plans from them all
+                if cpus is not None:  # the floor's client took the master's CPU: the workers the session starts
+                    # inherit every CPU until they place themselves, as under mlink-sim up (the session's plan is
+                    # made from them all in any case: realtime.allowed_cpus)
                     os.sched_setaffinity(0, cpus[0] | cpus[1])
                 add_window(ours, i, loop.run_until_complete(measure_network(path, cell.workers, turn, cell,
                                                                       rt=cpus is not None)))

@@ -17,6 +17,9 @@ Four requests, each granted or refused on its own and reported in one line:
   that CPU has halted, and on this VM the round trip of 62 ML-III stations rose from 252–291 to 311–332 µs (p50)
   for an ordinary user, whom the placement is the one thing granted. Left to itself the kernel runs the master
   and the worker it wakes on one CPU (docs/performance.md, "Where the time goes, profiled (session 16)").
+  The plan is made from the CPUs the process had before it first placed itself (:func:`allowed_cpus`): a session
+  opened after the master took its CPU would otherwise put its workers on that same CPU, under the master's
+  higher priority.
 
 Nothing here raises: a refusal (no ``CAP_SYS_NICE``, ``RLIMIT_MEMLOCK``, a container without the capability, no
 access to ``/dev/cpu_dma_latency``) is reported and the run goes on with ordinary scheduling.
@@ -29,8 +32,9 @@ import ctypes.util
 import os
 import struct
 
-__all__ = ["MASTER_PRIORITY", "WORKER_PRIORITY", "PM_QOS_PATH", "cpu_plan", "format_cpus", "parse_cpus", "apply",
-           "hold_wakeup_latency", "wakeup_latency_held", "wakeup_latency_limit", "release_wakeup_latency"]
+__all__ = ["MASTER_PRIORITY", "WORKER_PRIORITY", "PM_QOS_PATH", "allowed_cpus", "cpu_plan", "format_cpus",
+           "parse_cpus", "apply", "hold_wakeup_latency", "wakeup_latency_held", "wakeup_latency_limit",
+           "release_wakeup_latency"]
 
 #: SCHED_FIFO priorities (1–99): the clock above the workers, both below the kernel's own threads (50 is the
 #: priority of threaded IRQ handlers on PREEMPT_RT kernels; these stay under it).
@@ -44,18 +48,27 @@ _MCL_CURRENT, _MCL_FUTURE = 1, 2
 #: (or exiting) withdraws the request.
 PM_QOS_PATH = "/dev/cpu_dma_latency"
 _held: dict[str, int] = {}  # path -> the open descriptor that holds this process's request
+#: The CPUs this process could use before :func:`apply` first narrowed its affinity: what :func:`cpu_plan` plans
+#: on, so that a second session of one process (``scripts/bench.py --realtime``, cell after cell), or one opened
+#: after the process pinned itself, does not plan its workers onto the master's single CPU.
+_allowed: set[int] | None = None
 _GRANTED = "CPU wake-up latency 0 µs"
 _UNPLACED = "CPUs left to the kernel (no wake-up latency held)"
 
 
 def cpu_plan(cpus: set[int] | None = None) -> tuple[set[int], set[int]]:
-    """``(master CPUs, worker CPUs)``: the master alone on the highest CPU, the workers on the rest; one CPU is
-    shared by both."""
-    cpus = set(cpus if cpus is not None else os.sched_getaffinity(0))
+    """``(master CPUs, worker CPUs)`` of *cpus* (default: :func:`allowed_cpus`): the master alone on the highest
+    CPU, the workers on the rest; one CPU is shared by both."""
+    cpus = set(cpus if cpus is not None else allowed_cpus())
     if len(cpus) < 2:
         return cpus, cpus
     master = max(cpus)
     return {master}, cpus - {master}
+
+
+def allowed_cpus() -> set[int]:
+    """The CPUs this process may use: its affinity as it was before :func:`apply` first placed it, else now."""
+    return set(_allowed) if _allowed is not None else os.sched_getaffinity(0)
 
 
 def format_cpus(cpus: set[int]) -> str:
@@ -79,6 +92,7 @@ def apply(priority: int, cpus: set[int] | None = None) -> str:
     *cpus*; return what was granted, e.g. ``"SCHED_FIFO 40, memory locked, CPU wake-up latency 0 µs, CPU 1"``,
     ``"SCHED_FIFO refused (Operation not permitted), …"`` or ``"…, CPU wake-up latency refused (Permission
     denied), CPUs left to the kernel (no wake-up latency held)"`` (see the module docstring)."""
+    global _allowed
     parts = []
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
@@ -91,6 +105,8 @@ def apply(priority: int, cpus: set[int] | None = None) -> str:
         parts.append(_UNPLACED)
     elif cpus:
         try:
+            if _allowed is None:
+                _allowed = os.sched_getaffinity(0)
             os.sched_setaffinity(0, cpus)
             parts.append(f"CPU {','.join(map(str, sorted(cpus)))}")
         except (OSError, AttributeError) as exc:

@@ -141,3 +141,26 @@ def test_granted_in_a_child_process_says_what_it_got():
     else:  # not permitted here: said so, and the process kept ordinary scheduling
         assert out[0].startswith("SCHED_FIFO refused") and int(out[1]) == os.SCHED_OTHER
     assert "memory" in out[0]
+
+
+def test_a_second_session_of_one_process_plans_from_the_cpus_it_had_before_it_placed_itself(monkeypatch, tmp_path):
+    """``scripts/bench.py --realtime`` places the master first, then opens a session per cell: planned from the
+    affinity the master had just narrowed to its one CPU, every worker went onto it too, under the master's
+    higher priority (a starved worker: 8 stations of 8 not up, once in six bring-ups here)."""
+    affinity = {0, 1}
+    monkeypatch.setattr(realtime, "_allowed", None)
+    monkeypatch.setattr(os, "sched_setscheduler", lambda *_a: None)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda _pid: set(affinity))
+
+    def place(_pid: int, cpus: set[int]) -> None:
+        nonlocal affinity
+        affinity = set(cpus)
+
+    monkeypatch.setattr(os, "sched_setaffinity", place)
+    master, workers = realtime.cpu_plan()
+    assert (master, workers) == ({1}, {0})
+    assert _apply_held(monkeypatch, tmp_path, realtime.MASTER_PRIORITY, master).endswith("CPU 1")
+    assert affinity == {1} and realtime.allowed_cpus() == {0, 1}
+    assert realtime.cpu_plan() == ({1}, {0})  # the next session's plan: the workers still apart
+    _apply_held(monkeypatch, tmp_path, realtime.MASTER_PRIORITY, master)  # placed again: still what it had first
+    assert realtime.allowed_cpus() == {0, 1}
