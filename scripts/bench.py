@@ -192,8 +192,7 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         not_up = await session.bring_up(timeout=20.0)
         if not_up:
             cell.notes.append(f"{len(not_up)} station(s) not up{_states(session)}")
-        session.reset_metrics()
-        await session.refresh_slave_stats()  # CPU baselines after bring-up
+        session.reset_metrics()  # no stats query in the window: its reply disturbed the cycles (session 30)
         pids = [w.pid for w in session.worker_list if w.alive and w.pid]
         timers = list({id(m.timer): m.timer for m in session.masters.values() if m.timer is not None}.values())
         spun0 = sum(t.spun_ns for t in timers)

@@ -263,3 +263,66 @@ async def test_arrival_poll_on_each_shared_socket_or_a_lone_station_s_only() -> 
         assert server.stations[0].endpoint is not None and server.stations[0].endpoint.poll is None
     finally:
         await server.close()
+
+
+async def test_a_stats_reply_is_built_between_bursts_and_says_what_stats_says() -> None:
+    """``{"op": "stats"}`` is answered one station at a time (``SlaveServer._reply_stats``): a command that came
+    while the reply was built is answered before the reply goes, and the reply is :meth:`SlaveServer.stats` as
+    one compact JSON datagram (docs/performance.md, "A stats query held the worker (session 30)")."""
+    import json
+
+    addresses = list(range(0x21, 0x29))
+    stations = [HostedStation(create_card("si-t3", settings=settings_for("si-t3", a, 17, []), now=0), "127.0.0.1", 0)
+                for a in addresses]
+    server = SlaveServer(stations, control=("127.0.0.1", 0), shared=True)
+    await server.start()
+    client = _client()
+    try:
+        control = ("127.0.0.1", server.ready_info()["control"])
+        client.sendto(json.dumps({"op": "stats"}).encode(), control)
+        client.sendto(_nop_to(0x21, 7), ("127.0.0.1", stations[0].port))
+        got: list[bytes] = []
+        for _ in range(200):
+            await asyncio.sleep(0.005)
+            try:
+                got.append(client.recv(65536))
+            except BlockingIOError:
+                pass
+            if len(got) == 2:
+                break
+        assert len(got) == 2
+        assert decode(got[0], kind=Kind.RESPONSE).station == 0x21  # the command first
+        reply = json.loads(got[1])
+        expected = server.stats()
+        assert list(reply) == list(expected)
+        assert reply["stations"] == json.loads(json.dumps(expected["stations"]))
+        assert sorted(reply["stations"]) == [f"{a:#04x}" for a in addresses]
+        assert reply["ok"] is True and reply["unaddressed"] == 0
+        assert b", " not in got[1] and b": " not in got[1][:200]  # compact, as every control reply
+    finally:
+        client.close()
+        await server.close()
+
+
+async def test_a_stats_reply_still_being_built_is_dropped_at_close() -> None:
+    stations = [HostedStation(create_card("si-t3", settings=settings_for("si-t3", a, 17, []), now=0), "127.0.0.1", 0)
+                for a in (0x21, 0x22)]
+    server = SlaveServer(stations, control=("127.0.0.1", 0), shared=True)
+    await server.start()
+    client = _client()
+    try:
+        import json
+
+        client.sendto(json.dumps({"op": "stats"}).encode(), ("127.0.0.1", server.ready_info()["control"]))
+        for _ in range(200):
+            await asyncio.sleep(0)
+            if server._replies:
+                break
+        assert server._replies
+        await server.close()
+        assert not server._replies
+        await asyncio.sleep(0.05)
+        with pytest.raises(BlockingIOError):
+            client.recv(65536)
+    finally:
+        client.close()
