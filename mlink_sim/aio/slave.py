@@ -10,7 +10,8 @@ Temporary files a killed process left are removed at start.
 
 A small JSON-over-UDP *control* endpoint answers ``{"op": "stats"}`` with every station's snapshot, counters and
 the process CPU time (``{"op": "cpu"}``: the CPU time only, small at any station count), so the supervisor
-(``mlink-sim up``) can collect slave-side figures without sharing anything but the network.
+(``mlink-sim up``) can collect slave-side figures without sharing anything but the network. The ``stats`` reply is
+built one station at a time, the loop answering the cyclic commands in between (``SlaveServer._reply_stats``).
 """
 
 from __future__ import annotations
