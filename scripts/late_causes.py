@@ -54,7 +54,8 @@ import time
 from array import array
 from bisect import bisect_left, bisect_right
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -72,7 +73,7 @@ from mlink_sim.config import load_config, parse_duration_ns
 from mlink_sim.metrics import LatencyHistogram
 
 __all__ = ["Sample", "LateCycle", "LateLog", "Switch", "Wakeup", "answerer_states", "attribute", "parse_sched",
-           "parse_samples", "summarise"]
+           "parse_samples", "summarise", "watching_rtt"]
 
 SAMPLE_NS = 100_000  #: perf's cpu-clock period: one sample per CPU each 100 µs of its time, ≥ 10 in a late window
 PERF_LEAD_S = 1.0  #: perf records this long before the window opens: its start-up is not measured
@@ -317,6 +318,24 @@ class _Perf:
         return parse_samples(lines), names, parse_sched(lines) if self.sched else ([], [])
 
 
+@contextmanager
+def watching_rtt(session: NetworkSession, on_rtt: Callable[[int], None]) -> Iterator[None]:
+    """Each answer's round trip (ns) goes to *on_rtt* too, after the master's own record, while the block runs."""
+    hooked = [(master, master.core.on_rtt) for master in session.masters.values()]
+    for master, record in hooked:
+
+        def chained(station: int, ns: int, record: Any = record) -> None:
+            record(station, ns)
+            on_rtt(ns)
+
+        master.core.on_rtt = chained
+    try:
+        yield
+    finally:
+        for master, record in hooked:
+            master.core.on_rtt = record
+
+
 async def _network(config_path: Path, duration_s: float, tmp: Path, sched: bool = False) -> dict[str, Any]:
     config = load_config(config_path)
     cycle = config.network.transmission_cycle
@@ -329,19 +348,14 @@ async def _network(config_path: Path, duration_s: float, tmp: Path, sched: bool 
             raise RuntimeError(f"{len(not_up)} station(s) not up")
         perf = _Perf(tmp / "network.data", duration_s + PERF_LEAD_S + 0.5, sched)
         await asyncio.sleep(PERF_LEAD_S)  # perf's own start-up (symbols, buffers) kept out of the window
-        hooked = [(master, master.core.on_rtt) for master in session.masters.values()]
-        for master, record in hooked:
 
-            def on_rtt(station: int, ns: int, record: Any = record) -> None:
-                record(station, ns)
-                count[0] += 1
-                if ns > cycle:
-                    log.add(time.monotonic_ns(), ns)
+        def on_rtt(ns: int) -> None:
+            count[0] += 1
+            if ns > cycle:
+                log.add(time.monotonic_ns(), ns)
 
-            master.core.on_rtt = on_rtt
-        await asyncio.sleep(duration_s)
-        for master, record in hooked:
-            master.core.on_rtt = record
+        with watching_rtt(session, on_rtt):
+            await asyncio.sleep(duration_s)
         workers = {w.pid for w in session.worker_list if w.pid}
     finally:
         await session.close()
