@@ -11,7 +11,7 @@ Temporary files a killed process left are removed at start.
 A small JSON-over-UDP *control* endpoint answers ``{"op": "stats"}`` with every station's snapshot, counters and
 the process CPU time (``{"op": "cpu"}``: the CPU time only, small at any station count), so the supervisor
 (``mlink-sim up``) can collect slave-side figures without sharing anything but the network. The ``stats`` reply is
-built one station at a time, the loop answering the cyclic commands in between (``SlaveServer._reply_stats``).
+built one station a millisecond, the loop answering the cyclic commands in between (``SlaveServer._reply_stats``).
 """
 
 from __future__ import annotations
@@ -54,6 +54,7 @@ _BURST = 64  # datagrams read per wake-up of a station's socket at most (a share
 _RCVBUF = 1 << 20
 _STALLS_REPORTED = 256  # recent stalls in each stats reply (the session keeps them by time)
 _COMPACT = (",", ":")  # json.dumps separators of the control replies
+_STATS_PACE_S = 0.001  #: the worker's sleep between two stations of a stats reply (SlaveServer._reply_stats)
 
 
 def _cpu_seconds() -> float:
@@ -380,17 +381,19 @@ class SlaveServer:
         return f"{hs.station.address:#04x}", to_jsonable(hs.station.snapshot())
 
     async def _reply_stats(self, since: int, addr: Any) -> None:
-        """The ``{"op": "stats"}`` reply, :meth:`stats` built one station at a time: between two stations the loop
-        answers whatever burst of commands came meanwhile. Built at once it held the worker's loop 1.3 ms for 8
-        stations and 4.2 ms for 62, and every query made 3–4 cycles of answers late (docs/performance.md, "A
-        stats query held the worker (session 30)"); one station's slice is ≈ 50 µs. Each station's figures are
-        its own at one instant; the stations' instants lie a few cycles apart."""
+        """The ``{"op": "stats"}`` reply, :meth:`stats` built one station at a time, the worker sleeping
+        :data:`_STATS_PACE_S` between two (the loop answers the bursts meanwhile, and the CPU is free for the
+        master). Built at once it held the worker's loop 1.2–1.4 ms for 8 stations and 4.1–5.9 ms for 62, and each
+        query made 24–30 answers late at 8 ML-III × 250 µs and 189–294 at 62 ML-III × 1 ms; paced, 62 stations
+        take ≈ 70 ms and 0–3 answers per query are late (``scripts/bench_control.py``; docs/performance.md, "A
+        stats query held the worker (session 30)"). Each station's figures are its own at one instant; the
+        stations' instants lie up to that long apart."""
         head = json.dumps(self._stats_head(since), separators=_COMPACT)
         parts = []
         for hs in list(self.stations):
             key, snap = self._station_stats(hs)
             parts.append(f'"{key}":{json.dumps(snap, separators=_COMPACT)}')
-            await asyncio.sleep(0)  # one pass of the loop: a burst read meanwhile is answered now
+            await asyncio.sleep(_STATS_PACE_S)
         if not self._closing:
             self._send_control(f'{head[:-1]},"stations":{{{",".join(parts)}}}}}'.encode(), addr)
 
