@@ -55,6 +55,9 @@ _RCVBUF = 1 << 20
 _STALLS_REPORTED = 256  # recent stalls in each stats reply (the session keeps them by time)
 _COMPACT = (",", ":")  # json.dumps separators of the control replies
 _STATS_PACE_S = 0.001  #: the worker's sleep between two stations of a stats reply (SlaveServer._reply_stats)
+#: … for this long at most: the rest without a pause, so that the reply stays well inside the 1 s a query waits
+#: (``query_control``) on a loaded host too (62 stations paced took 64–121 ms here)
+_STATS_PACED_S = 0.3
 
 
 def _cpu_seconds() -> float:
@@ -383,17 +386,18 @@ class SlaveServer:
     async def _reply_stats(self, since: int, addr: Any) -> None:
         """The ``{"op": "stats"}`` reply, :meth:`stats` built one station at a time, the worker sleeping
         :data:`_STATS_PACE_S` between two (the loop answers the bursts meanwhile, and the CPU is free for the
-        master). Built at once it held the worker's loop 1.2–1.4 ms for 8 stations and 4.1–5.9 ms for 62, and each
-        query made 24–30 answers late at 8 ML-III × 250 µs and 189–294 at 62 ML-III × 1 ms; paced, 62 stations
-        take ≈ 70 ms and 0–3 answers per query are late (``scripts/bench_control.py``; docs/performance.md, "A
-        stats query held the worker (session 30)"). Each station's figures are its own at one instant; the
-        stations' instants lie up to that long apart."""
+        master), for :data:`_STATS_PACED_S` at most. Built at once it held the worker's loop 1.2–1.4 ms for 8
+        stations and 4.1–5.9 ms for 62, and each query made 24–30 answers late at 8 ML-III × 250 µs and 189–294 at
+        62 ML-III × 1 ms; paced, 62 stations take 64–121 ms and 0–3 answers per query came late
+        (``scripts/bench_control.py``; docs/performance.md, "A stats query held the worker (session 30)"). Each
+        station's figures are its own at one instant; the stations' instants lie up to that long apart."""
         head = json.dumps(self._stats_head(since), separators=_COMPACT)
         parts = []
+        paced_until = time.monotonic() + _STATS_PACED_S
         for hs in list(self.stations):
             key, snap = self._station_stats(hs)
             parts.append(f'"{key}":{json.dumps(snap, separators=_COMPACT)}')
-            await asyncio.sleep(_STATS_PACE_S)
+            await asyncio.sleep(_STATS_PACE_S if time.monotonic() < paced_until else 0)
         if not self._closing:
             self._send_control(f'{head[:-1]},"stations":{{{",".join(parts)}}}}}'.encode(), addr)
 

@@ -326,3 +326,32 @@ async def test_a_stats_reply_still_being_built_is_dropped_at_close() -> None:
             client.recv(65536)
     finally:
         client.close()
+
+
+async def test_a_stats_reply_is_paced_only_for_so_long(monkeypatch) -> None:
+    """The pause between two stations (``_STATS_PACE_S``) stops once the build has taken ``_STATS_PACED_S``: with
+    a 0.5 s pause and no paced time at all, eight stations answer at once instead of after 4 s."""
+    import json
+
+    monkeypatch.setattr(slave_module, "_STATS_PACE_S", 0.5)
+    monkeypatch.setattr(slave_module, "_STATS_PACED_S", 0.0)
+    stations = [HostedStation(create_card("si-t3", settings=settings_for("si-t3", a, 17, []), now=0), "127.0.0.1", 0)
+                for a in range(0x21, 0x29)]
+    server = SlaveServer(stations, control=("127.0.0.1", 0), shared=True)
+    await server.start()
+    client = _client()
+    try:
+        client.sendto(json.dumps({"op": "stats"}).encode(), ("127.0.0.1", server.ready_info()["control"]))
+        for _ in range(100):  # 0.5 s at most: a single paced pause would take that long
+            await asyncio.sleep(0.005)
+            try:
+                reply = json.loads(client.recv(65536))
+                break
+            except BlockingIOError:
+                continue
+        else:
+            raise AssertionError("no stats reply within 0.5 s")
+        assert len(reply["stations"]) == 8
+    finally:
+        client.close()
+        await server.close()
