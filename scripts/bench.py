@@ -71,7 +71,8 @@ import sys
 import tempfile
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
@@ -226,6 +227,24 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
                   ahead=ahead["ahead"], mispredicted=ahead["mispredicted"])
 
 
+@contextmanager
+def watching_rtt(session: NetworkSession, on_rtt: Callable[[int], None]) -> Iterator[None]:
+    """Each answer's round trip (ns) goes to *on_rtt* too, after the master's own record, while the block runs."""
+    hooked = [(master, master.core.on_rtt) for master in session.masters.values()]
+    for master, record in hooked:
+
+        def chained(station: int, ns: int, record: Any = record) -> None:
+            record(station, ns)
+            on_rtt(ns)
+
+        master.core.on_rtt = chained
+    try:
+        yield
+    finally:
+        for master, record in hooked:
+            master.core.on_rtt = record
+
+
 def fill(cell: Cell, w: Window) -> None:
     """*cell*'s figures from the simulator's window *w* (one turn, or the sum of its turns)."""
     for name, value in w.summary().items():
@@ -312,9 +331,9 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
             if cell.status != "ok":
                 continue
             try:
-                if cpus is not None:  # the floor's client took the master's CPU: the workers the session starts
-                    # inherit every CPU until they place themselves, as under mlink-sim up (the session's plan is
-                    # made from them all in any case: realtime.allowed_cpus)
+                if cpus is not None:  # the floor's client took the master's CPU: the network turn starts from every
+                    # CPU, as mlink-sim up does (its plan, realtime.allowed_cpus, and its workers, started unplaced,
+                    # would not need it)
                     os.sched_setaffinity(0, cpus[0] | cpus[1])
                 add_window(ours, i, loop.run_until_complete(measure_network(path, cell.workers, turn, cell,
                                                                       rt=cpus is not None)))

@@ -28,8 +28,7 @@ from pathlib import Path
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from bench import Interrupted, measuring, write_config
-from late_causes import watching_rtt
+from bench import Interrupted, measuring, watching_rtt, write_config
 
 from mlink_sim._files import write_atomically
 from mlink_sim.aio import realtime

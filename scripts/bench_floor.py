@@ -277,6 +277,11 @@ def floor_from(window: Window, batched: bool, stations: int, shared: bool) -> Fl
                  wakeups_client=window.per_cycle(window.wake_a), wakeups_server=window.per_cycle(window.wake_b))
 
 
+def _server_setup() -> None:  # in the server between fork and exec
+    _die_with_parent()  # a killed client leaves no server
+    realtime.unplace_child()  # it starts as a worker does: off the client's CPU and priority (--realtime-cpus)
+
+
 async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: float, batched: bool,
                        catch_up_ns: int = 100_000_000, shared: bool = False, work: Work | None = None,
                        cpus: tuple[set[int], set[int]] | None = None, during: During | None = None) -> Window:
@@ -296,7 +301,7 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
                             + (["--shared"] if shared else [])
                             + [f"--work-ns={work.serve_ns}", f"--settle-ns={work.settle_ns}"]
                             + ([f"--realtime-cpus={realtime.format_cpus(cpus[1])}"] if cpus else []),
-                            stdout=subprocess.PIPE, preexec_fn=_die_with_parent)  # killed client: no server left
+                            stdout=subprocess.PIPE, preexec_fn=_server_setup)
     if cpus:
         realtime.apply(realtime.MASTER_PRIORITY, cpus[0])
     loop = asyncio.get_running_loop()

@@ -54,8 +54,7 @@ import time
 from array import array
 from bisect import bisect_left, bisect_right
 from collections import Counter
-from collections.abc import Callable, Iterable, Iterator
-from contextlib import contextmanager
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -63,7 +62,7 @@ from typing import Any
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_floor
-from bench import write_config
+from bench import watching_rtt, write_config
 
 from mlink_sim._files import write_atomically
 from mlink_sim.aio.session import NetworkSession
@@ -73,7 +72,7 @@ from mlink_sim.config import load_config, parse_duration_ns
 from mlink_sim.metrics import LatencyHistogram
 
 __all__ = ["Sample", "LateCycle", "LateLog", "Switch", "Wakeup", "answerer_states", "attribute", "parse_sched",
-           "parse_samples", "summarise", "watching_rtt"]
+           "parse_samples", "summarise"]
 
 SAMPLE_NS = 100_000  #: perf's cpu-clock period: one sample per CPU each 100 µs of its time, ≥ 10 in a late window
 PERF_LEAD_S = 1.0  #: perf records this long before the window opens: its start-up is not measured
@@ -316,24 +315,6 @@ class _Perf:
                 names.setdefault(int(m.group(2)), m.group(1))
                 lines.append(f"{m.group(2)} {m.group(3)}")
         return parse_samples(lines), names, parse_sched(lines) if self.sched else ([], [])
-
-
-@contextmanager
-def watching_rtt(session: NetworkSession, on_rtt: Callable[[int], None]) -> Iterator[None]:
-    """Each answer's round trip (ns) goes to *on_rtt* too, after the master's own record, while the block runs."""
-    hooked = [(master, master.core.on_rtt) for master in session.masters.values()]
-    for master, record in hooked:
-
-        def chained(station: int, ns: int, record: Any = record) -> None:
-            record(station, ns)
-            on_rtt(ns)
-
-        master.core.on_rtt = chained
-    try:
-        yield
-    finally:
-        for master, record in hooked:
-            master.core.on_rtt = record
 
 
 async def _network(config_path: Path, duration_s: float, tmp: Path, sched: bool = False) -> dict[str, Any]:

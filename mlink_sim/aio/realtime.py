@@ -33,7 +33,7 @@ import os
 import struct
 
 __all__ = ["MASTER_PRIORITY", "WORKER_PRIORITY", "PM_QOS_PATH", "allowed_cpus", "cpu_plan", "format_cpus",
-           "parse_cpus", "apply", "hold_wakeup_latency", "wakeup_latency_held", "wakeup_latency_limit",
+           "parse_cpus", "apply", "unplace_child", "hold_wakeup_latency", "wakeup_latency_held", "wakeup_latency_limit",
            "release_wakeup_latency"]
 
 #: SCHED_FIFO priorities (1–99): the clock above the workers, both below the kernel's own threads (50 is the
@@ -49,8 +49,8 @@ _MCL_CURRENT, _MCL_FUTURE = 1, 2
 PM_QOS_PATH = "/dev/cpu_dma_latency"
 _held: dict[str, int] = {}  # path -> the open descriptor that holds this process's request
 #: The CPUs this process could use before :func:`apply` first narrowed its affinity: what :func:`cpu_plan` plans
-#: on, so that a second session of one process (``scripts/bench.py --realtime``, cell after cell), or one opened
-#: after the process pinned itself, does not plan its workers onto the master's single CPU.
+#: on, so that a network opened after the process placed itself (a second ``run_up`` of one program) does not
+#: plan its workers onto the master's single CPU.
 _allowed: set[int] | None = None
 _GRANTED = "CPU wake-up latency 0 µs"
 _UNPLACED = "CPUs left to the kernel (no wake-up latency held)"
@@ -112,6 +112,21 @@ def apply(priority: int, cpus: set[int] | None = None) -> str:
         except (OSError, AttributeError) as exc:
             parts.append(f"CPU affinity refused ({_why(exc)})")
     return ", ".join(parts)
+
+
+def unplace_child() -> None:
+    """In a child between fork and exec (``preexec_fn``): ordinary scheduling and every CPU :func:`allowed_cpus`
+    gives, whatever this process was granted. A worker started by a master that holds SCHED_FIFO 40 on its own
+    CPU (a restart during the run) otherwise ran its start-up there at the master's priority, which the master
+    cannot preempt: its clock stalled 170–270 ms (docs/timing.md, "Real-time scheduling"). The worker then asks
+    for its own (``mlink-sim slave --realtime --cpus``). Nothing raises (a refusal leaves what was inherited)."""
+    if _allowed is None and os.sched_getscheduler(0) == os.SCHED_OTHER:
+        return  # never placed: nothing to undo
+    try:
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        os.sched_setaffinity(0, allowed_cpus())
+    except OSError:
+        pass
 
 
 def hold_wakeup_latency(path: str | None = None) -> str:

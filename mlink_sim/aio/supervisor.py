@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from .._log import get_logger
+from .realtime import unplace_child
 
 __all__ = ["WorkerSpec", "Worker", "WorkerError", "plan_workers", "parse_workers", "resolve_workers"]
 
@@ -35,6 +36,7 @@ def _child_setup() -> None:  # runs in the child between fork and exec
     # and then stops the workers (issue 14, item 6). (uvloop's subprocess has no process_group argument.)
     os.setpgid(0, 0)
     _die_with_parent()
+    unplace_child()  # a worker begins with ordinary scheduling on every CPU, then asks for its own
 
 
 def _die_with_parent() -> None:  # runs in the child between fork and exec

@@ -144,7 +144,7 @@ def test_granted_in_a_child_process_says_what_it_got():
 
 
 def test_a_second_session_of_one_process_plans_from_the_cpus_it_had_before_it_placed_itself(monkeypatch, tmp_path):
-    """``scripts/bench.py --realtime`` places the master first, then opens a session per cell: planned from the
+    """A program that opens a network after its master placed itself (``run_up`` twice): planned from the
     affinity the master had just narrowed to its one CPU, every worker went onto it too, under the master's
     higher priority (a starved worker: 8 stations of 8 not up, once in six bring-ups here)."""
     affinity = {0, 1}
@@ -164,3 +164,36 @@ def test_a_second_session_of_one_process_plans_from_the_cpus_it_had_before_it_pl
     assert realtime.cpu_plan() == ({1}, {0})  # the next session's plan: the workers still apart
     _apply_held(monkeypatch, tmp_path, realtime.MASTER_PRIORITY, master)  # placed again: still what it had first
     assert realtime.allowed_cpus() == {0, 1}
+
+
+def test_a_child_of_a_placed_process_starts_unplaced(monkeypatch):
+    """``unplace_child`` (a worker's ``preexec_fn``): ordinary scheduling and every CPU the parent had before it
+    placed itself; a restarted worker otherwise began at the master's SCHED_FIFO 40 on the master's CPU, and the
+    master's clock stalled 170–270 ms (docs/timing.md, "Real-time scheduling")."""
+    calls: list[tuple[str, object]] = []
+    monkeypatch.setattr(os, "sched_setscheduler", lambda _pid, policy, _param: calls.append(("policy", policy)))
+    monkeypatch.setattr(os, "sched_setaffinity", lambda _pid, cpus: calls.append(("cpus", set(cpus))))
+    monkeypatch.setattr(os, "sched_getscheduler", lambda _pid: os.SCHED_OTHER)
+    monkeypatch.setattr(realtime, "_allowed", None)
+    realtime.unplace_child()
+    assert calls == []  # never placed, ordinary: nothing to undo
+    monkeypatch.setattr(realtime, "_allowed", {0, 1})
+    realtime.unplace_child()
+    assert calls == [("policy", os.SCHED_OTHER), ("cpus", {0, 1})]
+
+    def refuse(*_a):
+        raise PermissionError(errno.EPERM, "Operation not permitted")
+
+    monkeypatch.setattr(os, "sched_setscheduler", refuse)
+    realtime.unplace_child()  # a refusal leaves what was inherited, and says nothing
+
+
+def test_a_worker_process_is_unplaced_before_it_starts(monkeypatch):
+    from mlink_sim.aio import supervisor
+
+    done: list[str] = []
+    monkeypatch.setattr(supervisor.os, "setpgid", lambda *_a: done.append("group"))
+    monkeypatch.setattr(supervisor, "_die_with_parent", lambda: done.append("dies with parent"))
+    monkeypatch.setattr(supervisor, "unplace_child", lambda: done.append("unplaced"))
+    supervisor._child_setup()
+    assert done == ["group", "dies with parent", "unplaced"]
