@@ -84,7 +84,8 @@ sys.path.insert(0, str(ROOT / "scripts"))
 import bench_targets  # noqa: E402
 from bench_figures import During, Window, add_window, turns  # noqa: E402
 from bench_tables import MD_HEAD, chart, markdown, table  # noqa: E402,F401  (MD_HEAD: bench.MD_HEAD, as before)
-from bench_floor import floor_from, floor_window, host_ticks, proc_wakeups, self_wakeups, ticks_between  # noqa: E402
+from bench_floor import (  # noqa: E402
+    floor_from, floor_window, host_ticks, proc_cpu_s, proc_wakeups, self_wakeups, ticks_between)
 
 from mlink_sim._files import write_atomically  # noqa: E402
 from mlink_sim.aio import mmsg, realtime  # noqa: E402
@@ -193,21 +194,26 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         not_up = await session.bring_up(timeout=20.0)
         if not_up:
             cell.notes.append(f"{len(not_up)} station(s) not up{_states(session)}")
-        session.reset_metrics()  # no stats query in the window: its reply disturbed the cycles (session 30)
+        # No control query inside the window: a stats query's reply held the worker (session 30), and even a cpu
+        # query's made answers late at 250 µs (session 31). The workers' counters are asked for before and after
+        # it, their CPU read from the kernel's accounting, as the floor's server's is.
+        ahead0 = await _slave_counters(session)
+        session.reset_metrics()
         pids = [w.pid for w in session.worker_list if w.alive and w.pid]
         timers = list({id(m.timer): m.timer for m in session.masters.values() if m.timer is not None}.values())
         spun0 = sum(t.spun_ns for t in timers)
         cpu0, wall0 = time.process_time(), time.monotonic()
-        slaves0 = await _slave_cpu(session)
+        slaves0 = [proc_cpu_s(p) for p in pids]
         wake0, swake0, host0 = self_wakeups(), sum(proc_wakeups(p) for p in pids), host_ticks()
         await (during([os.getpid(), *pids], duration_s) if during is not None else asyncio.sleep(duration_s))
         host1 = host_ticks()
         wall = time.monotonic() - wall0
         cpu_master_s = time.process_time() - cpu0
+        cpu_slaves_s = sum(proc_cpu_s(p) - c for p, c in zip(pids, slaves0, strict=True))
         spun_s = (sum(t.spun_ns for t in timers) - spun0) / 1e9
         wake, swake = self_wakeups() - wake0, sum(proc_wakeups(p) for p in pids) - swake0
-        slaves1 = await _slave_cpu(session)
         metrics, meta = await session.snapshot(slave_stats=False)
+        ahead1 = await _slave_counters(session)
         behind = _states(session)
         if behind:
             cell.notes.append(f"at the end not at their phase{behind}")
@@ -219,10 +225,10 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         else:
             os.environ["MLINK_MMSG"] = saved
     report = metrics.report(meta=meta)
-    ahead = {k: int(slaves1.pop(k, 0.0) - slaves0.pop(k, 0.0)) for k in ("ahead", "mispredicted")}
+    ahead = {k: ahead1[k] - ahead0[k] for k in ("ahead", "mispredicted")}
     return Window(cell.cycle_ns, wall_s=wall, started=report["cycles"] - report["missed"], skipped=report["missed"],
                   sent=report["sent"], missing=report["missing"], late=report["late"], cpu_a_s=cpu_master_s,
-                  cpu_b_s=sum(slaves1.get(k, 0.0) - v for k, v in slaves0.items()), spin_s=spun_s, wake_a=wake,
+                  cpu_b_s=cpu_slaves_s, spin_s=spun_s, wake_a=wake,
                   wake_b=swake, ticks=ticks_between(host0, host1), rtt=metrics.rtt, lateness=metrics.lateness,
                   ahead=ahead["ahead"], mispredicted=ahead["mispredicted"])
 
@@ -269,19 +275,18 @@ def _states(session: NetworkSession) -> str:
     return f" ({', '.join(f'{k} {n}' for k, n in counts.most_common())})" if counts else ""
 
 
-async def _slave_cpu(session: NetworkSession) -> dict[str, float]:
-    """Each worker's CPU seconds, by index; and, as ``"ahead"`` and ``"mispredicted"``, the answers all of them made
-    ahead so far and the ones of those their cards contradicted (``SlaveServer.cpu``)."""
+async def _slave_counters(session: NetworkSession) -> dict[str, int]:
+    """The answers all workers made ahead so far (``"ahead"``) and the ones of those their cards contradicted
+    (``"mispredicted"``) (``SlaveServer.cpu``, ``{"op": "cpu"}``: ``Bus.ahead``, ``Bus.mispredicted``)."""
     from mlink_sim.aio.slave import query_control
 
-    out: dict[str, float] = {"ahead": 0.0, "mispredicted": 0.0}
+    out = {"ahead": 0, "mispredicted": 0}
     for w in session.worker_list:
         if w.alive and w.control_port:
             reply = await query_control("127.0.0.1", w.control_port, "cpu", timeout=1.0)
             if reply:
-                out[str(w.spec.index)] = float(reply.get("cpu_s", 0.0))
-                out["ahead"] += reply.get("answered_ahead", 0)
-                out["mispredicted"] += reply.get("mispredicted", 0)
+                out["ahead"] += int(reply.get("answered_ahead", 0))
+                out["mispredicted"] += int(reply.get("mispredicted", 0))
     return out
 
 

@@ -251,6 +251,36 @@ def test_a_cell_is_measured_in_turns_with_its_floors_and_their_counts_add_up(ben
     assert any("contradicted" in note for note in cell.notes)
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_no_control_query_reaches_a_worker_inside_the_window(bench, monkeypatch, tmp_path) -> None:
+    """A real network of two stations at 500 µs, one worker: the workers' counters (answers made ahead) are asked for
+    before the measuring window and after it, never inside (a ``cpu`` query made answers late at 250 µs, session 31),
+    and the worker's CPU comes from the kernel's accounting: the window still has both."""
+    calls: list[tuple[str, float]] = []
+    counters = bench._slave_counters
+
+    async def counted(session):
+        calls.append(("query", bench.time.monotonic()))
+        return await counters(session)
+
+    async def during(pids, duration_s):
+        calls.append(("start", bench.time.monotonic()))
+        await bench.asyncio.sleep(duration_s)
+        calls.append(("end", bench.time.monotonic()))
+
+    monkeypatch.setattr(bench, "_slave_counters", counted)
+    path = tmp_path / "net.toml"
+    bench.write_config(path, "ML3", 2, 500_000)
+    cell = bench.Cell("ML3", 2, 500_000, 1, duration_s=1.0)
+    loop = bench.new_event_loop()
+    try:
+        w = loop.run_until_complete(bench.measure_network(path, 1, 1.0, cell, during=during))
+    finally:
+        loop.close()
+    assert [what for what, _ in calls] == ["query", "start", "end", "query"], cell.notes
+    assert w.cpu_b_s > 0 and w.ahead > 0 and w.mispredicted == 0  # ticks of /proc/PID/stat: 10 ms each
+
+
 def _descendants(pid: int) -> set[int]:
     """The processes below *pid* (Linux /proc), children of children included."""
     parent: dict[int, int] = {}
