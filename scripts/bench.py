@@ -31,7 +31,7 @@ where ``sendmmsg``/``recvmmsg`` are available, unless ``--io plain``, which runs
     scripts/bench.py --targets                         # issue 21's five targets, ~12 min (--duration 10s: ~4 min)
     scripts/bench.py --render docs/bench.json --markdown   # an earlier run's table, as in docs/performance.md
     scripts/bench.py --targets --pm-qos                # the same with idle CPUs polling, floor and simulator alike
-    scripts/bench.py --targets --realtime              # as mlink-sim up runs as root: SCHED_FIFO, CPUs apart
+    scripts/bench.py --targets --no-realtime           # every process with ordinary scheduling (an ordinary user)
     scripts/bench.py --stations 8 --cycles 250us --links ML3 --arrival-poll off   # without the workers' poll
 
 ``--targets`` runs the cells of the capacity targets (scripts/bench_targets.py: 62 ML-III and 30 ML-II stations
@@ -40,17 +40,20 @@ knee) and prints met / not met for each bound, with the floor's figure beside it
 what bounds it (from the same run). ``--duration`` shortens every cell for a quick run. Exit status 0 either
 way: a benchmark reports, it does not gate.
 
-``--realtime`` runs the whole sweep as ``mlink-sim up`` runs by default where it may (``--realtime``: root or
+By default the whole sweep runs as ``mlink-sim up`` runs by default where it may (its ``--realtime``: root or
 ``CAP_SYS_NICE``): the master and the floors' clients at SCHED_FIFO 40 on the highest CPU, the workers and the
 floors' servers at SCHED_FIFO 30 on the others, memory locked, a CPU wake-up latency of 0 µs
-(``mlink_sim.aio.realtime``), floors and simulator alike; refused, the run does not start (exit 2). The JSON's
-``host.realtime`` says what was granted. Without it, every process runs with ordinary scheduling, as an
-unprivileged user's ``mlink-sim up`` does.
+(``mlink_sim.aio.realtime``), floors and simulator alike. Where any of that is refused (an unprivileged user), the
+run withdraws what it got and every process runs with ordinary scheduling, as that user's ``mlink-sim up`` does; it
+says so on stderr. ``--realtime`` insists (refused, the run does not start: exit 2); ``--no-realtime`` asks for
+nothing. The JSON's ``host.realtime`` says what was granted (null: ordinary scheduling). Until session 31 ordinary
+scheduling was the default and ``--realtime`` had to be asked for.
 
 ``--pm-qos`` holds the kernel's request for a CPU wake-up latency of 0 µs (``/dev/cpu_dma_latency``, as
 ``mlink-sim up --realtime`` does: ``mlink_sim.aio.realtime.hold_wakeup_latency``) for the whole run, so the floors
-and the simulator run on CPUs that poll instead of halting when idle; refused (not root), the run does not start
-(exit 2). The JSON's ``host.pm_qos`` says which way a run was made.
+and the simulator run on CPUs that poll instead of halting when idle (the real-time default holds it already: with
+``--no-realtime`` it is that request alone); refused (not root), the run does not start (exit 2). The JSON's
+``host.pm_qos`` says which way a run was made.
 
 Cells the manuals rule out are listed as such and not run: MECHATROLINK-II below 0.5 ms (17-byte) or beyond
 30 stations (SI-T3 Table 29). Loops are bounded by --duration; all traffic stays on loopback. Ctrl-C or SIGTERM
@@ -500,9 +503,14 @@ def main() -> int:
     ap.add_argument("--pm-qos", action="store_true",
                     help="hold a CPU wake-up latency of 0 µs (/dev/cpu_dma_latency) for the whole run, floors and "
                          "simulator alike, as mlink-sim up --realtime does (root only)")
-    ap.add_argument("--realtime", action="store_true",
-                    help="as mlink-sim up --realtime (its default where permitted): SCHED_FIFO, locked memory, a "
-                         "wake-up latency of 0 µs and the master's CPU apart, floors and simulator alike (root only)")
+    ap.add_argument("--realtime", dest="realtime", action="store_const", const="on", default="auto",
+                    help="as mlink-sim up runs by default where permitted (root or CAP_SYS_NICE), and the default "
+                         "here too: SCHED_FIFO, locked memory, a wake-up latency of 0 µs and the master's CPU apart, "
+                         "floors and simulator alike; given, a refusal ends the run (exit 2), else it runs on with "
+                         "ordinary scheduling and says so")
+    ap.add_argument("--no-realtime", dest="realtime", action="store_const", const="off",
+                    help="ordinary scheduling for every process, floors and simulator alike, as an unprivileged "
+                         "user's mlink-sim up runs")
     ap.add_argument("--arrival-poll", default="auto",
                     help="the workers' arrival poll ([network] arrival_poll): auto (the default, as mlink-sim up), "
                          "off, or a lead such as 80us (docs/performance.md)")
@@ -522,12 +530,18 @@ def main() -> int:
             print(f"bench.py: --pm-qos: {pm_qos}", file=sys.stderr)
             return 2
     cpus, rt_granted = None, None
-    if args.realtime:
-        cpus = realtime.cpu_plan()
-        rt_granted = realtime.apply(realtime.MASTER_PRIORITY, cpus[0])  # asked once here, to refuse early
-        if "refused" in rt_granted:
-            print(f"bench.py: --realtime: {rt_granted}", file=sys.stderr)
+    if args.realtime != "off":  # asked once here, as mlink-sim up asks: all of it, or ordinary scheduling throughout
+        plan_cpus = realtime.cpu_plan()
+        granted = realtime.apply(realtime.MASTER_PRIORITY, plan_cpus[0])
+        if "refused" not in granted:
+            cpus, rt_granted = plan_cpus, granted
+        elif args.realtime == "on":
+            print(f"bench.py: --realtime: {granted}", file=sys.stderr)
             return 2
+        else:
+            realtime.withdraw()
+            print(f"bench.py: real-time requests refused ({granted}): every process runs with ordinary scheduling, "
+                  "as an unprivileged user's mlink-sim up does", file=sys.stderr)
     try:
         cells = measuring("bench.py", lambda loop, tmp: [
             c for link, n, cycle, seconds in plan
@@ -537,8 +551,10 @@ def main() -> int:
     if pm_qos is not None:
         print(f"--pm-qos: {pm_qos}, held for the floors and the simulator alike")
     if rt_granted is not None:
-        print(f"--realtime: {rt_granted} (the master and the floors' clients; the workers and the floors' servers "
-              "alike on the other CPUs)")
+        print(f"real time: {rt_granted} (the master and the floors' clients; the workers and the floors' servers "
+              "alike on the other CPUs; --no-realtime: ordinary scheduling)")
+    else:
+        print("ordinary scheduling for every process (--no-realtime, or the real-time requests refused)")
     print(markdown(cells) if args.markdown else table(cells))
     doc: dict[str, Any] = {
         "host": {"node": platform.node(), "cpus": os.cpu_count(), "python": platform.python_version(),

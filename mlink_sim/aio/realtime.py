@@ -33,8 +33,8 @@ import os
 import struct
 
 __all__ = ["MASTER_PRIORITY", "WORKER_PRIORITY", "PM_QOS_PATH", "allowed_cpus", "cpu_plan", "format_cpus",
-           "parse_cpus", "apply", "unplace_child", "hold_wakeup_latency", "wakeup_latency_held", "wakeup_latency_limit",
-           "release_wakeup_latency"]
+           "parse_cpus", "apply", "withdraw", "unplace_child", "hold_wakeup_latency", "wakeup_latency_held",
+           "wakeup_latency_limit", "release_wakeup_latency"]
 
 #: SCHED_FIFO priorities (1–99): the clock above the workers, both below the kernel's own threads (50 is the
 #: priority of threaded IRQ handlers on PREEMPT_RT kernels; these stay under it).
@@ -112,6 +112,14 @@ def apply(priority: int, cpus: set[int] | None = None) -> str:
         except (OSError, AttributeError) as exc:
             parts.append(f"CPU affinity refused ({_why(exc)})")
     return ", ".join(parts)
+
+
+def withdraw() -> None:
+    """Undo :func:`apply` in this process: ordinary scheduling, every CPU :func:`allowed_cpus` gives, the CPU
+    wake-up latency request withdrawn (locked memory stays locked). For a program that asked, was refused a part and
+    runs on without any of it (``scripts/bench.py``, whose floors and network must run alike). Nothing raises."""
+    release_wakeup_latency()
+    unplace_child()
 
 
 def unplace_child() -> None:

@@ -188,6 +188,24 @@ def test_a_child_of_a_placed_process_starts_unplaced(monkeypatch):
     realtime.unplace_child()  # a refusal leaves what was inherited, and says nothing
 
 
+def test_withdraw_undoes_what_apply_asked_for(monkeypatch, tmp_path):
+    """``withdraw`` (``scripts/bench.py`` after a partial refusal, so that its floors and network run alike): the
+    wake-up latency request is let go, ordinary scheduling and every CPU the process had come back."""
+    calls: list[tuple[str, object]] = []
+    monkeypatch.setattr(os, "sched_setscheduler", lambda _pid, policy, _param: calls.append(("policy", policy)))
+    monkeypatch.setattr(os, "sched_getaffinity", lambda _pid: {0, 1})
+    monkeypatch.setattr(os, "sched_setaffinity", lambda _pid, cpus: calls.append(("cpus", set(cpus))))
+    monkeypatch.setattr(realtime, "_allowed", None)
+    device = tmp_path / "cpu_dma_latency"
+    device.write_bytes(b"")
+    monkeypatch.setattr(realtime, "PM_QOS_PATH", str(device))
+    assert realtime.apply(realtime.MASTER_PRIORITY, {1}).endswith("CPU wake-up latency 0 µs, CPU 1")
+    assert realtime.wakeup_latency_held() and calls == [("policy", os.SCHED_FIFO), ("cpus", {1})]
+    realtime.withdraw()
+    assert not realtime.wakeup_latency_held()
+    assert calls[2:] == [("policy", os.SCHED_OTHER), ("cpus", {0, 1})]
+
+
 def test_a_worker_process_is_unplaced_before_it_starts(monkeypatch):
     from mlink_sim.aio import supervisor
 

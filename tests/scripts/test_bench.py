@@ -181,6 +181,54 @@ def test_realtime_refused_exits_2_before_any_cell_runs(bench, monkeypatch, capsy
     assert "bench.py: --realtime: SCHED_FIFO refused (Operation not permitted)" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("flag", [[], ["--no-realtime"]])
+def test_without_real_time_every_cell_runs_with_ordinary_scheduling(bench, monkeypatch, tmp_path, capsys,
+                                                                     flag) -> None:
+    """By default bench.py asks for what ``mlink-sim up`` asks for by default; refused (an unprivileged user), it
+    withdraws whatever part it got and runs every cell with ordinary scheduling, saying so; ``--no-realtime`` does
+    not ask at all. Either way no cell gets a CPU plan and the JSON records no real-time grant."""
+    asked: list[str] = []
+    cells: list[object] = []
+
+    def run_cell(loop, tmp, link, n, cycle, workers, seconds, io, poll, cpus):
+        cells.append(cpus)
+        return []
+
+    monkeypatch.setattr(bench, "run_cell", run_cell)
+    monkeypatch.setattr(bench, "table", lambda cells: "")
+    monkeypatch.setattr(bench, "draw", lambda cells, png: None)
+    monkeypatch.setattr(bench.realtime, "apply", lambda priority, cpus=None: asked.append("apply") or (
+        "SCHED_FIFO refused (Operation not permitted), memory not locked (Operation not permitted), "
+        "CPU wake-up latency refused (Permission denied), CPUs left to the kernel (no wake-up latency held)"))
+    monkeypatch.setattr(bench.realtime, "withdraw", lambda: asked.append("withdraw"))
+    out = tmp_path / "b.json"
+    monkeypatch.setattr("sys.argv", ["bench.py", *flag, "--stations", "1", "--cycles", "1ms", "--links", "ML2",
+                                     "--json", str(out)])
+    assert bench.main() == 0
+    captured = capsys.readouterr()
+    assert asked == ([] if flag else ["apply", "withdraw"]) and cells == [None]
+    assert ("real-time requests refused" in captured.err) is not bool(flag)
+    assert "ordinary scheduling for every process" in captured.out
+    assert json.loads(out.read_text())["host"]["realtime"] is None
+
+
+def test_real_time_granted_by_default_plans_the_cpus(bench, monkeypatch, tmp_path, capsys) -> None:
+    """Granted (root), the default run is ``--realtime``'s: every cell gets the CPU plan, the JSON says what was
+    granted."""
+    cells: list[object] = []
+    monkeypatch.setattr(bench, "run_cell", lambda *a: cells.append(a[-1]) or [])
+    monkeypatch.setattr(bench, "table", lambda cells: "")
+    monkeypatch.setattr(bench, "draw", lambda cells, png: None)
+    monkeypatch.setattr(bench.realtime, "cpu_plan", lambda: ({1}, {0}))
+    monkeypatch.setattr(bench.realtime, "apply", lambda priority, cpus=None: "SCHED_FIFO 40, CPU 1")
+    out = tmp_path / "b.json"
+    monkeypatch.setattr("sys.argv", ["bench.py", "--stations", "1", "--cycles", "1ms", "--links", "ML2",
+                                     "--json", str(out)])
+    assert bench.main() == 0
+    assert cells == [({1}, {0})] and json.loads(out.read_text())["host"]["realtime"] == "SCHED_FIFO 40, CPU 1"
+    assert "real time: SCHED_FIFO 40, CPU 1" in capsys.readouterr().out
+
+
 def test_realtime_asks_the_same_of_the_network_and_its_floors(bench, monkeypatch, tmp_path) -> None:
     """With ``--realtime``'s CPU plan the network is opened with the session's real-time requests and both floors
     get the same plan (client on the master's CPUs, server on the workers'); before each network turn the process
