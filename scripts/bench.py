@@ -139,6 +139,7 @@ class Cell:
     mispredicted: int = 0           #: of those, answers the card then contradicted (a bug: a note says so)
     steal_pct: float = 0.0          #: the hypervisor's steal over the window, % of all CPUs' time (bench_figures.steal_share)
     turns: int = 1                  #: the windows it was measured in, in turn with its floors (bench_figures.turns)
+    missed_by_turn: list[int] = field(default_factory=list)  #: exchanges not on time in each turn, in order
     floor: dict[str, Any] | None = None          #: bench_floor.Floor, plain system calls
     floor_batched: dict[str, Any] | None = None  #: bench_floor.Floor, sendmmsg/recvmmsg
     notes: list[str] = field(default_factory=list)
@@ -200,7 +201,9 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         # No control query inside the window: a stats query's reply held the worker (session 30), and even a cpu
         # query's made answers late at 250 µs (session 31). The workers' counters are asked for before and after
         # it, their CPU read from the kernel's accounting, as the floor's server's is.
+        asked0 = time.monotonic()
         ahead0 = await _slave_counters(session)
+        asked0 = (asked0 + time.monotonic()) / 2
         session.reset_metrics()
         pids = [w.pid for w in session.worker_list if w.alive and w.pid]
         timers = list({id(m.timer): m.timer for m in session.masters.values() if m.timer is not None}.values())
@@ -216,7 +219,9 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         spun_s = (sum(t.spun_ns for t in timers) - spun0) / 1e9
         wake, swake = self_wakeups() - wake0, sum(proc_wakeups(p) for p in pids) - swake0
         metrics, meta = await session.snapshot(slave_stats=False)
+        asked1 = time.monotonic()
         ahead1 = await _slave_counters(session)
+        asked1 = (asked1 + time.monotonic()) / 2
         behind = _states(session)
         if behind:
             cell.notes.append(f"at the end not at their phase{behind}")
@@ -228,7 +233,10 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         else:
             os.environ["MLINK_MMSG"] = saved
     report = metrics.report(meta=meta)
-    ahead = {k: ahead1[k] - ahead0[k] for k in ("ahead", "mispredicted")}
+    # the counters span the window and the moments around it that the queries took: the answers made ahead are
+    # scaled to the window (a steady rate); a contradicted one is counted whenever it was
+    ahead = {"ahead": round((ahead1["ahead"] - ahead0["ahead"]) * min(1.0, wall / max(asked1 - asked0, 1e-9))),
+             "mispredicted": ahead1["mispredicted"] - ahead0["mispredicted"]}
     return Window(cell.cycle_ns, wall_s=wall, started=report["cycles"] - report["missed"], skipped=report["missed"],
                   sent=report["sent"], missing=report["missing"], late=report["late"], cpu_a_s=cpu_master_s,
                   cpu_b_s=cpu_slaves_s, spin_s=spun_s, wake_a=wake,

@@ -107,9 +107,12 @@ class Window:
     rtt: LatencyHistogram = field(default_factory=LatencyHistogram)
     lateness: LatencyHistogram = field(default_factory=LatencyHistogram)
     turns: int = 1
+    #: the exchanges not on time (due − on time) in each turn, in order; empty: one turn, read from the counts
+    by_turn: list[int] = field(default_factory=list)
 
     def add(self, other: Window) -> None:
         """Add *other*'s counts (a later turn of the same side) to these."""
+        self.by_turn = self.not_on_time_by_turn() + other.not_on_time_by_turn()
         for name in ("wall_s", "started", "skipped", "sent", "missing", "late", "cpu_a_s", "cpu_b_s", "spin_s",
                      "wake_a", "wake_b", "ahead", "mispredicted", "turns"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
@@ -119,6 +122,14 @@ class Window:
             self.ticks = self.ticks or other.ticks
         self.rtt.merge(other.rtt)
         self.lateness.merge(other.lateness)
+
+    def not_on_time_by_turn(self) -> list[int]:
+        """The exchanges due but not answered within a cycle, turn by turn: whether a side's excess came in one
+        turn (a host event) or in all of them."""
+        if self.by_turn:
+            return list(self.by_turn)
+        fig = self.figures()
+        return [fig.due - fig.on_time]
 
     def figures(self) -> ExchangeFigures:
         return exchange_figures(cycle_ns=self.cycle_ns, started=self.started, skipped=self.skipped, sent=self.sent,
@@ -134,7 +145,7 @@ class Window:
                 "lateness_p99_ns": self.lateness.summary()["p99"], "spin_pct": self.pct(self.spin_s),
                 "cpu_per_exchange_us": fig.cpu_per_exchange_us,
                 "cpu_per_exchange_nospin_us": fig.cpu_per_exchange_nospin_us, "steal_pct": self.steal_pct(),
-                "turns": self.turns}
+                "turns": self.turns, "missed_by_turn": self.not_on_time_by_turn()}
 
     def pct(self, seconds: float) -> float:
         """*seconds* of CPU in % of the windows' wall time."""

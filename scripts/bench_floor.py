@@ -56,7 +56,7 @@ import subprocess
 import sys
 import time
 from collections import deque
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -149,6 +149,7 @@ class Floor:
     shared: bool = False              #: the server's stations share one socket (a packed worker's layout)
     steal_pct: float = 0.0            #: the hypervisor's steal over the window, % of all CPUs' time (bench_figures.steal_share)
     turns: int = 1                    #: the windows it was measured in (bench_figures.turns)
+    missed_by_turn: list[int] = field(default_factory=list)  #: exchanges not on time in each turn, in order
 
 
 def proc_cpu_s(pid: int) -> float:

@@ -82,6 +82,18 @@ def test_not_met_says_what_bounds_it(bench) -> None:
     assert (knee["measured"], knee["met"]) == ("45", False) and "at 62:" in knee["verdict"]
 
 
+def test_a_missed_bound_not_met_gives_each_turn_beside_the_floor_s(bench) -> None:
+    """An excess in one turn of six (a host event the floor's turns did not meet) reads differently from one spread
+    over all six (the simulator's own): the verdict lists both sides' answers not back within a cycle per turn."""
+    cells = _all_good(bench)
+    cells[1].missed_rate, cells[1].missed_by_turn = 0.0015, [30, 30, 990, 30, 30, 30]  # 30 ML-II @ 1 ms
+    cells[1].floor_batched["missed_by_turn"] = [30, 30, 30, 30, 30, 30]
+    _, rows = bench.bench_targets.verdicts(cells)
+    row = next(r for r in rows if r["target"].startswith("30 ML2") and r["bound"].startswith("missed"))
+    assert row["verdict"].startswith("not met: not back within a cycle per turn 30, 30, 990, 30, 30, 30 (floor 30, "
+                                     "30, 30, 30, 30, 30); master ")
+
+
 def test_the_knee_stops_at_the_first_cell_that_fails(bench) -> None:
     cells = _all_good(bench)
     next(c for c in cells if c.stations == 30 and c.link == "ML3").missed_rate = 0.05
@@ -296,6 +308,7 @@ def test_a_cell_is_measured_in_turns_with_its_floors_and_their_counts_add_up(ben
     assert (cell.floor_batched["turns"], cell.floor_batched["missed_rate"]) == (3, 0.00125)
     assert cell.ref is cell.floor_batched and cell.cpu_master == 0.1  # 0.03 s of 25 s
     assert (cell.ahead_pct, cell.mispredicted) == (97.5, 1)  # 3 × 780 of 2,400 answers made ahead
+    assert cell.missed_by_turn == [8, 8, 8] and cell.floor_batched["missed_by_turn"] == [1, 1, 1]
     assert any("contradicted" in note for note in cell.notes)
 
 
@@ -326,7 +339,9 @@ def test_no_control_query_reaches_a_worker_inside_the_window(bench, monkeypatch,
     finally:
         loop.close()
     assert [what for what, _ in calls] == ["query", "start", "end", "query"], cell.notes
-    assert w.cpu_b_s > 0 and w.ahead > 0 and w.mispredicted == 0  # ticks of /proc/PID/stat: 10 ms each
+    assert w.cpu_b_s > 0 and w.mispredicted == 0  # ticks of /proc/PID/stat: 10 ms each
+    # the answers made ahead, counted by the queries around the window, scaled to it: at most the answers read
+    assert 0 < w.ahead <= w.summary()["exchanges"]
 
 
 def _descendants(pid: int) -> set[int]:
