@@ -140,6 +140,8 @@ class Cell:
     steal_pct: float = 0.0          #: the hypervisor's steal over the window, % of all CPUs' time (bench_figures.steal_share)
     turns: int = 1                  #: the windows it was measured in, in turn with its floors (bench_figures.turns)
     missed_by_turn: list[int] = field(default_factory=list)  #: exchanges not on time in each turn, in order
+    #: the master clock's host stalls in each turn: [cycles they delayed, the longest in ns] (docs/report.md, host)
+    stalls_by_turn: list[list[int]] = field(default_factory=list)
     floor: dict[str, Any] | None = None          #: bench_floor.Floor, plain system calls
     floor_batched: dict[str, Any] | None = None  #: bench_floor.Floor, sendmmsg/recvmmsg
     notes: list[str] = field(default_factory=list)
@@ -233,6 +235,7 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         else:
             os.environ["MLINK_MMSG"] = saved
     report = metrics.report(meta=meta)
+    master = report.get("host", {}).get("by_process", {}).get("master", {})
     # the counters span the window and the moments around it that the queries took: the answers made ahead are
     # scaled to the window (a steady rate); a contradicted one is counted whenever it was
     ahead = {"ahead": round((ahead1["ahead"] - ahead0["ahead"]) * min(1.0, wall / max(asked1 - asked0, 1e-9))),
@@ -241,7 +244,8 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
                   sent=report["sent"], missing=report["missing"], late=report["late"], cpu_a_s=cpu_master_s,
                   cpu_b_s=cpu_slaves_s, spin_s=spun_s, wake_a=wake,
                   wake_b=swake, ticks=ticks_between(host0, host1), rtt=metrics.rtt, lateness=metrics.lateness,
-                  ahead=ahead["ahead"], mispredicted=ahead["mispredicted"])
+                  ahead=ahead["ahead"], mispredicted=ahead["mispredicted"],
+                  stalls_by_turn=[(int(master.get("cycles", 0)), int(master.get("max", 0)))])
 
 
 @contextmanager
@@ -267,6 +271,7 @@ def fill(cell: Cell, w: Window) -> None:
     for name, value in w.summary().items():
         setattr(cell, name, value)
     cell.late = w.late
+    cell.stalls_by_turn = [list(t) for t in w.stalls_by_turn]
     cell.cpu_master, cell.cpu_slaves = w.pct(w.cpu_a_s), w.pct(w.cpu_b_s)
     cell.wakeups_master, cell.wakeups_slaves = w.per_cycle(w.wake_a), w.per_cycle(w.wake_b)
     cell.ahead_pct = round(100.0 * w.ahead / cell.exchanges, 2) if cell.exchanges else 0.0

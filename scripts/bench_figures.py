@@ -109,10 +109,14 @@ class Window:
     turns: int = 1
     #: the exchanges not on time (due − on time) in each turn, in order; empty: one turn, read from the counts
     by_turn: list[int] = field(default_factory=list)
+    #: the simulator's master clock in each turn: (cycles its host stalls delayed, the longest stall in ns), from
+    #: the report's ``host.by_process.master`` (docs/report.md); empty for a floor
+    stalls_by_turn: list[tuple[int, int]] = field(default_factory=list)
 
     def add(self, other: Window) -> None:
         """Add *other*'s counts (a later turn of the same side) to these."""
         self.by_turn = self.not_on_time_by_turn() + other.not_on_time_by_turn()
+        self.stalls_by_turn = self.stalls_by_turn + other.stalls_by_turn
         for name in ("wall_s", "started", "skipped", "sent", "missing", "late", "cpu_a_s", "cpu_b_s", "spin_s",
                      "wake_a", "wake_b", "ahead", "mispredicted", "turns"):
             setattr(self, name, getattr(self, name) + getattr(other, name))

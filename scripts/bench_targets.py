@@ -70,13 +70,20 @@ def bounded_by(c: Any) -> str:
 
 
 def by_turn(c: Any) -> str:
-    """The answers not back within a cycle in each turn, the cell's and its floor's: an excess in one turn of six
-    is a host event the floor's turns missed; one spread over all of them is the simulator's own."""
+    """The answers not back within a cycle in each turn, the cell's and its floor's, and the host stalls the
+    master's clock saw in each of its turns: an excess in one turn of six is a host event the floor's turns missed
+    (a stall of the master's clock, or of the worker when the clock saw none); one spread over all of them is the
+    simulator's own."""
     ours, floor = list(getattr(c, "missed_by_turn", None) or []), list((c.ref or {}).get("missed_by_turn") or [])
+    stalls = list(getattr(c, "stalls_by_turn", None) or [])
     if len(ours) < 2:
         return ""
-    return (f"not back within a cycle per turn {', '.join(f'{n:,}' for n in ours)}"
+    text = (f"not back within a cycle per turn {', '.join(f'{n:,}' for n in ours)}"
             + (f" (floor {', '.join(f'{n:,}' for n in floor)})" if floor else ""))
+    if len(stalls) == len(ours):
+        text += ("; the master's clock per turn, cycles its host stalls delayed / the longest: "
+                 + ", ".join(f"{cycles:,} / {format_ns(longest)}" for cycles, longest in stalls))
+    return text
 
 
 def floor_saturation(c: Any) -> str:
