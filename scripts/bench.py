@@ -217,7 +217,7 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         host1 = host_ticks()
         wall = time.monotonic() - wall0
         cpu_master_s = time.process_time() - cpu0
-        cpu_slaves_s = sum(proc_cpu_s(p) - c for p, c in zip(pids, slaves0, strict=True))
+        cpu_slaves_s = sum(max(0.0, proc_cpu_s(p) - c) for p, c in zip(pids, slaves0, strict=True))  # gone: 0
         spun_s = (sum(t.spun_ns for t in timers) - spun0) / 1e9
         wake, swake = self_wakeups() - wake0, sum(proc_wakeups(p) for p in pids) - swake0
         metrics, meta = await session.snapshot(slave_stats=False)
