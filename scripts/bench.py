@@ -140,7 +140,8 @@ class Cell:
     steal_pct: float = 0.0          #: the hypervisor's steal over the window, % of all CPUs' time (bench_figures.steal_share)
     turns: int = 1                  #: the windows it was measured in, in turn with its floors (bench_figures.turns)
     missed_by_turn: list[int] = field(default_factory=list)  #: exchanges not on time in each turn, in order
-    #: the master clock's host stalls in each turn: [cycles they delayed, the longest in ns] (docs/report.md, host)
+    #: the host stalls in each turn: [cycles the master clock's delayed, its longest in ns, the workers' stalls
+    #: (their 1 ms tick 3 ms or more late), their longest in ns] (docs/report.md, host)
     stalls_by_turn: list[list[int]] = field(default_factory=list)
     floor: dict[str, Any] | None = None          #: bench_floor.Floor, plain system calls
     floor_batched: dict[str, Any] | None = None  #: bench_floor.Floor, sendmmsg/recvmmsg
@@ -224,6 +225,8 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         asked1 = time.monotonic()
         ahead1 = await _slave_counters(session)
         asked1 = (asked1 + time.monotonic()) / 2
+        await session.refresh_slave_stats()  # after the window: the workers' own stalls in it (docs/report.md)
+        worker_stalls = [session.metrics.stalls.totals(f"worker:{w.spec.index}") for w in session.worker_list]
         behind = _states(session)
         if behind:
             cell.notes.append(f"at the end not at their phase{behind}")
@@ -245,7 +248,8 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
                   cpu_b_s=cpu_slaves_s, spin_s=spun_s, wake_a=wake,
                   wake_b=swake, ticks=ticks_between(host0, host1), rtt=metrics.rtt, lateness=metrics.lateness,
                   ahead=ahead["ahead"], mispredicted=ahead["mispredicted"],
-                  stalls_by_turn=[(int(master.get("cycles", 0)), int(master.get("max", 0)))])
+                  stalls_by_turn=[(int(master.get("cycles", 0)), int(master.get("max", 0)),
+                                   sum(t["count"] for t in worker_stalls), max((t["max"] for t in worker_stalls), default=0))])
 
 
 @contextmanager

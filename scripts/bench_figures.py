@@ -109,9 +109,9 @@ class Window:
     turns: int = 1
     #: the exchanges not on time (due − on time) in each turn, in order; empty: one turn, read from the counts
     by_turn: list[int] = field(default_factory=list)
-    #: the simulator's master clock in each turn: (cycles its host stalls delayed, the longest stall in ns), from
-    #: the report's ``host.by_process.master`` (docs/report.md); empty for a floor
-    stalls_by_turn: list[tuple[int, int]] = field(default_factory=list)
+    #: the simulator's host stalls in each turn: (cycles the master clock's delayed, its longest in ns, the workers'
+    #: stalls, their longest in ns), from the report's ``host.by_process`` (docs/report.md); empty for a floor
+    stalls_by_turn: list[tuple[int, int, int, int]] = field(default_factory=list)
 
     def add(self, other: Window) -> None:
         """Add *other*'s counts (a later turn of the same side) to these."""

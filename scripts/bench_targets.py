@@ -82,7 +82,10 @@ def by_turn(c: Any) -> str:
             + (f" (floor {', '.join(f'{n:,}' for n in floor)})" if floor else ""))
     if len(stalls) == len(ours):
         text += ("; the master's clock per turn, cycles its host stalls delayed / the longest: "
-                 + ", ".join(f"{cycles:,} / {format_ns(longest)}" for cycles, longest in stalls))
+                 + ", ".join(f"{s[0]:,} / {format_ns(s[1])}" for s in stalls))
+        if all(len(s) >= 4 for s in stalls):
+            text += ("; the workers' stalls of 3 ms or more per turn / the longest: "
+                     + ", ".join(f"{s[2]:,} / {format_ns(s[3])}" for s in stalls))
     return text
 
 

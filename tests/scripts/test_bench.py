@@ -88,13 +88,14 @@ def test_a_missed_bound_not_met_gives_each_turn_beside_the_floor_s(bench) -> Non
     cells = _all_good(bench)
     cells[1].missed_rate, cells[1].missed_by_turn = 0.0015, [30, 30, 990, 30, 30, 30]  # 30 ML-II @ 1 ms
     cells[1].floor_batched["missed_by_turn"] = [30, 30, 30, 30, 30, 30]
-    cells[1].stalls_by_turn = [[0, 0]] * 2 + [[32, 31_000_000]] + [[1, 1_200_000]] * 3
+    cells[1].stalls_by_turn = [[0, 0, 0, 0]] * 2 + [[32, 31_000_000, 1, 4_000_000]] + [[1, 1_200_000, 0, 0]] * 3
     _, rows = bench.bench_targets.verdicts(cells)
     row = next(r for r in rows if r["target"].startswith("30 ML2") and r["bound"].startswith("missed"))
     assert row["verdict"].startswith(
         "not met: not back within a cycle per turn 30, 30, 990, 30, 30, 30 (floor 30, 30, 30, 30, 30, 30); the "
         "master's clock per turn, cycles its host stalls delayed / the longest: 0 / 0ns, 0 / 0ns, 32 / 31ms, "
-        "1 / 1.2ms, 1 / 1.2ms, 1 / 1.2ms; master ")
+        "1 / 1.2ms, 1 / 1.2ms, 1 / 1.2ms; the workers' stalls of 3 ms or more per turn / the longest: 0 / 0ns, "
+        "0 / 0ns, 1 / 4ms, 0 / 0ns, 0 / 0ns, 0 / 0ns; master ")
 
 
 def test_the_knee_stops_at_the_first_cell_that_fails(bench) -> None:
@@ -291,7 +292,7 @@ def test_a_cell_is_measured_in_turns_with_its_floors_and_their_counts_add_up(ben
 
     async def network(path, workers, turn, cell, rt=False):
         w = window("network", turn, 300_000, 8)  # 8 of 800 answers later than the 250 µs cycle
-        w.stalls_by_turn = [(len(order), 1_000_000 * len(order))]  # the master's clock: cycles delayed, longest
+        w.stalls_by_turn = [(len(order), 1_000_000 * len(order), 0, 0)]  # master: cycles delayed, longest; workers
         w.ahead, w.mispredicted = 780, len(order) == 1  # answers made ahead; one contradicted, in the first turn
         return w
 
@@ -313,7 +314,7 @@ def test_a_cell_is_measured_in_turns_with_its_floors_and_their_counts_add_up(ben
     assert cell.ref is cell.floor_batched and cell.cpu_master == 0.1  # 0.03 s of 25 s
     assert (cell.ahead_pct, cell.mispredicted) == (97.5, 1)  # 3 × 780 of 2,400 answers made ahead
     assert cell.missed_by_turn == [8, 8, 8] and cell.floor_batched["missed_by_turn"] == [1, 1, 1]
-    assert cell.stalls_by_turn == [[1, 1_000_000], [4, 4_000_000], [7, 7_000_000]]
+    assert cell.stalls_by_turn == [[1, 1_000_000, 0, 0], [4, 4_000_000, 0, 0], [7, 7_000_000, 0, 0]]
     assert any("contradicted" in note for note in cell.notes)
 
 
@@ -347,7 +348,7 @@ def test_no_control_query_reaches_a_worker_inside_the_window(bench, monkeypatch,
     assert w.cpu_b_s > 0 and w.mispredicted == 0  # ticks of /proc/PID/stat: 10 ms each
     # the answers made ahead, counted by the queries around the window, scaled to it: at most the answers read
     assert 0 < w.ahead <= w.summary()["exchanges"]
-    assert len(w.stalls_by_turn) == 1  # the master clock's host stalls of the window (report: host.by_process)
+    assert len(w.stalls_by_turn) == 1 and len(w.stalls_by_turn[0]) == 4  # master's and workers' (host.by_process)
 
 
 def _descendants(pid: int) -> set[int]:
