@@ -202,11 +202,12 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         if not_up:
             cell.notes.append(f"{len(not_up)} station(s) not up{_states(session)}")
         # No control query inside the window: a stats query's reply held the worker (session 30), and even a cpu
-        # query's made answers late at 250 µs (session 31). The workers' counters are asked for before and after
-        # it, their CPU read from the kernel's accounting, as the floor's server's is.
+        # query's made answers late at 250 µs (session 31). The workers are asked before it (their counters) and
+        # after it (their counters and own stalls, one stats query, since the window's start); their CPU is read
+        # from the kernel's accounting, as the floor's server's is. A worker reads its counters on a query's
+        # arrival, so each count is dated by the query's send.
         asked0 = time.monotonic()
-        ahead0 = await _slave_counters(session)
-        asked0 = (asked0 + time.monotonic()) / 2
+        ahead0 = _ahead(await _ask_workers(session, "cpu"))
         session.reset_metrics()
         pids = [w.pid for w in session.worker_list if w.alive and w.pid]
         timers = list({id(m.timer): m.timer for m in session.masters.values() if m.timer is not None}.values())
@@ -223,10 +224,9 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         wake, swake = self_wakeups() - wake0, sum(proc_wakeups(p) for p in pids) - swake0
         metrics, meta = await session.snapshot(slave_stats=False)
         asked1 = time.monotonic()
-        ahead1 = await _slave_counters(session)
-        asked1 = (asked1 + time.monotonic()) / 2
-        await session.refresh_slave_stats()  # after the window: the workers' own stalls in it (docs/report.md)
-        worker_stalls = [session.metrics.stalls.totals(f"worker:{w.spec.index}") for w in session.worker_list]
+        replies = await _ask_workers(session, "stats", since=session.metrics.stalls.origin_ns)
+        ahead1 = _ahead(replies)
+        worker_stalls = [r.get("stall_totals", {}) for r in replies]  # docs/report.md, host
         behind = _states(session)
         if behind:
             cell.notes.append(f"at the end not at their phase{behind}")
@@ -249,7 +249,8 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
                   wake_b=swake, ticks=ticks_between(host0, host1), rtt=metrics.rtt, lateness=metrics.lateness,
                   ahead=ahead["ahead"], mispredicted=ahead["mispredicted"],
                   stalls_by_turn=[(int(master.get("cycles", 0)), int(master.get("max", 0)),
-                                   sum(t["count"] for t in worker_stalls), max((t["max"] for t in worker_stalls), default=0))])
+                                   sum(int(t.get("count", 0)) for t in worker_stalls),
+                                   max((int(t.get("max", 0)) for t in worker_stalls), default=0))])
 
 
 @contextmanager
@@ -295,19 +296,26 @@ def _states(session: NetworkSession) -> str:
     return f" ({', '.join(f'{k} {n}' for k, n in counts.most_common())})" if counts else ""
 
 
-async def _slave_counters(session: NetworkSession) -> dict[str, int]:
-    """The answers all workers made ahead so far (``"ahead"``) and the ones of those their cards contradicted
-    (``"mispredicted"``) (``SlaveServer.cpu``, ``{"op": "cpu"}``: ``Bus.ahead``, ``Bus.mispredicted``)."""
+async def _ask_workers(session: NetworkSession, op: str, **fields: Any) -> list[dict[str, Any]]:
+    """Every live worker's reply to ``{"op": op, **fields}`` (``mlink_sim.aio.slave``); a worker that does not answer
+    within 1 s is left out."""
     from mlink_sim.aio.slave import query_control
 
-    out = {"ahead": 0, "mispredicted": 0}
+    replies = []
     for w in session.worker_list:
         if w.alive and w.control_port:
-            reply = await query_control("127.0.0.1", w.control_port, "cpu", timeout=1.0)
+            reply = await query_control("127.0.0.1", w.control_port, op, timeout=1.0, **fields)
             if reply:
-                out["ahead"] += int(reply.get("answered_ahead", 0))
-                out["mispredicted"] += int(reply.get("mispredicted", 0))
-    return out
+                replies.append(reply)
+    return replies
+
+
+def _ahead(replies: list[dict[str, Any]]) -> dict[str, int]:
+    """The answers the workers made ahead so far (``"ahead"``) and the ones of those their cards contradicted
+    (``"mispredicted"``), from their ``cpu`` or ``stats`` replies (``SlaveServer.cpu``: ``Bus.ahead``,
+    ``Bus.mispredicted``)."""
+    return {"ahead": sum(int(r.get("answered_ahead", 0)) for r in replies),
+            "mispredicted": sum(int(r.get("mispredicted", 0)) for r in replies)}
 
 
 # ----------------------------------------------------------------------------------------------- output

@@ -324,18 +324,18 @@ def test_no_control_query_reaches_a_worker_inside_the_window(bench, monkeypatch,
     before the measuring window and after it, never inside (a ``cpu`` query made answers late at 250 µs, session 31),
     and the worker's CPU comes from the kernel's accounting: the window still has both."""
     calls: list[tuple[str, float]] = []
-    counters = bench._slave_counters
+    ask = bench._ask_workers
 
-    async def counted(session):
+    async def counted(session, op, **fields):
         calls.append(("query", bench.time.monotonic()))
-        return await counters(session)
+        return await ask(session, op, **fields)
 
     async def during(pids, duration_s):
         calls.append(("start", bench.time.monotonic()))
         await bench.asyncio.sleep(duration_s)
         calls.append(("end", bench.time.monotonic()))
 
-    monkeypatch.setattr(bench, "_slave_counters", counted)
+    monkeypatch.setattr(bench, "_ask_workers", counted)
     path = tmp_path / "net.toml"
     bench.write_config(path, "ML3", 2, 500_000)
     cell = bench.Cell("ML3", 2, 500_000, 1, duration_s=1.0)
