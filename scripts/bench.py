@@ -204,10 +204,8 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         # No control query inside the window: a stats query's reply held the worker (session 30), and even a cpu
         # query's made answers late at 250 µs (session 31). The workers are asked before it (their counters) and
         # after it (their counters and own stalls, one stats query, since the window's start); their CPU is read
-        # from the kernel's accounting, as the floor's server's is. A worker reads its counters on a query's
-        # arrival, so each count is dated by the query's send.
-        asked0 = time.monotonic()
-        ahead0 = _ahead(await _ask_workers(session, "cpu"))
+        # from the kernel's accounting, as the floor's server's is.
+        before = await _ask_workers(session, "cpu")
         session.reset_metrics()
         pids = [w.pid for w in session.worker_list if w.alive and w.pid]
         timers = list({id(m.timer): m.timer for m in session.masters.values() if m.timer is not None}.values())
@@ -223,10 +221,8 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         spun_s = (sum(t.spun_ns for t in timers) - spun0) / 1e9
         wake, swake = self_wakeups() - wake0, sum(proc_wakeups(p) for p in pids) - swake0
         metrics, meta = await session.snapshot(slave_stats=False)
-        asked1 = time.monotonic()
-        replies = await _ask_workers(session, "stats", since=session.metrics.stalls.origin_ns)
-        ahead1 = _ahead(replies)
-        worker_stalls = [r.get("stall_totals", {}) for r in replies]  # docs/report.md, host
+        after = await _ask_workers(session, "stats", since=session.metrics.stalls.origin_ns)
+        worker_stalls = [r.get("stall_totals", {}) for r in after]  # docs/report.md, host
         behind = _states(session)
         if behind:
             cell.notes.append(f"at the end not at their phase{behind}")
@@ -239,10 +235,7 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
             os.environ["MLINK_MMSG"] = saved
     report = metrics.report(meta=meta)
     master = report.get("host", {}).get("by_process", {}).get("master", {})
-    # the counters span the window and the moments around it that the queries took: the answers made ahead are
-    # scaled to the window (a steady rate); a contradicted one is counted whenever it was
-    ahead = {"ahead": round((ahead1["ahead"] - ahead0["ahead"]) * min(1.0, wall / max(asked1 - asked0, 1e-9))),
-             "mispredicted": ahead1["mispredicted"] - ahead0["mispredicted"]}
+    ahead = _ahead(before, after, wall, metrics.rtt.count)
     return Window(cell.cycle_ns, wall_s=wall, started=report["cycles"] - report["missed"], skipped=report["missed"],
                   sent=report["sent"], missing=report["missing"], late=report["late"], cpu_a_s=cpu_master_s,
                   cpu_b_s=cpu_slaves_s, spin_s=spun_s, wake_a=wake,
@@ -310,12 +303,25 @@ async def _ask_workers(session: NetworkSession, op: str, **fields: Any) -> list[
     return replies
 
 
-def _ahead(replies: list[dict[str, Any]]) -> dict[str, int]:
-    """The answers the workers made ahead so far (``"ahead"``) and the ones of those their cards contradicted
-    (``"mispredicted"``), from their ``cpu`` or ``stats`` replies (``SlaveServer.cpu``: ``Bus.ahead``,
-    ``Bus.mispredicted``)."""
-    return {"ahead": sum(int(r.get("answered_ahead", 0)) for r in replies),
-            "mispredicted": sum(int(r.get("mispredicted", 0)) for r in replies)}
+def _ahead(before: list[dict[str, Any]], after: list[dict[str, Any]], wall_s: float,
+           answered: int) -> dict[str, int]:
+    """The answers the workers made ahead in a window of *wall_s* (``"ahead"``) and the ones of those their cards
+    contradicted (``"mispredicted"``), from their replies just *before* and just *after* it (``SlaveServer.cpu``:
+    ``Bus.ahead``, ``Bus.mispredicted``; matched by ``pid``). Each worker's count spans its two readings (its own
+    ``wall_s`` apart, a little longer than the window) and is scaled to the window at its steady rate; a
+    contradicted one counts whenever it came. At most the *answered* of the window: the readings lie a query's
+    travel off the window's ends, up to a cycle's answers."""
+    first = {r.get("pid"): r for r in before}
+    ahead, mispredicted = 0.0, 0
+    for r in after:
+        r0 = first.get(r.get("pid"))
+        if r0 is None:
+            continue
+        span = float(r.get("wall_s", 0.0)) - float(r0.get("wall_s", 0.0))
+        made = int(r.get("answered_ahead", 0)) - int(r0.get("answered_ahead", 0))
+        ahead += made * min(1.0, wall_s / span) if span > 0 else made
+        mispredicted += int(r.get("mispredicted", 0)) - int(r0.get("mispredicted", 0))
+    return {"ahead": min(round(ahead), answered), "mispredicted": mispredicted}
 
 
 # ----------------------------------------------------------------------------------------------- output
