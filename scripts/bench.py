@@ -141,7 +141,8 @@ class Cell:
     turns: int = 1                  #: the windows it was measured in, in turn with its floors (bench_figures.turns)
     missed_by_turn: list[int] = field(default_factory=list)  #: exchanges not on time in each turn, in order
     #: the host stalls in each turn: [cycles the master clock's delayed, its longest in ns, the workers' stalls
-    #: (their 1 ms tick 3 ms or more late), their longest in ns] (docs/report.md, host)
+    #: (their 1 ms tick 3 ms or more late), their longest in ns, about how many answers they made late
+    #: (``_held_by_stalls``)] (docs/report.md, host)
     stalls_by_turn: list[list[int]] = field(default_factory=list)
     floor: dict[str, Any] | None = None          #: bench_floor.Floor, plain system calls
     floor_batched: dict[str, Any] | None = None  #: bench_floor.Floor, sendmmsg/recvmmsg
@@ -236,6 +237,7 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
     report = metrics.report(meta=meta)
     master = report.get("host", {}).get("by_process", {}).get("master", {})
     ahead = _ahead(before, after, wall, metrics.rtt.count)
+    held = _held_by_stalls(int(master.get("count", 0)), cell.stations, worker_stalls, after, cell.cycle_ns)
     return Window(cell.cycle_ns, wall_s=wall, started=report["cycles"] - report["missed"], skipped=report["missed"],
                   sent=report["sent"], missing=report["missing"], late=report["late"], cpu_a_s=cpu_master_s,
                   cpu_b_s=cpu_slaves_s, spin_s=spun_s, wake_a=wake,
@@ -243,7 +245,7 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
                   ahead=ahead["ahead"], mispredicted=ahead["mispredicted"],
                   stalls_by_turn=[(int(master.get("cycles", 0)), int(master.get("max", 0)),
                                    sum(int(t.get("count", 0)) for t in worker_stalls),
-                                   max((int(t.get("max", 0)) for t in worker_stalls), default=0))])
+                                   max((int(t.get("max", 0)) for t in worker_stalls), default=0), held)])
 
 
 @contextmanager
@@ -301,6 +303,19 @@ async def _ask_workers(session: NetworkSession, op: str, **fields: Any) -> list[
             if reply:
                 replies.append(reply)
     return replies
+
+
+def _held_by_stalls(master_stalls: int, stations: int, worker_stalls: list[dict[str, Any]],
+                    replies: list[dict[str, Any]], cycle_ns: int) -> int:
+    """About how many answers the host stalls logged in a window made late: each stall of the master's clock the
+    answers of the cycle then on its way (*stations*), and each worker's stalled time (its ``stall_totals``
+    ``total``, from the same *replies*) that many cycles of its own stations' answers, whole cycles rounded up.
+    An estimate: a stall of the master holds up its catch-up too, and a worker's tick (1 ms) dates a stall to
+    within a millisecond."""
+    held = master_stalls * stations
+    for totals, reply in zip(worker_stalls, replies, strict=True):
+        held += len(reply.get("stations") or {}) * -(-int(totals.get("total", 0)) // cycle_ns)
+    return held
 
 
 def _ahead(before: list[dict[str, Any]], after: list[dict[str, Any]], wall_s: float,

@@ -110,8 +110,9 @@ class Window:
     #: the exchanges not on time (due − on time) in each turn, in order; empty: one turn, read from the counts
     by_turn: list[int] = field(default_factory=list)
     #: the simulator's host stalls in each turn: (cycles the master clock's delayed, its longest in ns, the workers'
-    #: stalls, their longest in ns), from the report's ``host.by_process`` (docs/report.md); empty for a floor
-    stalls_by_turn: list[tuple[int, int, int, int]] = field(default_factory=list)
+    #: stalls, their longest in ns, about how many answers they made late), from the report's ``host.by_process``
+    #: and the workers' ``stall_totals`` (docs/report.md); empty for a floor
+    stalls_by_turn: list[tuple[int, ...]] = field(default_factory=list)
 
     def add(self, other: Window) -> None:
         """Add *other*'s counts (a later turn of the same side) to these."""

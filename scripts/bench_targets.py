@@ -25,7 +25,7 @@ from typing import Any
 
 from mlink_sim.config import format_ns, parse_duration_ns
 
-__all__ = ["CELLS", "by_turn", "floor_saturation", "verdicts", "knee"]
+__all__ = ["CELLS", "by_turn", "floor_saturation", "held_by_stalls", "verdicts", "knee"]
 
 #: (link, stations, cycle, duration): the targets' cells, then the knee's
 CELLS = (("ML3", 62, "1ms", "60s"), ("ML2", 30, "1ms", "60s"), ("ML3", 8, "250us", "30s"),
@@ -70,13 +70,13 @@ def bounded_by(c: Any) -> str:
 
 
 def by_turn(c: Any) -> str:
-    """The answers not back within a cycle in each turn, the cell's and its floor's, and the host stalls the
-    master's clock saw in each of its turns: an excess in one turn of six is a host event the floor's turns missed
-    (a stall of the master's clock, or of the worker when the clock saw none); one spread over all of them is the
-    simulator's own."""
+    """The answers not back within a cycle in each turn, the cell's and its floor's, the host stalls the master's
+    clock and the workers logged in each of the cell's turns, and how many late answers those account for
+    (:func:`held_by_stalls`): an excess in one turn of six is a host event the floor's turns missed; one spread
+    over all of them is the simulator's own."""
     ours, floor = list(getattr(c, "missed_by_turn", None) or []), list((c.ref or {}).get("missed_by_turn") or [])
     stalls = list(getattr(c, "stalls_by_turn", None) or [])
-    if len(ours) < 2:
+    if not ours:
         return ""
     text = (f"not back within a cycle per turn {', '.join(f'{n:,}' for n in ours)}"
             + (f" (floor {', '.join(f'{n:,}' for n in floor)})" if floor else ""))
@@ -86,6 +86,24 @@ def by_turn(c: Any) -> str:
         if all(len(s) >= 4 for s in stalls):
             text += ("; the workers' stalls of 3 ms or more per turn / the longest: "
                      + ", ".join(f"{s[2]:,} / {format_ns(s[3])}" for s in stalls))
+        if all(len(s) >= 5 for s in stalls):
+            text += "; " + held_by_stalls(c, [s[4] for s in stalls])
+    return text
+
+
+def held_by_stalls(c: Any, held: list[int]) -> str:
+    """How many late answers the logged host stalls account for (*held*, per turn: ``bench._held_by_stalls``),
+    against the answers by which the cell is over its limit: more, and one host event put it over; fewer, and the
+    rest is the simulator's own or a holdup neither process logged."""
+    ref = c.ref or {}
+    over = round((c.missed_rate - ref.get("missed_rate", 0.0) - MISSED_MARGIN) * getattr(c, "due", 0))
+    total = sum(held)
+    text = (f"the answers those stalls made late, about, per turn: {', '.join(f'{n:,}' for n in held)} "
+            f"({total:,} in all)")
+    if over > 0:
+        text += (f", {'at least' if total >= over else 'fewer than'} the {over:,} by which the cell is over its "
+                 f"limit" + (": the host's stalls put it over" if total >= over else
+                             ": the rest is the simulator's own, or a holdup neither process logged"))
     return text
 
 
@@ -167,7 +185,7 @@ def verdicts(cells: list[Any]) -> tuple[str, list[dict[str, Any]]]:
         beyond = next((c for c in run if c.stations > best), None)
         why = f"missed vs floor per cell {steps}"
         if beyond is not None:
-            why += f"; at {beyond.stations}: {bounded_by(beyond)}"
+            why += f"; at {beyond.stations}: {'; '.join(filter(None, (by_turn(beyond), bounded_by(beyond))))}"
         rows.append({"target": "1 ms knee (ML3)", "bound": f"reaches {KNEE_GOAL} stations", "measured": str(best),
                      "floor": "—", "limit": str(KNEE_GOAL), "met": best >= KNEE_GOAL,
                      "verdict": "met" if best >= KNEE_GOAL else f"not met: {why}",

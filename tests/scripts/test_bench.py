@@ -98,6 +98,54 @@ def test_a_missed_bound_not_met_gives_each_turn_beside_the_floor_s(bench) -> Non
         "0 / 0ns, 1 / 4ms, 0 / 0ns, 0 / 0ns, 0 / 0ns; master ")
 
 
+@pytest.mark.parametrize(("held", "says"), [
+    ([0, 0, 960, 30, 30, 30], "the answers those stalls made late, about, per turn: 0, 0, 960, 30, 30, 30 (1,050 in "
+     "all), at least the 900 by which the cell is over its limit: the host's stalls put it over; master "),
+    ([0, 0, 120, 30, 30, 30], "the answers those stalls made late, about, per turn: 0, 0, 120, 30, 30, 30 (210 in "
+     "all), fewer than the 900 by which the cell is over its limit: the rest is the simulator's own, or a holdup "
+     "neither process logged; master "),
+])
+def test_a_missed_bound_not_met_weighs_the_logged_stalls_against_the_excess(bench, held, says) -> None:
+    """The late answers the logged stalls account for (the fifth figure of each turn), against the answers by which
+    the cell is over its limit (0.15 % of 1,800,000 due against the floor's 0.05 % + 0.05 points: 900): a host
+    event that the logs caught, or an excess they do not explain."""
+    cells = _all_good(bench)
+    cell = cells[1]  # 30 ML-II @ 1 ms, 60 s
+    cell.missed_rate, cell.due, cell.missed_by_turn = 0.0015, 1_800_000, [30, 30, 990, 30, 30, 30]
+    cell.stalls_by_turn = [[0, 0, 0, 0, n] for n in held]
+    _, rows = bench.bench_targets.verdicts(cells)
+    row = next(r for r in rows if r["target"].startswith("30 ML2") and r["bound"].startswith("missed"))
+    assert not row["met"] and says in row["verdict"], row["verdict"]
+
+
+def test_the_late_answers_a_turns_stalls_account_for(bench) -> None:
+    """Each stall of the master's clock: the cycle then on its way (every station's answer); each worker's stalled
+    time: that many cycles (rounded up) of its own stations' answers."""
+    one = [{"stations": {str(a): {} for a in range(62)}}]
+    assert bench._held_by_stalls(2, 62, [{"count": 2, "total": 7_500_000, "max": 5_000_000}], one, 1_000_000) == (
+        2 * 62 + 8 * 62)
+    two = [{"stations": {"3": {}, "4": {}}}, {"stations": {str(a): {} for a in range(6)}}]
+    stalls = [{"count": 1, "total": 500_000, "max": 500_000}, {}]  # the second worker logged none
+    assert bench._held_by_stalls(0, 8, stalls, two, 250_000) == 2 * 2
+    assert bench._held_by_stalls(0, 8, [{}, {}], two, 250_000) == 0
+
+
+def test_the_knees_verdict_weighs_the_failing_cells_logged_stalls(bench) -> None:
+    """A knee cell of one turn (10 s) put over by three stalls of its worker (session 32's run 2: 450 answers late
+    against the floor's 45): the knee's verdict gives that cell's turn and what its logged stalls account for."""
+    cells = _all_good(bench)
+    c45 = next(c for c in cells if c.stations == 45)
+    c45.missed_rate, c45.due, c45.missed_by_turn = 0.001, 450_045, [450]
+    c45.floor_batched.update(missed_rate=0.0001, missed_by_turn=[45])
+    c45.stalls_by_turn = [[0, 0, 3, 3_620_428, 450]]
+    knee = bench.bench_targets.verdicts(cells)[1][-1]
+    assert (knee["measured"], knee["met"]) == ("30", False)
+    assert ("at 45: not back within a cycle per turn 450 (floor 45); " in knee["verdict"]
+            and "the workers' stalls of 3 ms or more per turn / the longest: 3 / 3.62ms; " in knee["verdict"]
+            and "(450 in all), at least the 180 by which the cell is over its limit: the host's stalls put it over"
+            in knee["verdict"]), knee["verdict"]
+
+
 def test_the_knee_stops_at_the_first_cell_that_fails(bench) -> None:
     cells = _all_good(bench)
     next(c for c in cells if c.stations == 30 and c.link == "ML3").missed_rate = 0.05
@@ -348,7 +396,8 @@ def test_no_control_query_reaches_a_worker_inside_the_window(bench, monkeypatch,
     assert w.cpu_b_s > 0 and w.mispredicted == 0  # ticks of /proc/PID/stat: 10 ms each
     # the answers made ahead, counted by the queries around the window, scaled to it: at most the answers read
     assert 0 < w.ahead <= w.summary()["exchanges"]
-    assert len(w.stalls_by_turn) == 1 and len(w.stalls_by_turn[0]) == 4  # master's and workers' (host.by_process)
+    # master's and workers' (host.by_process, stall_totals), and the answers those made late (none expected here)
+    assert len(w.stalls_by_turn) == 1 and len(w.stalls_by_turn[0]) == 5 and w.stalls_by_turn[0][4] >= 0
 
 
 def _descendants(pid: int) -> set[int]:
