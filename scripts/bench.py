@@ -28,16 +28,16 @@ where ``sendmmsg``/``recvmmsg`` are available, unless ``--io plain``, which runs
     scripts/bench.py --stations 30 --cycles 1ms --links ML2 --duration 60s     # one cell, one minute
     scripts/bench.py --stations 8 --cycles 1ms --links ML3 --io batched,plain  # what the batched calls gain
     scripts/bench.py --quick                           # a few cells, 2 s each (smoke test)
-    scripts/bench.py --targets                         # issue 21's five targets, ~12 min (--duration 10s: ~4 min)
+    scripts/bench.py --targets                         # issue 21's five targets, ~15 min (--duration 10s: ~5 min)
     scripts/bench.py --render docs/bench.json --markdown   # an earlier run's table, as in docs/performance.md
     scripts/bench.py --targets --pm-qos                # the same with idle CPUs polling, floor and simulator alike
     scripts/bench.py --targets --no-realtime           # every process with ordinary scheduling (an ordinary user)
     scripts/bench.py --stations 8 --cycles 250us --links ML3 --arrival-poll off   # without the workers' poll
 
 ``--targets`` runs the cells of the capacity targets (scripts/bench_targets.py: 62 ML-III and 30 ML-II stations
-at 1 ms for 60 s, 8 ML-III stations at 250 µs for 30 s, and ML-III at 1 ms with 15, 30 and 45 stations for the
-knee) and prints met / not met for each bound, with the floor's figure beside it and, where a bound is not met,
-what bounds it (from the same run). ``--duration`` shortens every cell for a quick run. Exit status 0 either
+at 1 ms for 60 s, 8 ML-III stations at 250 µs for 30 s, and ML-III at 1 ms with 15, 30 and 45 stations, 30 s
+each, for the knee) and prints met / not met for each bound, with the floor's figure beside it and, where a bound
+is not met, what bounds it (from the same run). ``--duration`` shortens every cell for a quick run. Exit status 0 either
 way: a benchmark reports, it does not gate.
 
 By default the whole sweep runs as ``mlink-sim up`` runs by default where it may (its ``--realtime``: root or
@@ -542,7 +542,7 @@ def main() -> int:
                     help="draw the chart here (default bench.png; '' = none; with --render only when given)")
     ap.add_argument("--quick", action="store_true", help="1 and 9 stations at 1 ms and 2 ms, 2 s each")
     ap.add_argument("--targets", action="store_true",
-                    help="only the capacity targets' cells, met / not met per bound beside the floor (~12 min)")
+                    help="only the capacity targets' cells, met / not met per bound beside the floor (~15 min)")
     ap.add_argument("--markdown", action="store_true", help="print the table as Markdown (docs/performance.md)")
     ap.add_argument("--render", type=Path, nargs="+", metavar="JSON",
                     help="run nothing: print the table (and draw --png) from earlier runs' --json files")
