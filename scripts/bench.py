@@ -307,11 +307,12 @@ async def _ask_workers(session: NetworkSession, op: str, **fields: Any) -> list[
 
 def _held_by_stalls(master_stalls: int, stations: int, worker_stalls: list[dict[str, Any]],
                     replies: list[dict[str, Any]], cycle_ns: int) -> int:
-    """About how many answers the host stalls logged in a window made late: each stall of the master's clock the
-    answers of the cycle then on its way (*stations*), and each worker's stalled time (its ``stall_totals``
+    """How many answers the host stalls logged in a window can have made late: each stall of the master's clock
+    the answers of the cycle then on its way (*stations*), and each worker's stalled time (its ``stall_totals``
     ``total``, from the same *replies*) that many cycles of its own stations' answers, whole cycles rounded up.
-    An estimate: a stall of the master holds up its catch-up too, and a worker's tick (1 ms) dates a stall to
-    within a millisecond."""
+    An upper bound, roughly: where the master and a worker stalled together (the whole VM paused) the commands
+    waited too and fewer answers came late (session 32: 558 counted, 62 late), and a worker's 1 ms tick dates a
+    stall to within a millisecond."""
     held = master_stalls * stations
     for totals, reply in zip(worker_stalls, replies, strict=True):
         held += len(reply.get("stations") or {}) * -(-int(totals.get("total", 0)) // cycle_ns)

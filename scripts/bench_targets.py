@@ -99,17 +99,18 @@ def by_turn(c: Any) -> str:
 
 
 def held_by_stalls(c: Any, held: list[int]) -> str:
-    """How many late answers the logged host stalls account for (*held*, per turn: ``bench._held_by_stalls``),
-    against the answers by which the cell is over its limit: more, and one host event put it over; fewer, and the
-    rest is the simulator's own or a holdup neither process logged."""
+    """How many late answers the logged host stalls can account for (*held*, per turn: ``bench._held_by_stalls``),
+    against the answers by which the cell is over its limit: as many or more, and the host's stalls can explain
+    it; fewer, and the rest is the simulator's own or a holdup neither process logged. *held* is an upper bound:
+    where the master and the worker stalled together (the whole VM paused) fewer answers came late."""
     ref = c.ref or {}
     over = round((c.missed_rate - ref.get("missed_rate", 0.0) - MISSED_MARGIN) * getattr(c, "due", 0))
     total = sum(held)
-    text = (f"the answers those stalls made late, about, per turn: {', '.join(f'{n:,}' for n in held)} "
-            f"({total:,} in all)")
+    text = (f"late answers those stalls can account for, per turn: {', '.join(f'{n:,}' for n in held)} "
+            f"(up to {total:,} in all)")
     if over > 0:
         text += (f", {'at least' if total >= over else 'fewer than'} the {over:,} by which the cell is over its "
-                 f"limit" + (": the host's stalls put it over" if total >= over else
+                 f"limit" + (": the host's stalls can explain it" if total >= over else
                              ": the rest is the simulator's own, or a holdup neither process logged"))
     return text
 
