@@ -98,8 +98,12 @@ class Port:
 
     def serve_one(self, data: bytes, addr: Any, out: Batch) -> None:
         """:meth:`serve` of a read with one datagram for this station (never more than *keep*)."""
+        self.serve_at(data, addr, self.clock(), out)
+
+    def serve_at(self, data: bytes, addr: Any, now: int, out: Batch) -> None:
+        """:meth:`serve_one` at *now* (a backlog's command the card takes in the chain at the read's time)."""
         self.pred = None
-        response = self.station.receive(data, addr, self.clock())
+        response = self.station.receive(data, addr, now)
         if response is not None:
             out.append((response, addr))
             self.responses += 1
@@ -186,17 +190,37 @@ class Bus:
                 self.unaddressed += len(items)
                 continue
             start = len(out)
-            n = self._run_ahead(port, items, now, out) if port.pred is not None and len(items) <= port.keep else 0
-            if n < len(items):
-                if n:  # the card takes the commands answered ahead before the next one
-                    self._settle_last(n, now)
-                port.serve(items[n:] if n else items, out)
-            elif n > 1:
+            if len(items) > port.keep:  # beyond keep: the oldest superseded, the rest in the chain
+                port.serve(items, out)
+            elif self._serve_backlog(port, items, now, out) and len(items) > 1:
                 runs.append((start, len(out)))
             served.append(port)
         if runs and self.newest_first:
             return _newest_first(out, runs)
         return out
+
+    def _serve_backlog(self, port: Port, items: Batch, now: int, out: Batch) -> bool:
+        """A station's commands of one read (at most *keep*), in order: as many as its prediction answers ahead
+        (:meth:`_run_ahead`); where it has none, or it stops holding, the card takes the next command in the chain
+        (the ones answered ahead before it first), at the read's time, and the prediction it offers right after
+        answers the rest ahead again. So a backlog after a poll dropped every prediction (a worker held up past
+        the cards' silence deadline, the master's catch-up cycles coming after the poll) costs the cards' own path
+        one command per station, not all of them (docs/cards.md, "A backlog's answers"). True if every command was
+        answered ahead."""
+        i, n_items = 0, len(items)
+        while True:
+            n = self._run_ahead(port, items[i:] if i else items, now, out) if port.pred is not None else 0
+            i += n
+            if i >= n_items:
+                return n == n_items
+            if n:  # the card takes the commands answered ahead before the next one
+                self._settle_last(n, now)
+            data, addr = items[i]
+            port.serve_at(data, addr, now, out)
+            i += 1
+            if i >= n_items:
+                return False
+            port.pred = port.station.prediction(now)  # right after the card's receive (Station.prediction)
 
     def _run_ahead(self, port: Port, items: Batch, now: int, out: Batch) -> int:
         """A backlog (several commands for one station in a read): as many of *items*, in order, as the card's

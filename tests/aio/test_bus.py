@@ -336,3 +336,50 @@ def test_a_backlog_keeps_its_order_where_it_was_not_all_answered_ahead_or_when_s
     core, bus, now = _steady_line(3, newest_first=False)
     k = now["cycle"]
     assert _backlog(core, bus, now, 2) == [(s, k + c) for s in (3, 4, 5) for c in (1, 2)]
+
+
+def test_a_backlog_after_a_poll_is_answered_ahead_after_each_cards_first_command() -> None:
+    """docs/cards.md, "A backlog": a worker held up past its cards' silence deadline while the master was held too
+    polls its stations before their commands come (each card counts its reception failures and drops its
+    prediction: ``Station.poll``), then reads the master's catch-up, three cycles' commands at once. Each card takes
+    its station's first command in the chain, at the read's time, and the second (the first answer after the
+    failure is not the steady one); the prediction the card offers right after answers the third ahead. Every
+    answer is the reference card's (the same commands at the same times, no predictions); after the settle the cards
+    are the reference cards. Before session 32 all three went through the cards before any answer left (session 32:
+    248 commands, 1.46 ms, in a live worker)."""
+    core, cards = _line(Link.ML3, 6)
+    _, reference = _line(Link.ML3, 6)
+    now = {"t": 0}
+    bus = Bus([Port(st, HostedStation(st, "127.0.0.1", 0), 8, [].append, lambda: now["t"]) for st in cards.values()],
+              lambda: now["t"])
+
+    def read(batch: list[tuple[bytes, Any]]) -> None:
+        out = bus.serve(batch)
+        want = [reference[dg[3]].receive(dg, SOURCE, now["t"]) for dg, _ in batch]
+        assert {st: sorted(a, key=cycle_of) for st, a in _by_station([a for a, _ in out]).items()} == _by_station(
+            [w for w in want if w is not None])
+        bus.settle()
+        for answer, _ in out:
+            core.on_response(answer, now["t"] + 50_000)
+        core.drain_events()
+
+    for cycle in range(1, 1201):
+        now["t"] = cycle * TCYCLE + 50_000
+        read([(dg, SOURCE) for _, dg in core.on_cycle(cycle, cycle * TCYCLE)])
+    assert {v.state.value for v in core.views().values()} == {"phase3"}
+    polled = 1204 * TCYCLE  # the worker's tick after four cycles held up: past every card's silence deadline
+    for st, ref in zip(cards.values(), reference.values()):
+        assert st.silence_due(polled) and bus.ports[st.address].pred is not None
+        bus.ports[st.address].forget()
+        st.poll(polled)
+        ref.poll(polled)
+    assert all(st.counters.reception_failures > 0 for st in cards.values())  # the silence, counted by the poll
+    ahead = bus.ahead
+    now["t"] = polled + 100_000
+    read([(dg, SOURCE) for cycle in range(1201, 1204) for _, dg in core.on_cycle(cycle, polled + 20_000 * (cycle - 1200))])
+    # the card's first answer after the failure differs from the one before, so its prediction comes after the
+    # second command (a fixed point: two equal answers in a row, mlink_sim.cards.prediction): the third goes ahead
+    assert bus.mispredicted == 0 and bus.ahead - ahead == 6, bus.ahead - ahead
+    for st, ref in zip(cards.values(), reference.values()):
+        assert st.counters.as_dict() == ref.counters.as_dict()
+        assert st.snapshot().drive == ref.snapshot().drive
