@@ -26,8 +26,9 @@ is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it
   any answer of theirs that differs from the one sent in :attr:`Port.mispredicted` (and in the card's
   ``internal_errors``: it would be a bug, and it is logged), and takes every served card's
   next prediction. In a read with several commands for a station, the prediction is moved on from one to the next
-  (``Prediction.advance``), so a backlog is answered ahead as a cycle is; where it stops holding, the card takes the
-  commands answered so far and then the rest in the chain, in their order. Whatever else reaches a card between
+  (``Prediction.advance``), so a backlog is answered ahead as a cycle is; where it stops holding (or a station has
+  none), the card takes the commands answered so far, then the next one in the chain, and the prediction it offers
+  right after answers the rest ahead again (:meth:`Bus._serve_backlog`). Whatever else reaches a card between
   two reads (its ``poll``, a control request, an EEPROM write) drops its prediction first (:meth:`Port.forget`).
 * **A backlog's answers** go out newest cycle first (:func:`_newest_first`): in a read with several commands for a
   station, all answered ahead, those answers are ranked by how many of its commands in the read come after them, and sent
@@ -205,7 +206,7 @@ class Bus:
         (the ones answered ahead before it first), at the read's time, and the prediction it offers right after
         answers the rest ahead again. So a backlog after a poll dropped every prediction (a worker held up past
         the cards' silence deadline, the master's catch-up cycles coming after the poll) costs the cards' own path
-        one command per station, not all of them (docs/cards.md, "A backlog's answers"). True if every command was
+        the first commands of each station, not all of them (docs/cards.md, "A backlog"). True if every command was
         answered ahead."""
         i, n_items = 0, len(items)
         while True:
