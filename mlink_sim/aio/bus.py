@@ -97,12 +97,9 @@ class Port:
         if self.station.eeprom_pending:
             self.on_eeprom(self.hosted)
 
-    def serve_one(self, data: bytes, addr: Any, out: Batch) -> None:
-        """:meth:`serve` of a read with one datagram for this station (never more than *keep*)."""
-        self.serve_at(data, addr, self.clock(), out)
-
-    def serve_at(self, data: bytes, addr: Any, now: int, out: Batch) -> None:
-        """:meth:`serve_one` at *now* (a backlog's command the card takes in the chain at the read's time)."""
+    def serve_one(self, data: bytes, addr: Any, now: int, out: Batch) -> None:
+        """One datagram for this station, taken by its card at *now*: a read with one for it, or a backlog's
+        command in the chain (:meth:`Bus._serve_backlog`, at the read's time)."""
         self.pred = None
         response = self.station.receive(data, addr, now)
         if response is not None:
@@ -169,7 +166,7 @@ class Bus:
                         sent_ahead.append((port, data, addr, answer))
                         served.append(port)
                         continue
-                port.serve_one(item[0], item[1], out)
+                port.serve_one(item[0], item[1], port.clock(), out)
                 served.append(port)
             return out
         per: dict[int, Batch] = {}
@@ -217,7 +214,7 @@ class Bus:
             if n:  # the card takes the commands answered ahead before the next one
                 self._settle_last(n, now)
             data, addr = items[i]
-            port.serve_at(data, addr, now, out)
+            port.serve_one(data, addr, now, out)
             i += 1
             if i >= n_items:
                 return False

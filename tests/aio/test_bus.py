@@ -15,6 +15,7 @@ from mlink_sim.cards import Station, create_card, settings_for
 from mlink_sim.cards.prediction import Prediction
 from mlink_sim.master import MasterCore, NetworkPlan, StationPlan
 from mlink_sim.wire import Frame, Kind, Link, decode, encode, ml2
+from mlink_sim.wire.codes import CommAlm
 from mlink_sim.wire.frame import CYCLE_AT, cycle_of, steady_delta
 
 TCYCLE = 1_000_000
@@ -353,7 +354,7 @@ def test_a_backlog_after_a_poll_is_answered_ahead_after_each_cards_first_command
     bus = Bus([Port(st, HostedStation(st, "127.0.0.1", 0), 8, [].append, lambda: now["t"]) for st in cards.values()],
               lambda: now["t"])
 
-    def read(batch: list[tuple[bytes, Any]]) -> None:
+    def read(batch: list[tuple[bytes, Any]]) -> list[tuple[bytes, Any]]:
         out = bus.serve(batch)
         want = [reference[dg[3]].receive(dg, SOURCE, now["t"]) for dg, _ in batch]
         assert {st: sorted(a, key=cycle_of) for st, a in _by_station([a for a, _ in out]).items()} == _by_station(
@@ -362,6 +363,7 @@ def test_a_backlog_after_a_poll_is_answered_ahead_after_each_cards_first_command
         for answer, _ in out:
             core.on_response(answer, now["t"] + 50_000)
         core.drain_events()
+        return out
 
     for cycle in range(1, 1201):
         now["t"] = cycle * TCYCLE + 50_000
@@ -376,7 +378,11 @@ def test_a_backlog_after_a_poll_is_answered_ahead_after_each_cards_first_command
     assert all(st.counters.reception_failures > 0 for st in cards.values())  # the silence, counted by the poll
     ahead = bus.ahead
     now["t"] = polled + 100_000
-    read([(dg, SOURCE) for cycle in range(1201, 1204) for _, dg in core.on_cycle(cycle, polled + 20_000 * (cycle - 1200))])
+    out = read([(dg, SOURCE) for cycle in range(1201, 1204)
+                for _, dg in core.on_cycle(cycle, polled + 20_000 * (cycle - 1200))])
+    # SI-ET3 CMD_STAT, COMM_ALM: the silence in phase 3 is warning 3 ("Synchronous frame not received"), cleared
+    # only by ALM_CLR, so every answer carries it, the ones made ahead too
+    assert [decode(a).message.stat.comm_alm for a, _ in out] == [CommAlm.SYNC_NOT_RECEIVED_WARNING] * 18
     # the card's first answer after the failure differs from the one before, so its prediction comes after the
     # second command (a fixed point: two equal answers in a row, mlink_sim.cards.prediction): the third goes ahead
     assert bus.mispredicted == 0 and bus.ahead - ahead == 6, bus.ahead - ahead
