@@ -141,8 +141,8 @@ class Cell:
     turns: int = 1                  #: the windows it was measured in, in turn with its floors (bench_figures.turns)
     missed_by_turn: list[int] = field(default_factory=list)  #: exchanges not on time in each turn, in order
     #: the host stalls in each turn: [cycles the master clock's delayed, its longest in ns, the workers' stalls
-    #: (their 1 ms tick 3 ms or more late), their longest in ns, about how many answers they made late
-    #: (``_held_by_stalls``)] (docs/report.md, host)
+    #: (their 1 ms tick 3 ms or more late), their longest in ns, how many answers those can have made late]
+    #: (``_turn_stalls``; docs/report.md, host)
     stalls_by_turn: list[list[int]] = field(default_factory=list)
     floor: dict[str, Any] | None = None          #: bench_floor.Floor, plain system calls
     floor_batched: dict[str, Any] | None = None  #: bench_floor.Floor, sendmmsg/recvmmsg
@@ -223,7 +223,6 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         wake, swake = self_wakeups() - wake0, sum(proc_wakeups(p) for p in pids) - swake0
         metrics, meta = await session.snapshot(slave_stats=False)
         after = await _ask_workers(session, "stats", since=session.metrics.stalls.origin_ns)
-        worker_stalls = [r.get("stall_totals", {}) for r in after]  # docs/report.md, host
         behind = _states(session)
         if behind:
             cell.notes.append(f"at the end not at their phase{behind}")
@@ -235,17 +234,13 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         else:
             os.environ["MLINK_MMSG"] = saved
     report = metrics.report(meta=meta)
-    master = report.get("host", {}).get("by_process", {}).get("master", {})
     ahead = _ahead(before, after, wall, metrics.rtt.count)
-    held = _held_by_stalls(int(master.get("count", 0)), cell.stations, worker_stalls, after, cell.cycle_ns)
     return Window(cell.cycle_ns, wall_s=wall, started=report["cycles"] - report["missed"], skipped=report["missed"],
                   sent=report["sent"], missing=report["missing"], late=report["late"], cpu_a_s=cpu_master_s,
                   cpu_b_s=cpu_slaves_s, spin_s=spun_s, wake_a=wake,
                   wake_b=swake, ticks=ticks_between(host0, host1), rtt=metrics.rtt, lateness=metrics.lateness,
                   ahead=ahead["ahead"], mispredicted=ahead["mispredicted"],
-                  stalls_by_turn=[(int(master.get("cycles", 0)), int(master.get("max", 0)),
-                                   sum(int(t.get("count", 0)) for t in worker_stalls),
-                                   max((int(t.get("max", 0)) for t in worker_stalls), default=0), held)])
+                  stalls_by_turn=[_turn_stalls(report, after, cell.stations, cell.cycle_ns)])
 
 
 @contextmanager
@@ -305,18 +300,22 @@ async def _ask_workers(session: NetworkSession, op: str, **fields: Any) -> list[
     return replies
 
 
-def _held_by_stalls(master_stalls: int, stations: int, worker_stalls: list[dict[str, Any]],
-                    replies: list[dict[str, Any]], cycle_ns: int) -> int:
-    """How many answers the host stalls logged in a window can have made late: each stall of the master's clock
-    the answers of the cycle then on its way (*stations*), and each worker's stalled time (its ``stall_totals``
-    ``total``, from the same *replies*) that many cycles of its own stations' answers, whole cycles rounded up.
-    An upper bound, roughly: where the master and a worker stalled together (the whole VM paused) the commands
-    waited too and fewer answers came late (session 32: 558 counted, 62 late), and a worker's 1 ms tick dates a
-    stall to within a millisecond."""
-    held = master_stalls * stations
-    for totals, reply in zip(worker_stalls, replies, strict=True):
-        held += len(reply.get("stations") or {}) * -(-int(totals.get("total", 0)) // cycle_ns)
-    return held
+def _turn_stalls(report: dict[str, Any], replies: list[dict[str, Any]], stations: int,
+                 cycle_ns: int) -> tuple[int, int, int, int, int]:
+    """A window's host stalls (``Cell.stalls_by_turn``), from the master's report (``host.by_process.master``) and
+    the workers' ``stats`` *replies* (``stall_totals`` since the window's start; docs/report.md, host): the cycles
+    the master's clock delayed and its longest stall (ns), the workers' stalls and their longest (ns), and how many
+    answers those can have made late. That last is each stall of the master's clock the answers of the cycle then
+    on its way (*stations*), and each worker's stalled time that many cycles, rounded up, of its own stations'
+    answers. An upper bound, roughly: where the master and a worker stalled together (the whole VM paused) the
+    commands waited too and fewer answers came late (session 32: 558 counted, 62 late), and a worker's 1 ms tick
+    dates a stall to within a millisecond."""
+    master = report.get("host", {}).get("by_process", {}).get("master", {})
+    workers = [(r.get("stall_totals") or {}, len(r.get("stations") or {})) for r in replies]
+    held = int(master.get("count", 0)) * stations + sum(
+        hosted * -(-int(totals.get("total", 0)) // cycle_ns) for totals, hosted in workers)
+    return (int(master.get("cycles", 0)), int(master.get("max", 0)), sum(int(t.get("count", 0)) for t, _ in workers),
+            max((int(t.get("max", 0)) for t, _ in workers), default=0), held)
 
 
 def _ahead(before: list[dict[str, Any]], after: list[dict[str, Any]], wall_s: float,

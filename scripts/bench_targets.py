@@ -32,7 +32,7 @@ from typing import Any
 
 from mlink_sim.config import format_ns, parse_duration_ns
 
-__all__ = ["CELLS", "by_turn", "floor_saturation", "held_by_stalls", "verdicts", "knee"]
+__all__ = ["CELLS", "by_turn", "floor_saturation", "verdicts", "knee"]
 
 #: (link, stations, cycle, duration): the targets' cells, then the knee's
 CELLS = (("ML3", 62, "1ms", "60s"), ("ML2", 30, "1ms", "60s"), ("ML3", 8, "250us", "30s"),
@@ -79,7 +79,7 @@ def bounded_by(c: Any) -> str:
 def by_turn(c: Any) -> str:
     """The answers not back within a cycle in each turn, the cell's and its floor's, the host stalls the master's
     clock and the workers logged in each of the cell's turns, and how many late answers those account for
-    (:func:`held_by_stalls`): an excess in one turn of six is a host event the floor's turns missed; one spread
+    (:func:`_weighed`): an excess in one turn of six is a host event the floor's turns missed; one spread
     over all of them is the simulator's own."""
     ours, floor = list(getattr(c, "missed_by_turn", None) or []), list((c.ref or {}).get("missed_by_turn") or [])
     stalls = list(getattr(c, "stalls_by_turn", None) or [])
@@ -94,17 +94,17 @@ def by_turn(c: Any) -> str:
             text += ("; the workers' stalls of 3 ms or more per turn / the longest: "
                      + ", ".join(f"{s[2]:,} / {format_ns(s[3])}" for s in stalls))
         if all(len(s) >= 5 for s in stalls):
-            text += "; " + held_by_stalls(c, [s[4] for s in stalls])
+            text += "; " + _weighed(c, [s[4] for s in stalls])
     return text
 
 
-def held_by_stalls(c: Any, held: list[int]) -> str:
-    """How many late answers the logged host stalls can account for (*held*, per turn: ``bench._held_by_stalls``),
+def _weighed(c: Any, held: list[int]) -> str:
+    """How many late answers the logged host stalls can account for (*held*, per turn: ``bench._turn_stalls``),
     against the answers by which the cell is over its limit: as many or more, and the host's stalls can explain
     it; fewer, and the rest is the simulator's own or a holdup neither process logged. *held* is an upper bound:
     where the master and the worker stalled together (the whole VM paused) fewer answers came late."""
     ref = c.ref or {}
-    over = round((c.missed_rate - ref.get("missed_rate", 0.0) - MISSED_MARGIN) * getattr(c, "due", 0))
+    over = round((c.missed_rate - _missed_limit(ref)) * getattr(c, "due", 0))
     total = sum(held)
     text = (f"late answers those stalls can account for, per turn: {', '.join(f'{n:,}' for n in held)} "
             f"(up to {total:,} in all)")
@@ -129,9 +129,20 @@ def floor_saturation(c: Any) -> str:
             f"floor that cannot carry the load on this machine either")
 
 
+def _missed_limit(ref: dict[str, Any]) -> float:
+    """The most a cell may miss: its floor's missed plus the margin."""
+    return float(ref.get("missed_rate", 0.0)) + MISSED_MARGIN
+
+
+def _missed_why(c: Any) -> str:
+    """Why a cell's missed bound was not met: its turns and their stalls (:func:`by_turn`), then its CPU
+    (:func:`bounded_by`)."""
+    return "; ".join(filter(None, (by_turn(c), bounded_by(c))))
+
+
 def _missed_ok(c: Any) -> bool:
     ref = c.ref
-    return ref is not None and c.missed_rate <= ref["missed_rate"] + MISSED_MARGIN
+    return ref is not None and c.missed_rate <= _missed_limit(ref)
 
 
 def knee(cells: list[Any], goal: int = KNEE_GOAL) -> tuple[int, list[Any]]:
@@ -177,7 +188,7 @@ def verdicts(cells: list[Any]) -> tuple[str, list[dict[str, Any]]]:
                 format_ns(LATENESS_NS), c.lateness_p99_ns <= LATENESS_NS,
                 "" if floor_late <= LATENESS_NS else f"the floor breaks it too; {bounded_by(c)}")
         row(c, "missed ≤ floor + 0.05 points", _pct(c.missed_rate), _pct(ref["missed_rate"]),
-            _pct(ref["missed_rate"] + MISSED_MARGIN), _missed_ok(c), "; ".join(filter(None, (by_turn(c), bounded_by(c)))))
+            _pct(_missed_limit(ref)), _missed_ok(c), _missed_why(c))
         if c.cycle_ns == 1_000_000:
             limit = RTT_FACTOR * ref["rtt_p99_ns"]
             row(c, "RTT p99 ≤ 2 × floor p99", format_ns(c.rtt_p99_ns), format_ns(ref["rtt_p99_ns"]),
@@ -193,7 +204,7 @@ def verdicts(cells: list[Any]) -> tuple[str, list[dict[str, Any]]]:
         beyond = next((c for c in run if c.stations > best), None)
         why = f"missed vs floor per cell {steps}"
         if beyond is not None:
-            why += f"; at {beyond.stations}: {'; '.join(filter(None, (by_turn(beyond), bounded_by(beyond))))}"
+            why += f"; at {beyond.stations}: {_missed_why(beyond)}"
         rows.append({"target": "1 ms knee (ML3)", "bound": f"reaches {KNEE_GOAL} stations", "measured": str(best),
                      "floor": "—", "limit": str(KNEE_GOAL), "met": best >= KNEE_GOAL,
                      "verdict": "met" if best >= KNEE_GOAL else f"not met: {why}",

@@ -120,14 +120,16 @@ def test_a_missed_bound_not_met_weighs_the_logged_stalls_against_the_excess(benc
 
 def test_the_late_answers_a_turns_stalls_account_for(bench) -> None:
     """Each stall of the master's clock: the cycle then on its way (every station's answer); each worker's stalled
-    time: that many cycles (rounded up) of its own stations' answers."""
-    one = [{"stations": {str(a): {} for a in range(62)}}]
-    assert bench._held_by_stalls(2, 62, [{"count": 2, "total": 7_500_000, "max": 5_000_000}], one, 1_000_000) == (
-        2 * 62 + 8 * 62)
-    two = [{"stations": {"3": {}, "4": {}}}, {"stations": {str(a): {} for a in range(6)}}]
-    stalls = [{"count": 1, "total": 500_000, "max": 500_000}, {}]  # the second worker logged none
-    assert bench._held_by_stalls(0, 8, stalls, two, 250_000) == 2 * 2
-    assert bench._held_by_stalls(0, 8, [{}, {}], two, 250_000) == 0
+    time: that many cycles (rounded up) of its own stations' answers. Beside it, the master's cycles delayed and
+    longest stall (the report's ``host.by_process.master``), the workers' stalls and their longest."""
+    master = {"host": {"by_process": {"master": {"count": 2, "cycles": 5, "max": 3_000_000}}}}
+    one = [{"stations": {str(a): {} for a in range(62)},
+            "stall_totals": {"count": 2, "total": 7_500_000, "max": 5_000_000}}]
+    assert bench._turn_stalls(master, one, 62, 1_000_000) == (5, 3_000_000, 2, 5_000_000, 2 * 62 + 8 * 62)
+    two = [{"stations": {"3": {}, "4": {}}, "stall_totals": {"count": 1, "total": 500_000, "max": 500_000}},
+           {"stations": {str(a): {} for a in range(6)}, "stall_totals": {}}]  # the second worker logged none
+    assert bench._turn_stalls({}, two, 8, 250_000)[4] == 2 * 2
+    assert bench._turn_stalls({}, [{**w, "stall_totals": {}} for w in two], 8, 250_000) == (0, 0, 0, 0, 0)
 
 
 def test_the_knees_verdict_weighs_the_failing_cells_logged_stalls(bench) -> None:
