@@ -124,10 +124,11 @@ def withdraw() -> None:
 
 def unplace_child() -> None:
     """Ordinary scheduling and every CPU :func:`allowed_cpus` gives to the calling process, whatever it was
-    granted: in a child between fork and exec (``preexec_fn``), and in :func:`withdraw`. A worker started by a master that holds SCHED_FIFO 40 on its own
-    CPU (a restart during the run) otherwise ran its start-up there at the master's priority, which the master
-    cannot preempt: its clock stalled 170–270 ms (docs/timing.md, "Real-time scheduling"). The worker then asks
-    for its own (``mlink-sim slave --realtime --cpus``). Nothing raises (a refusal leaves what was inherited)."""
+    granted: in a child between fork and exec (``preexec_fn``), and in :func:`withdraw`. A worker started by a
+    master that holds SCHED_FIFO 40 on its own CPU (a restart during the run) otherwise ran its start-up there at
+    the master's priority, which the master cannot preempt: its clock stalled 170–270 ms (docs/timing.md,
+    "Real-time scheduling"). The worker then asks for its own (``mlink-sim slave --realtime --cpus``). Nothing
+    raises (a refusal leaves what was inherited)."""
     if _allowed is None and os.sched_getscheduler(0) == os.SCHED_OTHER:
         return  # never placed: nothing to undo
     try:
