@@ -15,9 +15,12 @@ For one cell (``--link``, ``--stations``, ``--cycle``) it measures, in turns of 
 
 A stall is ``SIGSTOP`` of the chosen processes for ``--stall``, then ``SIGCONT``, every ``--every``, made by a helper
 process, ``scripts/stall_inject.py`` (standard library only, so that starting it costs next to no CPU; SCHED_FIFO
-where granted, so that its timing does not depend on what it stops). ``--who`` chooses what stops: ``master`` (the master, or the floor's client), ``workers`` (the slave
-workers, or the floor's server) or ``both``. The helper continues whatever it stopped on every way out (its end, a
-SIGTERM, its parent's death) and reports the stalls it made, measured.
+where granted, so that its timing does not depend on what it stops). ``--who`` chooses what stops: ``master`` (the
+master, or the floor's client), ``workers`` (the slave workers, or the floor's server) or ``both``. With ``--who
+both``, ``--lag`` continues the master (the client) that long after the workers (the server): a host stall after
+which the workers' 1 ms tick comes before the master's catch-up, so that the cards' silence deadline has passed and
+the catch-up finds no prediction left (docs/cards.md, "A backlog"). The helper continues whatever it stopped on
+every way out (its end, a SIGTERM, its parent's death) and reports the stalls it made, measured.
 
 The figure per side, from the missed exchanges of the two windows (``bench_figures``: due but not answered within
 a cycle): **cycles missed per stall** = (missed with stalls − missed without, scaled to the same number of
@@ -28,6 +31,7 @@ Whatever the simulator loses beyond its floor is its recovery: the last line giv
 
     scripts/bench_recovery.py                                     # 62 ML-III @ 1 ms, 3 ms stalls of both, 10 s turns
     scripts/bench_recovery.py --who workers --stall 5ms --every 250ms
+    scripts/bench_recovery.py --who both --lag 500us                # the workers continued first
     scripts/bench_recovery.py --stations 30 --link ML2 --rounds 3 --json recovery.json
     flock -x /tmp/mlink-cpu.lock .venv/bin/python scripts/bench_recovery.py …   # as every timing on a shared machine
 
@@ -77,15 +81,25 @@ def stalled_pids(who: str, pids: list[int]) -> list[int]:
     return {"both": pids, "master": pids[:1], "workers": pids[1:]}[who]
 
 
-def injecting(who: str, stall_ns: int, every_ns: int, reports: list[dict[str, Any]]) -> During:
-    """A window's ``during``: ``scripts/stall_inject.py`` stops the side's processes as *who* says, from now until
-    the window's end; its report goes to *reports*. Cancelled, it terminates the helper, which continues them."""
+def injector_args(who: str, pids: list[int], lag_ns: int = 0) -> list[str]:
+    """The PID arguments of ``scripts/stall_inject.py`` for *who* (:func:`stalled_pids`); with *lag_ns* (``both``
+    only), the workers (the floor's server) first and the master (its client) ``--later``."""
+    chosen = stalled_pids(who, pids)
+    if lag_ns and who == "both":
+        return [*map(str, pids[1:]), "--later", str(lag_ns), str(pids[0])]
+    return [str(pid) for pid in chosen]
+
+
+def injecting(who: str, stall_ns: int, every_ns: int, reports: list[dict[str, Any]], lag_ns: int = 0) -> During:
+    """A window's ``during``: ``scripts/stall_inject.py`` stops the side's processes as *who* says (the master
+    continued *lag_ns* after the workers), from now until the window's end; its report goes to *reports*.
+    Cancelled, it terminates the helper, which continues them."""
     async def during(pids: list[int], duration_s: float) -> None:
         chosen = stalled_pids(who, pids)
         start = time.monotonic_ns()
         proc = await asyncio.create_subprocess_exec(
             sys.executable, str(ROOT / "scripts" / "stall_inject.py"), str(stall_ns), str(every_ns), str(start),
-            str(start + round(duration_s * 1e9)), *map(str, chosen), stdout=asyncio.subprocess.PIPE)
+            str(start + round(duration_s * 1e9)), *injector_args(who, pids, lag_ns), stdout=asyncio.subprocess.PIPE)
         try:
             out, _ = await proc.communicate()
         finally:
@@ -159,6 +173,7 @@ class Plan:
     rounds: int
     who: str
     workers: int
+    lag_ns: int = 0
 
 
 def _duration(option: str, text: str, unit: str) -> int:
@@ -177,14 +192,19 @@ def _plan(args: argparse.Namespace) -> Plan:
     every, duration = _duration("--every", args.every, "ms"), _duration("--duration", args.duration, "s")
     if args.stations < 1 or args.rounds < 1 or args.workers < 1:
         raise ValueError("--stations, --rounds and --workers are at least 1")
+    lag = _duration("--lag", args.lag, "us")
     if not 0 < stall < every:
         raise ValueError("--stall must be > 0 and shorter than --every")
+    if lag and args.who != "both":
+        raise ValueError("--lag needs --who both: it continues the master that long after the workers")
+    if lag < 0 or stall + lag >= every:
+        raise ValueError("--lag must be ≥ 0, and --stall + --lag shorter than --every")
     if duration < 2 * every:
         raise ValueError("--duration must hold at least two --every periods")
     reason = bench.applicable(link, args.stations, cycle)
     if reason:
         raise ValueError(reason)
-    return Plan(link, args.stations, cycle, stall, every, duration / 1e9, args.rounds, args.who, args.workers)
+    return Plan(link, args.stations, cycle, stall, every, duration / 1e9, args.rounds, args.who, args.workers, lag)
 
 
 _TURNS = [("simulator", False), ("simulator", True), ("floor", False), ("floor", True)]
@@ -205,7 +225,7 @@ def run(loop: asyncio.AbstractEventLoop, tmp: Path, plan: Plan) -> list[Recovery
     for round_ in range(plan.rounds):
         for side, stalled in _order(round_):
             reports: list[dict[str, Any]] = []
-            during = injecting(plan.who, plan.stall_ns, plan.every_ns, reports) if stalled else None
+            during = injecting(plan.who, plan.stall_ns, plan.every_ns, reports, plan.lag_ns) if stalled else None
             if side == "simulator":
                 cell = bench.Cell(plan.link, plan.stations, plan.cycle_ns, workers, plan.duration_s, io,
                                   layout="shared" if workers < plan.stations else "station")
@@ -237,6 +257,9 @@ def main() -> int:
     ap.add_argument("--every", default="500ms", help="one stall per this period (default 500ms)")
     ap.add_argument("--who", choices=WHO, default="both",
                     help="what the stalls stop: the master (the floor's client), the workers (its server) or both")
+    ap.add_argument("--lag", default="0",
+                    help="with --who both: continue the master (the floor's client) this long after the workers "
+                         "(its server), e.g. 500us (default 0: together)")
     ap.add_argument("--duration", default="10s", help="each turn's measuring time (default 10s)")
     ap.add_argument("--rounds", type=int, default=1, help="rounds of the four turns (default 1)")
     ap.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 1) - 1),
@@ -258,7 +281,9 @@ def main() -> int:
         print(f"bench_recovery.py: a window could not be measured: {exc}", file=sys.stderr)
         return 2
     print(f"{plan.link} {plan.stations} stations @ {format_ns(plan.cycle_ns)}, stalls of {format_ns(plan.stall_ns)} "
-          f"every {format_ns(plan.every_ns)} stopping {plan.who}, {plan.rounds} × {plan.duration_s:g} s turns")
+          f"every {format_ns(plan.every_ns)} stopping {plan.who}"
+          + (f", the master continued {format_ns(plan.lag_ns)} after the workers" if plan.lag_ns else "")
+          + f", {plan.rounds} × {plan.duration_s:g} s turns")
     print(table(sides))
     if args.json is not None:
         doc = {"host": {"node": platform.node(), "cpus": os.cpu_count(), "kernel": platform.release(),

@@ -7,6 +7,7 @@ import json
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -53,6 +54,13 @@ def test_what_a_stall_stops(rec) -> None:
     assert rec.stalled_pids("workers", pids) == [20, 21]
 
 
+def test_with_a_lag_the_workers_are_continued_first_and_the_master_later(rec) -> None:
+    pids = [10, 20, 21]
+    assert rec.injector_args("both", pids, 500_000) == ["20", "21", "--later", "500000", "10"]
+    assert rec.injector_args("both", pids) == ["10", "20", "21"]
+    assert rec.injector_args("workers", pids) == ["20", "21"]
+
+
 def test_cycles_missed_per_stall_beyond_the_calm_rate(rec) -> None:
     calm = _window(rec, 1000, 8, late_cycles=2)       # 0.2 % missed without stalls
     stalled = _window(rec, 2000, 8, late_cycles=4 + 5 * 3)  # the calm rate's 4, and 5 stalls of 3 cycles each
@@ -96,6 +104,31 @@ def test_the_injector_stops_each_period_and_leaves_the_process_running(inj, slee
     assert _state(sleeper.pid) != "T"
 
 
+def test_the_injector_continues_the_later_processes_after_the_lag(inj, sleeper) -> None:
+    later = subprocess.Popen(["sleep", "60"])
+    every = 10_000 * MS
+    start = time.monotonic_ns() - every + 20 * MS  # one stall of 100 ms, 20 ms from now; the later one 300 ms more
+    result: list[list[int]] = []
+    t = threading.Thread(target=lambda: result.append(
+        inj.inject([sleeper.pid], 100 * MS, every, start, start + every + 450 * MS, [later.pid], 300 * MS)))
+    try:
+        t.start()
+        deadline = time.monotonic() + 10
+        while _state(later.pid) != "T" and time.monotonic() < deadline:  # both stopped …
+            time.sleep(0.002)
+        while _state(sleeper.pid) == "T" and time.monotonic() < deadline:  # … the first continued …
+            time.sleep(0.002)
+        meanwhile = _state(later.pid)
+        t.join(timeout=10)
+        assert meanwhile == "T"  # … while the later one stays stopped for the lag
+        assert _state(later.pid) != "T" and _state(sleeper.pid) != "T"
+        assert len(result[0]) == 1 and 100 * MS <= result[0][0] < 300 * MS  # the stall is measured to the first SIGCONT
+    finally:
+        later.kill()
+        later.wait()
+        t.join(timeout=15)
+
+
 def test_the_injector_continues_a_process_gone_or_not(inj, sleeper) -> None:
     start = time.monotonic_ns()
     lengths = inj.inject([sleeper.pid, 2 ** 22 + 1], 2 * MS, 20 * MS, start, start + 50 * MS)  # one pid unused
@@ -128,7 +161,9 @@ def test_a_terminated_helper_continues_what_it_stopped(sleeper) -> None:
     assert _state(sleeper.pid) != "T"
 
 
-@pytest.mark.parametrize("args", [["1", "2"], ["5", "5", "0", "10", "1"], ["x", "10", "0", "10", "1"]])
+@pytest.mark.parametrize("args", [["1", "2"], ["5", "5", "0", "10", "1"], ["x", "10", "0", "10", "1"],
+                                  ["5", "10", "0", "10", "1", "--later"], ["5", "10", "0", "10", "1", "--later", "5"],
+                                  ["5", "10", "0", "10", "1", "--later", "6", "2"]])
 def test_the_helper_refuses_bad_arguments(args) -> None:
     out = subprocess.run([sys.executable, str(INJECT), *args], capture_output=True, text=True, timeout=30)
     assert out.returncode == 2 and "usage" in out.stderr
@@ -140,6 +175,8 @@ def test_the_helper_refuses_bad_arguments(args) -> None:
     (["--link", "ML2", "--stations", "31"], "at most 30 stations"),
     (["--link", "ML9"], "ML2 or ML3"),
     (["--stall", "soon"], "--stall"),
+    (["--who", "master", "--lag", "500us"], "--lag needs --who both"),
+    (["--lag", "498ms"], "--stall + --lag shorter than --every"),
     (["--json", "/nonexistent-dir/r.json"], "--json: no directory /nonexistent-dir"),
 ])
 def test_bad_options_exit_2_with_the_reason(option, reason) -> None:
