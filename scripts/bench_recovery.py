@@ -17,10 +17,11 @@ A stall is ``SIGSTOP`` of the chosen processes for ``--stall``, then ``SIGCONT``
 process, ``scripts/stall_inject.py`` (standard library only, so that starting it costs next to no CPU; SCHED_FIFO
 where granted, so that its timing does not depend on what it stops). ``--who`` chooses what stops: ``master`` (the
 master, or the floor's client), ``workers`` (the slave workers, or the floor's server) or ``both``. With ``--who
-both``, ``--lag`` continues the master (the client) that long after the workers (the server): a host stall after
-which the workers' 1 ms tick comes before the master's catch-up, so that the cards' silence deadline has passed and
-the catch-up finds no prediction left (docs/cards.md, "A backlog"). The helper continues whatever it stopped on
-every way out (its end, a SIGTERM, its parent's death) and reports the stalls it made, measured.
+both``, ``--lag`` continues the master (the client) that long after the workers (the server): a host stall that
+gives the workers' CPU back first, so that their 1 ms tick runs before the master's catch-up comes (under the
+default host-stall policy the cards' silence tolerance is its bound, 100 ms, so their predictions stay:
+docs/cards.md, "A backlog"). The helper continues whatever it stopped on every way out (its end, a SIGTERM, its
+parent's death) and reports the stalls it made, measured.
 
 The figure per side, from the missed exchanges of the two windows (``bench_figures``: due but not answered within
 a cycle): **cycles missed per stall** = (missed with stalls − missed without, scaled to the same number of
