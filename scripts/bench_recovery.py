@@ -85,10 +85,9 @@ def stalled_pids(who: str, pids: list[int]) -> list[int]:
 def injector_args(who: str, pids: list[int], lag_ns: int = 0) -> list[str]:
     """The PID arguments of ``scripts/stall_inject.py`` for *who* (:func:`stalled_pids`); with *lag_ns* (``both``
     only), the workers (the floor's server) first and the master (its client) ``--later``."""
-    chosen = stalled_pids(who, pids)
     if lag_ns and who == "both":
         return [*map(str, pids[1:]), "--later", str(lag_ns), str(pids[0])]
-    return [str(pid) for pid in chosen]
+    return [str(pid) for pid in stalled_pids(who, pids)]
 
 
 def injecting(who: str, stall_ns: int, every_ns: int, reports: list[dict[str, Any]], lag_ns: int = 0) -> During:

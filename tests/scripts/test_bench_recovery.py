@@ -149,6 +149,21 @@ def test_the_helper_reports_its_stalls_as_json(sleeper) -> None:
     assert _state(sleeper.pid) != "T"
 
 
+def test_the_helper_takes_later_processes_and_continues_them(sleeper) -> None:
+    later = subprocess.Popen(["sleep", "60"])
+    try:
+        start = time.monotonic_ns()
+        out = subprocess.run([sys.executable, str(INJECT), str(3 * MS), str(40 * MS), str(start), str(start + 100 * MS),
+                              str(sleeper.pid), "--later", str(5 * MS), str(later.pid)],
+                             capture_output=True, text=True, timeout=30)
+        assert out.returncode == 0, out.stderr
+        assert len(json.loads(out.stdout)["stalls_ns"]) == 2  # at 40 and 80 ms: 80 + 3 + 5 ms ends by 100 ms
+        assert _state(sleeper.pid) != "T" and _state(later.pid) != "T"
+    finally:
+        later.kill()
+        later.wait()
+
+
 def test_a_terminated_helper_continues_what_it_stopped(sleeper) -> None:
     every = 30_000 * MS  # a stall of 20 s from about now on: terminated in the middle of it
     start = time.monotonic_ns() - every
