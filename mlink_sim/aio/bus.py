@@ -202,9 +202,10 @@ class Bus:
         (:meth:`_run_ahead`); where it has none, or it stops holding, the card takes the next command in the chain
         (the ones answered ahead before it first), at the read's time, and the prediction it offers right after
         answers the rest ahead again. So a backlog after a poll dropped every prediction (a worker held up past
-        the cards' silence deadline, the master's catch-up cycles coming after the poll) costs the cards' own path
-        the first commands of each station, not all of them (docs/cards.md, "A backlog"). True if every command was
-        answered ahead."""
+        the cards' silence deadline, the master's catch-up cycles coming after the poll: under the host-stall
+        policy "absorb" only where a card's ``silence_tolerance_ns`` is shorter than the stall) costs the cards' own
+        path the first commands of each station, not all of them (docs/cards.md, "A backlog"). True if every
+        command was answered ahead."""
         i, n_items = 0, len(items)
         while True:
             n = self._run_ahead(port, items[i:] if i else items, now, out) if port.pred is not None else 0
