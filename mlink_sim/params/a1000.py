@@ -6,8 +6,8 @@ Sources, in order of precedence:
    (C1-01 = 0200H), Table 16 (H1-03…H1-08 defaults), Tables 17/18 (H2/H4, U1 monitors);
    SI-ET3 Table 7 (registers, ranges and defaults of b1-01/b1-02, d5-01 and F6);
 2. where they are silent, the A1000 Technical Manual SIEP C710616 27 (Appendix B parameter
-   table, Appendix C MEMOBUS/Modbus data table).  Rows cite which in ``source``; figures that
-   could not be checked against a copy of that manual carry "(unverified: …)".
+   table, Appendix C MEMOBUS/Modbus data table).  Rows cite which in ``source``; a figure not
+   confirmed against a table of that manual carries "(unverified: why)".
 
 Defaults that depend on the drive carry these assumptions:
 
@@ -44,7 +44,7 @@ def _unverified(why: str, base: str = _A1K) -> str:
     return f"{base} (unverified: {why})"
 
 
-_CAP = "capacity-dependent default for a 7.5 kW 200 V motor on CIMR-A2A0040 HD, recalled, not checked"
+_CAP = "capacity-dependent default for a 7.5 kW 200 V motor on CIMR-A2A0040 HD, not confirmed"
 
 # -- A: initialization ------------------------------------------------------------------------
 A1 = (
@@ -66,17 +66,17 @@ B1 = (
 )
 
 # -- b3: speed search.  The option manuals only list SEr "Too Many Speed Search Restarts" (SI-T3 Table 26,
-# code 3BH).  Registers, ranges and defaults: A1000 Technical Manual, b3 parameter table (recalled, no copy
-# of the manual at hand: unverified).  Cross-checked against the same b3 group as Yaskawa publishes it for the
-# P1000 / Z1000 / T1000V / V1000 / GA700 (b3-01 "Speed Search Selection at Start", b3-02 operation current,
-# b3-03 decel time, b3-05 delay, b3-24 0 = Current Detection / 1 = Speed Estimation, b3-25 0.0…30.0 s
-# default 0.5 s), which agrees with every figure below that those pages show. ------------------------------
+# code 3BH).  Registers, ranges and defaults: A1000 Technical Manual, b3 parameter table, not confirmed
+# against that table (unverified).  The same b3 group as Yaskawa publishes it for the P1000 / Z1000 / T1000V /
+# V1000 / GA700 (b3-01 "Speed Search Selection at Start", b3-02 operation current, b3-03 decel time, b3-05
+# delay, b3-24 0 = Current Detection / 1 = Speed Estimation, b3-25 0.0…30.0 s default 0.5 s) agrees with
+# every figure below that those manuals show. ------------------------------------------------------------
 _B3 = "A1000 Technical Manual SIEP C710616 27, b3 Speed Search table (option manuals silent)"
 
 def _b3(name: str, register: int, title: str, unit: str, scale: float, lo: int, hi: int, default: int,
         figures: str) -> Param:
     return Param(name, register, title, unit, scale, lo, hi, default,
-                 source=_unverified("register and range recalled; " + figures, _B3))
+                 source=_unverified("register, range and default not confirmed; " + figures, _B3))
 
 
 B3 = (
@@ -133,11 +133,11 @@ D1 = tuple(
     Param("d1-17", 0x0292, "Jog Frequency Reference", "0.01 Hz", 0.01, 0, 40000, 600, source=_D1_SRC),
 )
 
+# d2 registers: Appendix B, B.6 d: References, in the SIEP C710616 41H edition (same register map).
+_D2 = "A1000 Technical Manual SIEP C710616 41H, Appendix B parameter table, B.6 (option manuals silent)"
 D2 = (
-    Param("d2-01", 0x0289, "Frequency Reference Upper Limit", "0.1 %", 0.1, 0, 1100, 1000,
-          source=_unverified("register inferred from the d1 register gap, recalled")),
-    Param("d2-02", 0x028A, "Frequency Reference Lower Limit", "0.1 %", 0.1, 0, 1100, 0,
-          source=_unverified("register inferred from the d1 register gap, recalled")),
+    Param("d2-01", 0x0289, "Frequency Reference Upper Limit", "0.1 %", 0.1, 0, 1100, 1000, source=_D2),
+    Param("d2-02", 0x028A, "Frequency Reference Lower Limit", "0.1 %", 0.1, 0, 1100, 0, source=_D2),
 )
 
 D5 = (
@@ -154,11 +154,11 @@ E1 = (
     Param("E1-06", 0x0305, "Base Frequency", "0.1 Hz", 0.1, 0, 4000, 600, source=_A1K),
     Param("E1-07", 0x0306, "Middle Output Frequency", "0.1 Hz", 0.1, 0, 4000, 30, source=_OLV),
     Param("E1-08", 0x0307, "Middle Output Frequency Voltage", "0.1 V", 0.1, 0, 2550, 110,
-          source=_unverified("OLV/200 V default recalled", _OLV)),
+          source=_unverified("OLV/200 V default not confirmed", _OLV)),
     Param("E1-09", 0x0308, "Minimum Output Frequency", "0.1 Hz", 0.1, 0, 4000, 5,
-          source=_unverified("OLV default recalled", _OLV)),
+          source=_unverified("OLV default not confirmed", _OLV)),
     Param("E1-10", 0x0309, "Minimum Output Frequency Voltage", "0.1 V", 0.1, 0, 2550, 20,
-          source=_unverified("OLV/200 V default recalled", _OLV)),
+          source=_unverified("OLV/200 V default not confirmed", _OLV)),
     Param("E1-11", 0x030A, "Middle Output Frequency 2", "0.1 Hz", 0.1, 0, 4000, 0, source=_A1K),
     Param("E1-12", 0x030B, "Middle Output Frequency Voltage 2", "0.1 V", 0.1, 0, 2550, 0, source=_A1K),
     Param("E1-13", 0x030C, "Base Voltage", "0.1 V", 0.1, 0, 2550, 0, source=_A1K),
@@ -176,7 +176,7 @@ E2 = (
           source=_unverified(_CAP)),
     Param("E2-06", 0x0313, "Motor Leakage Inductance", "0.1 %", 0.1, 0, 400, 195, source=_unverified(_CAP)),
     Param("E2-11", 0x0318, "Motor Rated Power", "0.01 kW", 0.01, 0, 65000, 750,
-          source=_unverified("register recalled; " + _CAP)),
+          source=_unverified("register not confirmed; " + _CAP)),
 )
 
 # -- F6: communication option card settings ----------------------------------------------------
@@ -192,7 +192,7 @@ F6 = (
     Param("F6-08", 0x036A, "Reset Communication Parameters", "", 1, 0, 1, 0, source=_T3_ET3),
     Param("F6-15", 0x0B5F, "Comm. Option Parameters Reload", "", 1, 0, 2, 0,
           source="named in SI-ET3 Table 26 (CyPo); GA700 Technical Manual SIEP C710617 parameter table "
-                 "(unverified: GA700-series parameter, absent on A1000; register and range recalled)"),
+                 "(unverified: GA700-series parameter, absent on A1000; register and range not confirmed)"),
     Param("F6-20", 0x036B, "MECHATROLINK Station Address", "", 1, 0x03, 0xEF, 0x21,
           source="SI-T3 Table 4 (20H…3FH, default 21H); SI-ET3 Table 7 (register 036BH, 03H…EFH, default 21H); "
                  "family range is the union", radix=16),
@@ -200,18 +200,18 @@ F6 = (
           source=_T3_ET3 + " (SI-T3 0: 32 byte, 1: 17 byte; SI-ET3 0: 64-byte, 1: 32-byte)"),
     Param("F6-22", 0x036D, "MECHATROLINK Link Speed", "", 1, 0, 1, 0,
           source=_T3_4 + " (range, default; 0: 10 Mbps, 1: 4 Mbps); register: " + _A1K
-                 + " (unverified: recalled, consistent with the 036BH…036FH run in SI-ET3 Table 7)"),
+                 + " (unverified: not confirmed; it fills the gap in the 036BH…036FH run of SI-ET3 Table 7)"),
     Param("F6-23", 0x036E, "MECHATROLINK Monitor Selection (E)", "", 1, 0, 0xFFFF, 0, source=_T3_ET3, radix=16),
     Param("F6-24", 0x036F, "MECHATROLINK Monitor Selection (F)", "", 1, 0, 0xFFFF, 0, source=_T3_ET3, radix=16),
     Param("F6-25", 0x03C9, "Operation Selection at Watchdog Error (E5)", "", 1, 0, 3, 1, source=_T3_ET3),
     Param("F6-26", 0x03CA, "MECHATROLINK bUS Errors Detected", "", 1, 2, 10, 2, source=_T3_ET3),
     Param("F6-54", 0x03C5, "Idle Mode Fault Detection", "", 1, 0, 1, 0,
-          source="named in SI-ET3 Table 26 (EF0); " + _unverified("DeviceNet-group parameter; register recalled")),
+          source="named in SI-ET3 Table 26 (EF0); " + _unverified("DeviceNet-group parameter; register not confirmed")),
 )
 
 # -- H1: multi-function digital inputs (settings are hex, e.g. 24H = External Fault) -----------
 _H1_T3 = "SI-T3 Table 16 (default); register/range: " + _A1K
-_H1_RANGE = _unverified("range 1…9FH for S1/S2 recalled", _A1K)
+_H1_RANGE = _unverified("range 1…9FH for S1/S2 not confirmed", _A1K)
 H1 = (
     Param("H1-01", 0x0438, "Multi-Function Digital Input Terminal S1 Function Selection", "", 1, 0x01, 0x9F, 0x40,
           source=_H1_RANGE, radix=16),
@@ -235,8 +235,8 @@ H1 = (
 )
 
 # -- H2/H4: outputs named by SI-T3 Table 17 / SI-ET3 Table 21 (SEL_REF) -----------------------
-_H2 = "named in SI-T3 Table 17 (H2-0x = F: through mode); " + _unverified("register and range recalled")
-_H4 = "named in SI-T3 Table 17 / SI-ET3 Table 21 (= 000: set by comm.); " + _unverified("register recalled")
+_H2 = "named in SI-T3 Table 17 (H2-0x = F: through mode); " + _unverified("register and range not confirmed")
+_H4 = "named in SI-T3 Table 17 / SI-ET3 Table 21 (= 000: set by comm.); " + _unverified("register not confirmed")
 H2 = (
     Param("H2-01", 0x040B, "Terminal M1-M2 Function Selection (relay)", "", 1, 0, 0x192, 0x00, source=_H2, radix=16),
     Param("H2-02", 0x040C, "Terminal P1-PC Function Selection (photocoupler)", "", 1, 0, 0x192, 0x01,
@@ -250,8 +250,8 @@ H4 = (
 )
 
 # -- L3: stall prevention (HD levels) / L4: speed agree ---------------------------------------
-_L3 = _unverified("registers 048FH…0494H recalled")
-_L3_HD = _unverified("registers 048FH…0494H recalled; 150 % is the HD default, ND is 120 %")
+_L3 = _unverified("registers 048FH…0494H not confirmed")
+_L3_HD = _unverified("registers 048FH…0494H not confirmed; 150 % is the HD default, ND is 120 %")
 L3 = (
     Param("L3-01", 0x048F, "Stall Prevention Selection during Acceleration", "", 1, 0, 2, 1, source=_L3),
     Param("L3-02", 0x0490, "Stall Prevention Level during Acceleration", "%", 1, 0, 150, 150,
@@ -264,9 +264,9 @@ L3 = (
 )
 L4 = (
     Param("L4-01", 0x0499, "Speed Agreement Detection Level", "0.1 Hz", 0.1, 0, 4000, 0,
-          source=_unverified("register recalled")),
+          source=_unverified("register not confirmed")),
     Param("L4-02", 0x049A, "Speed Agreement Detection Width", "0.1 Hz", 0.1, 0, 200, 20,
-          source=_unverified("register recalled")),
+          source=_unverified("register not confirmed")),
 )
 
 # -- o1: keypad display -------------------------------------------------------------------------
@@ -299,6 +299,9 @@ def _unverified_mb(why: str, base: str = _MB) -> str:
     return f"{base} (unverified: {why})"
 
 
+_IN_U1_BLOCK = "exact register not confirmed; it lies in the 004CH…007EH U1/U4/U5/U6 block of C.9"
+
+
 def _mon(name: str, register: int, title: str, unit: str, scale: float, source: str,
          *, signed: bool = False, radix: int = 10, alt: tuple[int, ...] = ()) -> Param:
     lo, hi = _S16 if signed else _U16
@@ -314,22 +317,22 @@ U1 = (
     _mon("U1-05", 0x0044, "Motor Speed", "0.01 Hz", 0.01, _SELMON, signed=True),
     _mon("U1-06", 0x0045, "Output Voltage Reference", "0.1 V", 0.1, _MB),
     _mon("U1-07", 0x0046, "DC Bus Voltage", "1 V", 1, _SELMON),
-    _mon("U1-08", 0x0047, "Output Power", "0.1 kW", 0.1, _unverified_mb("unit recalled"), signed=True),
+    _mon("U1-08", 0x0047, "Output Power", "0.1 kW", 0.1, _unverified_mb("unit not confirmed"), signed=True),
     _mon("U1-09", 0x0048, "Torque Reference", "0.1 %", 0.1, _SELMON, signed=True),
     _mon("U1-10", 0x0049, "Input Terminal Status", "", 1, _SELMON, radix=16),
     _mon("U1-11", 0x004A, "Output Terminal Status", "", 1, _SELMON, radix=16),
     _mon("U1-12", 0x004B, "Drive Status", "", 1, _MB, radix=16),
     _mon("U1-13", 0x004E, "Terminal A1 Input Level", "0.1 %", 0.1,
-         _unverified_mb("register recalled", _SELMON), signed=True),
+         _unverified_mb(_IN_U1_BLOCK, _SELMON), signed=True),
     _mon("U1-14", 0x004F, "Terminal A2 Input Level", "0.1 %", 0.1,
-         _unverified_mb("register recalled", _SELMON), signed=True),
+         _unverified_mb(_IN_U1_BLOCK, _SELMON), signed=True),
     _mon("U1-15", 0x0050, "Terminal A3 Input Level", "0.1 %", 0.1,
-         _unverified_mb("register recalled", _SELMON), signed=True),
+         _unverified_mb(_IN_U1_BLOCK, _SELMON), signed=True),
     _mon("U1-16", 0x0053, "Output Frequency after Soft Starter", "0.01 Hz", 0.01,
-         _unverified_mb("register recalled")),
+         _unverified_mb(_IN_U1_BLOCK)),
 )
 
-_TRACE = _unverified_mb("registers 07E0H…07E2H recalled")
+_TRACE = _unverified_mb("registers 07E0H…07E2H not confirmed")
 U2 = (
     _mon("U2-01", 0x0080, "Current Fault", "", 1, _ALM, radix=16),
     _mon("U2-02", 0x0081, "Previous Fault", "", 1, _ALM, radix=16),
@@ -339,7 +342,7 @@ U2 = (
     _mon("U2-06", 0x0085, "Motor Speed at Previous Fault", "0.01 Hz", 0.01, _MB, signed=True),
     _mon("U2-07", 0x0086, "Output Voltage at Previous Fault", "0.1 V", 0.1, _MB),
     _mon("U2-08", 0x0087, "DC Bus Voltage at Previous Fault", "1 V", 1, _MB),
-    _mon("U2-09", 0x0088, "Output Power at Previous Fault", "0.1 kW", 0.1, _unverified_mb("unit recalled"),
+    _mon("U2-09", 0x0088, "Output Power at Previous Fault", "0.1 kW", 0.1, _unverified_mb("unit not confirmed"),
          signed=True),
     _mon("U2-10", 0x0089, "Torque Reference at Previous Fault", "0.1 %", 0.1, _MB, signed=True),
     _mon("U2-11", 0x008A, "Input Terminal Status at Previous Fault", "", 1, _MB, radix=16),
@@ -350,13 +353,14 @@ U2 = (
     _mon("U2-16", 0x07E1, "Motor q-Axis Current at Previous Fault", "0.1 %", 0.1, _TRACE, signed=True),
     _mon("U2-17", 0x07E2, "Motor d-Axis Current at Previous Fault", "0.1 %", 0.1, _TRACE, signed=True),
     _mon("U2-20", 0x008E, "Heatsink Temperature at Previous Fault", "1 °C", 1,
-         _unverified_mb("register recalled"), signed=True),
+         _unverified_mb("exact register not confirmed; it lies in the 0080H…0097H U2/U3 block of C.9"),
+         signed=True),
 )
 
 _ORD = ("Most Recent", "2nd Most Recent", "3rd Most Recent", "4th Most Recent", "5th Most Recent",
         "6th Most Recent", "7th Most Recent", "8th Most Recent", "9th Most Recent", "10th Most Recent")
 _U3_LOW = _ALM + "; mirrored at 0800H…0803H"
-_U3_HIGH = _unverified_mb("0800H-block registers recalled", _ALM)
+_U3_HIGH = _unverified_mb("0800H-block registers not confirmed", _ALM)
 _U3_TIME = "A1000 Technical Manual SIEP C710616 27, Appendix C MEMOBUS/Modbus data table (option manuals silent)"
 U3 = tuple(
     _mon(f"U3-{i:02d}", 0x0090 + i - 1, f"{_ORD[i - 1]} Fault", "", 1, _U3_LOW, radix=16, alt=(0x0800 + i - 1,))
@@ -366,11 +370,11 @@ U3 = tuple(
     for i in range(5, 11)
 ) + tuple(
     _mon(f"U3-{i:02d}", 0x0094 + i - 11, f"Cumulative Operation Time at {_ORD[i - 11]} Fault", "1 h", 1,
-         _unverified_mb("mirror registers 080AH…080DH recalled", _U3_TIME), alt=(0x080A + i - 11,))
+         _unverified_mb("mirror registers 080AH…080DH not confirmed", _U3_TIME), alt=(0x080A + i - 11,))
     for i in range(11, 15)
 ) + tuple(
     _mon(f"U3-{i:02d}", 0x080E + i - 15, f"Cumulative Operation Time at {_ORD[i - 11]} Fault", "1 h", 1,
-         _unverified_mb("0800H-block registers recalled", _U3_TIME))
+         _unverified_mb("0800H-block registers not confirmed", _U3_TIME))
     for i in range(15, 21)
 )
 

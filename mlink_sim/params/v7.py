@@ -11,8 +11,8 @@ Sources, in order of precedence:
    register number (NO) is the same as the register number that is set and referenced in
    MEMOBUS transfers".  Constants therefore use the inverter's MEMOBUS constant-data mapping
    **register = 0100H + n** (n001 = 0101H … n179 = 01B3H) and monitors the MEMOBUS
-   monitor-data registers (0020H block).  Figures that could not be checked against a copy
-   carry "(unverified: …)" in ``source``.
+   monitor-data registers (0020H block).  A figure not confirmed against a table of those
+   manuals carries "(unverified: why)" in ``source``.
 
 Defaults that depend on the inverter assume:
 
@@ -38,7 +38,7 @@ _TOE = "VS-606V7 Technical Manual TOE-S606-12 constant list; register: 0100H + n
 _SETUP = "SI-T/V7 manual §6 Initial Setup table (range, default); register: " + _RULE
 _T3 = "SI-T/V7 Table 3 (default function); register: 0100H + n, range: TOE-S606-12"
 _T4 = "SI-T/V7 Table 4 (setting 18 = comm. output); register: 0100H + n, default: TOE-S606-12"
-_CAP = "capacity-dependent default for CIMR-V7AA21P5 with a 1.5 kW motor, recalled"
+_CAP = "capacity-dependent default for CIMR-V7AA21P5 with a 1.5 kW motor, not confirmed"
 _MON = "VS-606V7 Technical Manual TOE-S606-12, MEMOBUS monitor data (SI-T/V7 manual gives no register)"
 
 
@@ -66,7 +66,7 @@ _FREF_SRC = _unverified("raw unit 0.01 Hz and range 0.00…400.00 Hz assumed for
 # -- n001…n018: initialization, operation mode, V/f pattern -----------------------------------
 SETUP = (
     _n(1, "Parameter Write-Prohibit Selection / Parameter Initialization", "", 1, 0, 11, 1,
-       _unverified("range recalled (6: clear fault history, 8…11: initialize)")),
+       _unverified("range not confirmed (6: clear fault history, 8…11: initialize)")),
     _n(2, "Control Mode Selection", "", 1, 0, 1, 0, _TOE),
     _n(3, "Operation Method Selection", "", 1, 0, 3, 0, _SETUP),
     _n(4, "Frequency Reference Selection", "", 1, 0, 9, 0, _SETUP),
@@ -75,11 +75,11 @@ SETUP = (
     _n(11, "Maximum Output Frequency", "0.1 Hz", 0.1, 500, 4000, 600, _TOE),
     _n(12, "Maximum Voltage", "0.1 V", 0.1, 1, 2550, 2000, _TOE + "; 200 V class"),
     _n(13, "Maximum Voltage Output Frequency (Base Frequency)", "0.1 Hz", 0.1, 2, 4000, 600, _TOE),
-    _n(14, "Mid. Output Frequency", "0.1 Hz", 0.1, 1, 3999, 15, _unverified("V/f default recalled")),
-    _n(15, "Mid. Output Frequency Voltage", "0.1 V", 0.1, 1, 2550, 120, _unverified("V/f 200 V default recalled")),
-    _n(16, "Minimum Output Frequency", "0.1 Hz", 0.1, 1, 100, 15, _unverified("V/f default recalled")),
+    _n(14, "Mid. Output Frequency", "0.1 Hz", 0.1, 1, 3999, 15, _unverified("V/f default not confirmed")),
+    _n(15, "Mid. Output Frequency Voltage", "0.1 V", 0.1, 1, 2550, 120, _unverified("V/f 200 V default not confirmed")),
+    _n(16, "Minimum Output Frequency", "0.1 Hz", 0.1, 1, 100, 15, _unverified("V/f default not confirmed")),
     _n(17, "Minimum Output Frequency Voltage", "0.1 V", 0.1, 1, 500, 120,
-       _unverified("V/f 200 V default recalled")),
+       _unverified("V/f 200 V default not confirmed")),
     _n(18, "Accel/Decel Time Setting Unit", "", 1, 0, 1, 0, _TOE),
 )
 
@@ -108,7 +108,7 @@ REFERENCES = (
 )
 
 # -- n050…n059: multi-function inputs (S1…S7) and outputs --------------------------------------
-_IN_RANGE = "range recalled"
+_IN_RANGE = "range not confirmed"
 IO = (
     _n(50, "Multi-function Input Selection 1 (Terminal S1)", "", 1, 1, 34, 1, _unverified(_IN_RANGE)),
     _n(51, "Multi-function Input Selection 2 (Terminal S2)", "", 1, 1, 34, 2, _unverified(_IN_RANGE)),
@@ -118,11 +118,11 @@ IO = (
     _n(55, "Multi-function Input Selection 6 (Terminal S6)", "", 1, 1, 34, 7, _unverified(_IN_RANGE, _T3)),
     _n(56, "Multi-function Input Selection 7 (Terminal S7)", "", 1, 1, 35, 10, _unverified(_IN_RANGE, _T3)),
     _n(57, "Multi-function Output Selection 1 (Terminals MA-MB-MC)", "", 1, 0, 21, 0,
-       _unverified("range 0…21 recalled", _T4)),
+       _unverified("range 0…21 not confirmed", _T4)),
     _n(58, "Multi-function Output Selection 2 (Terminal P1)", "", 1, 0, 21, 1,
-       _unverified("range 0…21 recalled", _T4)),
+       _unverified("range 0…21 not confirmed", _T4)),
     _n(59, "Multi-function Output Selection 3 (Terminal P2)", "", 1, 0, 21, 2,
-       _unverified("range 0…21 recalled", _T4)),
+       _unverified("range 0…21 not confirmed", _T4)),
 )
 
 # -- n092…n112: stall prevention, frequency detection, motor constants ------------------------
@@ -134,9 +134,9 @@ PROTECTION = (
     # Speed search (VS-606V7 TOE-S606-12 constant list): the search runs when a multi-function input set to
     # 14 (search from maximum frequency) or 15 (search from set frequency) is on at the run command.
     _n(101, "Speed Search Deceleration Time", "0.1 s", 0.1, 1, 100, 20,
-       _unverified("range 0.1…10.0 s and default 2.0 s recalled")),
+       _unverified("range 0.1…10.0 s and default 2.0 s not confirmed")),
     _n(102, "Speed Search Operation Level", "%", 1, 0, 200, 150,
-       _unverified("% of inverter rated current; range 0…200 % and default 150 % recalled")),
+       _unverified("% of inverter rated current; range 0…200 % and default 150 % not confirmed")),
     _n(103, "Torque Compensation Gain", "0.1", 0.1, 0, 25, 10, _TOE),
     _n(106, "Motor Rated Slip", "0.1 Hz", 0.1, 0, 200, 26, _unverified(_CAP)),
     _n(107, "Motor Line-to-Neutral Resistance", "0.001 Ω", 0.001, 0, 65500, 1233,
@@ -160,13 +160,13 @@ DISPLAY = (
     _n(179, "Software Version No.", "", 1, 0, 0xFFFF, 0, _RULE, read_only=True),
 )
 
-# -- U-xx monitors (MEMOBUS monitor data; all registers unverified) ---------------------------
-_MON_U = _unverified("monitor register recalled", _MON)
+# -- U-xx monitors (MEMOBUS monitor data; no register confirmed) ------------------------------
+_MON_U = _unverified("monitor register not confirmed", _MON)
 MONITORS = (
     _mon("U-01", 0x0023, "Frequency Reference", "0.1 Hz", 0.1,
-         "named in SI-T/V7 Table 5; " + _unverified("register and 0.1 Hz unit (n152 = 0) recalled", _MON)),
+         "named in SI-T/V7 Table 5; " + _unverified("register and 0.1 Hz unit (n152 = 0) not confirmed", _MON)),
     _mon("U-02", 0x0024, "Output Frequency", "0.1 Hz", 0.1,
-         _unverified("register and 0.1 Hz unit (n152 = 0) recalled", _MON)),
+         _unverified("register and 0.1 Hz unit (n152 = 0) not confirmed", _MON)),
     _mon("U-03", 0x0027, "Output Current", "0.1 A", 0.1, _MON_U),
     _mon("U-04", 0x0028, "Output Voltage", "1 V", 1, _MON_U),
     _mon("U-05", 0x0031, "DC Bus Voltage", "1 V", 1, _MON_U),
@@ -174,7 +174,7 @@ MONITORS = (
     _mon("U-07", 0x002D, "Output Terminal Status", "", 1, _MON_U, radix=16),
     _mon("U-08", 0x0032, "Torque Monitor", "%", 1,
          "named in SI-T/V7 Table 5 (MON value in 0.1 %); "
-         + _unverified("register and 1 % register unit recalled", _MON), signed=True),
+         + _unverified("register and 1 % register unit not confirmed", _MON), signed=True),
 )
 
 VS606V7 = ParamTable("v7", "VS-606V7", (

@@ -204,6 +204,14 @@ def test_published_register_examples() -> None:
     assert _reg("d1-17") == 0x0292
 
 
+def test_d2_registers_follow_appendix_b() -> None:
+    # A1000 Technical Manual Appendix B, B.6: d2-01/d2-02 sit between d1-09 (0288H) and d1-10 (028BH).
+    for name, register in (("d2-01", 0x0289), ("d2-02", 0x028A)):
+        row = A1000.by_name(name)
+        assert row.register == register
+        assert not row.unverified and "Appendix B" in row.source
+
+
 def test_engineering_defaults() -> None:
     assert A1000.by_name("C1-09").to_eng(A1000.by_name("C1-09").default) == 10.0
     assert A1000.by_name("E1-04").to_eng(600) == 60.0
@@ -233,7 +241,7 @@ def test_b3_speed_search_rows_registers_ranges_defaults(name: str) -> None:
         assert (row.register, row.minimum, row.maximum, row.default) == B3_SPEED_SEARCH[name]
         assert table.by_register(row.register) is row
     row = A1000.by_name(name)
-    assert row.unverified and "b3 Speed Search" in row.source  # recalled: said so in the row
+    assert row.unverified and "b3 Speed Search" in row.source  # not confirmed: said so in the row
 
 
 def test_b3_engineering_values() -> None:

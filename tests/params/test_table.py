@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -35,6 +37,13 @@ def test_every_row_has_a_source(table: ParamTable) -> None:
     for row in table:
         assert row.source, row.name
         assert ("Table" in row.source) or ("Manual" in row.source) or ("manual" in row.source), row.name
+
+
+@pytest.mark.parametrize("table", ALL_TABLES, ids=lambda t: t.where)
+def test_every_unverified_row_says_why(table: ParamTable) -> None:
+    for row in table:
+        if row.unverified:
+            assert re.search(r"\(unverified: [^)]+", row.source), row.name
 
 
 def test_families_mapping() -> None:
