@@ -14,7 +14,7 @@ parameters come from the drives' own documentation:
   (% of inverter rated current); multi-function inputs n05x = 14 / 15 search command from the maximum
   / from the set frequency.  The V7 has no search-at-start constant, no restart and no SEr.
 
-Registers, ranges and defaults are in :mod:`mlink_sim.params` (marked unverified where recalled);
+Registers, ranges and defaults are in :mod:`mlink_sim.params` (marked unverified where not confirmed);
 equations and assumptions in docs/drive-model.md, section "Speed search".
 """
 

@@ -300,6 +300,7 @@ def _unverified_mb(why: str, base: str = _MB) -> str:
 
 
 _IN_U1_BLOCK = "exact register not confirmed; it lies in the 004CH…007EH U1/U4/U5/U6 block of C.9"
+_POWER_UNIT = "unit not confirmed; the decimals may depend on drive capacity"
 
 
 def _mon(name: str, register: int, title: str, unit: str, scale: float, source: str,
@@ -317,7 +318,7 @@ U1 = (
     _mon("U1-05", 0x0044, "Motor Speed", "0.01 Hz", 0.01, _SELMON, signed=True),
     _mon("U1-06", 0x0045, "Output Voltage Reference", "0.1 V", 0.1, _MB),
     _mon("U1-07", 0x0046, "DC Bus Voltage", "1 V", 1, _SELMON),
-    _mon("U1-08", 0x0047, "Output Power", "0.1 kW", 0.1, _unverified_mb("unit not confirmed"), signed=True),
+    _mon("U1-08", 0x0047, "Output Power", "0.1 kW", 0.1, _unverified_mb(_POWER_UNIT), signed=True),
     _mon("U1-09", 0x0048, "Torque Reference", "0.1 %", 0.1, _SELMON, signed=True),
     _mon("U1-10", 0x0049, "Input Terminal Status", "", 1, _SELMON, radix=16),
     _mon("U1-11", 0x004A, "Output Terminal Status", "", 1, _SELMON, radix=16),
@@ -342,7 +343,7 @@ U2 = (
     _mon("U2-06", 0x0085, "Motor Speed at Previous Fault", "0.01 Hz", 0.01, _MB, signed=True),
     _mon("U2-07", 0x0086, "Output Voltage at Previous Fault", "0.1 V", 0.1, _MB),
     _mon("U2-08", 0x0087, "DC Bus Voltage at Previous Fault", "1 V", 1, _MB),
-    _mon("U2-09", 0x0088, "Output Power at Previous Fault", "0.1 kW", 0.1, _unverified_mb("unit not confirmed"),
+    _mon("U2-09", 0x0088, "Output Power at Previous Fault", "0.1 kW", 0.1, _unverified_mb(_POWER_UNIT),
          signed=True),
     _mon("U2-10", 0x0089, "Torque Reference at Previous Fault", "0.1 %", 0.1, _MB, signed=True),
     _mon("U2-11", 0x008A, "Input Terminal Status at Previous Fault", "", 1, _MB, radix=16),
