@@ -1,53 +1,52 @@
-#!/usr/bin/env python3
 """Capacity sweep: stations × transmission cycle × generation, each against the floor measured in the same run.
 
 For every cell the sweep brings a network up exactly as ``mlink-sim up --workers W`` does (slave worker
 processes, the master in this process; W defaults to one per CPU but one, so the master keeps a CPU for
 itself) and measures it for ``--duration`` after bring-up. In the same run it measures **the floor** twice
-(``scripts/bench_floor.py``), in turns with the network: a cell longer than 10 s is measured in turns of at most
-10 s (network, plain floor, batched floor, network …; ``bench_figures.turns``), each side's turns added up, so that
-the simulator and its floors see the same phases of the host. The floor is one process serving all N stations
-as a packed worker does (one socket shared by the N stations where the network packs its stations into fewer
-workers: ``Cell.layout`` "shared"; a socket per station otherwise), driven by a client that sends the same bursts
-on the same ``CycleTimer`` as the master and reads as the master reads, but with no protocol work on either side; once with the per-datagram system calls (**plain**), once with
-``sendmmsg``/``recvmmsg`` (**batched**, ``mlink_sim.aio.mmsg``).
+(:mod:`benchmarks.floor`), in turns with the network: a cell longer than 10 s is measured in turns of at most
+10 s (network, plain floor, batched floor, network …; :func:`benchmarks.figures.turns`), each side's turns added
+up, so that the simulator and its floors see the same phases of the host. The floor is one process serving all N
+stations as a packed worker does (one socket shared by the N stations where the network packs its stations into
+fewer workers: ``Cell.layout`` "shared"; a socket per station otherwise), driven by a client that sends the same
+bursts on the same ``CycleTimer`` as the master and reads as the master reads, but with no protocol work on either
+side; once with the per-datagram system calls (**plain**), once with ``sendmmsg``/``recvmmsg`` (**batched**,
+``mlink_sim.aio.mmsg``).
 
-Figures per cell, the network's and the floors' by one definition (``scripts/bench_figures.py``): missed (the
+Figures per cell, the network's and the floors' by one definition (:mod:`benchmarks.figures`): missed (the
 exchanges due but not answered within a cycle, over the exchanges due), RTT p50/p99 (every answer read, late ones
 included), cycle-start lateness p99, CPU % of the master and the workers, **CPU per exchange** (master + workers
-CPU time over the answers read, from the kernel's accounting), wake-ups
-per cycle (voluntary context switches), and the same figures of both floors. The ratios (CPU per exchange, RTT
-p99) are taken against the floor that uses the same system calls as the simulator in that run (``io``: batched
-where ``sendmmsg``/``recvmmsg`` are available, unless ``--io plain``, which runs the simulator with
-``MLINK_MMSG=0``).
+CPU time over the answers read, from the kernel's accounting), wake-ups per cycle (voluntary context switches),
+and the same figures of both floors. The simulator uses the system calls the kernel supports (the batched ones
+where ``sendmmsg``/``recvmmsg`` exist, the cell's ``io``); the ratios (CPU per exchange, RTT p99) are taken
+against the floor that uses the same calls.
 
 ``--arrival-poll`` sets the workers' arrival poll (``[network] arrival_poll``: ``auto``, the default of
 ``mlink-sim up``, ``off`` or a lead; ``mlink_sim.aio.arrival``); the JSON's ``host.arrival_poll`` records it.
 
-    scripts/bench.py                                   # the full sweep (~25 min), table + bench.json + bench.png
-    scripts/bench.py --stations 30 --cycles 1ms --links ML2 --duration 60s     # one cell, one minute
-    scripts/bench.py --stations 8 --cycles 1ms --links ML3 --io batched,plain  # what the batched calls gain
-    scripts/bench.py --quick                           # a few cells, 2 s each (smoke test)
-    scripts/bench.py --targets                         # issue 21's five targets, ~15 min (--duration 10s: ~5 min)
-    scripts/bench.py --render docs/bench.json --markdown   # an earlier run's table, as in docs/performance.md
-    scripts/bench.py --targets --pm-qos                # the same with idle CPUs polling, floor and simulator alike
-    scripts/bench.py --targets --no-realtime           # every process with ordinary scheduling (an ordinary user)
-    scripts/bench.py --stations 8 --cycles 250us --links ML3 --arrival-poll off   # without the workers' poll
+Run from the repository's root:
 
-``--targets`` runs the cells of the capacity targets (scripts/bench_targets.py: 62 ML-III and 30 ML-II stations
+    python -m benchmarks.bench                         # the full sweep (~25 min), table + bench.json + bench.png
+    python -m benchmarks.bench --stations 30 --cycles 1ms --links ML2 --duration 60s   # one cell, one minute
+    python -m benchmarks.bench --quick                 # a few cells, 2 s each (smoke test)
+    python -m benchmarks.bench --targets               # the capacity targets, ~15 min (--duration 10s: ~5 min)
+    python -m benchmarks.bench --render bench.json --markdown   # an earlier run's table, as in docs/performance.md
+    python -m benchmarks.bench --targets --pm-qos      # the same with idle CPUs polling, floor and simulator alike
+    python -m benchmarks.bench --targets --no-realtime # every process with ordinary scheduling (an ordinary user)
+    python -m benchmarks.bench --stations 8 --cycles 250us --links ML3 --arrival-poll off   # without the workers' poll
+
+``--targets`` runs the cells of the capacity targets (:mod:`benchmarks.targets`: 62 ML-III and 30 ML-II stations
 at 1 ms for 60 s, 8 ML-III stations at 250 µs for 30 s, and ML-III at 1 ms with 15, 30 and 45 stations, 30 s
 each, for the knee) and prints met / not met for each bound, with the floor's figure beside it and, where a bound
-is not met, what bounds it (from the same run). ``--duration`` shortens every cell for a quick run. Exit status 0 either
-way: a benchmark reports, it does not gate.
+is not met, what bounds it (from the same run). ``--duration`` shortens every cell for a quick run. Exit status 0
+either way: a benchmark reports, it does not gate.
 
-By default the whole sweep runs as ``mlink-sim up`` runs by default where it may (its ``--realtime``: root or
+The whole sweep runs as ``mlink-sim up`` runs by default where it may (its ``--realtime``: root or
 ``CAP_SYS_NICE``): the master and the floors' clients at SCHED_FIFO 40 on the highest CPU, the workers and the
 floors' servers at SCHED_FIFO 30 on the others, memory locked, a CPU wake-up latency of 0 µs
 (``mlink_sim.aio.realtime``), floors and simulator alike. Where any of that is refused (an unprivileged user), the
 run withdraws what it got and every process runs with ordinary scheduling, as that user's ``mlink-sim up`` does; it
 says so on stderr. ``--realtime`` insists (refused, the run does not start: exit 2); ``--no-realtime`` asks for
-nothing. The JSON's ``host.realtime`` says what was granted (null: ordinary scheduling). Until session 31 ordinary
-scheduling was the default and ``--realtime`` had to be asked for.
+nothing. The JSON's ``host.realtime`` says what was granted (null: ordinary scheduling).
 
 ``--pm-qos`` holds the kernel's request for a CPU wake-up latency of 0 µs (``/dev/cpu_dma_latency``, as
 ``mlink-sim up --realtime`` does: ``mlink_sim.aio.realtime.hold_wakeup_latency``) for the whole run, so the floors
@@ -57,7 +56,7 @@ and the simulator run on CPUs that poll instead of halting when idle (the real-t
 
 Cells the manuals rule out are listed as such and not run: MECHATROLINK-II below 0.5 ms (17-byte) or beyond
 30 stations (SI-T3 Table 29). Loops are bounded by --duration; all traffic stays on loopback. Ctrl-C or SIGTERM
-ends the run: the network or floor being measured is stopped, bench.py says so and exits 130 or 143 without
+ends the run: the network or floor being measured is stopped, the benchmark says so and exits 130 or 143 without
 writing; killed outright, its workers and the floor's server end with it (``PR_SET_PDEATHSIG``).
 """
 
@@ -80,27 +79,23 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "scripts"))
+from mlink_sim.aio import mmsg, realtime
+from mlink_sim.aio.session import NetworkSession
+from mlink_sim.aio.slave import query_control
+from mlink_sim.aio.udp import new_event_loop
+from mlink_sim.cli.logs import configure_logging
+from mlink_sim.config import format_ns, load_config, parse_duration_ns
+from mlink_sim.config.units import parse_arrival_poll
 
-import bench_targets  # noqa: E402
-from bench_figures import During, Window, add_window, turns  # noqa: E402
-from bench_tables import MD_HEAD, chart, markdown, table  # noqa: E402,F401  (MD_HEAD: bench.MD_HEAD, as before)
-from bench_floor import (  # noqa: E402
-    floor_from, floor_window, host_ticks, proc_cpu_s, proc_wakeups, self_wakeups, ticks_between)
-
-from mlink_sim._files import write_atomically  # noqa: E402
-from mlink_sim.aio import mmsg, realtime  # noqa: E402
-from mlink_sim.aio.session import NetworkSession  # noqa: E402
-from mlink_sim.aio.udp import new_event_loop  # noqa: E402
-from mlink_sim.cli.logs import configure_logging  # noqa: E402
-from mlink_sim.config import format_ns, load_config, parse_duration_ns  # noqa: E402
-from mlink_sim.config.units import parse_arrival_poll  # noqa: E402
+from benchmarks import targets
+from benchmarks.common import write_atomically
+from benchmarks.figures import During, Window, add_window, turns
+from benchmarks.floor import floor_from, floor_window, host_ticks, proc_cpu_s, proc_wakeups, self_wakeups, ticks_between
+from benchmarks.tables import chart, markdown, table
 
 T = TypeVar("T")
 
-STATIONS = (1, 8, 9, 15, 30, 62)  # the issue's sweep, plus 8 for the 250 µs × 8 stations target
+STATIONS = (1, 8, 9, 15, 30, 62)  # the sweep, with 8 for the target of 8 stations at 250 µs
 CYCLES = ("250us", "500us", "1ms", "2ms")
 LINKS = ("ML2", "ML3")
 
@@ -112,11 +107,12 @@ class Cell:
     cycle_ns: int
     workers: int
     duration_s: float = 0.0     #: measuring time of the network and of each floor
-    io: str = "batched"         #: the simulator's system calls: batched (sendmmsg/recvmmsg) or plain
+    io: str = "batched"         #: the simulator's system calls: batched (sendmmsg/recvmmsg, where the kernel has
+    #: them) or plain; the floor with the same calls is the cell's reference (:attr:`ref`)
     layout: str = "station"     #: shared: each worker's stations share one port (packed workers); station: a port each
     status: str = "ok"          #: ok / n/a (reason) / failed (reason)
     frame_size: int = 0
-    missed_rate: float = 0.0        #: exchanges due but not answered within a cycle / exchanges due (bench_figures)
+    missed_rate: float = 0.0        #: exchanges due but not answered within a cycle / exchanges due (benchmarks.figures)
     missed: int = 0                 #: cycles the clock skipped
     cycles: int = 0                 #: cycles due (started + skipped)
     due: int = 0                    #: exchanges due: sent + what the skipped cycles would have sent
@@ -137,15 +133,15 @@ class Cell:
     wakeups_slaves: float = 0.0
     ahead_pct: float = 0.0          #: answers the workers made ahead from the cards' predictions, % of exchanges
     mispredicted: int = 0           #: of those, answers the card then contradicted (a bug: a note says so)
-    steal_pct: float = 0.0          #: the hypervisor's steal over the window, % of all CPUs' time (bench_figures.steal_share)
-    turns: int = 1                  #: the windows it was measured in, in turn with its floors (bench_figures.turns)
+    steal_pct: float = 0.0          #: the hypervisor's steal over the window, % of all CPUs' time (figures.steal_share)
+    turns: int = 1                  #: the windows it was measured in, in turn with its floors (figures.turns)
     missed_by_turn: list[int] = field(default_factory=list)  #: exchanges not on time in each turn, in order
     #: the host stalls in each turn: [cycles the master clock's delayed, its longest in ns, the workers' stalls
     #: (their 1 ms tick 3 ms or more late), their longest in ns, how many answers those can have made late]
     #: (``_turn_stalls``; docs/report.md, host)
     stalls_by_turn: list[list[int]] = field(default_factory=list)
-    floor: dict[str, Any] | None = None          #: bench_floor.Floor, plain system calls
-    floor_batched: dict[str, Any] | None = None  #: bench_floor.Floor, sendmmsg/recvmmsg
+    floor: dict[str, Any] | None = None          #: benchmarks.floor.Floor, plain system calls
+    floor_batched: dict[str, Any] | None = None  #: benchmarks.floor.Floor, sendmmsg/recvmmsg
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -185,13 +181,10 @@ def write_config(path: Path, link: str, stations: int, cycle_ns: int, arrival_po
 # ----------------------------------------------------------------------------------------------- the network
 async def measure_network(config_path: Path, workers: int, duration_s: float, cell: Cell,
                           rt: bool = False, during: During | None = None) -> Window:
-    """One window of the network of *config_path*, its system calls as *cell.io* says (``MLINK_MMSG``, inherited
-    by the workers), measured for *duration_s* after bring-up, with ``--realtime``'s requests if *rt*; what it saw
-    go wrong goes to *cell.notes*. *during(pids, duration_s)*, if given, is awaited instead of the window's sleep
-    (it must last *duration_s*): the master's process id first, then the workers' (``scripts/bench_recovery.py``
-    stops them)."""
-    saved = os.environ.get("MLINK_MMSG")
-    os.environ["MLINK_MMSG"] = "1" if cell.io == "batched" else "0"
+    """One window of the network of *config_path*, measured for *duration_s* after bring-up, with
+    ``--realtime``'s requests if *rt*; what it saw go wrong goes to *cell.notes*. *during(pids, duration_s)*, if
+    given, is awaited instead of the window's sleep (it must last *duration_s*): the master's process id first,
+    then the workers' (:mod:`benchmarks.lab.recovery` stops them)."""
     session = None
     try:
         config = load_config(config_path)
@@ -202,8 +195,8 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
         not_up = await session.bring_up(timeout=20.0)
         if not_up:
             cell.notes.append(f"{len(not_up)} station(s) not up{_states(session)}")
-        # No control query inside the window: a stats query's reply held the worker (session 30), and even a cpu
-        # query's made answers late at 250 µs (session 31). The workers are asked before it (their counters) and
+        # No control query inside the window: a query's reply takes the worker's loop, and even a cpu query can make
+        # answers late at 250 µs (benchmarks.lab.control measures it). The workers are asked before it (their counters) and
         # after it (their counters and own stalls, one stats query, since the window's start); their CPU is read
         # from the kernel's accounting, as the floor's server's is.
         before = await _ask_workers(session, "cpu")
@@ -229,10 +222,6 @@ async def measure_network(config_path: Path, workers: int, duration_s: float, ce
     finally:
         if session is not None:
             await session.close()
-        if saved is None:
-            os.environ.pop("MLINK_MMSG", None)
-        else:
-            os.environ["MLINK_MMSG"] = saved
     report = metrics.report(meta=meta)
     ahead = _ahead(before, after, wall, metrics.rtt.count)
     return Window(cell.cycle_ns, wall_s=wall, started=report["cycles"] - report["missed"], skipped=report["missed"],
@@ -289,8 +278,6 @@ def _states(session: NetworkSession) -> str:
 async def _ask_workers(session: NetworkSession, op: str, **fields: Any) -> list[dict[str, Any]]:
     """Every live worker's reply to ``{"op": op, **fields}`` (``mlink_sim.aio.slave``); a worker that does not answer
     within 1 s is left out."""
-    from mlink_sim.aio.slave import query_control
-
     replies = []
     for w in session.worker_list:
         if w.alive and w.control_port:
@@ -308,7 +295,7 @@ def _turn_stalls(report: dict[str, Any], replies: list[dict[str, Any]], stations
     answers those can have made late. That last is each stall of the master's clock the answers of the cycle then
     on its way (*stations*), and each worker's stalled time that many cycles, rounded up, of its own stations'
     answers. An upper bound, roughly: where the master and a worker stalled together (the whole VM paused) the
-    commands waited too and fewer answers came late (session 32: 558 counted, 62 late), and a worker's 1 ms tick
+    commands waited too and fewer answers came late (in one such run 558 counted, 62 late), and a worker's 1 ms tick
     dates a stall to within a millisecond."""
     master = report.get("host", {}).get("by_process", {}).get("master", {})
     workers = [(r.get("stall_totals") or {}, len(r.get("stations") or {})) for r in replies]
@@ -352,44 +339,38 @@ def load_cells(paths: list[Path]) -> tuple[list[Cell], dict[str, Any]]:
             doc = json.loads(path.read_text())
             cells += [Cell(**{k: v for k, v in c.items() if k in names}) for c in doc["cells"]]
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
-            raise ValueError(f"{path}: not a bench.py --json file ({type(exc).__name__}: {exc})") from None
+            raise ValueError(f"{path}: not a benchmarks.bench --json file ({type(exc).__name__}: {exc})") from None
     return cells, doc
 
 
 # ----------------------------------------------------------------------------------------------- main
 def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycle: int, workers: int,
-             duration_s: float, ios: list[str], arrival_poll: str = "auto",
-             cpus: tuple[set[int], set[int]] | None = None) -> list[Cell]:
-    """One cell: the network once per I/O mode of *ios*, and both floors, each for *duration_s* in turns of at most
-    ``bench_figures.TURN_S`` taken one after the other (network, floor, batched floor, network …), so that each
-    sees the same phases of the host; never raises. The floors are shared by the cell's I/O modes."""
-    cells = [Cell(link, n, cycle, min(workers, n), duration_s, io, layout="shared" if workers < n else "station")
-             for io in ios]
+             duration_s: float, arrival_poll: str = "auto", cpus: tuple[set[int], set[int]] | None = None) -> Cell:
+    """One cell: the network and both floors, each for *duration_s* in turns of at most
+    :data:`benchmarks.figures.TURN_S` taken one after the other (network, floor, batched floor, network …), so that
+    each sees the same phases of the host; never raises."""
+    cell = Cell(link, n, cycle, min(workers, n), duration_s, "batched" if mmsg.supported() else "plain",
+                layout="shared" if workers < n else "station")
     reason = applicable(link, n, cycle)
     if reason:
-        for cell in cells:
-            cell.status = reason
-        return cells
+        cell.status = reason
+        return cell
     path = tmp / f"{link}-{n}-{cycle}.toml"
-    size = write_config(path, link, n, cycle, arrival_poll)
-    for cell in cells:
-        cell.frame_size = size
+    cell.frame_size = size = write_config(path, link, n, cycle, arrival_poll)
     absorb_ns = load_config(path).network.absorb_ns
-    shared = cells[0].layout == "shared"
+    shared = cell.layout == "shared"
     ours: dict[int, Window] = {}
     floors: dict[bool, Window] = {}
     failed: set[bool] = set()
     sides = [False, True] if mmsg.supported() else [False]
     for turn in turns(duration_s):
-        for i, cell in enumerate(cells):
-            if cell.status != "ok":
-                continue
+        if cell.status == "ok":
             try:
                 if cpus is not None:  # the floor's client took the master's CPU: the network turn starts from every
                     # CPU, as mlink-sim up does (its plan, realtime.allowed_cpus, and its workers, started unplaced,
                     # would not need it)
                     os.sched_setaffinity(0, cpus[0] | cpus[1])
-                add_window(ours, i, loop.run_until_complete(measure_network(path, cell.workers, turn, cell,
+                add_window(ours, 0, loop.run_until_complete(measure_network(path, cell.workers, turn, cell,
                                                                       rt=cpus is not None)))
             except Exception as exc:  # noqa: BLE001 - one failed cell must not end the sweep
                 cell.status = f"failed: {type(exc).__name__}: {exc}"
@@ -401,17 +382,15 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
                     floor_window(n, size, cycle, turn, batched, absorb_ns, shared=shared, cpus=cpus)))
             except Exception as exc:  # noqa: BLE001 - the cell keeps its own figures
                 failed.add(batched)
-                for cell in cells:
-                    cell.notes.append(f"floor {'floor_batched' if batched else 'floor'} failed: "
-                                      f"{type(exc).__name__}: {exc}")
-    for i, cell in enumerate(cells):
-        if cell.status == "ok" and i in ours:
-            fill(cell, ours[i])
-        print(f"{link} {n:>2} stations {format_ns(cycle):>6} {cell.io:<7} " + (
-              cell.status if cell.status != "ok" else f"missed {cell.missed_rate * 100:.2f}% rtt p99 "
-              f"{format_ns(cell.rtt_p99_ns)} {cell.cpu_per_exchange_us:.1f} µs/exchange, {cell.ahead_pct:.1f}% answered "
-              f"ahead ({cell.turns} turns)"),
-              file=sys.stderr, flush=True)
+                cell.notes.append(f"floor {'floor_batched' if batched else 'floor'} failed: "
+                                  f"{type(exc).__name__}: {exc}")
+    if cell.status == "ok" and 0 in ours:
+        fill(cell, ours[0])
+    print(f"{link} {n:>2} stations {format_ns(cycle):>6} {cell.io:<7} " + (
+          cell.status if cell.status != "ok" else f"missed {cell.missed_rate * 100:.2f}% rtt p99 "
+          f"{format_ns(cell.rtt_p99_ns)} {cell.cpu_per_exchange_us:.1f} µs/exchange, {cell.ahead_pct:.1f}% answered "
+          f"ahead ({cell.turns} turns)"),
+          file=sys.stderr, flush=True)
     result: dict[bool, dict[str, Any]] = {}
     for batched, w in floors.items():
         if batched in failed:
@@ -421,9 +400,8 @@ def run_cell(loop: asyncio.AbstractEventLoop, tmp: Path, link: str, n: int, cycl
         print(f"{'':>22}floor {'batched' if batched else 'plain':<7} missed {f.missed_rate * 100:.2f}% "
               f"rtt p99 {format_ns(f.rtt_p99_ns)} {f.cpu_per_exchange_us:.1f} µs/exchange", file=sys.stderr,
               flush=True)
-    for cell in cells:
-        cell.floor, cell.floor_batched = result.get(False), result.get(True)
-    return cells
+    cell.floor, cell.floor_batched = result.get(False), result.get(True)
+    return cell
 
 
 def render(paths: list[Path], as_markdown: bool, png: Path | None) -> int:
@@ -431,12 +409,12 @@ def render(paths: list[Path], as_markdown: bool, png: Path | None) -> int:
     try:
         cells, doc = load_cells(paths)
     except ValueError as exc:
-        print(f"bench.py: {exc}", file=sys.stderr)
+        print(f"bench: {exc}", file=sys.stderr)
         return 2
     print(markdown(cells) if as_markdown else table(cells))
     if doc.get("targets"):
         print()
-        print(bench_targets.verdicts(cells)[0])
+        print(targets.verdicts(cells)[0])
     if png is not None:
         draw(cells, png)
     return 0
@@ -460,13 +438,9 @@ def _parse(args: argparse.Namespace) -> list[tuple[str, int, int, float]]:
     duration = None if args.duration is None else parse_duration_ns(args.duration, default_unit="s") / 1e9
     if args.workers < 1 or (duration is not None and duration <= 0):
         raise ValueError("--workers ≥ 1, --duration > 0")
-    if any(io not in ("batched", "plain") for io in args.io):
-        raise ValueError("--io takes batched, plain or both")
-    if "batched" in args.io and not mmsg.supported():
-        raise ValueError("sendmmsg/recvmmsg are not available here (or MLINK_MMSG=0): use --io plain")
     if args.targets:
         return [(link, n, parse_duration_ns(cycle), duration or parse_duration_ns(d) / 1e9)
-                for link, n, cycle, d in bench_targets.CELLS]
+                for link, n, cycle, d in targets.CELLS]
     stations = [int(s) for s in args.stations.split(",")]
     cycles = [parse_duration_ns(c, default_unit="us") for c in args.cycles.split(",")]
     links = [link.strip().upper() for link in args.links.split(",")]
@@ -524,7 +498,7 @@ def measuring(prog: str, work: Callable[[asyncio.AbstractEventLoop, Path], T]) -
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__.split("\n\n")[0])
     ap.add_argument("--stations", default=",".join(map(str, STATIONS)), help="comma-separated station counts")
     ap.add_argument("--cycles", default=",".join(CYCLES), help="comma-separated transmission cycles")
     ap.add_argument("--links", default=",".join(LINKS), help="ML2, ML3 or both")
@@ -533,10 +507,6 @@ def main() -> int:
                          "each target's own, 60s/30s/10s, and a value given here shortens them all)")
     ap.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 1) - 1),
                     help="slave worker processes; default: one per CPU but one, which is left to the master's clock")
-    ap.add_argument("--io", default="batched" if mmsg.supported() else "plain",
-                    type=lambda s: [x.strip() for x in s.split(",")],
-                    help="the simulator's system calls: batched (sendmmsg/recvmmsg, the default where available), "
-                         "plain (MLINK_MMSG=0), or batched,plain to measure both in one run")
     ap.add_argument("--json", type=Path, default=Path("bench.json"), help="write the cells here")
     ap.add_argument("--png", type=Path, default=None,
                     help="draw the chart here (default bench.png; '' = none; with --render only when given)")
@@ -567,13 +537,13 @@ def main() -> int:
         plan = _parse(args)
         parse_arrival_poll(args.arrival_poll)
     except ValueError as exc:
-        print(f"bench.py: {exc}", file=sys.stderr)
+        print(f"bench: {exc}", file=sys.stderr)
         return 2
     pm_qos = None
     if args.pm_qos:
         pm_qos = realtime.hold_wakeup_latency()
         if not realtime.wakeup_latency_held():
-            print(f"bench.py: --pm-qos: {pm_qos}", file=sys.stderr)
+            print(f"bench: --pm-qos: {pm_qos}", file=sys.stderr)
             return 2
     cpus, rt_granted = None, None
     if args.realtime != "off":  # asked once here, as mlink-sim up asks: all of it, or ordinary scheduling throughout
@@ -582,16 +552,16 @@ def main() -> int:
         if "refused" not in granted:
             cpus, rt_granted = plan_cpus, granted
         elif args.realtime == "on":
-            print(f"bench.py: --realtime: {granted}", file=sys.stderr)
+            print(f"bench: --realtime: {granted}", file=sys.stderr)
             return 2
         else:
             realtime.withdraw()
-            print(f"bench.py: real-time requests refused ({granted}): every process runs with ordinary scheduling, "
+            print(f"bench: real-time requests refused ({granted}): every process runs with ordinary scheduling, "
                   "as an unprivileged user's mlink-sim up does", file=sys.stderr)
     try:
-        cells = measuring("bench.py", lambda loop, tmp: [
-            c for link, n, cycle, seconds in plan
-            for c in run_cell(loop, tmp, link, n, cycle, args.workers, seconds, args.io, args.arrival_poll, cpus)])
+        cells = measuring("bench", lambda loop, tmp: [
+            run_cell(loop, tmp, link, n, cycle, args.workers, seconds, args.arrival_poll, cpus)
+            for link, n, cycle, seconds in plan])
     except Interrupted as exc:
         return exc.code
     if pm_qos is not None:
@@ -608,7 +578,7 @@ def main() -> int:
                  "arrival_poll": args.arrival_poll},
         "cells": [asdict(c) for c in cells]}
     if args.targets:
-        text, rows = bench_targets.verdicts(cells)
+        text, rows = targets.verdicts(cells)
         print()
         print(text)
         doc["targets"] = rows

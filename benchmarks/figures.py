@@ -1,5 +1,5 @@
-"""One definition of "missed", RTT and CPU per exchange, for the simulator (``scripts/bench.py``) and its floor
-(``scripts/bench_floor.py``) alike (docs/performance.md, "How a cell is measured").
+"""One definition of "missed", RTT and CPU per exchange, for the simulator (:mod:`benchmarks.bench`) and its floor
+(:mod:`benchmarks.floor`) alike (docs/performance.md, "How a cell is measured").
 
 Both sides count the same things in the measuring window: the cycles their ``CycleTimer`` started and the ones it
 skipped, the commands sent, and every answer read within the answer window (the network's ``stall_bound``, as
@@ -18,14 +18,14 @@ cycle's start, the time the commands are stamped with, to the time the answer wa
 * **CPU per exchange**: the CPU time of both sides (kernel's accounting, all costs in) over the answers read.
 
 **Turns.** A cell measured for longer than :data:`TURN_S` is measured in turns of at most that long: the
-simulator, the floor, the batched floor, then the simulator again, and so on (``scripts/bench.py``). Each turn's
+simulator, the floor, the batched floor, then the simulator again, and so on (:mod:`benchmarks.bench`). Each turn's
 raw counts are a :class:`Window`; the turns of one side add up (:meth:`Window.add`) before the figures are read,
 so the simulator and its floor see the same phases of the host. Measured one after the other, the floor at 8
 ML-III stations × 250 µs missed 0.09 % in one run and 0.99 % in the next, on the same quiet machine: a bound of
 "floor + 0.05 points" then judged the host's phase more than the simulator.
 
 A floor whose own missed rate is above the targets' margin cannot carry the load itself: ``--targets`` says so
-(``bench_targets.floor_saturation``), so that a bound "≤ floor + x" is read as relative to such a floor.
+(:func:`benchmarks.targets.floor_saturation`), so that a bound "≤ floor + x" is read as relative to such a floor.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ __all__ = ["During", "ExchangeFigures", "TURN_S", "Window", "add_window", "excha
 TURN_S = 10.0  #: the longest turn of one side of a cell before the other sides take theirs
 
 #: What a side's window awaits instead of its plain sleep: ``during(pids, duration_s)``, lasting *duration_s*, with
-#: the process ids of the side (the master or the floor's client first); ``scripts/bench_recovery.py`` stops them.
+#: the process ids of the side (the master or the floor's client first); :mod:`benchmarks.lab.recovery` stops them.
 During = Callable[[list[int], float], Awaitable[None]]
 
 
@@ -103,7 +103,7 @@ class Window:
     wake_b: int = 0
     ahead: int = 0             #: answers made ahead from the cards' predictions (the simulator's; 0 for a floor)
     mispredicted: int = 0      #: of those, answers the card then contradicted
-    ticks: tuple[int, ...] = ()  #: the host's CPU ticks over the window (``bench_floor.host_ticks`` deltas)
+    ticks: tuple[int, ...] = ()  #: the host's CPU ticks over the window (``benchmarks.floor.host_ticks`` deltas)
     rtt: LatencyHistogram = field(default_factory=LatencyHistogram)
     lateness: LatencyHistogram = field(default_factory=LatencyHistogram)
     turns: int = 1
@@ -141,7 +141,7 @@ class Window:
                                 rtt=self.rtt, cpu_s=self.cpu_a_s + self.cpu_b_s, spin_s=self.spin_s)
 
     def summary(self) -> dict[str, Any]:
-        """The figures a cell (``bench.Cell``) and a floor (``bench_floor.Floor``) both report, by the field names
+        """The figures a cell (``benchmarks.bench.Cell``) and a floor (``benchmarks.floor.Floor``) both report, by the field names
         they share; each adds its own names for the two sides' CPU and wake-ups."""
         fig = self.figures()
         return {"cycles": self.started + self.skipped, "missed": self.skipped, "missing": self.missing,
@@ -175,7 +175,7 @@ def add_window(windows: dict[Any, Window], key: Any, w: Window) -> None:
 def steal_share(ticks: tuple[int, ...]) -> float:
     """The time the hypervisor ran something else while this VM's CPUs had work (``steal``, the 8th field of
     ``/proc/stat``'s first line), in % of all CPUs' time, from the ticks that passed in each of the first 8 fields
-    (``bench_floor.ticks_between``); 0.0 without them. A floor that misses cycles while this is high points at the
+    (``benchmarks.floor.ticks_between``); 0.0 without them. A floor that misses cycles while this is high points at the
     host (a slowdown the host causes without stealing is not in it)."""
     total = sum(ticks[:8]) if len(ticks) >= 8 else 0
     return round(100 * ticks[7] / total, 1) if total > 0 else 0.0

@@ -1,47 +1,41 @@
-#!/usr/bin/env python3
-"""The honest floor of a capacity cell (issue 21 item 1): the simulator's I/O with no protocol work in it.
+"""The floor of a capacity cell: the simulator's I/O with no protocol work in it.
 
 **Server** (a subprocess): ONE process serving N station sockets, as a packed slave worker does: the same
 ``BatchEndpoint`` per station (``mlink_sim.aio.udp``, watched with ``loop.add_reader``, every waiting datagram read
 in one wake-up), each datagram sent straight back to its source from the station's own socket. No card, no
 decode, no 1 ms tick. Sharing one socket (``--shared``), a read holding several cycles' commands is echoed newest
-cycle first, as the worker answers a backlog (``MLINK_NEWEST_FIRST=0`` switches both off).
+cycle first, as the worker answers a backlog.
 
 **Client** (in the calling process): the master's I/O with no core. One UDP socket, the same ``CycleTimer``
 (timerfd + adaptive spin, the spin reading one answer at a time), and at each cycle: read the answers waiting,
 count the ones given up (older than the answer window), send the burst of N datagrams of the stations' frame
 size. RTT is measured as the master measures it: from the cycle's start (the time the core stamps its commands
-with) to the time the answer is read, stamped as the master's ``read_responses`` stamps it; an answer is awaited
-as long as the master awaits one (its answer window, the network's ``stall_bound``), so a late answer is in the
-RTT tail, not dropped from it.
+with) to the time the answer is read, one stamp per read as the master's ``read_responses`` stamps it; an answer
+is awaited as long as the master awaits one (its answer window, the network's ``stall_bound``), so a late answer
+is in the RTT tail, not dropped from it.
 
 Two variants, both measured by the caller in the same run: **plain** (``recvfrom``/``recv`` until the socket is
 empty, one ``sendto`` per datagram) and **batched** (``mlink_sim.aio.mmsg``: the client's burst in one
 ``sendmmsg``, its answers and each station socket's commands in one ``recvmmsg``; the echo's answers stay one
-``sendto`` each, because each goes out from its own station's socket). Where the master reads its answers with
-the kernel's receive timestamps (``MLINK_RX_STAMPS=1``, ``mmsg.stamps_enabled()``), the batched client does
-too, by the same rule (cycles whose quarter is longer than the clock's spin): no reader on its socket, the answers
-read by a ``PreRead`` a quarter period before each deadline, in the clock's spin and at each cycle's start, each RTT
-up to the kernel's stamp, as ``mlink_sim.aio.master`` does.
+``sendto`` each, because each goes out from its own station's socket).
 
 **With the cores' time** (``--work SERVE,ENCODE,DECODE[,SETTLE]``, off by default): the server keeps its CPU busy
 *SERVE* per datagram before each echo and *SETTLE* per datagram after the read's echoes went back (a worker's cards
-taking the commands they answered ahead: ``Bus.settle``; on a shared socket after one ``sched_yield``, as the worker
-does, ``mmsg.yield_after_send``), the client *ENCODE* per command after the cycle's start
-and before the burst, and *DECODE* per answer after its stamp: a floor that takes as long as the simulator's cores
-and does none of their work, to tell what the chain's length costs from what the simulator's I/O costs
-(docs/performance.md, "What bounds the missed answers"; with SETTLE, "A backlog answered ahead, and a floor that
-burns the simulator's CPU"). ``--variant shared-batched`` measures only the floor a packed worker's network is judged
-against.
+taking the commands they answered ahead: ``Bus.settle``; on a shared socket after one ``sched_yield``, as the
+worker does), the client *ENCODE* per command after the cycle's start and before the burst, and *DECODE* per
+answer after its stamp: a floor that takes as long as the simulator's cores and does none of their work, to tell
+what the chain's length costs from what the simulator's I/O costs (docs/performance.md, "What bounds the missed
+answers"). ``--variant shared-batched`` measures only the floor a packed worker's network is judged against.
 
-Missed, RTT and CPU per exchange are ``bench_figures.exchange_figures``, the simulator's own definition: missed =
-exchanges due but not answered within a cycle, over the exchanges due; CPU per exchange = (client CPU + server
-CPU) / answers read, both from the kernel's accounting (``getrusage``, ``/proc/PID/stat``) over the measuring
-window; wake-ups = voluntary context switches (``/proc/PID/status``) per cycle.
+Missed, RTT and CPU per exchange are :func:`benchmarks.figures.exchange_figures`, the simulator's own definition:
+missed = exchanges due but not answered within a cycle, over the exchanges due; CPU per exchange = (client CPU +
+server CPU) / answers read, both from the kernel's accounting (``getrusage``, ``/proc/PID/stat``) over the
+measuring window; wake-ups = voluntary context switches (``/proc/PID/status``) per cycle.
 
-    scripts/bench_floor.py --stations 62 --cycle 1ms --duration 10s          # both variants, one table
-    scripts/bench_floor.py --variant shared-batched --work 0.92us,0.25us,1.1us   # with the cores' time
-    flock -x /tmp/mlink-cpu.lock .venv/bin/python scripts/bench_floor.py …    # as every timing on the shared machine
+Run from the repository's root:
+
+    python -m benchmarks.floor --stations 62 --cycle 1ms --duration 10s          # the four variants, one table
+    python -m benchmarks.floor --variant shared-batched --work 0.92us,0.25us,1.1us   # with the cores' time
 """
 
 from __future__ import annotations
@@ -60,19 +54,14 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "scripts"))
+from mlink_sim.aio import mmsg, realtime
+from mlink_sim.aio.ticker import CycleTimer
+from mlink_sim.aio.udp import bound_socket, close_watched, new_event_loop, open_batch_endpoint
+from mlink_sim.config import format_ns, parse_duration_ns
+from mlink_sim.metrics import LatencyHistogram
 
-from bench_figures import During, Window  # noqa: E402
-
-from mlink_sim.aio import mmsg, realtime  # noqa: E402
-from mlink_sim.aio.preread import PreRead  # noqa: E402
-from mlink_sim.aio.ticker import CycleTimer  # noqa: E402
-from mlink_sim.aio.supervisor import _die_with_parent  # noqa: E402
-from mlink_sim.aio.udp import bound_socket, close_watched, new_event_loop, open_batch_endpoint  # noqa: E402
-from mlink_sim.config import format_ns, parse_duration_ns  # noqa: E402
-from mlink_sim.metrics import LatencyHistogram  # noqa: E402
+from benchmarks.common import child_env, die_with_parent, module_command
+from benchmarks.figures import During, Window
 
 __all__ = ["Floor", "Work", "floor_from", "floor_window", "host_ticks", "measure_floor", "proc_cpu_s", "proc_wakeups",
            "self_wakeups", "ticks_between"]
@@ -116,7 +105,7 @@ def _raise(exc: OSError) -> None:
     raise exc
 
 HEADER = 12 + 2  # envelope + FCS (docs/wire-format.md): a datagram is HEADER + the frame size
-_WARM_UP_S = 0.5
+WARM_UP_S = 0.5
 _TICK = os.sysconf("SC_CLK_TCK")
 
 
@@ -130,7 +119,7 @@ class Floor:
     duration_s: float
     cycles: int = 0
     missed: int = 0            #: cycles the clock skipped (as the master's ``missed``, same host-stall policy)
-    missed_rate: float = 0.0   #: exchanges due but not answered within a cycle / exchanges due (bench_figures)
+    missed_rate: float = 0.0   #: exchanges due but not answered within a cycle / exchanges due (benchmarks.figures)
     missing: int = 0           #: answers given up (not back within the answer window)
     sent: int = 0              #: datagrams sent
     due: int = 0               #: exchanges due: sent + what the skipped cycles would have sent
@@ -147,8 +136,8 @@ class Floor:
     wakeups_client: float = 0.0       #: voluntary context switches per cycle
     wakeups_server: float = 0.0
     shared: bool = False              #: the server's stations share one socket (a packed worker's layout)
-    steal_pct: float = 0.0            #: the hypervisor's steal over the window, % of all CPUs' time (bench_figures.steal_share)
-    turns: int = 1                    #: the windows it was measured in (bench_figures.turns)
+    steal_pct: float = 0.0            #: the hypervisor's steal over the window, % of all CPUs' time (figures.steal_share)
+    turns: int = 1                    #: the windows it was measured in (figures.turns)
     missed_by_turn: list[int] = field(default_factory=list)  #: exchanges not on time in each turn, in order
 
 
@@ -211,11 +200,11 @@ def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpu
     SIGTERM. *shared*: one socket for the N stations, as a packed worker's (``SlaveServer(shared=True)``): each
     read's datagrams echoed in one burst (``BatchEndpoint.send_burst``), offloaded bursts read as one buffer.
     *work_ns*: the CPU is kept busy that long per datagram before the echo goes back, *settle_ns* per datagram
-    after the read's echoes went (``--work``; shared, after a yield as the worker's, ``mmsg.yield_after_send``). *cpus*
-    (``--realtime-cpus``): the real-time requests of a slave worker, on those CPUs (``bench.py --realtime``)."""
+    after the read's echoes went (``--work``; shared, after one ``sched_yield``, as the worker's). *cpus*
+    (``--realtime-cpus``): the real-time requests of a slave worker, on those CPUs (the capacity sweep's real time)."""
     loop = new_event_loop()
     if cpus:
-        realtime.apply(realtime.WORKER_PRIORITY, cpus)  # as root (bench.py --realtime checked it) granted
+        realtime.apply(realtime.WORKER_PRIORITY, cpus)  # granted: the sweep asked for its own real time first
 
     async def main() -> None:
         endpoints: list[Any] = []
@@ -232,13 +221,13 @@ def serve(count: int, batched: bool, shared: bool = False, work_ns: int = 0, cpu
             return on_batch
 
         if shared:
-            pause = mmsg.yield_after_send() if settle_ns else None  # as the worker, before its settle
-            newest_first = not mmsg.switched_off("MLINK_NEWEST_FIRST")  # as the worker's Bus
+            # as the worker, before its settle: lets the reader of the answers run at once (docs/performance.md)
+            pause = getattr(os, "sched_yield", None) if settle_ns else None
 
             def on_bus(batch: list[tuple[bytes, Any]]) -> None:
                 if work_ns:
                     busy(work_ns * len(batch))
-                if newest_first and batch[0][0][:4] != batch[-1][0][:4]:  # more than one cycle's
+                if batch[0][0][:4] != batch[-1][0][:4]:  # more than one cycle's: newest first, as the worker's Bus
                     batch = newest_cycle_first(batch)
                 endpoints[0].send_burst(batch)
                 if settle_ns:
@@ -272,14 +261,14 @@ async def measure_floor(stations: int, size: int, cycle_ns: int, duration_s: flo
 
 
 def floor_from(window: Window, batched: bool, stations: int, shared: bool) -> Floor:
-    """The figures of a floor's *window* (one turn, or the sum of several: ``bench_figures.Window.add``)."""
+    """The figures of a floor's *window* (one turn, or the sum of several: :meth:`benchmarks.figures.Window.add`)."""
     return Floor(batched, stations, window.cycle_ns, round(window.wall_s, 1), shared=shared, **window.summary(),
                  cpu_client_pct=window.pct(window.cpu_a_s), cpu_server_pct=window.pct(window.cpu_b_s),
                  wakeups_client=window.per_cycle(window.wake_a), wakeups_server=window.per_cycle(window.wake_b))
 
 
 def _server_setup() -> None:  # in the server between fork and exec
-    _die_with_parent()  # a killed client leaves no server
+    die_with_parent()  # a killed client leaves no server
     realtime.unplace_child()  # it starts as a worker does: off the client's CPU and priority (--realtime-cpus)
 
 
@@ -287,33 +276,32 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
                        catch_up_ns: int = 100_000_000, shared: bool = False, work: Work | None = None,
                        cpus: tuple[set[int], set[int]] | None = None, during: During | None = None) -> Window:
     """The floor of *stations* stations of frame size *size* at *cycle_ns*, measured for *duration_s* after a
-    0.5 s warm-up; the server runs in a subprocess of this script. *catch_up_ns*: the clock's host-stall policy,
+    0.5 s warm-up; the server runs in a subprocess (``python -m benchmarks.floor --serve``). *catch_up_ns*: the clock's host-stall policy,
     as the network's (default: "absorb" up to 100 ms, the default of ``[network] stall_bound``); an answer is
     awaited as long (at least one cycle), as the master's answer window (``NetworkPlan.answer_window_ns``).
     *shared*: the stations share one socket of the server, as a packed worker's do (``mlink-sim up``); the
     batched client then reads offloaded bursts as one buffer, as the master does. *work*: each side keeps its CPU
     busy as long as the cores would take (:class:`Work`), with none of their work. *cpus*: ``(client CPUs, server
     CPUs)``: both sides ask for what ``mlink-sim up --realtime`` asks for its master and its workers (SCHED_FIFO
-    at their priorities, locked memory, a wake-up latency of 0 µs, those CPUs; ``bench.py --realtime``).
+    at their priorities, locked memory, a wake-up latency of 0 µs, those CPUs; :mod:`benchmarks.bench`).
     *during(pids, duration_s)*, if given, is awaited instead of the window's sleep (it must last *duration_s*):
-    the client's process id, then the server's (``scripts/bench_recovery.py`` stops them)."""
+    the client's process id, then the server's (:mod:`benchmarks.lab.recovery` stops them)."""
     work = work or Work()
-    proc = subprocess.Popen([sys.executable, __file__, "--serve", str(stations)] + ([] if batched else ["--plain"])
-                            + (["--shared"] if shared else [])
-                            + [f"--work-ns={work.serve_ns}", f"--settle-ns={work.settle_ns}"]
-                            + ([f"--realtime-cpus={realtime.format_cpus(cpus[1])}"] if cpus else []),
-                            stdout=subprocess.PIPE, preexec_fn=_server_setup)
+    args = ["--serve", str(stations), *([] if batched else ["--plain"]), *(["--shared"] if shared else []),
+            f"--work-ns={work.serve_ns}", f"--settle-ns={work.settle_ns}",
+            *([f"--realtime-cpus={realtime.format_cpus(cpus[1])}"] if cpus else [])]
+    proc = subprocess.Popen(module_command("benchmarks.floor", *args), stdout=subprocess.PIPE, env=child_env(),
+                            preexec_fn=_server_setup)
     if cpus:
         realtime.apply(realtime.MASTER_PRIORITY, cpus[0])
     loop = asyncio.get_running_loop()
     sock: Any = None
     timer: CycleTimer | None = None
-    pre: PreRead | None = None
     try:
         ports = json.loads(proc.stdout.readline())["ports"]  # type: ignore[union-attr]
         raw = bound_socket("127.0.0.1", 0)
         sock = mmsg.BurstSocket(raw) if batched else raw
-        if shared and batched and not mmsg.stamps_enabled():  # as the master: its answers come as one burst
+        if shared and batched:  # as the master: its answers come as one burst
             sock.enable_gro()
         targets = [("127.0.0.1", p) for p in ports]
         pad = bytes(max(0, HEADER + size - 6))
@@ -327,19 +315,10 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
 
         decode_ns = work.decode_ns
 
-        def read_stamped(limit: int = 512) -> None:  # as the master reads where it can: the kernel's stamps
-            for batch in mmsg.drain(sock.recv_burst_stamped, limit, _raise):
-                for data, now in batch:
-                    t = pending.pop(data[:6], None)
-                    if t is not None:
-                        rtt.record(now - t)
-                if decode_ns:
-                    busy(decode_ns * len(batch))
-
         if batched:
             recv_burst = sock.recv_burst
 
-            def read(limit: int = 512) -> None:  # as the master reads by default: one stamp per recvmmsg
+            def read(limit: int = 512) -> None:  # as the master reads: one stamp per recvmmsg
                 for batch in mmsg.drain(recv_burst, limit, _raise):
                     now = mono()
                     for data in batch:
@@ -394,19 +373,11 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
                     except OSError:
                         pass
             counts["sent"] += stations
-            if pre is not None:
-                pre.arm_after(deadline)
 
         timer = CycleTimer(cycle_ns, on_cycle, loop=loop, idle=read_one, catch_up_ns=catch_up_ns)
-        # the master's choice, in one place (PreRead.for_stamped): stamped reads and a pre-read where they fit
-        if batched:
-            pre = PreRead.for_stamped(loop, sock, read_stamped, cycle_ns, timer.spin_ns)
-        if pre is not None:
-            read = read_stamped
-        else:
-            loop.add_reader(raw.fileno(), read)
+        loop.add_reader(raw.fileno(), read)
         timer.start()
-        await asyncio.sleep(_WARM_UP_S)
+        await asyncio.sleep(WARM_UP_S)
         rtt.reset()
         lateness.reset()
         counts.update(missed=0, missing=0, sent=len(pending), cycles=0)  # in flight: as the master's reset_metrics
@@ -422,8 +393,6 @@ async def floor_window(stations: int, size: int, cycle_ns: int, duration_s: floa
     finally:
         if timer is not None:
             timer.stop()
-        if pre is not None:
-            pre.close()
         if sock is not None:
             close_watched(loop, sock)
         proc.terminate()
@@ -454,7 +423,7 @@ def main() -> int:
         serve(int(sys.argv[2]), batched="--plain" not in sys.argv[3:], shared="--shared" in sys.argv[3:],
               work_ns=work_ns, cpus=cpus, settle_ns=settle_ns)
         return 0
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.floor", description=__doc__.split("\n\n")[0])
     ap.add_argument("--stations", type=int, default=62)
     ap.add_argument("--cycle", default="1ms")
     ap.add_argument("--size", type=int, default=32, help="frame size (ML-III 32/48/64, ML-II 17/32)")
@@ -475,7 +444,7 @@ def main() -> int:
             raise ValueError("--stations ≥ 1, --duration > 0")
         work = Work.parse(args.work)
     except ValueError as exc:
-        print(f"bench_floor.py: {exc}", file=sys.stderr)
+        print(f"floor: {exc}", file=sys.stderr)
         return 2
     variants = [(True, True)] if args.variant == "shared-batched" else [(s, b) for s in (False, True)
                                                                           for b in (False, True)]

@@ -1,16 +1,17 @@
-#!/usr/bin/env python3
 """Soak: run ``mlink-sim up CONFIG`` many times in a row and count how many pass, with the host stalls of the
-same runs (docs/timing.md, "Host stalls"; issue targets: the quickstart passes 99 of 100 runs on a quiet 2-vCPU
-machine and 95 of 100 with a CPU hog on one core beside it).
+same runs (docs/timing.md, "Host stalls"). Its targets: the quickstart passes 99 of 100 runs on a quiet 2-vCPU
+machine and 95 of 100 with a CPU hog on one core beside it.
 
-Before the runs it measures the machine itself, as a baseline in the same session: a bare Python loop that only
+Before the runs it measures the machine itself, as a baseline in the same sitting: a bare Python loop that only
 wakes every 2 ms for ``--baseline`` seconds and counts the wake-ups 4 ms or more late (the stalls no simulator
 could avoid). Then each run's report gives its stalls, missed cycles and failed checks.
 
-    .venv/bin/python scripts/soak.py                      # 100 runs of configs/quickstart.toml
-    .venv/bin/python scripts/soak.py --runs 20 --hog      # with a CPU hog pinned to the last CPU
-    .venv/bin/python scripts/soak.py configs/quickstart.toml --json soak.json -- --host-stalls strict
-    .venv/bin/python scripts/soak.py --runs 10 --stop 400ms@1s      # a stall beyond the bound in every run
+Run from the repository's root:
+
+    python -m benchmarks.soak                             # 100 runs of configs/quickstart.toml
+    python -m benchmarks.soak --runs 20 --hog             # with a CPU hog pinned to the last CPU
+    python -m benchmarks.soak configs/quickstart.toml --json soak.json -- --host-stalls strict
+    python -m benchmarks.soak --runs 10 --stop 400ms@1s   # a stall beyond the bound in every run
 
 ``--stop D@T`` stops each run's whole process group (``up`` and its slave workers) with SIGSTOP for D, T into the
 timeline (after bring-up: the run's ``network_up`` log line), then SIGCONT: a host stall of a chosen length, e.g.
@@ -35,10 +36,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-from mlink_sim._files import write_atomically
 from mlink_sim.config import parse_duration_ns
 
-ROOT = Path(__file__).resolve().parent.parent
+from benchmarks.common import ROOT, write_atomically
+
 MLINK = [sys.executable, "-m", "mlink_sim"]
 _HOG = "import time\nend = time.monotonic() + {limit}\nwhile time.monotonic() < end:\n    pass\n"
 
@@ -150,7 +151,7 @@ def summarise(rows: list[dict[str, Any]], base: dict[str, Any]) -> dict[str, Any
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.soak", description=__doc__.split("\n\n")[0])
     ap.add_argument("config", nargs="?", default="configs/quickstart.toml")
     ap.add_argument("--runs", type=int, default=100)
     ap.add_argument("--hog", action="store_true", help="a busy loop pinned to the last CPU for the whole soak")

@@ -1,7 +1,7 @@
-"""The tables and the chart of ``scripts/bench.py``'s cells: a plain table for the terminal, the Markdown table of
-docs/performance.md, and the three-panel chart (missed, RTT p99, CPU per exchange against the number of stations,
-the simulator solid, its floors dashed and dotted). Moved out of bench.py, which measures; this only formats
-:class:`bench.Cell` objects (``--render`` draws an earlier run's)."""
+"""The tables and the chart of the capacity sweep's cells (:mod:`benchmarks.bench`): a plain table for the
+terminal, the Markdown table of docs/performance.md, and the three-panel chart (missed, RTT p99, CPU per exchange
+against the number of stations, the simulator solid, its floors dashed and dotted). It only formats
+``benchmarks.bench.Cell`` objects; ``python -m benchmarks.bench --render JSON`` shows an earlier run's."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 from mlink_sim.config import format_ns
 
 if TYPE_CHECKING:
-    from bench import Cell
+    from benchmarks.bench import Cell
 
 __all__ = ["MD_HEAD", "chart", "markdown", "table"]
 

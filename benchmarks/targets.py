@@ -1,7 +1,7 @@
-"""Issue 21's capacity targets, each judged against the floor measured in the same run (``scripts/bench.py
---targets``; the cells are ``bench.Cell``, the floor ``scripts/bench_floor.py``).
+"""The capacity targets, each judged against the floor measured in the same run (``python -m benchmarks.bench
+--targets``; the cells are ``benchmarks.bench.Cell``, the floor :mod:`benchmarks.floor`).
 
-The targets (ratios in one run on the 2-vCPU machine):
+The targets (ratios in one run, on the machine the run names):
 
 1. 62 ML-III stations @ 1 ms for 60 s: missed ≤ the floor's missed + 0.05 percentage points; RTT p99 ≤ 2 × the
    floor's p99;
@@ -11,19 +11,18 @@ The targets (ratios in one run on the 2-vCPU machine):
 5. the 1 ms knee, the most ML-III stations at 1 ms with missed ≤ floor + 0.05 points (every smaller cell of the
    run holding too), reaches 62 (cells of 15, 30 and 45 stations, 30 s each, and the 62 of target 1).
 
-The knee's cells last 30 s, in three turns like the 250 µs cell, not 10 s (until session 32). Under real-time
-scheduling a host stall of 3–4 ms on the worker's CPU (the guest's non-preemptible DAMON thread, the hypervisor)
-costs a cell that many cycles of every station, and came 0–0.3 times a second; the margin of 0.05 points is 5
-cycles in 10 s, so two such stalls in the simulator's one turn and none in its floor's put a cell over (session
-32's run 2: 45 stations, 450 answers late against the floor's 45, three stalls of the worker's). In 30 s the margin
-is 15 cycles, and each side's stalls average over three turns.
+The knee's cells last 30 s, in three turns like the 250 µs cell, because of the host's stalls. Under real-time
+scheduling a host stall of 3–4 ms on the worker's CPU (a guest's non-preemptible kernel thread, the hypervisor)
+costs a cell that many cycles of every station, and such stalls can come several times a minute; the margin of
+0.05 points is 5 cycles in 10 s, so two such stalls in the simulator's one turn and none in its floor's would put
+a 10 s cell over. In 30 s the margin is 15 cycles, and each side's stalls average over three turns.
 
 "The floor" of a cell is the floor with the simulator's own system calls (``Cell.ref``). Both are measured with
-one definition of missed, RTT and CPU per exchange (``bench_figures.exchange_figures``). Where a bound is not met
-the verdict says what bounds it, from the same run: the CPU of the master and the workers, CPU per exchange
-against the floor's, wake-ups per cycle, stations that did not come up, or the floor itself breaking the bound.
-A floor that itself misses more than the margin (answers not back within a cycle) is **saturated**: it cannot
-carry the load on this machine either, and the table says so under its bounds (:func:`floor_saturation`).
+one definition of missed, RTT and CPU per exchange (:func:`benchmarks.figures.exchange_figures`). Where a bound is
+not met the verdict says what bounds it, from the same run: the CPU of the master and the workers, CPU per
+exchange against the floor's, wake-ups per cycle, stations that did not come up, or the floor itself breaking the
+bound. A floor that itself misses more than the margin (answers not back within a cycle) is **saturated**: it
+cannot carry the load on this machine either, and the table says so under its bounds (:func:`floor_saturation`).
 """
 
 from __future__ import annotations

@@ -1,17 +1,19 @@
-#!/usr/bin/env python3
-"""What a control query costs the cycle: a network is brought up as ``scripts/bench.py`` brings up a cell, and the
-master asks its worker ``{"op": OP}`` (``stats``, ``cpu``, ``ping``: ``mlink_sim.aio.slave``) every
-``--every`` while every answer later than one transmission cycle is kept. A late answer read from a moment before a
-query was sent to :data:`AFTER_NS` after its reply came counts as the query's (:func:`attribute`); the same
-number of equally long windows half-way between the queries give the background the host makes anyway.
+"""What a control query costs the cycle: a network is brought up as :mod:`benchmarks.bench` brings up a cell, and
+the master asks its worker ``{"op": OP}`` (``stats``, ``cpu``, ``ping``: ``mlink_sim.aio.slave``) every ``--every``
+while every answer later than one transmission cycle is kept. A late answer read from a moment before a query was
+sent to :data:`AFTER_NS` after its reply came counts as the query's (:func:`attribute`); the same number of equally
+long windows half-way between the queries give the background the host makes anyway.
 
-Until session 30 a worker built its ``stats`` reply in one go, which held its loop 1.3 ms for 8 stations and
-4.2 ms for 62, and each query made 32 answers late at 8 ML-III × 250 µs and 224 at 62 ML-III × 1 ms (docs/
-performance.md, "A stats query held the worker (session 30)"); ``scripts/bench.py`` sent one such query inside
-each of its measuring windows, and ``mlink-sim up`` sends one at the end of its run, inside its report.
+A worker builds its ``stats`` reply one station a millisecond, so that a query does not hold its loop for
+longer than a cycle's work (docs/performance.md); this tool tells whether a
+query still makes answers late, e.g. after a change to the replies or at a shorter cycle. ``mlink-sim up`` sends
+one such query at the end of its run, inside its report; the capacity sweep asks its workers only before and
+after each measuring window.
 
-    scripts/bench_control.py --stations 62 --cycles 1ms --op stats --queries 20
-    scripts/bench_control.py --stations 8 --cycles 250us --op stats,cpu,ping --realtime   # as root: as up runs
+Run from the repository's root:
+
+    python -m benchmarks.lab.control --stations 62 --cycles 1ms --op stats --queries 20
+    python -m benchmarks.lab.control --stations 8 --cycles 250us --op stats,cpu,ping --realtime   # as root
 """
 
 from __future__ import annotations
@@ -19,22 +21,19 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
-import os
 import sys
 import time
 from bisect import bisect_left, bisect_right
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-from bench import Interrupted, measuring, watching_rtt, write_config
-
-from mlink_sim._files import write_atomically
 from mlink_sim.aio import realtime
 from mlink_sim.aio.session import NetworkSession
 from mlink_sim.aio.slave import query_control
 from mlink_sim.config import load_config, parse_duration_ns
+
+from benchmarks.bench import Interrupted, measuring, watching_rtt, write_config
+from benchmarks.common import write_atomically
 
 __all__ = ["AFTER_NS", "BEFORE_NS", "OPS", "Outcome", "attribute"]
 
@@ -112,7 +111,7 @@ async def _measure(config_path: Path, op: str, queries: int, every_ns: int, rt: 
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.lab.control", description=__doc__.split("\n\n")[0])
     ap.add_argument("--stations", type=int, default=62)
     ap.add_argument("--links", default="ML3", choices=("ML2", "ML3"))
     ap.add_argument("--cycles", default="1ms", help="the transmission cycle")
@@ -131,12 +130,12 @@ def main() -> int:
         if not 1 <= args.stations <= 62 or args.queries < 1 or every < 20 * cycle:
             raise ValueError("--stations 1–62, --queries ≥ 1, --every ≥ 20 cycles")
     except ValueError as exc:
-        print(f"bench_control.py: {exc}", file=sys.stderr)
+        print(f"control: {exc}", file=sys.stderr)
         return 2
     if args.realtime:
         granted = realtime.apply(realtime.MASTER_PRIORITY, realtime.cpu_plan()[0])
         if "refused" in granted:
-            print(f"bench_control.py: --realtime: {granted}", file=sys.stderr)
+            print(f"control: --realtime: {granted}", file=sys.stderr)
             return 2
 
     def work(loop: asyncio.AbstractEventLoop, tmp: Path) -> list[Outcome]:
@@ -145,11 +144,11 @@ def main() -> int:
         return [loop.run_until_complete(_measure(path, op, args.queries, every, args.realtime)) for op in ops]
 
     try:
-        outcomes = measuring("bench_control.py", work)
+        outcomes = measuring("control", work)
     except Interrupted as exc:
         return exc.code
     except (RuntimeError, OSError) as exc:
-        print(f"bench_control.py: {exc}", file=sys.stderr)
+        print(f"control: {exc}", file=sys.stderr)
         return 1
     print(f"{args.stations} {args.links} stations at {args.cycles}, a query each {args.every}"
           + (" (--realtime)" if args.realtime else ""))

@@ -1,9 +1,8 @@
-#!/usr/bin/env python3
 """What held the CPUs when answers came late: each late cycle of a network (and, with ``--floor``, of its batched
 floor) put beside a ``perf`` record of both CPUs, and named by what ran instead (docs/performance.md, "What holds
-the CPU when answers come late (session 18)").
+the CPU when answers come late").
 
-The network is brought up as ``scripts/bench.py`` brings up a cell (the same configuration, one worker per CPU but
+The network is brought up as :mod:`benchmarks.bench` brings up a cell (the same configuration, one worker per CPU but
 one), then measured for ``--duration`` while ``perf record -e cpu-clock -c 100000 -a -k CLOCK_MONOTONIC`` samples
 every CPU each 100 µs of its time. The master keeps each answer later than one transmission cycle (its time and
 round trip, in a preallocated array: no allocation per answer, no garbage collection caused by the record).
@@ -19,10 +18,10 @@ from the commands' send to the last late answer. Each late cycle is named by the
   window on one CPU; else **unexplained**.
 
 A share below :data:`MIN_SHARE` names nothing (unexplained). The same is done for the floor (``--floor``: the
-batched floor of ``scripts/bench_floor.py``, one process serving all the stations on one socket), one after the
+batched floor of :mod:`benchmarks.floor`, one process serving all the stations on one socket), one after the
 other, so the two can be compared. Both run with ordinary scheduling: with ``mlink-sim up``'s real-time requests
 (SCHED_FIFO, the master's CPU apart) the record itself raised the network's late answers from 0.13–0.29 %
-(``bench.py --realtime``, no perf) to 1.8–6.0 %, so this script does not offer them. Root only (``perf`` over
+(the capacity sweep with real time, no perf) to 1.8–6.0 %, so this tool does not offer them. Root only (``perf`` over
 every CPU), with ``perf`` installed (Debian: ``linux-perf``); otherwise exit 2. Late cycles of the moments perf
 was not yet or no longer recording are counted apart ("outside the perf record").
 
@@ -34,9 +33,11 @@ woken and not yet run), or **asleep**, and then how long after the send the kern
 answers so. The record adds perf's own cost of every switch and wake-up, not measured apart (docs/performance.md,
 "Where the worker was when answers came late").
 
-    scripts/late_causes.py --stations 62 --links ML3 --cycles 1ms --duration 15s --floor
-    scripts/late_causes.py --stations 30 --links ML2 --json late.json
-    scripts/late_causes.py --stations 8 --cycles 250us --floor --sched    # and where the answering process was
+Run from the repository's root, as root:
+
+    python -m benchmarks.lab.late_causes --stations 62 --links ML3 --cycles 1ms --duration 15s --floor
+    python -m benchmarks.lab.late_causes --stations 30 --links ML2 --json late.json
+    python -m benchmarks.lab.late_causes --stations 8 --cycles 250us --floor --sched   # where the answerer was
 """
 
 from __future__ import annotations
@@ -59,17 +60,15 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-import bench_floor
-from bench import watching_rtt, write_config
-
-from mlink_sim._files import write_atomically
 from mlink_sim.aio.session import NetworkSession
 from mlink_sim.aio.udp import new_event_loop
 from mlink_sim.cli.logs import configure_logging
 from mlink_sim.config import load_config, parse_duration_ns
 from mlink_sim.metrics import LatencyHistogram
+
+from benchmarks import floor as bench_floor
+from benchmarks.bench import watching_rtt, write_config
+from benchmarks.common import write_atomically
 
 __all__ = ["Sample", "LateCycle", "LateLog", "Switch", "Wakeup", "answerer_states", "attribute", "parse_sched",
            "parse_samples", "summarise"]
@@ -365,12 +364,9 @@ async def _floor(stations: int, size: int, cycle_ns: int, duration_s: float, tmp
         def __getattr__(self, name: str) -> Any:
             return getattr(self.histogram, name)
 
-    popen = subprocess.Popen
-
-    def spawn(*args: Any, **kwargs: Any) -> Any:
-        proc = popen(*args, **kwargs)
-        pids.add(proc.pid)
-        return proc
+    async def during(procs: list[int], seconds: float) -> None:  # the floor's client and server
+        pids.update(procs)
+        await asyncio.sleep(seconds)
 
     made: list[Any] = []
 
@@ -378,15 +374,14 @@ async def _floor(stations: int, size: int, cycle_ns: int, duration_s: float, tmp
         made.append(Recording() if not made else LatencyHistogram())
         return made[-1]
 
-    # perf first: Popen is patched below (the module's, shared), and perf must not count as the floor's process
     perf = _Perf(tmp / "floor.data", duration_s + PERF_LEAD_S + 0.5, sched)
-    saved = bench_floor.LatencyHistogram, bench_floor.subprocess.Popen
-    bench_floor.LatencyHistogram, bench_floor.subprocess.Popen = histogram, spawn  # type: ignore[misc,assignment]
-    await asyncio.sleep(max(0.0, PERF_LEAD_S - bench_floor._WARM_UP_S))  # the rest of the lead is the warm-up
+    saved = bench_floor.LatencyHistogram
+    bench_floor.LatencyHistogram = histogram  # type: ignore[misc,assignment]
+    await asyncio.sleep(max(0.0, PERF_LEAD_S - bench_floor.WARM_UP_S))  # the rest of the lead is the warm-up
     try:
-        await bench_floor.floor_window(stations, size, cycle_ns, duration_s, True, shared=True)
+        await bench_floor.floor_window(stations, size, cycle_ns, duration_s, True, shared=True, during=during)
     finally:
-        bench_floor.LatencyHistogram, bench_floor.subprocess.Popen = saved  # type: ignore[misc]
+        bench_floor.LatencyHistogram = saved  # type: ignore[misc]
     samples, names, events = perf.samples()
     return _judge("floor", log, count[0], samples, names, pids, events, pids - {os.getpid()})
 
@@ -430,7 +425,7 @@ def _print(result: dict[str, Any]) -> None:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.lab.late_causes", description=__doc__.split("\n\n")[0])
     ap.add_argument("--stations", type=int, default=62)
     ap.add_argument("--links", default="ML3", choices=("ML2", "ML3"))
     ap.add_argument("--cycles", default="1ms", help="the transmission cycle")

@@ -1,20 +1,19 @@
-#!/usr/bin/env python3
 """Recovery from host stalls: the simulator against its floor, both stopped by the same injected stalls.
 
-On a small shared machine the 1 ms cells of issue 21 miss more than their floor mostly in bursts: a host stall of
+On a small shared machine the 1 ms cells of the capacity targets miss more than their floor mostly in bursts: a host stall of
 a few ms (a kernel thread, the hypervisor) makes every answer of the cycles it covers late, and the simulator then
 takes longer than the floor to get back to answering within a cycle (docs/performance.md, "What bounds the 1 ms
-cells"). This script measures that recovery on purpose instead of waiting for the host to stall.
+cells"). This tool measures that recovery on purpose instead of waiting for the host to stall.
 
 For one cell (``--link``, ``--stations``, ``--cycle``) it measures, in turns of ``--duration`` each:
 
-* the simulator (a network as ``scripts/bench.py`` brings it up: the master in this process, the slave workers),
+* the simulator (a network as :mod:`benchmarks.bench` brings it up: the master in this process, the slave workers),
   once undisturbed and once with stalls injected;
-* its floor (``scripts/bench_floor.py``: one server process for all the stations, a client on the same
+* its floor (:mod:`benchmarks.floor`: one server process for all the stations, a client on the same
   ``CycleTimer``, the simulator's system calls), the same two ways.
 
 A stall is ``SIGSTOP`` of the chosen processes for ``--stall``, then ``SIGCONT``, every ``--every``, made by a helper
-process, ``scripts/stall_inject.py`` (standard library only, so that starting it costs next to no CPU; SCHED_FIFO
+process, :mod:`benchmarks.lab.stall_inject` (standard library only, so that starting it costs next to no CPU; SCHED_FIFO
 where granted, so that its timing does not depend on what it stops). ``--who`` chooses what stops: ``master`` (the
 master, or the floor's client), ``workers`` (the slave workers, or the floor's server) or ``both``. With ``--who
 both``, ``--lag`` continues the master (the client) that long after the workers (the server): a host stall that
@@ -23,18 +22,19 @@ default host-stall policy the cards' silence tolerance is its bound, 100 ms, so 
 docs/cards.md, "A backlog"). The helper continues whatever it stopped on every way out (its end, a SIGTERM, its
 parent's death) and reports the stalls it made, measured.
 
-The figure per side, from the missed exchanges of the two windows (``bench_figures``: due but not answered within
+The figure per side, from the missed exchanges of the two windows (:mod:`benchmarks.figures`: due but not answered within
 a cycle): **cycles missed per stall** = (missed with stalls − missed without, scaled to the same number of
 exchanges due) ÷ stations ÷ stalls made. Both sides stamp a command when it is sent, so what a stall costs by
 itself depends on what it stops: stopping the server alone makes late the answers of the cycles it covers (about
 stall ÷ cycle cycles); stopping the client as well delays the commands too, and a floor then loses next to nothing.
 Whatever the simulator loses beyond its floor is its recovery: the last line gives the difference and the ratio.
 
-    scripts/bench_recovery.py                                     # 62 ML-III @ 1 ms, 3 ms stalls of both, 10 s turns
-    scripts/bench_recovery.py --who workers --stall 5ms --every 250ms
-    scripts/bench_recovery.py --who both --lag 500us                # the workers continued first
-    scripts/bench_recovery.py --stations 30 --link ML2 --rounds 3 --json recovery.json
-    flock -x /tmp/mlink-cpu.lock .venv/bin/python scripts/bench_recovery.py …   # as every timing on a shared machine
+Run from the repository's root:
+
+    python -m benchmarks.lab.recovery                           # 62 ML-III @ 1 ms, 3 ms stalls of both, 10 s turns
+    python -m benchmarks.lab.recovery --who workers --stall 5ms --every 250ms
+    python -m benchmarks.lab.recovery --who both --lag 500us      # the workers continued first
+    python -m benchmarks.lab.recovery --stations 30 --link ML2 --rounds 3 --json recovery.json
 
 Loops are bounded by ``--duration`` × ``--rounds``; traffic stays on loopback. Exit status: 0 with the figures
 (a benchmark reports, it does not gate), 2 for bad options or a window that could not be measured (the message
@@ -57,22 +57,19 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "scripts"))
+from mlink_sim.aio import mmsg
+from mlink_sim.config import format_ns, load_config, parse_duration_ns
 
-import bench  # noqa: E402
-from bench_figures import During, Window, add_window  # noqa: E402
-from bench_floor import floor_window  # noqa: E402
-from stall_inject import signal_all  # noqa: E402
-
-from mlink_sim._files import write_atomically  # noqa: E402
-from mlink_sim.aio import mmsg  # noqa: E402
-from mlink_sim.config import format_ns, load_config, parse_duration_ns  # noqa: E402
+from benchmarks import bench
+from benchmarks.common import child_env, module_command, write_atomically
+from benchmarks.figures import During, Window, add_window
+from benchmarks.floor import floor_window
+from benchmarks.lab.stall_inject import signal_all
 
 __all__ = ["Recovery", "recovery", "stalled_pids"]
 
 WHO = ("both", "master", "workers")
+INJECTOR = "benchmarks.lab.stall_inject"  #: the helper that makes the stalls, run as ``python -m``
 
 
 # ----------------------------------------------------------------------------------------------- the injector
@@ -83,7 +80,7 @@ def stalled_pids(who: str, pids: list[int]) -> list[int]:
 
 
 def injector_args(who: str, pids: list[int], lag_ns: int = 0) -> list[str]:
-    """The PID arguments of ``scripts/stall_inject.py`` for *who* (:func:`stalled_pids`); with *lag_ns* (``both``
+    """The PID arguments of :mod:`benchmarks.lab.stall_inject` for *who* (:func:`stalled_pids`); with *lag_ns* (``both``
     only), the workers (the floor's server) first and the master (its client) ``--later``."""
     if lag_ns and who == "both":
         return [*map(str, pids[1:]), "--later", str(lag_ns), str(pids[0])]
@@ -91,15 +88,15 @@ def injector_args(who: str, pids: list[int], lag_ns: int = 0) -> list[str]:
 
 
 def injecting(who: str, stall_ns: int, every_ns: int, reports: list[dict[str, Any]], lag_ns: int = 0) -> During:
-    """A window's ``during``: ``scripts/stall_inject.py`` stops the side's processes as *who* says (the master
+    """A window's ``during``: :mod:`benchmarks.lab.stall_inject` stops the side's processes as *who* says (the master
     continued *lag_ns* after the workers), from now until the window's end; its report goes to *reports*.
     Cancelled, it terminates the helper, which continues them."""
     async def during(pids: list[int], duration_s: float) -> None:
         chosen = stalled_pids(who, pids)
         start = time.monotonic_ns()
         proc = await asyncio.create_subprocess_exec(
-            sys.executable, str(ROOT / "scripts" / "stall_inject.py"), str(stall_ns), str(every_ns), str(start),
-            str(start + round(duration_s * 1e9)), *injector_args(who, pids, lag_ns), stdout=asyncio.subprocess.PIPE)
+            *module_command(INJECTOR, str(stall_ns), str(every_ns), str(start), str(start + round(duration_s * 1e9)),
+                            *injector_args(who, pids, lag_ns)), stdout=asyncio.subprocess.PIPE, env=child_env())
         try:
             out, _ = await proc.communicate()
         finally:
@@ -108,7 +105,7 @@ def injecting(who: str, stall_ns: int, every_ns: int, reports: list[dict[str, An
                 await proc.wait()
             signal_all(chosen, signal.SIGCONT)  # the helper continues them itself; this covers one killed outright
         if proc.returncode != 0:
-            raise RuntimeError(f"scripts/stall_inject.py exited {proc.returncode}")
+            raise RuntimeError(f"{INJECTOR} exited {proc.returncode}")
         reports.append(json.loads(out))
     return during
 
@@ -249,7 +246,7 @@ def run(loop: asyncio.AbstractEventLoop, tmp: Path, plan: Plan) -> list[Recovery
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.lab.recovery", description=__doc__.split("\n\n")[0])
     ap.add_argument("--link", default="ML3", help="ML2 or ML3 (default ML3)")
     ap.add_argument("--stations", type=int, default=62, help="stations on the line (default 62)")
     ap.add_argument("--cycle", default="1ms", help="transmission cycle (default 1ms)")
@@ -263,7 +260,7 @@ def main() -> int:
     ap.add_argument("--duration", default="10s", help="each turn's measuring time (default 10s)")
     ap.add_argument("--rounds", type=int, default=1, help="rounds of the four turns (default 1)")
     ap.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 1) - 1),
-                    help="slave worker processes (default: one per CPU but one, as bench.py)")
+                    help="slave worker processes (default: one per CPU but one, as the capacity sweep)")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures here")
     args = ap.parse_args()
     try:
@@ -271,14 +268,14 @@ def main() -> int:
         if args.json is not None and not args.json.resolve().parent.is_dir():
             raise ValueError(f"--json: no directory {args.json.resolve().parent}")
     except ValueError as exc:
-        print(f"bench_recovery.py: {exc}", file=sys.stderr)
+        print(f"recovery: {exc}", file=sys.stderr)
         return 2
     try:
-        sides = bench.measuring("bench_recovery.py", lambda loop, tmp: run(loop, tmp, plan))
+        sides = bench.measuring("recovery", lambda loop, tmp: run(loop, tmp, plan))
     except bench.Interrupted as exc:
         return exc.code
     except (RuntimeError, OSError, ValueError) as exc:
-        print(f"bench_recovery.py: a window could not be measured: {exc}", file=sys.stderr)
+        print(f"recovery: a window could not be measured: {exc}", file=sys.stderr)
         return 2
     print(f"{plan.link} {plan.stations} stations @ {format_ns(plan.cycle_ns)}, stalls of {format_ns(plan.stall_ns)} "
           f"every {format_ns(plan.every_ns)} stopping {plan.who}"
@@ -294,7 +291,7 @@ def main() -> int:
         try:
             write_atomically(args.json, json.dumps(doc, indent=1))
         except OSError as exc:
-            print(f"bench_recovery.py: could not write {args.json}: {exc} (the table above is the run's)",
+            print(f"recovery: could not write {args.json}: {exc} (the table above is the run's)",
                   file=sys.stderr)
             return 1
         print(f"wrote {args.json}", file=sys.stderr)

@@ -1,16 +1,16 @@
-#!/usr/bin/env python3
 """Host stalls on purpose: stop processes with SIGSTOP for a while, periodically, and always continue them.
 
-The helper of ``scripts/bench_recovery.py``, which starts it for each window it disturbs:
+The helper of :mod:`benchmarks.lab.recovery`, which starts it for each window it disturbs:
 
-    stall_inject.py STALL_NS EVERY_NS START_NS END_NS PID… [--later LAG_NS PID…]
+    python -m benchmarks.lab.stall_inject STALL_NS EVERY_NS START_NS END_NS PID… [--later LAG_NS PID…]
 
 stops every PID for STALL_NS (SIGSTOP, then SIGCONT) every EVERY_NS, the first at START_NS + EVERY_NS, the last
 ending by END_NS (times on CLOCK_MONOTONIC, which every process of the host shares), then prints one JSON line:
 ``{"stalls_ns": [each stall as measured], "scheduling": "SCHED_FIFO 60" or why not}``. The PIDs after
 ``--later`` are stopped with the others and continued LAG_NS after them: a host stall after which one process runs
 before another (the slave workers' tick before the master's catch-up). It imports nothing but the
-standard library, so that starting it costs the measured processes next to no CPU. It asks for SCHED_FIFO above
+standard library (and :mod:`benchmarks.common`, which does the same), so that starting it costs the measured
+processes next to no CPU. It asks for SCHED_FIFO above
 ``mlink-sim up --realtime``'s priorities and for every CPU, so that what it stops cannot delay its SIGCONT; refused,
 it runs as it is and says so. Every process it stopped is continued whichever way it ends: its end, SIGTERM or
 SIGINT (exit 143 / 130, no report), or its parent's death (it asks for SIGTERM then). Exit 2 for bad arguments.
@@ -19,17 +19,17 @@ SIGINT (exit 143 / 130, no report), or its parent's death (it asks for SIGTERM t
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import json
 import os
 import signal
 import sys
 import time
 
+from benchmarks.common import die_with_parent
+
 __all__ = ["PRIORITY", "inject", "signal_all"]
 
 PRIORITY = 60  #: SCHED_FIFO priority: above the master's 40 and the workers' 30 (``mlink_sim.aio.realtime``)
-_PR_SET_PDEATHSIG = 1
 
 
 def signal_all(pids: list[int], sig: int) -> None:
@@ -73,8 +73,7 @@ def inject(pids: list[int], stall_ns: int, every_ns: int, start_ns: int, end_ns:
 
 def _prepare() -> str:
     """Die with the parent, every CPU, SCHED_FIFO where granted; returns what scheduling it got."""
-    with contextlib.suppress(OSError, AttributeError):
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    die_with_parent()
     with contextlib.suppress(OSError):
         os.sched_setaffinity(0, range(os.cpu_count() or 1))
     try:
@@ -92,7 +91,7 @@ def main(argv: list[str]) -> int:
         if not pids or stall_ns <= 0 or lag_ns < 0 or every_ns <= stall_ns + lag_ns or (cut < len(argv) and not later):
             raise ValueError
     except ValueError:
-        print("usage: stall_inject.py STALL_NS EVERY_NS START_NS END_NS PID… [--later LAG_NS PID…] "
+        print("usage: python -m benchmarks.lab.stall_inject STALL_NS EVERY_NS START_NS END_NS PID… [--later LAG_NS PID…] "
               "(STALL_NS > 0, EVERY_NS > STALL_NS + LAG_NS)", file=sys.stderr)
         return 2
     for sig, code in ((signal.SIGTERM, 143), (signal.SIGINT, 130)):

@@ -1,21 +1,20 @@
-#!/usr/bin/env python3
-"""What ``--capture`` costs per datagram (the target of issue 20: at most 2 µs of CPU per datagram on the quickstart).
+"""What ``--capture`` costs per datagram (its target: at most 2 µs of CPU per datagram on the quickstart).
 
 Everything is CPU time (user + system), never wall time. The **headline** is the sum of two parts, each measured
 apart where its noise is small, quoted as the median [p10, p90] over ``--repeat`` repeats:
 
 * **(a) the tap**, what the event loop pays per datagram: the master's own I/O calls bare and tapped on
   loopback, in alternating blocks of at most 1 000 datagrams (process CPU time): a ``BurstSocket`` (the
-  uncaptured run's socket) against a ``TappedBurstSocket`` (``mlink_sim.aio.tapped``), or with ``MLINK_MMSG=0``
-  a plain socket against a :class:`TappedSocket`. Every kind of call the quickstart makes (``sendto`` of one
+  uncaptured run's socket) against a ``TappedBurstSocket`` (``mlink_sim.aio.tapped``), or, where the kernel
+  lacks the batched calls, a plain socket against a :class:`TappedSocket`. Every kind of call the quickstart makes (``sendto`` of one
   command, ``sendmmsg`` of k, a read of k answers) is measured and weighted by how often its capture holds it
   (:func:`io_calls`);
 * **(b) the writer**, what turning the queue into the file costs per datagram (thread CPU time,
   ``CaptureStats.writer_cpu_s``), **in situ**: the writer thread's own CPU in the real-clock quickstart runs below
   (median over the runs). Also shown (and used for the headline with ``--no-real``): a **replay** of the
   datagrams and notes of a quickstart capture through a :class:`CaptureWriter`, in the 250-ms batches its thread
-  takes, with the sources of answers shared as the batched tap shares them (fresh tuples with ``MLINK_MMSG=0``,
-  as ``recvfrom`` makes them). The replay is about 0.5-0.65 of the in-situ figure on the 2-vCPU VM
+  takes, with the sources of answers shared as the batched tap shares them (fresh tuples without the batched
+  calls, as ``recvfrom`` makes them). The replay is about 0.5-0.65 of the in-situ figure on the 2-vCPU VM
   (docs/performance.md, "Capture", has what was ruled out).
 
 **Cross-checks**, in the same run: ``mlink-sim up quickstart`` with and without ``--capture``, the two runs of a
@@ -29,9 +28,9 @@ virtual clock it is the whole cost (no tap: the fabric records directly), and it
 each run's report gives the CPU from the session's start to its report (``meta.wall.cpu_s``), without the start-up
 and imports that make most of the process's CPU and most of its noise.
 
-Run it on a quiet machine, under the lock, and keep it short (about 1.5 minutes with the defaults)::
+Run it from the repository's root on a quiet machine, and keep it short (about 1.5 minutes with the defaults)::
 
-    flock -x /tmp/mlink-cpu.lock python scripts/bench_capture.py [--repeat 7] [--n 20000] [--pairs 3]
+    python -m benchmarks.micro.capture [--repeat 7] [--n 20000] [--pairs 3]
         [--virtual-pairs 7] [--duration 4] [--no-real] [--no-virtual] [--json]
 
 Exit status 0 when the headline (a) + (b) is at most the target, and so is the virtual-clock figure when it ran;
@@ -44,7 +43,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import resource
 import shutil
@@ -63,7 +61,6 @@ from mlink_sim.aio import mmsg
 from mlink_sim.aio.tapped import TappedBurstSocket
 from mlink_sim.capture import CaptureWriter, TappedSocket, read_capture
 
-ROOT = Path(__file__).resolve().parents[1]
 TARGET_US = 2.0
 #: the capture-off virtual runs do the same work: when the slowest took more than this times the CPU of the fastest,
 #: the machine's speed changed during the pairs (a busy host), and their on − off differences say nothing
@@ -71,13 +68,15 @@ DRIFT = 1.25
 FLUSH_NS = 250_000_000  # the writer thread's wake-up period (CaptureWriter.flush_s)
 RESPONSE = 0x02  # envelope byte 2, kind: 01H command, 02H response (docs/wire-format.md §1)
 
-#: run mlink-sim with the capture libraries imported first, and write the process's own CPU time at exit
+#: run mlink-sim with the capture libraries imported first, and write the process's own CPU time at exit to the
+#: file its first argument names (``python -c _WRAP CPU_FILE up …``)
 _WRAP = """
-import atexit, os, resource, sys
+import atexit, resource, sys
 import mlink_sim.capture, mlink_sim.capture.writer, mlink_sim.capture.tap
+_CPU_FILE = sys.argv.pop(1)
 def _cpu():
     ru = resource.getrusage(resource.RUSAGE_SELF)
-    with open(os.environ["MLINK_BENCH_CPU"], "w") as f:
+    with open(_CPU_FILE, "w") as f:
         f.write(repr(ru.ru_utime + ru.ru_stime))
 atexit.register(_cpu)
 from mlink_sim.cli import main
@@ -154,8 +153,7 @@ def hot_path(calls: Counter[tuple[str, int]], n: int, repeat: int) -> dict[str, 
     adds per datagram with the calls weighted as *calls* counts them (the records go to a deque, as in a run;
     turning them into the file is the writer's part (b)).
 
-    What is measured is what the master runs: with ``sendmmsg``/``recvmmsg`` supported (and ``MLINK_MMSG`` not
-    0), a :class:`~mlink_sim.aio.mmsg.BurstSocket` (the uncaptured run) against a
+    What is measured is what the master runs: with ``sendmmsg``/``recvmmsg`` supported, a :class:`~mlink_sim.aio.mmsg.BurstSocket` (the uncaptured run) against a
     :class:`~mlink_sim.capture.tap.TappedBurstSocket` (``sendto`` for one command, ``send_burst`` for more,
     ``recv_burst(k)`` for the answers); without, a plain socket against a :class:`TappedSocket` (``sendto`` and
     ``recv`` per datagram). Bare and tapped alternate in blocks of at most 1 000 datagrams."""
@@ -203,7 +201,7 @@ def hot_path(calls: Counter[tuple[str, int]], n: int, repeat: int) -> dict[str, 
                             b.sendto(payload, master)
                         spent[name] += _cpu(reader(s, k, per))
                         if name == "tapped" and len(queue) != per * k:  # every read found its k answers
-                            sys.exit(f"bench_capture: {len(queue)} answers read of {per * k} sent (dropped?)")
+                            sys.exit(f"capture: {len(queue)} answers read of {per * k} sent (dropped?)")
                 queue.clear()
             for name in cpu:
                 cpu[name].append(spent[name] / (blocks * per) * 1e6)
@@ -222,7 +220,7 @@ def traffic_of(path: Path) -> list[Item]:
     """The datagrams and notes of a capture, in order, as the hot path queued them: ``(ts_ns, datagram, src,
     dst)`` and, after a datagram, its comments as notes ``(ts_ns, text, None, None)``. The master's own addresses
     are shared objects (the tap's ``local``, the master's endpoint table), and so is the source of an answer read
-    with ``recvmmsg`` (the tap keeps one tuple per source); with ``MLINK_MMSG=0`` it is a fresh tuple and string
+    with ``recvmmsg`` (the tap keeps one tuple per source); without the batched calls it is a fresh tuple and string
     (``recvfrom`` makes new ones for every datagram)."""
     shared: dict[Any, Any] = {}
     fresh = not mmsg.supported()
@@ -296,15 +294,14 @@ def _up(args: list[str], capture: bool, keep: Path | None) -> tuple[float, int, 
     virtual = "virtual" in args
     with tempfile.TemporaryDirectory() as tmp:
         cpu_file, report = Path(tmp) / "cpu", Path(tmp) / "report.json"
-        cmd = [sys.executable, "-c", _WRAP, "up", "quickstart", "--no-status", *args]
+        cmd = [sys.executable, "-c", _WRAP, str(cpu_file), "up", "quickstart", "--no-status", *args]
         if capture:
             cmd += ["--capture", str(Path(tmp) / "q.pcapng")]
         if virtual:
             cmd += ["--report", str(report)]
-        proc = subprocess.run(cmd, capture_output=True, text=True, check=False,
-                              env={**os.environ, "MLINK_BENCH_CPU": str(cpu_file)})
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
         if not cpu_file.exists() or (virtual and not report.exists()):
-            sys.exit(f"bench_capture: {' '.join(cmd[3:])} failed (exit {proc.returncode}): {proc.stderr[-2000:]}")
+            sys.exit(f"capture: {' '.join(cmd[4:])} failed (exit {proc.returncode}): {proc.stderr[-2000:]}")
         own = float(cpu_file.read_text())
         run = float(json.loads(report.read_text())["meta"]["wall"]["cpu_s"]) if virtual else None
         if capture and keep is not None:
@@ -312,7 +309,7 @@ def _up(args: list[str], capture: bool, keep: Path | None) -> tuple[float, int, 
     m = re.search(r"capture \S+: (\d+) datagrams", proc.stderr)
     w = re.search(r"writer ([\d.]+) us CPU per datagram", proc.stderr)
     if capture and m is None:
-        sys.exit(f"bench_capture: no capture summary from {' '.join(cmd[3:])}: {proc.stderr[-2000:]}")
+        sys.exit(f"capture: no capture summary from {' '.join(cmd[4:])}: {proc.stderr[-2000:]}")
     return own, int(m.group(1)) if m else 0, float(w.group(1)) if w else float("nan"), run
 
 
@@ -440,7 +437,7 @@ def report(r: dict[str, Any], duration: float) -> None:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.micro.capture", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n", type=int, default=20_000, help="datagrams per tap measurement")
     ap.add_argument("--repeat", type=int, default=7, help="repeats of (a) and (b)")
     ap.add_argument("--pairs", type=int, default=3, help="quickstart pairs (capture off/on) per clock")

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Benchmark the drive model: ns per model step per station at a 1 ms step.
 
 Cases (each a fresh drive, A1000 family, 3.7 kW motor, ``LoadSpec`` as named):
@@ -13,7 +12,7 @@ Cases (each a fresh drive, A1000 family, 3.7 kW motor, ``LoadSpec`` as named):
 
 Each figure is the median over ``--repeat`` runs of ``timeit`` (``--number`` steps per run),
 divided by the number of steps.  The last line is one JSON object with the same figures.
-Run: ``.venv/bin/python scripts/bench_drive.py``.
+Run from the repository's root: ``python -m benchmarks.micro.drive``.
 """
 
 from __future__ import annotations
@@ -23,11 +22,7 @@ import json
 import os
 import platform
 import statistics
-import sys
 import timeit
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from mlink_sim.drive import Drive, DriveCommand, DriveSettings, Family, LoadSpec
 
@@ -102,7 +97,7 @@ def measure(case: Case, number: int, repeat: int) -> tuple[float, float]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.micro.drive", description=__doc__.splitlines()[0])
     ap.add_argument("--number", type=int, default=5000, help="steps per timing run")
     ap.add_argument("--repeat", type=int, default=7, help="timing runs (median taken)")
     ap.add_argument("--stations", type=int, default=62, help="stations per process")

@@ -1,7 +1,6 @@
-#!/usr/bin/env python3
 """CPU per station exchange on the sans-I/O cores: master encode, card receive, master decode (no sockets).
 
-    .venv/bin/python scripts/bench_exchange.py [--stations 9] [--cycles 3000]
+    python -m benchmarks.micro.exchange [--stations 9] [--cycles 3000]      # from the repository's root
 
 The master core (``mlink_sim.master.MasterCore``) drives SI-T3 (ML-II, 17-byte) or SI-ET3 (ML-III, 32-byte)
 card cores in memory on an explicit 1 ms clock; after bring-up and a settling period, each step is timed with
@@ -14,9 +13,6 @@ import argparse
 import json
 import sys
 import time
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from mlink_sim.cards import create_card, settings_for
 from mlink_sim.cli.logs import configure_logging
@@ -69,12 +65,12 @@ def measure(link: Link, stations: int, cycles: int) -> dict[str, float]:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.micro.exchange", description=__doc__.split("\n\n")[0])
     ap.add_argument("--stations", type=int, default=9)
     ap.add_argument("--cycles", type=int, default=3000)
     args = ap.parse_args()
     if args.stations < 1 or args.cycles < 1:
-        print("bench_exchange.py: --stations and --cycles must be ≥ 1", file=sys.stderr)
+        print("exchange: --stations and --cycles must be ≥ 1", file=sys.stderr)
         return 2
     configure_logging(level="error")
     out = {}

@@ -1,7 +1,6 @@
-#!/usr/bin/env python3
 """The metrics' recording path and report path: ns per call, and ms per report step over a full line's histograms.
 
-    .venv/bin/python scripts/bench_histogram.py [--stations 62] [--values 600000] [--repeat 7] [--calls 200000]
+    python -m benchmarks.micro.histogram [--stations 62] [--values 600000] [--repeat 7] [--calls 200000]
 
 Recording (ns per call, best of *repeat* loops of *calls* calls, the empty loop's cost taken off):
 ``LatencyHistogram.record`` of one value; the same over *stations* histograms with RTT-like values (lognormal,
@@ -11,10 +10,9 @@ median ≈ 200 µs, so that the counts are spread as in a running master); ``Net
 Report path (ms, best of 5), over *stations* histograms holding *values* RTT-like values in all: ``copy`` (what a
 snapshot of the metrics does per station), ``summary``, ``LatencyHistogram.merged`` and ``to_pairs``.
 
-Prints one line per figure and one JSON line. docs/report.md ("Cost on the recording path") and
-docs/performance.md ("Where the time goes, profiled (session 16)") quote it. Run it under the CPU lock, as every
-timing on the shared machine, and compare builds in the same sitting (e.g. a checkout of the previous commit
-with its own ``.venv``, alternated).
+Prints one line per figure, whether the cores are compiled, and one JSON line. docs/report.md ("Cost on the
+recording path") quotes it. Run it from the repository's root on a quiet machine, and compare builds in the same
+sitting (e.g. a checkout of the previous commit with its own ``.venv``, alternated).
 """
 
 from __future__ import annotations
@@ -25,12 +23,10 @@ import random
 import sys
 import time
 from collections.abc import Callable
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from mlink_sim import _accel
 from mlink_sim.metrics import LatencyHistogram, NetworkMetrics
+
+from benchmarks.common import cores
 
 def rtt_like(n: int, seed: int = 1) -> list[int]:
     """*n* values in ns, lognormal with median e^12.2 ≈ 199 µs: the spread of a 62-station line's RTTs."""
@@ -117,23 +113,23 @@ def report_path(stations: int, values: int) -> dict[str, float]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.micro.histogram", description=__doc__.split("\n\n")[0])
     ap.add_argument("--stations", type=int, default=62, help="histograms (one per station)")
     ap.add_argument("--values", type=int, default=600_000, help="values in the report path's histograms, in all")
     ap.add_argument("--repeat", type=int, default=7, help="loops per recording figure (the best is kept)")
     ap.add_argument("--calls", type=int, default=200_000, help="calls per loop")
     args = ap.parse_args(argv)
     if min(args.stations, args.values, args.repeat, args.calls) < 1:
-        print("bench_histogram.py: --stations, --values, --repeat and --calls must be ≥ 1", file=sys.stderr)
+        print("histogram: --stations, --values, --repeat and --calls must be ≥ 1", file=sys.stderr)
         return 2
     rec = recording(args.stations, args.repeat, args.calls)
     rep = report_path(args.stations, args.values)
-    print(f"cores: {_accel.MODE}")
+    print(f"cores: {cores(LatencyHistogram)}")
     for name, ns in rec.items():
         print(f"{name}: {ns:.0f} ns per call")
     for name, ms in rep.items():
         print(f"{name} of {args.stations} histograms: {ms:.2f} ms")
-    print(json.dumps({"cores": _accel.MODE, "stations": args.stations, "values": args.values,
+    print(json.dumps({"cores": cores(LatencyHistogram), "stations": args.stations, "values": args.values,
                       "recording_ns": {k: round(v, 1) for k, v in rec.items()},
                       "report_ms": {k: round(v, 2) for k, v in rep.items()}}))
     return 0

@@ -1,5 +1,4 @@
-#!/usr/bin/env python3
-"""What the impairment layer costs per datagram (docs/faults.md, "Cost"; issue 19 target: an idle layer at most
+"""What the impairment layer costs per datagram (docs/faults.md, "Cost"; its target: an idle layer at most
 1 µs per datagram), and the realised loss rate over real UDP on the wall clock.
 
 Cases (each timed in batches of ``--batch`` datagrams, ``--batches`` times; per-datagram figures are a batch's
@@ -25,7 +24,7 @@ send to read), and ``--loss-check N``: N datagrams (default 10,000) from one loo
 at 5 % for 10 s (10,000 commands). The card's own count of reception failures (SI-T3 Table 22), divided by the
 commands sent meanwhile, must be within ±10 % of 5 %; so must the layer's drops. The last line is JSON.
 
-Run under the lock: ``flock -x /tmp/mlink-cpu.lock .venv/bin/python scripts/bench_impair.py``.
+Run from the repository's root on a quiet machine: ``python -m benchmarks.micro.impair``.
 """
 
 from __future__ import annotations
@@ -40,11 +39,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from mlink_sim.aio.impaired import ImpairedSocket  # noqa: E402
-from mlink_sim.impair import Direction, Impairment, ImpairmentLayer  # noqa: E402
+from mlink_sim.aio.impaired import ImpairedSocket
+from mlink_sim.impair import Direction, Impairment, ImpairmentLayer
 
 DATAGRAM = bytes([0x4D, 2, 1, 0x21]) + bytes(42) + b"\x00\x00"  # a 32-byte MECHATROLINK-II command's size
 TARGET_NS = 1_000
@@ -245,7 +241,7 @@ async def delay_check(n: int, delay_ns: int) -> dict[str, float]:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.micro.impair", description=__doc__.splitlines()[0])
     parser.add_argument("--batch", type=int, default=1000)
     parser.add_argument("--batches", type=int, default=200)
     parser.add_argument("--loss-check", type=int, default=10_000, metavar="N")
