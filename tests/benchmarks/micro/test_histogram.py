@@ -1,23 +1,20 @@
-"""scripts/bench_histogram.py: its figures on small sizes (no timing asserted), and a clear refusal of bad sizes."""
+"""benchmarks.micro.histogram: its figures on small sizes (no timing asserted), and a clear refusal of bad sizes."""
 
 from __future__ import annotations
 
 import json
 
 
-from .scripts_loader import script_fixture
+from benchmarks.micro import histogram
 
 
-bench = script_fixture("bench", "bench_histogram.py")
-
-
-def test_rtt_like_values_centre_near_200_us(bench) -> None:
-    values = sorted(bench.rtt_like(2001))
+def test_rtt_like_values_centre_near_200_us() -> None:
+    values = sorted(histogram.rtt_like(2001))
     assert 150_000 < values[1000] < 260_000
 
 
-def test_a_short_run_prints_every_figure_and_one_json_line(bench, capsys) -> None:
-    assert bench.main(["--stations", "4", "--values", "400", "--repeat", "1", "--calls", "2000"]) == 0
+def test_a_short_run_prints_every_figure_and_one_json_line(capsys) -> None:
+    assert histogram.main(["--stations", "4", "--values", "400", "--repeat", "1", "--calls", "2000"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     doc = json.loads(lines[-1])
     assert set(doc["recording_ns"]) == {"record", "record_over_4", "record_rtt", "record_sent",
@@ -27,7 +24,7 @@ def test_a_short_run_prints_every_figure_and_one_json_line(bench, capsys) -> Non
     assert doc["stations"] == 4 and doc["values"] == 400 and lines[0] == f"cores: {doc['cores']}"
 
 
-def test_bad_sizes_exit_2_with_a_message(bench, capsys) -> None:
+def test_bad_sizes_exit_2_with_a_message(capsys) -> None:
     for bad in (["--stations", "0"], ["--calls", "-1"]):
-        assert bench.main(bad) == 2
+        assert histogram.main(bad) == 2
         assert "must be ≥ 1" in capsys.readouterr().err
