@@ -37,6 +37,7 @@ import statistics
 import sys
 import time
 from collections.abc import Callable
+from typing import Any
 from pathlib import Path
 
 from mlink_sim.aio.impaired import ImpairedSocket
@@ -65,7 +66,7 @@ def _drain(sock: socket.socket) -> int:
             return n
 
 
-def timed(fn: Callable[[int], None], batch: int, batches: int, after: Callable[[], None] = lambda: None) -> list[float]:
+def timed(fn: Callable[[int], None], batch: int, batches: int, after: Callable[[], object] = lambda: None) -> list[float]:
     """Per-datagram ns of *fn(batch)*, one figure per batch."""
     out = []
     fn(batch)  # warm-up
@@ -189,7 +190,7 @@ for = "10s"
 """
 
 
-def up_check(seed: int) -> dict[str, object]:
+def up_check(seed: int) -> dict[str, Any]:
     """``mlink-sim up`` with 5 % loss to the station for 10 s; the card's reception failures against the drops."""
     import subprocess
     import tempfile

@@ -1,21 +1,19 @@
-"""scripts/bench_control.py: the late answers of a query's window against as many background windows between
+"""benchmarks.lab.control: the late answers of a query's window against as many background windows between
 queries (synthetic read times), its refusals, and one short live run."""
 
 from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
-from .scripts_loader import ROOT, script_fixture
+from benchmarks.common import child_env, module_command
+from benchmarks.lab import control
 
 MS = 1_000_000
 
-bc = script_fixture("bc", "bench_control.py")
 
-
-def test_late_answers_in_a_query_s_window_are_the_query_s_and_half_an_interval_later_the_background(bc) -> None:
+def test_late_answers_in_a_query_s_window_are_the_query_s_and_half_an_interval_later_the_background() -> None:
     every = 500 * MS
     queries = [(1000 * MS, 1002 * MS), (1500 * MS, 1501 * MS)]
     late = sorted([
@@ -27,13 +25,13 @@ def test_late_answers_in_a_query_s_window_are_the_query_s_and_half_an_interval_l
         1754 * MS,         # the second background window (1749 .. 1754 ms)
         1754 * MS + 1,     # just beyond it
     ])
-    assert bc.attribute(late, queries, every) == (3, 2)
-    assert bc.attribute([], queries, every) == (0, 0)
+    assert control.attribute(late, queries, every) == (3, 2)
+    assert control.attribute([], queries, every) == (0, 0)
 
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, str(ROOT / "scripts" / "bench_control.py"), *args],
-                          capture_output=True, text=True, timeout=120)
+    return subprocess.run(module_command("benchmarks.lab.control", *args), capture_output=True, text=True,
+                          timeout=120, env=child_env())
 
 
 def test_wrong_arguments_are_refused_with_exit_2_and_no_traceback() -> None:
@@ -41,7 +39,7 @@ def test_wrong_arguments_are_refused_with_exit_2_and_no_traceback() -> None:
                  ["--cycles", "soon"]):
         out = _run(*args)
         assert out.returncode == 2, args
-        assert out.stderr.startswith("bench_control.py: ") and "Traceback" not in out.stderr
+        assert out.stderr.startswith("control: ") and "Traceback" not in out.stderr
 
 
 def test_a_short_live_run_reports_each_op(tmp_path: Path) -> None:

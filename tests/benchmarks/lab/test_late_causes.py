@@ -1,4 +1,4 @@
-"""scripts/late_causes.py: late answers grouped into late cycles, and each named by what the perf samples show in
+"""benchmarks.lab.late_causes: late answers grouped into late cycles, and each named by what the perf samples show in
 its window (synthetic samples: no perf, no network)."""
 
 from __future__ import annotations
@@ -7,22 +7,19 @@ import asyncio
 import os
 from pathlib import Path
 
-from .scripts_loader import script_fixture
+from benchmarks.lab import late_causes as lc
 
 MS = 1_000_000
 OURS = {100, 101}  # the master and its worker
 NAMES = {75: "kdamond.0", 7591: "memfd:sealed-91"}
 
 
-lc = script_fixture("lc", "late_causes.py")
-
-
-def _samples(lc, start: int, end: int, cpu: int, pid: int, sym: str = "main") -> list:
+def _samples(start: int, end: int, cpu: int, pid: int, sym: str = "main") -> list:
     """A sample each 50 µs of [start, end) on *cpu*."""
     return [lc.Sample(t, cpu, pid, sym) for t in range(start, end, lc.SAMPLE_NS)]
 
 
-def _cycle(lc, sent: int = 10 * MS, rtt: int = 2 * MS):
+def _cycle(sent: int = 10 * MS, rtt: int = 2 * MS):
     log = lc.LateLog(capacity=64)
     for _ in range(62):  # one cycle's 62 answers, all late
         log.add(sent + rtt, rtt)
@@ -30,7 +27,7 @@ def _cycle(lc, sent: int = 10 * MS, rtt: int = 2 * MS):
     return cycle
 
 
-def test_perf_script_lines_become_samples_by_time(lc) -> None:
+def test_perf_script_lines_become_samples_by_time() -> None:
     lines = [  # perf script -F pid,cpu,time,event,ip,sym (the comm taken off by the reader)
         "8464 [000] 12803.132803:                cpu-clock:  ffffffff8225295b pv_native_safe_halt",
         "75 [001] 12803.132700:                cpu-clock:  ffffffff81aa1234 damon_pa_apply_scheme",
@@ -43,7 +40,7 @@ def test_perf_script_lines_become_samples_by_time(lc) -> None:
                                        lc.Sample(12803132900000, 1, 10508, "")]
 
 
-def test_late_answers_of_one_cycle_are_one_late_cycle_and_cycles_apart_are_two(lc) -> None:
+def test_late_answers_of_one_cycle_are_one_late_cycle_and_cycles_apart_are_two() -> None:
     log = lc.LateLog(capacity=4)
     log.add(12 * MS, 2 * MS)        # sent at 10 ms
     log.add(12 * MS + 50_000, 2 * MS)  # sent 50 µs later: the same cycle
@@ -55,40 +52,40 @@ def test_late_answers_of_one_cycle_are_one_late_cycle_and_cycles_apart_are_two(l
     assert log.dropped == 1
 
 
-def test_a_host_task_holding_a_cpu_is_named(lc) -> None:
-    c = _cycle(lc)
-    samples = (_samples(lc, 10 * MS, 11_800_000, 0, 75, "damon_pa_apply_scheme")  # 1.8 ms of 2 ms on CPU 0
-               + _samples(lc, 11_800_000, 12 * MS, 0, 101) + _samples(lc, 10 * MS, 12 * MS, 1, 0))
+def test_a_host_task_holding_a_cpu_is_named() -> None:
+    c = _cycle()
+    samples = (_samples(10 * MS, 11_800_000, 0, 75, "damon_pa_apply_scheme")  # 1.8 ms of 2 ms on CPU 0
+               + _samples(11_800_000, 12 * MS, 0, 101) + _samples(10 * MS, 12 * MS, 1, 0))
     lc.attribute([c], sorted(samples, key=lambda s: s.t), OURS, 2, NAMES)
     assert c.cause == "held by kdamond.0" and c.shares["held by kdamond.0"] == 0.9
 
 
-def test_a_cpu_without_samples_is_a_vcpu_not_run(lc) -> None:
-    c = _cycle(lc)
-    samples = _samples(lc, 10 * MS, 12 * MS, 0, 100) + _samples(lc, 10 * MS, 10_500_000, 1, 101)  # CPU 1: 1.5 ms gone
+def test_a_cpu_without_samples_is_a_vcpu_not_run() -> None:
+    c = _cycle()
+    samples = _samples(10 * MS, 12 * MS, 0, 100) + _samples(10 * MS, 10_500_000, 1, 101)  # CPU 1: 1.5 ms gone
     lc.attribute([c], sorted(samples, key=lambda s: s.t), OURS, 2, NAMES)
     assert c.cause == "vCPU not running" and c.shares["vCPU not running"] == 0.75
 
 
-def test_the_collector_in_our_processes_is_named_and_our_own_work_otherwise(lc) -> None:
-    gc, busy, idle = _cycle(lc), _cycle(lc), _cycle(lc)
-    lc.attribute([gc], _samples(lc, 10 * MS, 12 * MS, 0, 100, "gc_collect_main")
-                 + _samples(lc, 10 * MS, 12 * MS, 1, 0), OURS, 2, NAMES)
-    lc.attribute([busy], sorted(_samples(lc, 10 * MS, 12 * MS, 0, 100) + _samples(lc, 10 * MS, 12 * MS, 1, 101),
+def test_the_collector_in_our_processes_is_named_and_our_own_work_otherwise() -> None:
+    gc, busy, idle = _cycle(), _cycle(), _cycle()
+    lc.attribute([gc], _samples(10 * MS, 12 * MS, 0, 100, "gc_collect_main")
+                 + _samples(10 * MS, 12 * MS, 1, 0), OURS, 2, NAMES)
+    lc.attribute([busy], sorted(_samples(10 * MS, 12 * MS, 0, 100) + _samples(10 * MS, 12 * MS, 1, 101),
                                 key=lambda s: s.t), OURS, 2, NAMES)
-    lc.attribute([idle], _samples(lc, 10 * MS, 12 * MS, 0, 0) + _samples(lc, 10 * MS, 12 * MS, 1, 0), OURS, 2, NAMES)
+    lc.attribute([idle], _samples(10 * MS, 12 * MS, 0, 0) + _samples(10 * MS, 12 * MS, 1, 0), OURS, 2, NAMES)
     assert (gc.cause, busy.cause, idle.cause) == ("garbage collection", "own work", "unexplained")
 
 
-def test_the_summary_counts_cycles_and_answers_per_cause_as_a_share_of_all_answers(lc) -> None:
-    a, b, c = _cycle(lc), _cycle(lc), _cycle(lc)
+def test_the_summary_counts_cycles_and_answers_per_cause_as_a_share_of_all_answers() -> None:
+    a, b, c = _cycle(), _cycle(), _cycle()
     a.cause = b.cause = "held by kdamond.0"
     summary = lc.summarise([a, b, c], 62_000)
     assert summary == {"held by kdamond.0": {"cycles": 2, "answers": 124, "pct_of_answers": 0.2},
                        "unexplained": {"cycles": 1, "answers": 62, "pct_of_answers": 0.1}}
 
 
-def test_without_perf_or_root_it_exits_2_and_says_why(lc, monkeypatch, capsys) -> None:
+def test_without_perf_or_root_it_exits_2_and_says_why(monkeypatch, capsys) -> None:
     monkeypatch.setattr("sys.argv", ["late_causes.py", "--duration", "1s"])
     monkeypatch.setattr(lc.shutil, "which", lambda name: None)
     assert lc.main() == 2
@@ -106,7 +103,7 @@ def test_without_perf_or_root_it_exits_2_and_says_why(lc, monkeypatch, capsys) -
 WORKER = 101
 
 
-def test_perf_script_scheduler_lines_become_switches_and_wakeups_by_time(lc) -> None:
+def test_perf_script_scheduler_lines_become_switches_and_wakeups_by_time() -> None:
     lines = [  # perf script -F trace:comm,pid,cpu,time,event,trace (the comm taken off by the reader)
         "101 [001] 100.000200: sched:sched_switch: prev_comm=python3 prev_pid=101 prev_prio=120 prev_state=S ==> "
         "next_comm=swapper/1 next_pid=0 next_prio=120",
@@ -120,11 +117,11 @@ def test_perf_script_scheduler_lines_become_switches_and_wakeups_by_time(lc) -> 
     assert wakeups == [lc.Wakeup(100000100000, 101, 1)]
 
 
-def _late(lc, sent: int):
+def _late(sent: int):
     return lc.LateCycle(sent, 8, sent + 300_000)
 
 
-def test_the_answerer_s_state_at_the_send_running_waiting_or_asleep_and_how_late_it_was_woken(lc) -> None:
+def test_the_answerer_s_state_at_the_send_running_waiting_or_asleep_and_how_late_it_was_woken() -> None:
     S, W = lc.Switch, lc.Wakeup
     switches = [
         S(1 * MS, 1, 0, "R", WORKER),             # 1 ms: in (its poll)
@@ -142,7 +139,7 @@ def test_the_answerer_s_state_at_the_send_running_waiting_or_asleep_and_how_late
     ]
     wakeups = [W(2 * MS + 50_000, WORKER, 1), W(5 * MS + 120_000, WORKER, 1), W(6 * MS + 20_000, WORKER, 1),
                W(6 * MS + 25_000, 1234, 0), W(7 * MS + 950_000, WORKER, 1)]
-    cycles = [_late(lc, t) for t in (1 * MS + 40_000, 2 * MS, 3 * MS, 5 * MS, 6 * MS, 7 * MS, 8 * MS)]
+    cycles = [_late(t) for t in (1 * MS + 40_000, 2 * MS, 3 * MS, 5 * MS, 6 * MS, 7 * MS, 8 * MS)]
     lc.answerer_states(cycles, switches, wakeups, {WORKER})
     assert [(c.answerer, c.woken_us, c.running_us) for c in cycles] == [
         ("running at the send", None, None),
@@ -153,15 +150,16 @@ def test_the_answerer_s_state_at_the_send_running_waiting_or_asleep_and_how_late
         ("running at the send", None, None),  # on a CPU since 6.03 ms
         ("waiting for a CPU at the send", None, 90.0),
     ]
-    nothing = [_late(lc, 1 * MS)]
+    nothing = [_late(1 * MS)]
     lc.answerer_states(nothing, [], [], {WORKER})
     assert nothing[0].answerer == "not seen"
     summary = lc.summarise(cycles, 8_000, "answerer")
     assert summary["running at the send"] == {"cycles": 2, "answers": 16, "pct_of_answers": 0.2}
 
 
-def test_the_floor_s_processes_are_its_client_and_server_never_perf(lc, monkeypatch) -> None:
-    """perf is started before the floor's Popen is watched: its samples are a host task's, not the floor's."""
+def test_the_floor_s_processes_are_its_client_and_server_never_perf(monkeypatch) -> None:
+    """The floor's processes are the ones its window names (its client, its server); perf, started before the
+    window, is a host task, not the floor's."""
     made, seen = [], {}
 
     class Proc:
@@ -169,8 +167,8 @@ def test_the_floor_s_processes_are_its_client_and_server_never_perf(lc, monkeypa
             self.pid = 5000 + len(made)
             made.append(argv[0])
 
-    async def floor_window(*args, **kwargs) -> None:
-        lc.bench_floor.subprocess.Popen(["python", "server"])
+    async def floor_window(*args, during, **kwargs) -> None:
+        await during([os.getpid(), 5001], 0.0)  # the client, the server
 
     def judge(side, log, answers, samples, names, ours, events=([], []), answerers=None):
         seen.update(ours=ours, answerers=answerers)
@@ -182,8 +180,7 @@ def test_the_floor_s_processes_are_its_client_and_server_never_perf(lc, monkeypa
     monkeypatch.setattr(lc, "_judge", judge)
     monkeypatch.setattr(lc, "PERF_LEAD_S", 0.0)
     asyncio.run(lc._floor(8, 32, 250_000, 1.0, Path("/tmp"), sched=True))
-    perf_pid, server_pid = 5000, 5001  # started in that order
-    assert made == ["perf", "python"]
+    perf_pid, server_pid = 5000, 5001
+    assert made == ["perf"]
     assert seen["ours"] == {os.getpid(), server_pid} and seen["answerers"] == {server_pid}
     assert perf_pid not in seen["ours"]
-    assert lc.subprocess.Popen is Proc  # put back
