@@ -328,9 +328,8 @@ def _ahead(before: list[dict[str, Any]], after: list[dict[str, Any]], wall_s: fl
 
 # ----------------------------------------------------------------------------------------------- output
 def load_cells(paths: list[Path]) -> tuple[list[Cell], dict[str, Any]]:
-    """The cells of earlier runs' ``--json`` files (in order), and the last document. Figures an older version
-    wrote and this one no longer has (the per-station echo) are left out. Raises ValueError when a file is not
-    such a run."""
+    """The cells of earlier runs' ``--json`` files (in order), and the last document. Fields a :class:`Cell` does
+    not have (a file written by another version) are left out. Raises ValueError when a file is not such a run."""
     names = {f.name for f in dataclasses.fields(Cell)}
     cells: list[Cell] = []
     doc: dict[str, Any] = {}

@@ -203,7 +203,7 @@ def test_host_steal_is_read_from_proc_stat_and_noted_in_the_row() -> None:
 
 def test_render_prints_earlier_runs_without_running_them(tmp_path, capsys) -> None:
     old = {"link": "ML2", "stations": 9, "cycle_ns": 1_000_000, "workers": 1, "missed_rate": 0.0026,
-           "rtt_p99_ns": 1_380_000, "echo_p99_ns": 410_000}  # a file of the per-station echo's days
+           "rtt_p99_ns": 1_380_000, "echo_p99_ns": 410_000}  # a field a Cell does not have
     new = asdict(_cell("ML3", 62, 1_000_000, cpu_per_exchange_us=30.0))
     a, b = tmp_path / "a.json", tmp_path / "b.json"
     a.write_text(json.dumps({"host": {}, "cells": [old]}))
