@@ -95,6 +95,9 @@ from benchmarks.tables import chart, markdown, table
 
 T = TypeVar("T")
 
+__all__ = ["CYCLES", "Cell", "Interrupted", "LINKS", "STATIONS", "applicable", "load_cells", "main", "measure_network",
+           "measuring", "render", "run_cell", "watching_rtt", "write_config"]
+
 STATIONS = (1, 8, 9, 15, 30, 62)  # the sweep, with 8 for the target of 8 stations at 250 µs
 CYCLES = ("250us", "500us", "1ms", "2ms")
 LINKS = ("ML2", "ML3")

@@ -40,6 +40,8 @@ from mlink_sim.config import parse_duration_ns
 
 from benchmarks.common import ROOT, write_atomically
 
+__all__ = ["baseline", "main", "one_run", "parse_stop", "summarise"]
+
 MLINK = [sys.executable, "-m", "mlink_sim"]
 _HOG = "import time\nend = time.monotonic() + {limit}\nwhile time.monotonic() < end:\n    pass\n"
 

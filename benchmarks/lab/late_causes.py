@@ -66,7 +66,7 @@ from mlink_sim.cli.logs import configure_logging
 from mlink_sim.config import load_config, parse_duration_ns
 from mlink_sim.metrics import LatencyHistogram
 
-from benchmarks import floor as bench_floor
+from benchmarks import floor
 from benchmarks.bench import watching_rtt, write_config
 from benchmarks.common import write_atomically
 
@@ -375,13 +375,13 @@ async def _floor(stations: int, size: int, cycle_ns: int, duration_s: float, tmp
         return made[-1]
 
     perf = _Perf(tmp / "floor.data", duration_s + PERF_LEAD_S + 0.5, sched)
-    saved = bench_floor.LatencyHistogram
-    bench_floor.LatencyHistogram = histogram  # type: ignore[misc,assignment]
-    await asyncio.sleep(max(0.0, PERF_LEAD_S - bench_floor.WARM_UP_S))  # the rest of the lead is the warm-up
+    saved = floor.LatencyHistogram
+    floor.LatencyHistogram = histogram  # type: ignore[misc,assignment]
+    await asyncio.sleep(max(0.0, PERF_LEAD_S - floor.WARM_UP_S))  # the rest of the lead is the warm-up
     try:
-        await bench_floor.floor_window(stations, size, cycle_ns, duration_s, True, shared=True, during=during)
+        await floor.floor_window(stations, size, cycle_ns, duration_s, True, shared=True, during=during)
     finally:
-        bench_floor.LatencyHistogram = saved  # type: ignore[misc]
+        floor.LatencyHistogram = saved  # type: ignore[misc]
     samples, names, events = perf.samples()
     return _judge("floor", log, count[0], samples, names, pids, events, pids - {os.getpid()})
 

@@ -61,6 +61,8 @@ from mlink_sim.aio import mmsg
 from mlink_sim.aio.tapped import TappedBurstSocket
 from mlink_sim.capture import CaptureWriter, TappedSocket, read_capture
 
+__all__ = ["DRIFT", "TARGET_US", "hot_path", "main", "measure", "verdict", "writer_cost"]
+
 TARGET_US = 2.0
 #: the capture-off virtual runs do the same work: when the slowest took more than this times the CPU of the fastest,
 #: the machine's speed changed during the pairs (a busy host), and their on − off differences say nothing

@@ -26,6 +26,8 @@ import timeit
 
 from mlink_sim.drive import Drive, DriveCommand, DriveSettings, Family, LoadSpec
 
+__all__ = ["Case", "cases", "main", "measure"]
+
 MS = 1_000_000
 VALUES: dict[str, int] = {
     "A1-02": 0, "b1-01": 3, "b1-02": 3, "b1-03": 0,

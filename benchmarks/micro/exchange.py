@@ -19,6 +19,8 @@ from mlink_sim.cli.logs import configure_logging
 from mlink_sim.master import MasterCore, NetworkPlan, StationPlan
 from mlink_sim.wire import Link
 
+__all__ = ["main", "measure"]
+
 MS = 1_000_000
 
 

@@ -28,6 +28,9 @@ from mlink_sim.metrics import LatencyHistogram, NetworkMetrics
 
 from benchmarks.common import cores
 
+__all__ = ["main", "recording", "report_path", "rtt_like"]
+
+
 def rtt_like(n: int, seed: int = 1) -> list[int]:
     """*n* values in ns, lognormal with median e^12.2 ≈ 199 µs: the spread of a 62-station line's RTTs."""
     rnd = random.Random(seed)

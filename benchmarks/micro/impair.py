@@ -43,6 +43,8 @@ from pathlib import Path
 from mlink_sim.aio.impaired import ImpairedSocket
 from mlink_sim.impair import Direction, Impairment, ImpairmentLayer
 
+__all__ = ["TARGET_NS", "bench", "delay_check", "loss_check", "main", "up_check"]
+
 DATAGRAM = bytes([0x4D, 2, 1, 0x21]) + bytes(42) + b"\x00\x00"  # a 32-byte MECHATROLINK-II command's size
 TARGET_NS = 1_000
 

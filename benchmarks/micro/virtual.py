@@ -36,6 +36,8 @@ from mlink_sim.config import load_config, parse_duration_ns
 
 from benchmarks.common import ROOT
 
+__all__ = ["ML3_62", "QUICKSTART", "floor", "main", "run"]
+
 #: the CPU time this process took before the runs: the interpreter's start-up and the imports (printed apart)
 IMPORT_S = time.process_time()
 QUICKSTART = ROOT / "configs" / "quickstart.toml"

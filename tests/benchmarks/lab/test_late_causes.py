@@ -176,7 +176,7 @@ def test_the_floor_s_processes_are_its_client_and_server_never_perf(monkeypatch)
 
     monkeypatch.setattr(lc.subprocess, "Popen", Proc)
     monkeypatch.setattr(lc._Perf, "samples", lambda self: ([], {}, ([], [])))
-    monkeypatch.setattr(lc.bench_floor, "floor_window", floor_window)
+    monkeypatch.setattr(lc.floor, "floor_window", floor_window)
     monkeypatch.setattr(lc, "_judge", judge)
     monkeypatch.setattr(lc, "PERF_LEAD_S", 0.0)
     asyncio.run(lc._floor(8, 32, 250_000, 1.0, Path("/tmp"), sched=True))
