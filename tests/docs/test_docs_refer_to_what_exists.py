@@ -1,5 +1,5 @@
-"""README.md and docs/ refer only to what exists: links, files and folders named in code spans, ``mlink-sim``
-commands and the LICENSE the package declares (issue 14, item 15)."""
+"""README.md, CONTRIBUTING.md, CHANGELOG.md and docs/ refer only to what exists: links, files and folders named in
+code spans, ``mlink-sim`` commands and the LICENSE the package declares."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-DOCS = sorted([REPO / "README.md", *(REPO / "docs").glob("*.md")])
+DOCS = sorted([REPO / "README.md", REPO / "CONTRIBUTING.md", REPO / "CHANGELOG.md", *(REPO / "docs").glob("*.md")])
 #: Top-level folders and files whose paths the docs mention in code spans.
-ROOTS = ("configs/", "docs/", "scripts/", "mlink_sim/", "tests/")
+ROOTS = ("configs/", "docs/", "scripts/", "mlink_sim/", "tests/", "benchmarks/")
 
 
 def _text(doc: Path) -> str:
