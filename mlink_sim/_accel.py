@@ -1,4 +1,4 @@
-"""Which cores run: the mypyc-compiled modules or the pure-Python ones (docs/performance.md, "Compiled cores").
+"""Which cores run: the mypyc-compiled modules or the pure-Python ones (docs/architecture.md, "Compiled cores (mypyc)").
 
 The install compiles the hot modules of the sans-I/O cores (:data:`COMPILED_MODULES`) with mypyc, each into an
 extension module next to its ``.py`` file (setup.py). The ``.py`` files are the one source and the fallback.

@@ -9,11 +9,10 @@ datagram, the Enhanced Packet Block template of its flow and size (dpkt's block 
 header built by dpkt in it, made once per flow and size, found in a dict), its Unix time in integer µs, the
 block's parts appended; :data:`_CHUNK` blocks per call, and each chunk goes to the unbuffered file in one
 ``write``: that system call releases the GIL, so the event loop never waits behind the writer for longer than one
-chunk. dpkt writes the Section Header
-and Interface Description Blocks and every block with comments (``EnhancedPacketBlockLE`` with its options); how
-this reads issue 20's "use a well-kept library; do not write the blocks by hand", and why, is in
-:mod:`mlink_sim.capture.epb`. What this costs per datagram is measured by ``scripts/bench_capture.py``
-(docs/performance.md, "Capture").
+chunk. dpkt writes the Section Header and Interface Description Blocks and every block with comments
+(``EnhancedPacketBlockLE`` with its options); how this reads the rule "use a well-kept library; do not write the
+blocks by hand", and why, is in :mod:`mlink_sim.capture.epb`. What this costs per datagram: docs/capture.md
+(``python -m benchmarks.micro.capture`` measures it).
 
 Notes (:meth:`CaptureWriter.note`: alarms, phase changes, injected faults) travel in the same deque, so they keep
 their order with the datagrams; each becomes a pcapng ``opt_comment`` on the datagram recorded just before it

@@ -60,8 +60,8 @@ SLOW: Final = object()
 _MAX_LOGGED_SOURCES: Final = 32
 #: Incidents that can repeat every cycle on an overloaded machine (reception failures, WDT errors, phase changes,
 #: bUS errors and the reconnections after them) are logged the first _LOG_FIRST times, then at the 2**k-th
-#: occurrence only; the counters keep every one. An unbounded log line per lost cycle made an overloaded worker
-#: slower still (docs/performance.md).
+#: occurrence only; the counters keep every one. An unbounded log line per lost cycle would make an overloaded
+#: worker slower still.
 _LOG_FIRST: Final = 8
 
 
@@ -256,7 +256,7 @@ class Station(abc.ABC):
                 return None
             pred = offer(self._prediction, source, self._fast_cmd, self._cmd_wdt_at, cycle, self.drive.quiet_until(),
                          self.reception, self.watchdog, self._answer, now)
-        except Exception:  # noqa: BLE001 - a card that cannot predict answers in the chain, as before
+        except Exception:  # noqa: BLE001 - a card that cannot predict answers in the chain
             self._internal_error("prediction")
             return None
         if pred is not None:

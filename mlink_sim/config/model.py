@@ -404,7 +404,7 @@ class NetworkConfig(BaseModel):
     arrival_poll: str = Field(
         "auto", description="the slave workers' arrival poll: 'auto' busy-polls from 80us before each burst of "
         "commands is due at cycles up to 500us where idle CPUs halt, a lead such as '80us' does so at any cycle, "
-        "'off' never (docs/performance.md, 'The worker's arrival poll')")
+        "'off' never (docs/timing.md)")
 
     @model_validator(mode="after")
     def _jitter(self) -> NetworkConfig:

@@ -38,10 +38,10 @@ def format_ns(ns: int | float) -> str:
     return f"{ns:.4g}ns"
 
 
-AUTO_POLL_LEAD_NS = 80_000  #: arrival poll "auto": from this long before a burst is due (docs/performance.md)
+AUTO_POLL_LEAD_NS = 80_000  #: arrival poll "auto": from this long before a burst is due (docs/timing.md)
 #: arrival poll "auto": only at transmission cycles up to this: MECHATROLINK-III at 250 and 500 µs (SI-ET3 Table 14,
 #: ID_CODE 16H/17H), MECHATROLINK-II with 17-byte frames at 0.5 ms (SI-T3 CONNECT). Measured to pay at 250 µs and
-#: not at 1 ms (docs/performance.md, "The worker's arrival poll"); 750 µs (ML-III) was not measured and is left out.
+#: not at 1 ms, where the wake-up on arrival is on time already; 750 µs (ML-III) is not measured and is left out.
 AUTO_POLL_MAX_PERIOD_NS = 500_000
 
 

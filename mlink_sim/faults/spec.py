@@ -1,4 +1,4 @@
-"""What one station, master or drive fault is (issue 19 items 2–3): frozen, validated values built from the timeline,
+"""What one station, master or drive fault is: frozen, validated values built from the timeline,
 a control request or the pytest plugin (docs/faults.md).
 
 Two families, by where the fault acts:

@@ -10,7 +10,7 @@ The real-time master (:mod:`mlink_sim.aio.impaired`), the virtual clock's fabric
 and the proxy (:mod:`mlink_sim.aio.proxy`) share it. It never reads a clock: time comes in as ``now`` (ns).
 
 **Idle costs nothing**: while :attr:`ImpairmentLayer.active` is False (no fault on any path) the drivers do not
-call it; the real-time master's socket is not even wrapped (scripts/bench_impair.py measures both).
+call it; the real-time master's socket is not even wrapped (``python -m benchmarks.micro.impair`` measures both).
 
 **Seeded**: each path (station, direction) draws from its own ``random.Random`` seeded from the layer's seed,
 the station and the direction, so the fate of the n-th datagram of a path depends only on the seed and on n,

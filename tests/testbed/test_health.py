@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from mlink_sim.cards import CARDS, create_card
 from mlink_sim.cards.settings import CardSettings
-from mlink_sim.cli.probe import _nop
+from mlink_sim.aio.probe import nop_command
 from mlink_sim.testbed import health
 from mlink_sim.wire import Kind, Link, decode
 from mlink_sim.wire.fcs import crc16_x25
@@ -30,7 +30,7 @@ MS = 1_000_000
 def test_nop_command_is_the_wire_codecs_nop(link, size):
     for station, cycle in ((0x21, 1), (0x03, 0xFFFF_FFFF), (0xEF, 77)):
         datagram = health.nop_command(link, size, station, cycle)
-        assert datagram == _nop(Link[link.upper()], size, station, cycle)
+        assert datagram == nop_command(Link[link.upper()], size, station, cycle)
         frame = decode(datagram, kind=Kind.COMMAND)
         assert frame.message.code == 0x00 and frame.station == station and frame.cycle == cycle
 
