@@ -45,6 +45,7 @@ from dpkt import pcapng
 from .._log import get_logger
 from .epb import EpbPacker
 from .pack import Flow, Record, packet
+from .tap import WILDCARDS, source_address_for
 
 __all__ = ["CaptureWriter", "CaptureStats", "LINKTYPE_RAW", "ip_packet", "event_text"]
 
@@ -323,8 +324,6 @@ class CaptureWriter:
         """The EPB template of a *size*-byte datagram from *src* to *dst*, its IP + UDP header in it, made and kept.
         A wildcard source (a socket bound to 0.0.0.0 or ::) is replaced by the address the kernel sends from to
         reach *dst*."""
-        from .tap import WILDCARDS, source_address_for
-
         key = (src, dst, size)
         if src[0] in WILDCARDS:
             src = source_address_for(dst, src[1])

@@ -36,7 +36,9 @@ from collections.abc import Iterable
 
 from hdrh.histogram import HdrHistogram
 
-__all__ = ["LatencyHistogram", "LOWEST_NS", "HIGHEST_NS", "SIGNIFICANT_DIGITS", "SUMMARY_KEYS", "format_ns"]
+from ..units import format_ns
+
+__all__ = ["LatencyHistogram", "LOWEST_NS", "HIGHEST_NS", "SIGNIFICANT_DIGITS", "SUMMARY_KEYS"]
 
 LOWEST_NS = 1
 HIGHEST_NS = 10_000_000_000          # 10 s
@@ -295,14 +297,3 @@ class LatencyHistogram:
         s = self.summary()
         return f"LatencyHistogram(count={s['count']}, p50={format_ns(s['p50'])}, max={format_ns(s['max'])})"
 
-
-def format_ns(ns: float | int) -> str:
-    """Human form of a duration in ns with 4 significant digits: ``850ns``, ``731.2us``, ``1.25ms``, ``2s``."""
-    a = abs(ns)
-    if a < 1_000:
-        return f"{ns:.4g}ns"
-    if a < 1_000_000:
-        return f"{ns / 1e3:.4g}us"
-    if a < 1_000_000_000:
-        return f"{ns / 1e6:.4g}ms"
-    return f"{ns / 1e9:.4g}s"
