@@ -72,6 +72,7 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.master.restart",
     "mlink_sim.master.slave",
     "mlink_sim.master.fastpath",
+    "mlink_sim.master.answers",
     "mlink_sim.master.core",
     "mlink_sim.aio.vqueue",
     "mlink_sim.aio.fabric",

@@ -21,7 +21,7 @@ declarations. Nothing here is declared a second time:
 non-zero ALARM byte or STATUS.ALM/WARNG (ML-II), CMD_STAT ALM or CMD_ALM or a COMM_ALM edge (ML-III), another
 code, a bad FCS or another size. The core then takes the general path, so alarms, phase errors and malformed
 input are all handled in one place. Which command an answer is for (on time or late) the core decides for both
-paths in one place (``MasterCore._answer_to``). tests/master/test_master_fastpath.py checks that both paths
+paths in one place (:mod:`.answers`). tests/master/test_master_fastpath.py checks that both paths
 give the same bytes, views and events.
 """
 
