@@ -1,4 +1,5 @@
-"""Which cores run: the mypyc-compiled modules or the pure-Python ones (docs/architecture.md, "Compiled cores (mypyc)").
+"""Which cores run: the mypyc-compiled modules or the pure-Python ones (docs/architecture.md, "Compiled cores
+(mypyc)").
 
 The install compiles the hot modules of the sans-I/O cores (:data:`COMPILED_MODULES`) with mypyc, each into an
 extension module next to its ``.py`` file (setup.py). The ``.py`` files are the one source and the fallback.
@@ -71,8 +72,8 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.master.requests",
     "mlink_sim.master.restart",
     "mlink_sim.master.slave",
-    "mlink_sim.master.fastpath",
     "mlink_sim.master.answers",
+    "mlink_sim.master.fastpath",
     "mlink_sim.master.core",
     "mlink_sim.aio.vqueue",
     "mlink_sim.aio.fabric",

@@ -152,10 +152,10 @@ class CaptureWriter:
         #: the hook for drivers with their own clock (a virtual clock):
         #: ``record(ts_ns, datagram, (src_host, src_port), (dst_host, dst_port))``. A wildcard host (0.0.0.0, ::)
         #: is replaced by the address the kernel would send from. Sockets are tapped instead
-        #: (:func:`mlink_sim.aio.tapped.tap`: one call less).
+        #: (:func:`mlink_sim.aio.transport.tapped.tap`: one call less).
         self.record = record
         #: what a socket's tap feeds: one ``(ts_ns, datagram, src, dst)`` tuple per datagram (the queue's append;
-        #: :func:`mlink_sim.aio.tapped.tap`)
+        #: :func:`mlink_sim.aio.transport.tapped.tap`)
         self.sink = append
         self._file: BinaryIO | None = None
         self._blocks = _Blocks()

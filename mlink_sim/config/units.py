@@ -18,7 +18,7 @@ AUTO_POLL_MAX_PERIOD_NS = 500_000
 
 def parse_arrival_poll(text: str) -> tuple[int, int | None] | None:
     """A worker's arrival poll (``mlink-sim slave --arrival-poll``, ``[network] arrival_poll``; the poll itself is
-    ``mlink_sim.aio.arrival.ArrivalPoll``): ``auto``, ``off`` or a lead time (``80us``) as ``(lead_ns,
+    ``mlink_sim.aio.timing.arrival.ArrivalPoll``): ``auto``, ``off`` or a lead time (``80us``) as ``(lead_ns,
     max_period_ns)``; None for off, ``max_period_ns`` None for a poll at any cycle. ValueError for anything else,
     or a lead not between 1 µs and 1 ms."""
     word = text.strip().lower()

@@ -6,8 +6,9 @@ time, and delivers what comes back::
     for delay_ns, data in layer.process(datagram, Direction.TO_STATION, 0x21, now):
         deliver(data, at=now + delay_ns)            # nothing: dropped; two: duplicated; altered: corrupted
 
-The real-time master (:mod:`mlink_sim.aio.impaired`), the virtual clock's fabric (:mod:`mlink_sim.aio.fabric`)
-and the proxy (:mod:`mlink_sim.aio.proxy`) share it. It never reads a clock: time comes in as ``now`` (ns).
+The real-time master (:mod:`mlink_sim.aio.transport.impaired`), the virtual clock's fabric
+(:mod:`mlink_sim.aio.virtual.fabric`) and the proxy (:mod:`mlink_sim.aio.tools.proxy`) share it. It never reads a
+clock: time comes in as ``now`` (ns).
 
 **Idle costs nothing**: while :attr:`ImpairmentLayer.active` is False (no fault on any path) the drivers do not
 call it; the real-time master's socket is not even wrapped (``python -m benchmarks.micro.impair`` measures both).

@@ -68,7 +68,7 @@ def take(st: Slave, sent: Sent, now: int, on_rtt: Callable[[int, int], None] | N
 def shows(st: Slave, cycle: int, rwdt: int) -> bool:
     """Whether the answer to the command of *cycle*, with *rwdt*, sets what *st* shows (RWDT, status, alarms): False
     only for an answer the slave made before the one shown, which came after it (a worker answers its backlog newest
-    cycle first, ``mlink_sim.aio.bus``). That answer is still counted and its command's outcome processed
+    cycle first, ``mlink_sim.aio.slave.bus``). That answer is still counted and its command's outcome processed
     (:func:`take`, ``MasterCore._advance``); the answer shown already showed the slave after both commands.
 
     "Made before" needs both: a command *cycle* older than the one shown (the envelope's u32 cycle number,

@@ -64,7 +64,7 @@ class MasterCore:
         #: Steady-state INV_CTL straight from and to bytes (:mod:`.fastpath`); False = general path only (tests).
         self.fast_path = True
         #: Where an answer's round trip goes, ``on_rtt(station, ns)``: None = an :class:`Rtt` event. A driver that
-        #: only counts them (``mlink_sim.aio.master.Master``: its metrics' ``record_rtt``) sets it and saves an
+        #: only counts them (``mlink_sim.aio.master.runner.Master``: its metrics' ``record_rtt``) sets it and saves an
         #: event object and its dispatch per exchange. Late answers are ``Late`` events either way.
         self.on_rtt: Callable[[int, int], None] | None = None
         self._now = 0
