@@ -33,7 +33,7 @@ __all__ = ["BUILD_STAMP", "BUILT_MODULES", "COMPILED_MODULES", "C_EXTENSIONS", "
 
 #: The modules mypyc compiles (setup.py reads this tuple): the steady-state paths of the master core, the cards
 #: and the drive model, and the wire helpers they call per datagram; the virtual clock's per-event path (its event
-#: queue and in-memory network), a slave worker's per-read path (aio.bus), the metrics' per-exchange recorder
+#: queue and in-memory network), a slave worker's per-read path (aio.slave.bus), the metrics' per-exchange recorder
 #: (counters, RTT histograms) and the capture writer's per-datagram loop (capture.pack, without dpkt: the block
 #: layout is handed in). Not here: modules whose classes derive from RuntimeError (mypyc cannot compile them:
 #: cards.phases, master.machine, master.types), the declaration tables (construct layouts, codes, parameter

@@ -1,6 +1,6 @@
 """``mlink-sim probe HOST:PORT --station 0x21`` – send a NOP, exit 0 only on a valid answer (health checks).
 
-The probe itself is :func:`mlink_sim.aio.probe.probe` (read-only by construction: main NOPs only)."""
+The probe itself is :func:`mlink_sim.aio.tools.probe.probe` (read-only by construction: main NOPs only)."""
 
 from __future__ import annotations
 
