@@ -16,6 +16,6 @@ from . import _accel
 __version__ = "0.1.0"
 __all__ = ["__version__"]
 
-# compiled or pure-Python cores, decided once before any core module is imported (docs/performance.md,
-# "Compiled cores"; MLINK_PURE=1 forces pure)
+# compiled or pure-Python cores, decided once before any core module is imported (docs/architecture.md,
+# "Compiled cores (mypyc)"; MLINK_PURE=1 forces pure)
 _accel.select()

@@ -1,4 +1,5 @@
-"""Which cores run: the mypyc-compiled modules or the pure-Python ones (docs/performance.md, "Compiled cores").
+"""Which cores run: the mypyc-compiled modules or the pure-Python ones (docs/architecture.md, "Compiled cores
+(mypyc)").
 
 The install compiles the hot modules of the sans-I/O cores (:data:`COMPILED_MODULES`) with mypyc, each into an
 extension module next to its ``.py`` file (setup.py). The ``.py`` files are the one source and the fallback.
@@ -32,7 +33,7 @@ __all__ = ["BUILD_STAMP", "BUILT_MODULES", "COMPILED_MODULES", "C_EXTENSIONS", "
 
 #: The modules mypyc compiles (setup.py reads this tuple): the steady-state paths of the master core, the cards
 #: and the drive model, and the wire helpers they call per datagram; the virtual clock's per-event path (its event
-#: queue and in-memory network), a slave worker's per-read path (aio.bus), the metrics' per-exchange recorder
+#: queue and in-memory network), a slave worker's per-read path (aio.slave.bus), the metrics' per-exchange recorder
 #: (counters, RTT histograms) and the capture writer's per-datagram loop (capture.pack, without dpkt: the block
 #: layout is handed in). Not here: modules whose classes derive from RuntimeError (mypyc cannot compile them:
 #: cards.phases, master.machine, master.types), the declaration tables (construct layouts, codes, parameter
@@ -71,6 +72,7 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.master.requests",
     "mlink_sim.master.restart",
     "mlink_sim.master.slave",
+    "mlink_sim.master.answers",
     "mlink_sim.master.fastpath",
     "mlink_sim.master.core",
     "mlink_sim.aio.vqueue",

@@ -1,4 +1,4 @@
-"""Durable, atomic file writes: the one helper behind the EEPROM images (``aio/state.py``), the run report
+"""Durable, atomic file writes: the one helper behind the EEPROM images (``aio/slave/state.py``), the run report
 (``metrics/report.py``), the compose file (``cli/compose.py``) and the installed Wireshark dissector.
 
 The data go to a temporary file in the target's directory (``.<name>.<random>.tmp``), which is flushed,

@@ -1,4 +1,4 @@
-"""Loggers of the library: quiet unless the application configures logging (issue 14, item 12).
+"""Loggers of the library: quiet unless the application configures logging.
 
 Used as a library, mlink-sim must not print: structlog's defaults write every event to stdout. The package's
 loggers (:func:`get_logger`) therefore follow structlog's configuration once an application (or the ``mlink-sim``
@@ -61,7 +61,7 @@ def get_logger(name: str, **initial: Any) -> Any:
 def configure_logging(*, json: bool = False, level: str = "info") -> None:
     """Configure structlog once per process: key=value lines (or JSON) on stderr; stdout is kept for results and
     ready lines. Only the entry points call it (the ``mlink-sim`` commands, the pytest plugin's host process, the
-    benchmark scripts): as a library the package prints nothing."""
+    benchmarks): as a library the package prints nothing."""
     renderer: structlog.types.Processor = (
         structlog.processors.JSONRenderer() if json else structlog.dev.ConsoleRenderer(colors=False)
     )

@@ -1,5 +1,5 @@
 """mlink_sim._accel: the compiled cores (mypyc) behave byte for byte as the pure-Python ones, the switch and the
-report of which runs (docs/performance.md, "Compiled cores").
+report of which runs (docs/architecture.md, "Compiled cores (mypyc)").
 
 The equivalence tests start two workers (tests/_accel_worker.py), one with ``MLINK_PURE=1`` and one with the
 compiled modules, send both the same hypothesis-drawn inputs and compare their answers exactly (floats as repr,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
-from ..config.units import format_ns
+from ..units import format_ns
 
 __all__ = ["recovered", "refused", "REFUSAL_WAIT_NS"]
 

@@ -1,6 +1,6 @@
 """Many Enhanced Packet Blocks at once, in the layout dpkt declares: the capture writer's batch loop.
 
-**How issue 20's rule "use a well-kept library for pcapng; do not write the blocks by hand" is read here.** dpkt
+**How the rule "use a well-kept library for pcapng; do not write the blocks by hand" is read here.** dpkt
 stays the library that *declares* every block: the Section Header and Interface Description Blocks, every
 Enhanced Packet Block that carries comments (``dpkt.pcapng.EnhancedPacketBlockLE`` with its options), and the
 layout of the uncommented Enhanced Packet Blocks packed here. Nothing here declares a field: the block type,
@@ -9,7 +9,7 @@ timestamp fields sit and their byte order (``__hdr__``) and the options of a blo
 (``_do_pack_options()``) all come from dpkt's ``EnhancedPacketBlockLE``. What replaces dpkt's *loop*
 (``Writer.writepkts``, which runs in Python for each block: 1.8–3.1 µs per block on the project's 2-vCPU VM, most
 of the 2 µs a datagram may cost in all) is :func:`mlink_sim.capture.pack.pack_records`, a loop compiled with mypyc
-that is handed the templates made here and the timestamp's byte order (docs/performance.md, "Capture").
+that is handed the templates made here and the timestamp's byte order (docs/capture.md).
 
 How: every block of a given captured length is the same bytes except its timestamp and its data. dpkt's own header
 struct packs that block once with a zero timestamp (:meth:`EpbPacker.template`); the template is cut around the

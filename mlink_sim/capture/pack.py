@@ -8,7 +8,7 @@ and the byte order of dpkt's two timestamp fields (``ts_high``, ``ts_low``: two 
 there), handed in as bytes and a flag. What is here is only the loop, run once per datagram: take a record, look
 its flow template up in a dict, make the 8 timestamp bytes, append the block's five parts; one ``bytes.join`` per
 call. Without intermediate sequences (no ``zip(*batch)``): that first pass over the records was the step slowed
-most by running beside the master (4.5x, docs/performance.md, "Capture").
+most by running beside the master (4.5x).
 
 The output is byte-identical to dpkt's ``Writer.writepkts`` (tests/capture/test_epb.py and test_pack.py, compiled
 and with ``MLINK_PURE=1``).

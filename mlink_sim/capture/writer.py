@@ -9,11 +9,10 @@ datagram, the Enhanced Packet Block template of its flow and size (dpkt's block 
 header built by dpkt in it, made once per flow and size, found in a dict), its Unix time in integer µs, the
 block's parts appended; :data:`_CHUNK` blocks per call, and each chunk goes to the unbuffered file in one
 ``write``: that system call releases the GIL, so the event loop never waits behind the writer for longer than one
-chunk. dpkt writes the Section Header
-and Interface Description Blocks and every block with comments (``EnhancedPacketBlockLE`` with its options); how
-this reads issue 20's "use a well-kept library; do not write the blocks by hand", and why, is in
-:mod:`mlink_sim.capture.epb`. What this costs per datagram is measured by ``scripts/bench_capture.py``
-(docs/performance.md, "Capture").
+chunk. dpkt writes the Section Header and Interface Description Blocks and every block with comments
+(``EnhancedPacketBlockLE`` with its options); how this reads the rule "use a well-kept library; do not write the
+blocks by hand", and why, is in :mod:`mlink_sim.capture.epb`. What this costs per datagram: docs/capture.md
+(``python -m benchmarks.micro.capture`` measures it).
 
 Notes (:meth:`CaptureWriter.note`: alarms, phase changes, injected faults) travel in the same deque, so they keep
 their order with the datagrams; each becomes a pcapng ``opt_comment`` on the datagram recorded just before it
@@ -46,6 +45,7 @@ from dpkt import pcapng
 from .._log import get_logger
 from .epb import EpbPacker
 from .pack import Flow, Record, packet
+from .tap import WILDCARDS, source_address_for
 
 __all__ = ["CaptureWriter", "CaptureStats", "LINKTYPE_RAW", "ip_packet", "event_text"]
 
@@ -152,10 +152,10 @@ class CaptureWriter:
         #: the hook for drivers with their own clock (a virtual clock):
         #: ``record(ts_ns, datagram, (src_host, src_port), (dst_host, dst_port))``. A wildcard host (0.0.0.0, ::)
         #: is replaced by the address the kernel would send from. Sockets are tapped instead
-        #: (:func:`mlink_sim.aio.tapped.tap`: one call less).
+        #: (:func:`mlink_sim.aio.transport.tapped.tap`: one call less).
         self.record = record
         #: what a socket's tap feeds: one ``(ts_ns, datagram, src, dst)`` tuple per datagram (the queue's append;
-        #: :func:`mlink_sim.aio.tapped.tap`)
+        #: :func:`mlink_sim.aio.transport.tapped.tap`)
         self.sink = append
         self._file: BinaryIO | None = None
         self._blocks = _Blocks()
@@ -324,8 +324,6 @@ class CaptureWriter:
         """The EPB template of a *size*-byte datagram from *src* to *dst*, its IP + UDP header in it, made and kept.
         A wildcard source (a socket bound to 0.0.0.0 or ::) is replaced by the address the kernel sends from to
         reach *dst*."""
-        from .tap import WILDCARDS, source_address_for
-
         key = (src, dst, size)
         if src[0] in WILDCARDS:
             src = source_address_for(dst, src[1])

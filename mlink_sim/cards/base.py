@@ -26,13 +26,12 @@ from collections.abc import Hashable, Mapping
 from types import MappingProxyType
 from typing import Any, ClassVar, Final
 
-from mlink_sim.params import ParamError
 from mlink_sim.wire import DropReason, Frame, Kind, Link, WireError, decode, ml2, ml3
 from mlink_sim.wire.frame import CYCLE_AT, Template, steady_delta
 
 from .._log import get_logger
 from .drive_link import DriveCommand, DriveLink, Fault
-from .eeprom import EepromError, EepromImage, EepromWriteBack
+from .eeprom import EepromImage, EepromWriteBack, power_up
 from .monitors import sel_mon_value, sel_ref_item
 from .paramstore import ParamStore
 from .phases import PhaseEvent, next_phase
@@ -60,8 +59,8 @@ SLOW: Final = object()
 _MAX_LOGGED_SOURCES: Final = 32
 #: Incidents that can repeat every cycle on an overloaded machine (reception failures, WDT errors, phase changes,
 #: bUS errors and the reconnections after them) are logged the first _LOG_FIRST times, then at the 2**k-th
-#: occurrence only; the counters keep every one. An unbounded log line per lost cycle made an overloaded worker
-#: slower still (docs/performance.md).
+#: occurrence only; the counters keep every one. An unbounded log line per lost cycle would make an overloaded
+#: worker slower still.
 _LOG_FIRST: Final = 8
 
 
@@ -95,32 +94,10 @@ class Station(abc.ABC):
         self.counters = StationCounters()
         self._log0 = _LOG.bind(card=self.card)
         table = param_table(self.card)
-        values = table.defaults()
-        self.eeprom_error: str | None = None
-        image = None
-        if eeprom is not None:
-            try:
-                image = EepromImage.from_bytes(eeprom, card=self.card)
-            except EepromError as exc:
-                self.eeprom_error = str(exc)
-                self._log0.warning("eeprom_ignored", reason=str(exc))
-        saved: dict[str, int] = {}
-        if image is not None:
-            for name, raw in image.params.items():
-                p = table.get(name)
-                try:
-                    if p is None:
-                        raise ParamError(f"unknown parameter {name}")
-                    table.check(p, raw)
-                except ParamError as exc:
-                    self._log0.warning("eeprom_param_ignored", param=name, reason=str(exc))
-                    continue
-                values[p.name] = saved[p.name] = raw
-        for name, raw in settings.params.items():
-            p = table.by_name(name)
-            table.check(p, raw)
-            values[p.name] = raw
-        self.saved_params = saved  #: the values CONFIG_MOD = 1 last stored to EEPROM
+        boot = power_up(self.card, table, eeprom, settings.params, self._log0)
+        values = boot.values
+        self.eeprom_error: str | None = boot.error  #: why the EEPROM image was not used (None: used, or none)
+        self.saved_params = boot.saved  #: the values CONFIG_MOD = 1 last stored to EEPROM
         self.station_error: str | None = None
         self._mon_regs: dict[str, int] = {}  #: {"F6-23": register, "F6-24": register} read at power-up
         self._power_up(values, settings)
@@ -128,7 +105,7 @@ class Station(abc.ABC):
         self._log = self._log0.bind(phase=1)
         self.store = ParamStore(table, values, immediate=self.prm_immediate)
         self.drive = DriveLink(self.family, self.label, values, settings.load, now,
-                               history=image.fault_history if image is not None else ())
+                               history=boot.history)
         self.watchdog = Watchdog()
         self.reception = ReceptionMonitor()
         self.phase = 1
@@ -248,15 +225,16 @@ class Station(abc.ABC):
     def prediction(self, now: int) -> Prediction | None:
         """Right after :meth:`receive`: the answer to the command expected next, if the last answer was a fixed
         point of the steady state (:mod:`mlink_sim.cards.prediction`), holding until the drive's next change (a
-        :meth:`poll` in between must drop it); None if there is none or it would not hold at *now*. The card's state is not touched. The card has one :class:`Prediction` object, updated in place by
-        each call that returns it: what the last call returned holds until the next call. Never raises."""
+        :meth:`poll` in between must drop it); None if there is none or it would not hold at *now*. The card's
+        state is not touched. The card has one :class:`Prediction` object, updated in place by each call that
+        returns it: what the last call returned holds until the next call. Never raises."""
         try:
             cycle, source = self._steady_cycle, self._source
             if cycle < 0 or source is None or self.eeprom.wait is not None:
                 return None
             pred = offer(self._prediction, source, self._fast_cmd, self._cmd_wdt_at, cycle, self.drive.quiet_until(),
                          self.reception, self.watchdog, self._answer, now)
-        except Exception:  # noqa: BLE001 - a card that cannot predict answers in the chain, as before
+        except Exception:  # noqa: BLE001 - a card that cannot predict answers in the chain
             self._internal_error("prediction")
             return None
         if pred is not None:
@@ -294,16 +272,6 @@ class Station(abc.ABC):
             self._log.error("eeprom_write_failed", generation=generation)
 
     def snapshot(self) -> StationSnapshot:
-        status = self.drive.status
-        model = self.drive.drive
-        drive = DriveSnapshot(
-            running=status.running, reverse=status.reverse, output_hz=abs(model.output_frequency_hz),
-            reference_hz=model.frequency_reference_hz, output_current_a=model.output_current_a,
-            dc_bus_v=model.dc_bus_v, motor_rpm=model.motor_speed_rpm, ready=status.ready, remote=status.remote,
-            baseblock=status.baseblock, fault=status.fault.display if status.fault is not None else None,
-            minors=tuple(sorted(f.display for f in status.minors)), ope=status.ope_code,
-            fault_history=tuple(f.display for f in self.drive.history()),
-        )
         leds, colors = self._leds()
         code, name, warnings, cmd_alm = self._alarm_view()  # code: an int (an M2Alarm loses its enum compiled)
         return StationSnapshot(
@@ -312,7 +280,8 @@ class Station(abc.ABC):
             comm_cycle_ns=self.comm_cycle_ns, subcommands=self._subcommands_active(),
             leds=MappingProxyType(leds), led_colors=MappingProxyType(colors), alarm_code=int(code),
             alarm_name=name, warnings=warnings, cmd_alm=cmd_alm, station_error=self.station_error,
-            drive=drive, counters=MappingProxyType(self.counters.as_dict()), eeprom_error=self.eeprom_error,
+            drive=self.drive.snapshot(), counters=MappingProxyType(self.counters.as_dict()),
+            eeprom_error=self.eeprom_error,
         )
 
     # -- receive path ------------------------------------------------------------------------------

@@ -30,6 +30,7 @@ from mlink_sim.drive.monitors import monitor_reader, read_monitor
 from mlink_sim.wire.selections import SEL_MON_TABLES
 
 from .eeprom import HISTORY_DEPTH
+from .snapshot import DriveSnapshot
 
 __all__ = [
     "DriveLink",
@@ -149,6 +150,19 @@ class DriveLink:
 
     def history_names(self) -> tuple[str, ...]:
         return tuple(f.value for f in self.history())
+
+    def snapshot(self) -> DriveSnapshot:
+        """The drive as a status display shows it (``Station.snapshot().drive``)."""
+        status = self.drive.status
+        model = self.drive
+        return DriveSnapshot(
+            running=status.running, reverse=status.reverse, output_hz=abs(model.output_frequency_hz),
+            reference_hz=model.frequency_reference_hz, output_current_a=model.output_current_a,
+            dc_bus_v=model.dc_bus_v, motor_rpm=model.motor_speed_rpm, ready=status.ready, remote=status.remote,
+            baseblock=status.baseblock, fault=status.fault.display if status.fault is not None else None,
+            minors=tuple(sorted(f.display for f in status.minors)), ope=status.ope_code,
+            fault_history=tuple(f.display for f in self.history()),
+        )
 
     def output_freq_raw(self) -> int:
         """Output frequency in o1-03 / n035 units, unsigned (INV_CTL response)."""

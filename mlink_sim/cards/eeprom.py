@@ -24,10 +24,14 @@ import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
+from typing import Any
+
+from mlink_sim.params import ParamError, ParamTable
 
 from .writeback import BUSY, EepromWriteBack
 
-__all__ = ["EEPROM_VERSION", "EepromError", "EepromImage", "EepromWriteBack", "HISTORY_DEPTH", "BUSY"]
+__all__ = ["EEPROM_VERSION", "EepromError", "EepromImage", "EepromWriteBack", "HISTORY_DEPTH", "BUSY", "PowerUp",
+           "power_up"]
 
 EEPROM_VERSION = 1
 HISTORY_DEPTH = 10  #: U3-01 … U3-10 (SI-T3 Table 14)
@@ -84,3 +88,48 @@ class EepromImage:
         if not isinstance(history, list) or not all(isinstance(f, str) for f in history):
             raise EepromError("EEPROM image 'fault_history' must be a list of fault names")
         return cls(card, params, tuple(history))
+
+
+@dataclass(frozen=True)
+class PowerUp:
+    """What a station powers up with (:func:`power_up`)."""
+
+    values: dict[str, int]  #: every parameter's raw value, by name
+    saved: dict[str, int]  #: the values the EEPROM image holds (what CONFIG_MOD = 1 stored), by name
+    history: tuple[str, ...]  #: the fault history the image holds, most recent first
+    error: str | None  #: why the image was not used (None: it was, or there was none)
+
+
+def power_up(card: str, table: ParamTable, eeprom: bytes | None, assignments: Mapping[str, int],
+             log: Any) -> PowerUp:
+    """The parameter values of a station at power-up: the table's defaults, then the values saved in the EEPROM
+    image *eeprom* (as the card reads its EEPROM when the control power comes on), then the power-up settings'
+    *assignments* (raw counts by name). An image that cannot be used is ignored whole and a saved value the table
+    refuses (an unknown name, out of range) alone, each with a warning on *log*: the card powers up with its
+    defaults rather than not at all. A bad assignment raises :class:`~mlink_sim.params.ParamError`."""
+    values = table.defaults()
+    image = None
+    error = None
+    if eeprom is not None:
+        try:
+            image = EepromImage.from_bytes(eeprom, card=card)
+        except EepromError as exc:
+            error = str(exc)
+            log.warning("eeprom_ignored", reason=error)
+    saved: dict[str, int] = {}
+    if image is not None:
+        for name, raw in image.params.items():
+            p = table.get(name)
+            try:
+                if p is None:
+                    raise ParamError(f"unknown parameter {name}")
+                table.check(p, raw)
+            except ParamError as exc:
+                log.warning("eeprom_param_ignored", param=name, reason=str(exc))
+                continue
+            values[p.name] = saved[p.name] = raw
+    for name, raw in assignments.items():
+        p = table.by_name(name)
+        table.check(p, raw)
+        values[p.name] = raw
+    return PowerUp(values, saved, image.fault_history if image is not None else (), error)

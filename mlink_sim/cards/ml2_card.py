@@ -123,7 +123,7 @@ class Ml2Station(Station):
     _cmd_wdt_at: ClassVar[int] = _WDT_AT
 
     def __init__(self, *, settings: CardSettings, now: int, eeprom: bytes | None = None) -> None:
-        # the parameters spelled out: mypyc (docs/performance.md, "Compiled cores") passes a **kwargs dict on
+        # the parameters spelled out: mypyc (docs/architecture.md, "Compiled cores (mypyc)") passes a **kwargs dict on
         # as one positional argument
         super().__init__(settings=settings, now=now, eeprom=eeprom)
         # mapping-like: Ml2Alarms only calls get()

@@ -7,8 +7,8 @@ RWDT count advanced. Right after such an answer, a card (``Station.prediction``)
 command comes next and exactly what it will answer: a :class:`Prediction`. A slave worker checks each datagram of a
 read against its station's prediction (:meth:`Prediction.answer_to`: one C call, no card code) and sends the
 predicted answers at once; it hands the same datagrams to the card's ``receive`` right after the send, and counts any
-answer that differs from the one sent (``mlink_sim.aio.bus``). So the cards' work per cycle leaves the time between a
-command and its answer, and what the card does with the command stays the same, with the same ``now``.
+answer that differs from the one sent (``mlink_sim.aio.slave.bus``). So the cards' work per cycle leaves the time
+between a command and its answer, and what the card does with the command stays the same, with the same ``now``.
 
 A prediction holds for a command that
 

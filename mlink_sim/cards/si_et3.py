@@ -132,7 +132,7 @@ class SiEt3(Station):
     sub_handlers: ClassVar[Mapping[int, SubHandler]]
 
     def __init__(self, *, settings: CardSettings, now: int, eeprom: bytes | None = None) -> None:
-        # the parameters spelled out: mypyc (docs/performance.md, "Compiled cores") passes a **kwargs dict on
+        # the parameters spelled out: mypyc (docs/architecture.md, "Compiled cores (mypyc)") passes a **kwargs dict on
         # as one positional argument
         super().__init__(settings=settings, now=now, eeprom=eeprom)
         self.alarms = Ml3Alarms()

@@ -38,7 +38,7 @@ class StationCounters:
         return out
 
 
-#: the counters' names in their order (not ``__slots__``: a compiled class has none, docs/performance.md)
+#: the counters' names in their order (not ``__slots__``: a compiled class has none)
 _COUNTER_NAMES = tuple(f.name for f in fields(StationCounters))
 
 

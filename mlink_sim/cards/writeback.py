@@ -43,7 +43,7 @@ class EepromWriteBack:
     and reports it with ``durable(generation, ok)``. ``hold(sub, code)`` tells a card how to treat a command."""
 
     def __init__(self) -> None:
-        #: True when an I/O layer persists the images and calls :meth:`durable` (``mlink_sim.aio.slave``);
+        #: True when an I/O layer persists the images and calls :meth:`durable` (``mlink_sim.aio.slave.server``);
         #: False: nothing is persisted and a CONFIG to EEPROM completes at once.
         self.enabled = False
         self.dirty = False

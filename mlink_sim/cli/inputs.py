@@ -1,5 +1,6 @@
 """Checks of command-line input made before anything starts: each problem is one line naming the file, option or
-field and what was expected, and exit status 2 (issue 14, items 9–10)."""
+field and what was expected, and exit status 2, so that a user fixes the input before a run rather than reading a
+traceback from the middle of one."""
 
 from __future__ import annotations
 

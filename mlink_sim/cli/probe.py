@@ -1,6 +1,6 @@
 """``mlink-sim probe HOST:PORT --station 0x21`` – send a NOP, exit 0 only on a valid answer (health checks).
 
-The probe itself is :func:`mlink_sim.aio.probe.probe` (read-only by construction: main NOPs only)."""
+The probe itself is :func:`mlink_sim.aio.tools.probe.probe` (read-only by construction: main NOPs only)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ import time
 
 import click
 
-from ..aio.probe import nop_command as _nop  # noqa: F401 - the old name; tests/testbed/test_health.py imports it
 from ..aio.probe import probe
 from ..aio.udp import new_event_loop
 from ..config import parse_address, parse_endpoint

@@ -128,11 +128,11 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
 @click.option("--shared-port", is_flag=True,
               help="With --config: the stations of one link share one UDP port where their endpoints allow it "
                    "(port 0, or the same port); the address byte picks the station, as on a bus. What the packed "
-                   "workers of `mlink-sim up` do (docs/performance.md).")
+                   "workers of `mlink-sim up` do (docs/cards.md).")
 @click.option("--arrival-poll", "arrival_poll", default="auto", show_default=True,
               help="auto: at cycles up to 500us, busy-poll from 80us before each burst of commands is due (no "
                    "wake-up on arrival), unless idle CPUs poll (CPU wake-up latency held at 0); a lead such as "
-                   "80us: that lead at any cycle; off: never (docs/performance.md).")
+                   "80us: that lead at any cycle; off: never (docs/timing.md).")
 @click.option("--realtime", "rt", is_flag=True,
               help="SCHED_FIFO, locked memory, off the master's CPU, where permitted (docs/timing.md).")
 @click.option("--cpus", "cpus_text", default=None, metavar="LIST",

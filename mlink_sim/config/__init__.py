@@ -10,10 +10,9 @@ from .model import (
     StationConfig,
     TimelineStep,
     check_cycle,
-    parse_address,
     parse_endpoint,
 )
-from .units import format_ns, parse_duration_ns
+from ..units import format_ns, parse_address, parse_duration_ns
 
 __all__ = [
     "Config",

@@ -8,6 +8,8 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from ..examples import example_names, example_path
+from ..params import FAMILIES, ParamError
 from .model import CARD_FAMILY, Config
 
 __all__ = ["ConfigError", "load_config", "parse_config", "resolve_config_path", "station_param_assignments"]
@@ -53,10 +55,6 @@ def station_param_assignments(config: Config) -> dict[int, list[str]]:
 
 
 def _check_params(source: str, config: Config) -> None:
-    try:
-        from ..params import FAMILIES, ParamError
-    except ImportError:  # pragma: no cover - params is part of the package
-        return
     problems = []
     for i, st in enumerate(config.station):
         table = FAMILIES[CARD_FAMILY[st.card]]
@@ -100,8 +98,6 @@ def parse_config(text: str, source: str = "<config>") -> Config:
 def resolve_config_path(path: str | Path) -> Path:
     """*path* itself when it exists, else the shipped example of that name (``quickstart`` → the package's
     ``examples/quickstart.toml``, also ``configs/quickstart.toml`` run outside the source tree), else *path*."""
-    from ..examples import example_path
-
     p = Path(path)
     if p.exists():
         return p
@@ -114,8 +110,6 @@ def load_config(path: str | Path) -> Config:
     try:
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
-        from ..examples import example_names
-
         raise ConfigError(f"{p}: no such file (shipped examples, usable by name: {', '.join(example_names())})"
                           ) from None
     except UnicodeDecodeError as exc:

@@ -11,12 +11,16 @@ import json
 import re
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator, model_validator
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter, ValidationError, field_validator,
+                      model_validator)
 
 from ..faults.spec import FAULT_ACTIONS
-from ..wire.codes import Link
+from ..impair.spec import Impairment, parse_probability
+from ..units import format_ns, parse_address, parse_duration_ns
+from ..wire.codes import CmdAlm, CommAlm, Link, M2Alarm
+from ..wire.drive_codes import SiT3DriveAlarm, SiT3DriveWarning, V7InverterAlarm, V7InverterWarning
 from .faults import FAULT_FIELDS, check_fault_step, check_fault_targets, fault_end_ns
-from .units import format_ns, parse_arrival_poll, parse_duration_ns
+from .units import parse_arrival_poll
 
 __all__ = [
     "CARD_LINKS",
@@ -27,7 +31,6 @@ __all__ = [
     "TimelineStep",
     "NetworkConfig",
     "Config",
-    "parse_address",
     "parse_endpoint",
     "check_cycle",
     "check_card_options",
@@ -58,25 +61,6 @@ _LINK_NAMES = {
     "ml2": Link.ML2, "mechatrolink-ii": Link.ML2, "m-ii": Link.ML2, "2": Link.ML2,
     "ml3": Link.ML3, "mechatrolink-iii": Link.ML3, "m-iii": Link.ML3, "3": Link.ML3,
 }  # fmt: skip
-
-
-def parse_address(value: Any) -> int:
-    """A station address: an integer, ``"0x21"``, ``"21H"`` or ``"33"``."""
-    if isinstance(value, bool):
-        raise ValueError("expected a station address such as 0x21")
-    if isinstance(value, int):
-        address = value
-    elif isinstance(value, str):
-        text = value.strip()
-        m = re.fullmatch(r"0[xX]([0-9A-Fa-f]+)|([0-9A-Fa-f]+)[hH]|([0-9]+)", text)
-        if not m:
-            raise ValueError(f"expected a station address such as 0x21 or 21H, got {value!r}")
-        address = int(m.group(1) or m.group(2), 16) if (m.group(1) or m.group(2)) else int(m.group(3))
-    else:
-        raise ValueError(f"expected a station address such as 0x21, got {value!r}")
-    if not 0 <= address <= 0xFF:
-        raise ValueError(f"station address {address:#x} does not fit in one byte")
-    return address
 
 
 def parse_endpoint(value: str) -> tuple[str, int]:
@@ -147,8 +131,6 @@ def _card_options_fields() -> dict[str, tuple[Any, Any]]:
 def check_card_options(options: dict[str, Any]) -> dict[str, Any]:
     """The ``options`` table of a station, each name known and each value of its option's type (strict: a bool
     takes ``true``/``false``, not 0/1); ValueError names the option and what was expected."""
-    from pydantic import TypeAdapter, ValidationError
-
     fields = _card_options_fields()
     for name, value in options.items():
         if name not in fields:
@@ -169,9 +151,6 @@ def _alarm_names() -> dict[str, str]:
     """Lower-case name -> name of every alarm a station can report (what ``expect = "alarm"`` compares with):
     the cards' own codes (SI-T3 Tables 23/25, V7 Table 8; SI-ET3 COMM_ALM / CMD_ALM tables) and the drive codes
     (SI-T3 Tables 26/27, V7 Tables 10/11)."""
-    from ..wire.codes import CmdAlm, CommAlm, M2Alarm
-    from ..wire.drive_codes import SiT3DriveAlarm, SiT3DriveWarning, V7InverterAlarm, V7InverterWarning
-
     tables = (M2Alarm, CommAlm, CmdAlm, SiT3DriveAlarm, SiT3DriveWarning, V7InverterAlarm, V7InverterWarning)
     return {m.name.lower(): m.name for t in tables for m in t if m.value}
 
@@ -332,10 +311,8 @@ class TimelineStep(BaseModel):
         return self
 
     @property
-    def impairment(self) -> Any:
+    def impairment(self) -> Impairment:
         """``do = "impair"``: the :class:`~mlink_sim.impair.Impairment` (ImpairError for a bad value)."""
-        from ..impair.spec import Impairment, parse_probability
-
         probs = {n: parse_probability(getattr(self, n), n) for n in ("loss", "duplicate", "reorder", "corrupt")
                  if getattr(self, n) is not None}
         return Impairment(direction=self.direction or "both", burst=self.burst, delay=self.delay or 0,
@@ -404,7 +381,7 @@ class NetworkConfig(BaseModel):
     arrival_poll: str = Field(
         "auto", description="the slave workers' arrival poll: 'auto' busy-polls from 80us before each burst of "
         "commands is due at cycles up to 500us where idle CPUs halt, a lead such as '80us' does so at any cycle, "
-        "'off' never (docs/performance.md, 'The worker's arrival poll')")
+        "'off' never (docs/timing.md)")
 
     @model_validator(mode="after")
     def _jitter(self) -> NetworkConfig:

@@ -4,7 +4,7 @@ Pure and deterministic: no clock, no sockets.  Time comes in as ``now`` (monoton
 :meth:`Drive.advance` integrates from the last time to ``now`` in equal sub-steps of at most
 ``substep_ns`` (default 1 ms); once a sub-step leaves the state unchanged (ramp finished, speed
 settled, bus at rest) the drive is *steady* and further time is covered in closed form (only the
-oL1 thermal state moves; its trip instant is solved exactly), so the cost no longer grows with
+oL1 thermal state moves; its trip instant is solved exactly), so the cost does not grow with
 the step rate.  Equations and limits: docs/drive-model.md.
 """
 

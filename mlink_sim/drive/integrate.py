@@ -26,9 +26,9 @@ step 1; after it, :func:`restart_watch` restarts a search whose current stays ab
 b3-19 is exceeded).
 
 :func:`substep` is the hot loop of every simulated station and stays one function: its constants are
-unpacked from one tuple (``IntegratorState.hot``), and five calls, one per step, cost 11-17 % more per
-integrated step in scripts/bench_drive.py (measured 2026-12-01).  The determinism tests
-(tests/drive/test_determinism_and_integration.py) and scripts/bench_drive.py guard it.
+unpacked from one tuple (``IntegratorState.hot``), because five calls, one per step, cost 11-17 % more per
+integrated step (``python -m benchmarks.micro.drive``).  The determinism tests
+(tests/drive/test_determinism_and_integration.py) and that benchmark guard it.
 """
 
 from __future__ import annotations
@@ -183,7 +183,7 @@ def ol1_trip_ahead(x: IntegratorState) -> bool:
 # ---------------------------------------------------------------------------------------------- sub-step
 def substep(x: IntegratorState, h: float) -> int:
     """Integrate ``h`` seconds: steps 1-5 of the module docstring, one marked section each (one function on
-    purpose: split into five calls it cost 11-17 % more per integrated step, scripts/bench_drive.py).  0,
+    purpose: split into five calls it costs 11-17 % more per integrated step).  0,
     :data:`CHANGED` (apply :attr:`~IntegratorState.pending`, re-derive the mode) or :data:`STEADY` (the state
     came to rest)."""
     if h <= 0.0:

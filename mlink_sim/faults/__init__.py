@@ -1,4 +1,4 @@
-"""Station, master and drive faults on purpose (issue 19 items 2–4; docs/faults.md).
+"""Station, master and drive faults on purpose, to test how a master and its stations meet them (docs/faults.md).
 
 * :mod:`.spec` — what each fault is, validated (``silence``, ``skip-cycles``, ``freeze-wdt``, ``bad-command``,
   ``load``, ``lock-rotor``, ``mains-loss``);

@@ -1,4 +1,4 @@
-"""Drive and plant faults (issue 19 item 3), applied to a station's drive model on the slave side: sans-I/O, time is
+"""Drive and plant faults, applied to a station's drive model on the slave side: sans-I/O, time is
 ``now`` (ns). Nothing here sets an alarm: each fault changes an input of the model's equations (docs/drive-model.md)
 and the drive reacts as they decide.
 

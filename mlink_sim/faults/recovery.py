@@ -1,4 +1,4 @@
-"""Recovery as a measured figure (issue 19 item 4): each fault injected into a station is an :class:`Episode`; once it
+"""Recovery as a measured figure: each fault injected into a station is an :class:`Episode`; once it
 has ended, the station's recovery time is the time from its end to the first cycle at which the master sees the
 station back at its target phase (3, or 2 without ``sync``) with no alarm (docs/faults.md, "Recovery").
 

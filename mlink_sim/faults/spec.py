@@ -1,4 +1,4 @@
-"""What one station, master or drive fault is (issue 19 items 2–3): frozen, validated values built from the timeline,
+"""What one station, master or drive fault is: frozen, validated values built from the timeline,
 a control request or the pytest plugin (docs/faults.md).
 
 Two families, by where the fault acts:
@@ -21,6 +21,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import Any, ClassVar
 
+from ..units import format_ns, parse_duration_ns
 
 __all__ = [
     "FaultError", "Silence", "SkipCycles", "FreezeWdt", "BadCommand", "LoadStep", "LockRotor", "MainsLoss",
@@ -40,8 +41,6 @@ class FaultError(ValueError):
 
 def _duration(value: Any, name: str, *, required: bool) -> int | None:
     """A duration above 0 in ns from ``"300ms"`` or a bare number of seconds (the plugin's ``for_=2.0``)."""
-    from ..config.units import parse_duration_ns  # here: the config package validates with this module
-
     if value is None:
         if required:
             raise FaultError(f"{name}: required, e.g. {name} = \"500ms\"")
@@ -81,8 +80,6 @@ class _Fault:
 
     def as_fields(self) -> dict[str, Any]:
         """The fields as a timeline step or a control request spells them (``for`` as ``"…ms"``)."""
-        from ..config.units import format_ns
-
         out = {k: v for k, v in asdict(self).items() if v is not None and k != "for_ns"}
         if self.for_ns is not None:
             out["for"] = format_ns(self.for_ns)

@@ -1,4 +1,5 @@
-"""The master-side fault stage (issue 19 item 2): sans-I/O, between one master core and its transport.
+"""The master-side fault stage, which makes a station or the master misbehave on purpose: sans-I/O, between one
+master core and its transport.
 
 The master's transport hands it each command on its way out (:meth:`FaultStage.to_station`) and each response on
 its way in (:meth:`FaultStage.to_master`); the stage drops, rewrites or replaces them as the faults in force say and

@@ -6,11 +6,12 @@ time, and delivers what comes back::
     for delay_ns, data in layer.process(datagram, Direction.TO_STATION, 0x21, now):
         deliver(data, at=now + delay_ns)            # nothing: dropped; two: duplicated; altered: corrupted
 
-The real-time master (:mod:`mlink_sim.aio.impaired`), the virtual clock's fabric (:mod:`mlink_sim.aio.fabric`)
-and the proxy (:mod:`mlink_sim.aio.proxy`) share it. It never reads a clock: time comes in as ``now`` (ns).
+The real-time master (:mod:`mlink_sim.aio.transport.impaired`), the virtual clock's fabric
+(:mod:`mlink_sim.aio.virtual.fabric`) and the proxy (:mod:`mlink_sim.aio.tools.proxy`) share it. It never reads a
+clock: time comes in as ``now`` (ns).
 
 **Idle costs nothing**: while :attr:`ImpairmentLayer.active` is False (no fault on any path) the drivers do not
-call it; the real-time master's socket is not even wrapped (scripts/bench_impair.py measures both).
+call it; the real-time master's socket is not even wrapped (``python -m benchmarks.micro.impair`` measures both).
 
 **Seeded**: each path (station, direction) draws from its own ``random.Random`` seeded from the layer's seed,
 the station and the direction, so the fate of the n-th datagram of a path depends only on the seed and on n,
@@ -24,16 +25,15 @@ stages of every group of a path run together in the order of :data:`~mlink_sim.i
 
 from __future__ import annotations
 
-import random
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from .spec import Direction, Impairment
-from .stages import Corrupt, Delay, Duplicate, Items, Loss, Reorder, Stage
+from .stages import Corrupt, Delay, Duplicate, Items, Loss, PathState, Reorder, Stage
 
-__all__ = ["ImpairmentLayer", "PathState", "Fault", "impairment_stages", "ALL"]
+__all__ = ["ImpairmentLayer", "Fault", "impairment_stages", "ALL"]
 
 #: The station of a fault on every station.
 ALL = None
@@ -65,30 +65,6 @@ class Fault:
     stages: tuple[Stage, ...]
     until: int | None
     describe: str = ""
-
-
-class PathState:
-    """One path (a station, one direction): its random generator, its datagram interval, per-stage state and
-    the injected counters of its station."""
-
-    __slots__ = ("station", "direction", "rng", "last_ns", "interval_ns", "scratch", "_counts")
-
-    def __init__(self, seed: int, station: int, direction: Direction, counts: Counter[str]) -> None:
-        self.station = station
-        self.direction = direction
-        self.rng = random.Random(f"mlink-sim/impair/{seed}/{station}/{int(direction)}")
-        self.last_ns: int | None = None
-        self.interval_ns = 0  #: time between the last two datagrams of this path
-        self.scratch: dict[Any, Any] = {}  #: per-stage state (the Gilbert–Elliott chain's state)
-        self._counts = counts
-
-    def count(self, kind: str, n: int = 1) -> None:
-        self._counts[kind] += n
-
-    def enter(self, now: int) -> None:
-        if self.last_ns is not None and now > self.last_ns:
-            self.interval_ns = now - self.last_ns
-        self.last_ns = now
 
 
 @dataclass

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
-from ..config.units import format_ns, parse_duration_ns
+from ..units import format_ns, parse_address, parse_duration_ns
 
 __all__ = ["Direction", "Impairment", "ImpairError", "parse_probability", "parse_impair_text", "as_impairment",
            "target_station", "DIRECTIONS"]
@@ -222,8 +222,6 @@ def target_station(station: Any) -> int | None:
     """A station argument (``0x21``, ``"0x21"``, ``"21H"``, ``"all"``/None) -> its address, or None for all."""
     if station is None or (isinstance(station, str) and station.strip().lower() == "all"):
         return None
-    from ..config.model import parse_address
-
     try:
         return parse_address(station)
     except ValueError as exc:

@@ -14,14 +14,14 @@ and hand instances to :meth:`~mlink_sim.impair.layer.ImpairmentLayer.add`.
 from __future__ import annotations
 
 import abc
-from typing import TYPE_CHECKING, ClassVar
+import random
+from collections import Counter
+from typing import Any, ClassVar
 
 from ..wire.frame import FCS_SIZE, HEADER_SIZE
+from .spec import Direction
 
-if TYPE_CHECKING:
-    from .layer import PathState
-
-__all__ = ["ORDER", "LOSS_BLOCK", "Stage", "Items", "Loss", "Corrupt", "Duplicate", "Delay", "Reorder"]
+__all__ = ["ORDER", "LOSS_BLOCK", "PathState", "Stage", "Items", "Loss", "Corrupt", "Duplicate", "Delay", "Reorder"]
 
 Items = list[tuple[int, bytes]]
 
@@ -39,6 +39,30 @@ ORDER: dict[str, int] = {
 LOSS_BLOCK = 1000
 #: Hold of a reordered datagram when its path has no interval yet (its first datagram).
 DEFAULT_HOLD_NS = 1_000_000
+
+
+class PathState:
+    """One path (a station, one direction): its random generator, its datagram interval, per-stage state and
+    the injected counters of its station."""
+
+    __slots__ = ("station", "direction", "rng", "last_ns", "interval_ns", "scratch", "_counts")
+
+    def __init__(self, seed: int, station: int, direction: Direction, counts: Counter[str]) -> None:
+        self.station = station
+        self.direction = direction
+        self.rng = random.Random(f"mlink-sim/impair/{seed}/{station}/{int(direction)}")
+        self.last_ns: int | None = None
+        self.interval_ns = 0  #: time between the last two datagrams of this path
+        self.scratch: dict[Any, Any] = {}  #: per-stage state (the Gilbert–Elliott chain's state)
+        self._counts = counts
+
+    def count(self, kind: str, n: int = 1) -> None:
+        self._counts[kind] += n
+
+    def enter(self, now: int) -> None:
+        if self.last_ns is not None and now > self.last_ns:
+            self.interval_ns = now - self.last_ns
+        self.last_ns = now
 
 
 class Stage(abc.ABC):

@@ -15,7 +15,7 @@ from typing import Any, Final
 
 from ..wire import CmdAlm, CommAlm, DropReason, Frame, Kind, Link, WireError, decode, encode
 from ..wire.frame import HEADER_SIZE, cycle_of
-from . import drivefault, requests, restart
+from . import answers, drivefault, requests, restart
 from .codec import Reply
 from .commands import Cmd, Send
 from .machine import Ev, expects, next_state
@@ -27,12 +27,10 @@ from .types import (
     Control,
     Dropped,
     Event,
-    Late,
     MasterDrop,
     Missing,
     Recovered,
     Request,
-    Rtt,
     StateChanged,
     StationDisconnected,
     StationState,
@@ -66,7 +64,7 @@ class MasterCore:
         #: Steady-state INV_CTL straight from and to bytes (:mod:`.fastpath`); False = general path only (tests).
         self.fast_path = True
         #: Where an answer's round trip goes, ``on_rtt(station, ns)``: None = an :class:`Rtt` event. A driver that
-        #: only counts them (``mlink_sim.aio.master.Master``: its metrics' ``record_rtt``) sets it and saves an
+        #: only counts them (``mlink_sim.aio.master.runner.Master``: its metrics' ``record_rtt``) sets it and saves an
         #: event object and its dispatch per exchange. Late answers are ``Late`` events either way.
         self.on_rtt: Callable[[int, int], None] | None = None
         self._now = 0
@@ -128,15 +126,15 @@ class MasterCore:
         if frame.data_size != st.plan.data_size:
             self._drop(st.address, DropReason.BAD_SIZE)
             return
-        sent = self._answer_to(st, frame.cycle)
+        sent = answers.answer_to(st, frame.cycle)
         if sent is None:
             reason = MasterDrop.DUPLICATE if frame.cycle == st.answered else MasterDrop.NOT_EXPECTED
             self._drop(st.address, reason)
             return
-        self._take(st, sent, now)
+        answers.take(st, sent, now, self.on_rtt, self._emit)
         msg = frame.message
         reply = st.codec.reply(msg, sent.code)
-        if _shows(st, sent.cycle, msg.rwdt):
+        if answers.shows(st, sent.cycle, msg.rwdt):
             st.rwdt = msg.rwdt
             self._observe(st, reply)
         if expects(st.state, Ev.ANSWERED):
@@ -153,60 +151,22 @@ class MasterCore:
         if (state is not _PHASE3 and state is not _PHASE2) or st.alarm or st.fault or st.cmd_alm or st.comm_alm >= 8:
             return False
         cycle = cycle_of(datagram)
-        sent = st.outstanding  # the common answer, on time (_answer_to's first case)
+        sent = st.outstanding  # the common answer, on time (answers.answer_to's first case)
         if sent is None or sent.cycle != cycle:
-            sent = self._answer_to(st, cycle)
+            sent = answers.answer_to(st, cycle)
         if sent is None or sent.send is not _CYCLIC or sent.sub_req is not None:
             return False
         frames = st.frames
         rwdt = frames.response(datagram, cycle, st.comm_alm)
         if rwdt < 0:
             return False
-        self._take(st, sent, now)
-        if _shows(st, cycle, rwdt):
+        answers.take(st, sent, now, self.on_rtt, self._emit)
+        if answers.shows(st, cycle, rwdt):
             st.rwdt = rwdt
             st.status, st.output_freq, st.output_current, st.mon1, st.mon2, st.warning = frames.last
             if st.run_held or st.searching:
                 restart.watch(st, self._emit)
         return True
-
-    @staticmethod
-    def _answer_to(st: Slave, cycle: int) -> Sent | None:
-        """The command a response for *cycle* answers: the outstanding one, or the one already counted missing
-        (once: a late answer); None when it answers neither (a duplicate or unexpected datagram)."""
-        sent = st.outstanding
-        if sent is not None and sent.cycle == cycle:
-            return sent
-        if st.inflight:
-            sent = st.inflight.get(cycle)
-            if sent is not None:
-                return sent
-        sent = st.expired
-        if sent is not None and sent.cycle == cycle and not sent.late_seen:
-            return sent
-        return None
-
-    def _take(self, st: Slave, sent: Sent, now: int) -> None:
-        """Count the answer to *sent*: ``Rtt`` when it is the outstanding command, else ``Late``. A late answer
-        still tells the truth (the command was executed), so it is processed; handlers check the current state,
-        so nothing is done twice (what the station shows from it: :func:`_shows`)."""
-        if sent is st.outstanding or st.inflight.pop(sent.cycle, None) is sent:
-            if sent is st.outstanding:
-                st.outstanding = None
-            st.rtt = rtt = now - sent.at
-            on_rtt = self.on_rtt
-            if on_rtt is None:
-                self._emit(Rtt(st.address, rtt))
-            else:
-                on_rtt(st.address, rtt)
-        else:
-            sent.late_seen = True
-            st.late += 1
-            self._emit(Late(st.address, sent.cycle, now - sent.at))
-        st.answered = sent.cycle
-        st.silent = 0
-        st.responses += 1
-        st.last_rx = now
 
     def drain_events(self) -> list[Event]:
         """All events since the last call, oldest first."""
@@ -607,20 +567,3 @@ class MasterCore:
         except KeyError:
             raise KeyError(f"no station {station:02X}H in the plan") from None
 
-
-def _shows(st: Slave, cycle: int, rwdt: int) -> bool:
-    """Whether the answer to the command of *cycle*, with *rwdt*, sets what *st* shows (RWDT, status, alarms): False
-    only for an answer the slave made before the one shown, which came after it (a worker answers its backlog newest
-    cycle first, ``mlink_sim.aio.bus``). That answer is still counted and its command's outcome processed
-    (``_take``, ``_advance``); the answer shown already showed the slave after both commands.
-
-    "Made before" needs both: a command *cycle* older than the one shown (the envelope's u32 cycle number,
-    docs/wire-format.md) and a slave count (RWDT bits 0–3, one further with each answer: ``cards.watchdog``) behind
-    the one shown, by 1–8. Commands the network reordered fail the second: the slave took the older command last,
-    so its answer is the newer one, and it may carry the WDT fault the reordering caused (SI-T3 Table 24 and SI-T/V7
-    Table 9 "WDT count fault in a synchronous frame"; SI-ET3 COMM_ALM CH "WDT error")."""
-    shown = st.shown
-    if shown >= 0 and (cycle - shown) & _U32 > 0x7FFFFFFF and (rwdt - st.rwdt) & 0xF > 7:
-        return False
-    st.shown = cycle
-    return True

@@ -4,7 +4,7 @@ Once a station is up, almost every slot is the same cyclic INV_CTL command (SI-T
 SI-T/V7 Table 3) answered by an INV_CTL response without alarm or warning. The general path builds a
 :class:`~mlink_sim.wire.Frame` and message objects for it, then a :class:`~mlink_sim.master.codec.Reply`, and
 runs the phase machine. Profiling put that at ~10 µs to encode and ~25 µs to decode per station and cycle,
-which limits a 2-core machine to about 15 stations per millisecond (docs/performance.md).
+which limits a 2-core machine to about 15 stations per millisecond.
 
 :class:`CyclicFrames` does the same exchange with ``struct`` formats that are derived mechanically from the wire
 declarations. Nothing here is declared a second time:
@@ -21,7 +21,7 @@ declarations. Nothing here is declared a second time:
 non-zero ALARM byte or STATUS.ALM/WARNG (ML-II), CMD_STAT ALM or CMD_ALM or a COMM_ALM edge (ML-III), another
 code, a bad FCS or another size. The core then takes the general path, so alarms, phase errors and malformed
 input are all handled in one place. Which command an answer is for (on time or late) the core decides for both
-paths in one place (``MasterCore._answer_to``). tests/master/test_master_fastpath.py checks that both paths
+paths in one place (:mod:`.answers`). tests/master/test_master_fastpath.py checks that both paths
 give the same bytes, views and events.
 """
 

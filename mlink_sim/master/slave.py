@@ -64,7 +64,7 @@ class Slave:
         self.inflight: dict[int, Sent] = {}
         self.expired: Sent | None = None
         self.answered: int | None = None
-        #: the command cycle of the answer the station shows (-1: none yet; core._shows)
+        #: the command cycle of the answer the station shows (-1: none yet; answers.shows)
         self.shown = -1
         self.silent = 0
         self.main_q: deque[Request] = deque()

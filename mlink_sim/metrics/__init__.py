@@ -19,7 +19,8 @@ from .assertions import (
     parse_assertion,
     parse_assertions,
 )
-from .histogram import LatencyHistogram, format_ns
+from ..units import format_ns
+from .histogram import LatencyHistogram
 from .network import NetworkMetrics, StationMetrics, station_key
 from .report import REPORT_SCHEMA, SCHEMA_ID, dumps_report, host_info, write_report
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from decimal import Decimal, InvalidOperation
 from typing import Any
 
-from .histogram import format_ns
+from ..units import format_ns
 from .report import REPORT_SCHEMA
 
 __all__ = [

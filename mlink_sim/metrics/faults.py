@@ -1,4 +1,4 @@
-"""Recovery figures of one station (issue 19 item 4; docs/report.md, docs/faults.md "Recovery"): the recovery times
+"""Recovery figures of one station (docs/report.md, docs/faults.md "Recovery"): the recovery times
 after each fault as an HDR histogram (:class:`LatencyHistogram`), and the faults after which the station did not
 recover. What was injected is the station's ``injected`` counts (the impairment layer's and the fault stage's)."""
 

@@ -7,15 +7,14 @@ falls in it. Real latencies fill two to four pages, so copying, merging and summ
 counts instead of 25 600, and a live report does not stall the cycle. ``HdrHistogram.record_value`` costs
 ~1.3 µs a call in CPython (``bin()`` based leading-zero count, ctypes counters, min/max bookkeeping); the
 inlined index computation and two list indexings below cost about 40 ns compiled (docs/report.md, "Cost on the
-recording path"). Until session 16 the counts were a ``dict`` keyed by index: in the master of a 62-station
-network its lookups (hash probe, a compare of two int objects, a second lookup to store) were 10 % of the
-master's CPU (``perf`` of ``mlink-sim up configs/ml3-62-max.toml``; docs/performance.md, "Where the time goes,
-profiled (session 16)").
+recording path"). The counts are indexed lists of pages, not a ``dict`` keyed by index: in the master of a
+62-station network a dict's lookups (hash probe, a compare of two int objects, a second lookup to store) take 10 %
+of the master's CPU (``perf`` of ``mlink-sim up configs/ml3-62-max.toml``).
 The pages are ``array.array("q")``, not lists: an array holds no object references, so a garbage collection
 visits it in one step instead of 1 024 (``tp_traverse`` visits only its type). As lists, the few hundred pages a
-62-station master fills after a reset were young containers of 1 024 references each, and the first collections of the measuring window traversed them all:
-a generation-0 collection of 2.2 ms and a generation-1 collection of 4.2 ms, each in the middle of a cycle, in a
-15 s window (``gc.callbacks``; docs/performance.md, "What holds the CPU when answers come late (session 18)").
+62-station master fills after a reset are young containers of 1 024 references each, and the first collections
+of the measuring window traverse them all: a generation-0 collection of 2.2 ms and a generation-1 collection of
+4.2 ms, each in the middle of a cycle, in a 15 s window (measured with ``gc.callbacks``).
 Summaries are computed from the non-zero buckets with HdrHistogram's own index ⇄ value functions (tests check
 they equal the library's figures); the counts are copied into an ``HdrHistogram`` only to encode it or for
 :meth:`LatencyHistogram.to_hdr`.
@@ -37,7 +36,9 @@ from collections.abc import Iterable
 
 from hdrh.histogram import HdrHistogram
 
-__all__ = ["LatencyHistogram", "LOWEST_NS", "HIGHEST_NS", "SIGNIFICANT_DIGITS", "SUMMARY_KEYS", "format_ns"]
+from ..units import format_ns
+
+__all__ = ["LatencyHistogram", "LOWEST_NS", "HIGHEST_NS", "SIGNIFICANT_DIGITS", "SUMMARY_KEYS"]
 
 LOWEST_NS = 1
 HIGHEST_NS = 10_000_000_000          # 10 s
@@ -296,14 +297,3 @@ class LatencyHistogram:
         s = self.summary()
         return f"LatencyHistogram(count={s['count']}, p50={format_ns(s['p50'])}, max={format_ns(s['max'])})"
 
-
-def format_ns(ns: float | int) -> str:
-    """Human form of a duration in ns with 4 significant digits: ``850ns``, ``731.2us``, ``1.25ms``, ``2s``."""
-    a = abs(ns)
-    if a < 1_000:
-        return f"{ns:.4g}ns"
-    if a < 1_000_000:
-        return f"{ns / 1e3:.4g}us"
-    if a < 1_000_000_000:
-        return f"{ns / 1e6:.4g}ms"
-    return f"{ns / 1e9:.4g}s"

@@ -107,8 +107,8 @@ class StationMetrics:
         """Forget what was counted so far (RTT, master counters; slave counters count from their current value).
 
         Commands still in flight (sent, neither answered nor given up) stay counted in ``sent``: their answer or
-        their ``missing`` comes after the reset, and counting it without its command broke
-        ``answered + missing <= sent`` by about one command per station after bring-up (issue 14, item 8)."""
+        their ``missing`` comes after the reset, and counting it without its command would break
+        ``answered + missing <= sent`` by about one command per station after bring-up."""
         self.rtt.reset()
         self.sent = max(0, self.sent - self.answered - self.missing)
         self.answered = self.late = self.missing = self.alarms = 0
@@ -293,8 +293,7 @@ class NetworkMetrics:
     def record_sent_burst(self, burst: list[tuple[int, bytes]]) -> None:
         """:meth:`record_sent` of each station of a cycle's burst (the master core's ``(station, datagram)``
         pairs) in one call: the loop compiled here, not run by the interpreter once per command right after the
-        burst went out, while the worker it woke may be waiting for this CPU (docs/performance.md, "Where the time goes,
-        profiled (session 16)")."""
+        burst went out, while the worker it woke may be waiting for this CPU."""
         for station, _ in burst:
             self.record_sent(station)
 

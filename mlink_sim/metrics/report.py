@@ -254,5 +254,5 @@ def _host_info() -> dict[str, Any]:
         "machine": platform.machine(),
         "cpus": os.cpu_count() or 0,
         "python": f"{platform.python_implementation()} {platform.python_version()}",
-        "cores": _accel.describe(),  # compiled (mypyc) or pure-Python cores (docs/performance.md)
+        "cores": _accel.describe(),  # compiled (mypyc) or pure-Python cores (docs/architecture.md)
     }

@@ -2,7 +2,7 @@
 
 Used by ``scripts/netns-testbed`` inside the master's namespace before the master starts, so that a station that
 cannot be reached (a bridge whose frames a host firewall drops, say) is reported by name instead of as a failed
-bring-up. Sends each station a NOP (:func:`mlink_sim.aio.probe.probe`), all concurrently; prints one line per
+bring-up. Sends each station a NOP (:func:`mlink_sim.aio.tools.probe.probe`), all concurrently; prints one line per
 station that did not answer and exits 1 if any did not, 0 if all did, 2 on a malformed argument.
 """
 

@@ -1,5 +1,5 @@
-"""Station, master and drive faults from a test (docs/faults.md, docs/testing.md): the methods of the
-``mlink_network`` fixture on both clocks.
+"""Station, master and drive faults from a test (docs/faults.md, "From a test"; the fixture: docs/ci.md): the methods
+of the ``mlink_network`` fixture on both clocks.
 
     net.silence(0x21, for_=0.2)                       # answers dropped for 200 ms
     net.skip_cycles(0x21, count=3)                    # three transmission cycles without a command

@@ -10,7 +10,7 @@ bring-up is over, then serves requests on ``127.0.0.1:P``: one JSON object per l
     ← {"id": 7, "result": 20}
     ← {"id": 7, "error": {"type": "StationAlarmError", "message": "…", "station": 33, "code": 148, "name": "…"}}
 
-Methods: the request methods of :class:`~mlink_sim.aio.session.NetworkApi` (``prm_rd`` … ``reconnect``),
+Methods: the request methods of :class:`~mlink_sim.aio.run.session.NetworkApi` (``prm_rd`` … ``reconnect``),
 ``set_control``, ``view``, ``views``, ``kill_slave``, ``impair``/``heal``, ``fault``/``fault_episode`` (docs/faults.md),
 ``snapshot`` (figures as bucket pairs + report meta; the
 client builds the report, so the cycle is never held up by it), ``reset_metrics``, ``timeline`` (waits for the
@@ -172,7 +172,7 @@ async def serve(args: argparse.Namespace) -> int:
     interrupted = asyncio.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, interrupted.set)
-    scales = speed_scales(config) if args.timeline else None  # before the clock starts (aio/scenario.py)
+    scales = speed_scales(config) if args.timeline else None  # before the clock starts (aio/run/scenario.py)
     workers = resolve_workers(args.workers, len(config.station))  # ValueError: reported as an error event
     session = await NetworkSession.open(config, Path(args.config), workers=workers,
                                         state_dir=args.state_dir, run_dir=args.run_dir, seed=args.seed)

@@ -11,6 +11,8 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
+from ..units import format_ns
+
 __all__ = ["Latency", "MetricsView", "StationMetricsView", "ReportChecks", "HostView", "StallsView"]
 
 _LATENCY_KEYS = ("min", "p50", "p90", "p99", "p99_9", "max", "mean")
@@ -41,8 +43,6 @@ class Latency:
         return dict(self._d)
 
     def __repr__(self) -> str:
-        from ..metrics import format_ns
-
         if not self.count:
             return "Latency(empty)"
         return (f"Latency(count={self.count}, p50={format_ns(self._d['p50'])}, p99={format_ns(self._d['p99'])}, "

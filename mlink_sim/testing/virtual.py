@@ -1,6 +1,6 @@
 """The ``mlink_network`` fixture on the virtual clock (``@pytest.mark.mlink_network(CFG, clock="virtual")``):
 :class:`VirtualRunningNetwork` has :class:`~mlink_sim.testing.RunningNetwork`'s methods, but the network runs in
-the test's own process on simulated time (:class:`~mlink_sim.aio.embed.VirtualNetwork`): ``wait(2.0)`` returns at
+the test's own process on simulated time (:class:`~mlink_sim.aio.run.embed.VirtualNetwork`): ``wait(2.0)`` returns at
 once with two simulated seconds gone, ``wait_until`` polls in simulated time, nothing depends on how busy the
 machine is, and the same seed gives the same figures."""
 

@@ -1,8 +1,8 @@
 /* The wire contract's FCS (CRC-16/X-25, docs/wire-format.md) in C, and the per-datagram steps around it.
  *
- * Part of the compiled cores (docs/performance.md, "Compiled cores"; mlink_sim/_accel.py C_EXTENSIONS): setup.py
- * builds it next to mlink_sim/wire/fcs.py, which uses it when the compiled cores are selected and keeps the
- * pure-Python functions as the fallback. tests/wire/test_fcs_native.py pins every function here to the pure one,
+ * Part of the compiled cores (docs/architecture.md, "Compiled cores (mypyc)"; mlink_sim/_accel.py C_EXTENSIONS):
+ * setup.py builds it next to mlink_sim/wire/fcs.py, which uses it when the compiled cores are selected and keeps
+ * the pure-Python functions as the fallback. tests/wire/test_fcs_native.py pins every function here to the pure one,
  * byte for byte.
  *
  * Why by hand: the fast paths spend most of their byte work on the FCS (binascii.crc_hqx is the non-reflected

@@ -9,7 +9,7 @@ Two implementations, one result:
   table-driven reflected CRC. :data:`NATIVE` is that module: :func:`mlink_sim.wire.frame.with_fcs`,
   :func:`~mlink_sim.wire.frame.fcs_ok` and :func:`~mlink_sim.wire.frame.patch_seal` call it directly, so a
   datagram is sealed or checked in one call, without a copy. It is written by hand because the FCS was most of
-  the fast paths' byte work (docs/performance.md, "The FCS in C") and no maintained library seals, checks or
+  the fast paths' byte work (docs/wire-format.md, "Frame check sequence") and no maintained library seals, checks or
   patches a datagram in one call.
 * **pure Python** (the fallback, and the only one with ``MLINK_PURE=1`` or without a compiler):
   :func:`binascii.crc_hqx` is the *non-reflected* CRC-16/CCITT with the same polynomial, so X-25 is obtained by

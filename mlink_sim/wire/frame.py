@@ -154,7 +154,7 @@ class Template:
     The last datagram sealed is kept: sealing the same cycle and WDT from the same body again returns that object,
     with no copy and no FCS. A card's answer made ahead (:mod:`mlink_sim.cards.prediction`) is sealed here for the
     next cycle; when the card then takes that cycle's command, its own answer is the same object, and the worker's
-    check that the two are equal (``aio.bus.Port.settle``) is an identity test."""
+    check that the two are equal (``aio.slave.bus.Port.settle``) is an identity test."""
 
     def __init__(self, wdt_at: int) -> None:
         self.wdt_at = wdt_at

@@ -1,9 +1,9 @@
 """A datagram whose FCS this process computed in Python (:func:`mlink_sim.wire.frame.with_fcs`, pure cores).
 
 With the compiled cores the FCS is computed in C and ``with_fcs`` returns plain ``bytes``: checking in C costs
-less than creating this object (docs/performance.md, "The FCS in C").
+less than creating this object.
 
-A module of its own: mlink_sim.wire.frame is compiled (mypyc, docs/performance.md "Compiled cores"), and mypyc
+A module of its own: mlink_sim.wire.frame is compiled (mypyc, docs/architecture.md "Compiled cores (mypyc)"), and mypyc
 cannot compile a subclass of ``bytes``; here it stays a Python class that the compiled code creates and tests for.
 """
 

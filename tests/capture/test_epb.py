@@ -1,5 +1,5 @@
 """EpbPacker: its blocks are byte-identical to dpkt's own Writer for the same packets and times, commented blocks
-interleaved, and python-pcapng's and dpkt's readers read them back (the module's condition, docs/performance.md)."""
+interleaved, and python-pcapng's and dpkt's readers read them back (the condition the module sets itself)."""
 
 from __future__ import annotations
 

@@ -66,7 +66,7 @@ def _writes(m: Master, card: str) -> list[tuple[Any, Any]]:
 
 @pytest.mark.parametrize("card", CARDS)
 def test_after_a_connection_loss_no_foreign_command_writes(card: str) -> None:
-    """Issue 14 item 1: the flooder's PRM_WR and CONFIG to EEPROM (and every other writing command) on a released
+    """After a connection loss, the flooder's PRM_WR and CONFIG to EEPROM (and every other writing command) on a released
     station change nothing: answered as from phase 1 (A.95 / CMD_ALM CH, SI-T3 "If not in phase 2 or 3", SI-ET3
     Table 9), or ignored (DISCONNECT without a connection)."""
     m = _running_then_lost(card)
@@ -87,7 +87,7 @@ def test_after_a_connection_loss_no_foreign_command_writes(card: str) -> None:
 
 @pytest.mark.parametrize("card", CARDS)
 def test_released_station_takes_a_master_only_through_connect(card: str) -> None:
-    """Issue 14 items 1 and 2: NOPs from anyone (a probe, the old master) are status queries and bind nothing; the
+    """On a released station NOPs from anyone (a probe, the old master) are status queries and bind nothing; the
     master's INV_CTL is answered as from phase 1, so it CONNECTs again and owns the station; the bUS count starts
     from zero with the new connection."""
     m = _running_then_lost(card)

@@ -143,7 +143,7 @@ def test_the_connected_master_is_its_address_not_the_object_that_carried_it(card
     """docs/cards.md "Who may change a station": a station is owned by the source address (IP and port) whose
     CONNECT it accepted (SI-T3 CONNECT "Establish Connection", SI-ET3 Table 9). The card and its prediction test the
     source by identity first (a worker hands one source's datagrams the same object); an equal address in another
-    object is still that master: answered, ahead as before, never counted foreign."""
+    object is still that master: answered, ahead as for the same object, never counted foreign."""
     c, body = _at_rest(card, size)
     m = c.m
     m.source = (m.source[0], m.source[1])  # the same address, a new tuple

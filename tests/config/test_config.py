@@ -122,7 +122,7 @@ def test_units_and_endpoints() -> None:
         parse_endpoint("localhost")
 
 
-# -- issue 14, items 9, 10, 13 -------------------------------------------------------------------------------------
+# -- card options, timeline names and ranges, file encoding: checked when the config loads ------------------------
 
 ET3 = BASE.replace('address = 0x21\ncard = "si-t3"', 'address = 0x23\ncard = "si-et3"')
 

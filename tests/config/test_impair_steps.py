@@ -1,4 +1,4 @@
-"""``do = "impair"`` / ``do = "heal"`` in the timeline, exactly as issue 19 writes them, and the messages for bad
+"""``do = "impair"`` / ``do = "heal"`` in the timeline, in the full syntax of docs/faults.md, and the messages for bad
 values (docs/faults.md): they stop the config from loading, naming the step and the field."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ address = 0x21
 card = "si-t3"
 """
 
-ISSUE = """
+FULL = """
 [[timeline]]
 at = "1s"
 station = 0x21          # or "all" (the default)
@@ -37,8 +37,8 @@ do = "heal"
 """
 
 
-def test_the_issue_syntax_loads() -> None:
-    config = parse_config(BASE + ISSUE)
+def test_the_full_syntax_loads() -> None:
+    config = parse_config(BASE + FULL)
     impair, heal = config.timeline
     assert impair.impairment == Impairment(direction="both", loss=0.05, burst=3, delay=300_000, jitter=200_000,
                                            duplicate=0.01, reorder=0.01, corrupt=0.01, for_ns=2_000_000_000)

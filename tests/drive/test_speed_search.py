@@ -1,6 +1,6 @@
 """Speed search (A1000 b3 group, VS-606V7 n101/n102 and inputs 14/15) and SEr (SI-T3 Table 26, 3BH).
 
-The scenario is the one of issue 15: a drive running at 30 Hz trips bUS and coasts (F6-01 = 1); the master
+The scenario: a drive running at 30 Hz trips bUS and coasts (F6-01 = 1); the master
 resets the fault and runs the drive again while the motor still turns.  Expected values come from the
 parameters and the motor equations (docs/drive-model.md, sections 4 and "Speed search"):
 

@@ -1,4 +1,4 @@
-"""Faults on purpose end to end (docs/faults.md, issue 19): the impairing proxy between a master and a slave,
+"""Faults on purpose end to end (docs/faults.md): the impairing proxy between a master and a slave,
 controlled while it runs; ``up --control``; the shipped example; bad input is exit 2. Loopback, port 0."""
 
 from __future__ import annotations

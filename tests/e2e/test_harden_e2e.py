@@ -1,4 +1,5 @@
-"""Issue 14, items 6–14, met from outside as a user would: real ``mlink-sim`` processes, loopback, port 0."""
+"""Signals, exit codes, input errors, warnings, library use, shipped examples and the live status, met from
+outside as a user would: real ``mlink-sim`` processes, loopback, port 0."""
 
 from __future__ import annotations
 
@@ -79,7 +80,7 @@ def _start_up(args: list[str], **kw: object) -> tuple[subprocess.Popen[str], _Li
     return proc, _Lines(proc.stdout), _Lines(proc.stderr)
 
 
-# -- item 6: interrupts ----------------------------------------------------------------------------------------
+# -- interrupts --------------------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize(("sig", "code", "group"), [(signal.SIGINT, 130, True), (signal.SIGTERM, 143, False)])
 def test_signal_during_up_disconnects_and_exits_128_plus_n(tmp_path: Path, sig: signal.Signals, code: int,
@@ -139,7 +140,7 @@ def test_slave_and_master_exit_128_plus_n_on_signals(tmp_path: Path, sig: signal
                 p.kill()
 
 
-# -- items 7, 8: honest verdicts, the report's invariant ---------------------------------------------------------
+# -- honest verdicts, the report's invariant ---------------------------------------------------------------------------
 
 def test_duration_shorter_than_the_timeline_warns_and_lists_the_steps_not_run(tmp_path: Path) -> None:
     cfg = _write(tmp_path, LONG)
@@ -154,7 +155,7 @@ def test_duration_shorter_than_the_timeline_warns_and_lists_the_steps_not_run(tm
     assert "1 timeline step(s) not run (--duration 1.5s ended the run)" in r.stdout
     doc = json.loads(report.read_text())
     assert doc["meta"]["not_run"] == ["30s all stations: expect running"] and doc["meta"]["interrupted"] is None
-    # item 8: answered + missing <= sent, network-wide and per station, on a real run's report
+    # answered + missing <= sent, network-wide and per station, on a real run's report
     for fig in [doc, *doc["station"].values()]:
         assert fig["answered"] + fig["missing"] <= fig["sent"], fig
         assert fig["late"] <= fig["answered"] and fig["rtt"]["count"] == fig["answered"]
@@ -172,7 +173,7 @@ def test_report_invariant_and_verdict_on_the_virtual_clock(tmp_path: Path) -> No
         assert fig["answered"] + fig["missing"] <= fig["sent"], fig
 
 
-# -- items 9, 10, 11: every input checked before anything starts -------------------------------------------------
+# -- every input checked before anything starts ------------------------------------------------------------------------
 
 @pytest.mark.parametrize(("edit", "expected"), [
     (('card = "si-et3"', 'card = "si-et3"\noptions = { et3_syncmode_tabel19 = false }'),
@@ -225,7 +226,7 @@ def test_address_already_in_use_names_the_address(slave) -> None:
     assert f"127.0.0.1:{s.port}" in r.stderr and "in use" in r.stderr and "Traceback" not in r.stderr
 
 
-# -- item 12: quiet as a library ---------------------------------------------------------------------------------
+# -- quiet as a library ------------------------------------------------------------------------------------------------
 
 LIBRARY_USE = """
 import asyncio, sys
@@ -259,7 +260,7 @@ def test_library_use_prints_no_log_lines(tmp_path: Path) -> None:
     assert "killing_slave" in r.stderr and "mlink_sim" in r.stderr
 
 
-# -- item 13: shipped examples by name, from any folder ----------------------------------------------------------
+# -- shipped examples by name, from any folder -------------------------------------------------------------------------
 
 def test_examples_by_name_from_any_folder(tmp_path: Path) -> None:
     r = run_cli("validate", "quickstart", cwd=tmp_path)
@@ -300,7 +301,7 @@ def test_the_wheel_ships_the_examples(tmp_path: Path) -> None:
     assert "LICENSE" in " ".join(names) or any(n.endswith("licenses/LICENSE") for n in names)
 
 
-# -- item 14: the live status ------------------------------------------------------------------------------------
+# -- the live status ---------------------------------------------------------------------------------------------------
 
 #: A run of 3.5 s.
 SHORT = _net("0.5s", "2.5s")

@@ -1,6 +1,6 @@
-"""Issue 14 items 1–3 from outside, as a master or an attacker on the network meets them: real ``mlink-sim slave``
-processes on loopback, a scripted master and a flooder over UDP, ``mlink-sim probe``, kill -9 (docs/cards.md,
-"Who may change a station" and "EEPROM")."""
+"""Who may change a station, and its EEPROM, from outside, as a master or an attacker on the network meets them:
+real ``mlink-sim slave`` processes on loopback, a scripted master and a flooder over UDP, ``mlink-sim probe``,
+kill -9 (docs/cards.md, "Who may change a station" and "EEPROM")."""
 
 from __future__ import annotations
 
@@ -73,7 +73,7 @@ def _params_saved(state: Path) -> dict:
 @pytest.mark.parametrize("card", CARDS)
 def test_flood_then_foreign_writes_and_a_probe_change_nothing_and_the_master_gets_its_station_back(
         card: str, slave, tmp_path: Path) -> None:
-    """Items 1 and 2: a flood cuts the master off until the station declares bUS and releases the connection; the
+    """A flood cuts the master off until the station declares bUS and releases the connection; the
     flooder's PRM_WR (77.7 s acceleration) and CONFIG to EEPROM change nothing, a probe binds nothing, and the
     master's next command tells it to CONNECT again, after which it owns the station and reads the old value."""
     state = tmp_path / "state"
@@ -149,7 +149,7 @@ def test_probe_never_changes_station_state(card: str, slave, tmp_path: Path) -> 
 @pytest.mark.parametrize("card", CARDS)
 def test_eeprom_write_acknowledged_only_once_durable_survives_kill_9(
         card: str, slave, tmp_path: Path) -> None:
-    """Item 3: CONFIG to EEPROM answers CMDRDY = 0 until the image is written, fsync'd and renamed; kill -9 right
+    """CONFIG to EEPROM answers CMDRDY = 0 until the image is written, fsync'd and renamed; kill -9 right
     after the completed answer, restart: the value is there. Stale temporary files are gone after a start."""
     state = tmp_path / "state"
     state.mkdir()

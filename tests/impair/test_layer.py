@@ -1,5 +1,5 @@
 """The impairment layer on explicit time (mlink_sim/impair): every stage, the pipeline's order, expiry, healing,
-seeding and the realised loss rate (issue 19, item 6: ±10 % relative over 10,000 datagrams)."""
+seeding and the realised loss rate (within ±10 % relative over 10,000 datagrams)."""
 
 from __future__ import annotations
 

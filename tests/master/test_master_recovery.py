@@ -55,7 +55,7 @@ def test_lost_cycles_reception_alarm_then_alm_clr_and_sync_set(net_of, link, tcy
 @pytest.mark.parametrize("slave_factory", ["card"], indirect=True)
 @pytest.mark.parametrize(("link", "tcycle"), LINKS)
 def test_master_gets_its_station_back_after_a_connection_loss_and_a_probe(net_of, link, tcycle):
-    """Issue 14 item 2: the master's commands are lost until the card declares bUS (F6-26 communications alarms,
+    """The master's commands are lost until the card declares bUS (F6-26 communications alarms,
     SI-T3 Table 28) and releases the connection; a health-check probe's NOP then binds nothing, and the master's
     next command is answered as from phase 1, so it CONNECTs and owns the station again (docs/cards.md)."""
     net = up(net_of, link, tcycle)

@@ -7,7 +7,7 @@ import random
 import pytest
 from hdrh.histogram import HdrHistogram
 
-from mlink_sim.metrics import LatencyHistogram, format_ns
+from mlink_sim.metrics import LatencyHistogram
 from mlink_sim.metrics.histogram import _LAYOUT, HIGHEST_NS, SUMMARY_KEYS, _index, _median_of_index
 
 US = 1_000
@@ -184,15 +184,6 @@ def test_reset_and_copy():
     c = h.copy()
     h.reset()
     assert h.count == 0 and c.count == 3
-
-
-@pytest.mark.parametrize(
-    "ns, text",
-    [(0, "0ns"), (850, "850ns"), (731_200, "731.2us"), (500_000, "500us"), (1_250_000, "1.25ms"),
-     (2_000_000_000, "2s"), (999_999, "1000us")],
-)
-def test_format_ns(ns, text):
-    assert format_ns(ns) == text
 
 
 def test_count_at_most_counts_the_values_up_to_a_bound():

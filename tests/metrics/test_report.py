@@ -273,8 +273,8 @@ def test_docs_explain_every_field():
 
 
 def test_reset_keeps_the_commands_in_flight_so_answered_plus_missing_stays_within_sent():
-    """Issue 14, item 8: the reset at the end of bring-up came between a command and its answer, one per
-    station, so every report had answered + missing = sent + about the station count."""
+    """The reset at the end of bring-up comes between a command and its answer, one per station; counting
+    the answer without its command would give answered + missing = sent + about the station count."""
     m = NetworkMetrics(cycle_ns=1 * MS)
     for st in (0x21, 0x22):
         for _ in range(10):

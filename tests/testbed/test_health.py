@@ -17,20 +17,28 @@ from hypothesis import strategies as st
 
 from mlink_sim.cards import CARDS, create_card
 from mlink_sim.cards.settings import CardSettings
-from mlink_sim.cli.probe import _nop
 from mlink_sim.testbed import health
-from mlink_sim.wire import Kind, Link, decode
+from mlink_sim.wire import Frame, Kind, Link, decode, encode, ml2, ml3
 from mlink_sim.wire.fcs import crc16_x25
 
 HEALTH = Path(health.__file__)
 MS = 1_000_000
 
 
+def _codec_nop(link: Link, size: int, station: int, cycle: int) -> bytes:
+    """The NOP command as the wire codec encodes it (a NOP sub-command in the 32- and 64-byte frames), 2 ms cycle."""
+    if link is Link.ML3:
+        msg: object = ml3.M3Command(ml3.Nop(), sub=ml3.Nop() if size == 64 else None)
+    else:
+        msg = ml2.M2Command(ml2.Nop(), sub=ml2.Nop() if size == 32 else None)
+    return encode(Frame(link, Kind.COMMAND, station, cycle, 2_000_000, msg))  # type: ignore[arg-type]
+
+
 @pytest.mark.parametrize(("link", "size"), health.ATTEMPTS)
 def test_nop_command_is_the_wire_codecs_nop(link, size):
     for station, cycle in ((0x21, 1), (0x03, 0xFFFF_FFFF), (0xEF, 77)):
         datagram = health.nop_command(link, size, station, cycle)
-        assert datagram == _nop(Link[link.upper()], size, station, cycle)
+        assert datagram == _codec_nop(Link[link.upper()], size, station, cycle)
         frame = decode(datagram, kind=Kind.COMMAND)
         assert frame.message.code == 0x00 and frame.station == station and frame.cycle == cycle
 

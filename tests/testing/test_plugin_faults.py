@@ -1,4 +1,4 @@
-"""The fixture's fault injection (docs/faults.md, issue 19 item 5): ``mlink_network.impair(0x21, loss=0.1,
+"""The fixture's fault injection (docs/faults.md, "From a test"): ``mlink_network.impair(0x21, loss=0.1,
 for_=2.0)`` and ``heal()``, on the virtual clock (the real-clock host serves the same two methods; tests/e2e)."""
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 The module is loaded from its file, so both passes of scripts/test (compiled and ``MLINK_PURE=1``) run these
 tests. Without a compiled build they are skipped, unless ``MLINK_REQUIRE_COMPILED=1`` (scripts/test sets it when
-the build compiled). docs/wire-format.md "Frame check sequence"; docs/performance.md "The FCS in C".
+the build compiled). docs/wire-format.md "Frame check sequence".
 """
 
 from __future__ import annotations
