@@ -10,10 +10,9 @@ timerfd) and reads the socket without blocking until the burst is there, for at 
 then the reader (``loop.add_reader``) has it again. A wake-up before the burst costs the worker its spin; a
 wake-up when the burst comes costs the chain of the exchange.
 
-Between two empty reads the poll yields its CPU (``os.sched_yield``; ``MLINK_POLL_YIELD=0`` keeps it spinning,
-to compare). The master that sends the burst may be queued on that very CPU: Linux packs the two processes on one
-CPU here, and a spinning worker held the master's cycle up until its poll gave up, a lead past the burst's due
-time. With idle CPUs polling (``bench.py --pm-qos``), 8 ML-III × 250 µs, the clock's lateness p99 was 159–162 µs
+Between two empty reads the poll yields its CPU (``os.sched_yield``). The master that sends the burst may be
+queued on that very CPU: Linux packs the two processes on one CPU on a small machine, and a spinning worker would
+hold the master's cycle up until its poll gave up, a lead past the burst's due time. With idle CPUs polling (``bench.py --pm-qos``), 8 ML-III × 250 µs, the clock's lateness p99 was 159–162 µs
 without the yield and 29–32 µs with it (docs/performance.md, "The arrival poll yields"). Where nothing else is
 queued, the call returns at once.
 
@@ -44,8 +43,8 @@ import asyncio
 import time
 from collections.abc import Callable
 
-from ._timerfd import LookaheadTimer, TimerFD, timerfd_supported
-from .mmsg import switched_on, yielder
+from ._timerfd import TimerFD, timerfd_supported
+from .mmsg import yield_after_send
 from .realtime import wakeup_latency_limit
 
 __all__ = ["ArrivalPoll"]
@@ -54,10 +53,6 @@ SAMPLES = 16  #: gaps between bursts from which the cycle is learned (their medi
 SAME_BURST_NS = 20_000  #: reads closer than this are one burst (the rest of a burst read a moment later)
 LATE_SAMPLES = 32  #: polls from whose timer wake-ups the lead is adapted (the second latest of them, ≈ p97)
 LEAD_MARGIN_NS = 15_000  #: the lead: that wake-up's lateness and this much more (the shortest lead)
-#: how far a poll armed a cycle ahead may begin before / after the one asked for, and still be kept (a burst's
-#: arrival moves the next one's due time by the master's jitter; earlier costs that much spin, later that much lead)
-LOOKAHEAD_EARLY_NS = 10_000
-LOOKAHEAD_LATE_NS = 5_000
 #: how often a poll with a longest cycle ("auto") asks the kernel whether idle CPUs poll (its CPU wake-up latency
 #: held at 0: ``realtime.wakeup_latency_limit``); while they do, it stands down
 QOS_RECHECK_NS = 1_000_000_000
@@ -91,13 +86,9 @@ class ArrivalPoll:
         self._until = 0  # the end of the poll set: the due time plus the lead
         self.idle_cpus_poll = False  #: an "auto" poll stands down: the kernel holds the CPU wake-up latency at 0
         self._qos_at = 0  # when an "auto" poll asks that again
-        # MLINK_LOOKAHEAD=1: the next poll armed a cycle ahead once the cycle is learned (LookaheadTimer), like
-        # the clock's timer
-        self._tfd: LookaheadTimer | TimerFD | None = (
-            LookaheadTimer(0, early_ns=LOOKAHEAD_EARLY_NS, late_ns=LOOKAHEAD_LATE_NS)
-            if switched_on("MLINK_LOOKAHEAD") else TimerFD())
+        self._tfd: TimerFD | None = TimerFD()  # one timerfd, armed after each burst for the next poll
         self._tfd.watch(loop, self._on_timer)
-        self._pause = yielder("MLINK_POLL_YIELD")  #: os.sched_yield between two empty reads (None: switched off)
+        self._pause = yield_after_send()  #: os.sched_yield between two empty reads (None where it does not exist)
 
     @classmethod
     def create(cls, loop: asyncio.AbstractEventLoop, read: Callable[[], bool],
@@ -125,8 +116,6 @@ class ArrivalPoll:
                 gaps.sort()
                 self.period_ns = gaps[SAMPLES // 2]
                 gaps.clear()
-                if isinstance(self._tfd, LookaheadTimer):  # the poll after the next, a learned cycle later
-                    self._tfd.period_ns = self.period_ns
         period, tfd, longest = self.period_ns, self._tfd, self.max_period_ns
         if longest is not None and period and now_ns >= self._qos_at:
             self._qos_at = now_ns + QOS_RECHECK_NS
@@ -181,11 +170,8 @@ class ArrivalPoll:
 
     def stats(self) -> dict[str, int]:
         """The poll's counters, for the worker's stats."""
-        stats = {"period_ns": self.period_ns, "windows": self.windows, "caught": self.caught,
-                 "spun_ns": self.spun_ns, "lead_ns": self.wake_lead_ns, "idle_cpus_poll": int(self.idle_cpus_poll)}
-        if isinstance(self._tfd, LookaheadTimer):  # polls whose timer was already set a cycle ahead, and the others
-            stats["timer_kept"], stats["timer_rearmed"] = self._tfd.kept, self._tfd.rearmed
-        return stats
+        return {"period_ns": self.period_ns, "windows": self.windows, "caught": self.caught,
+                "spun_ns": self.spun_ns, "lead_ns": self.wake_lead_ns, "idle_cpus_poll": int(self.idle_cpus_poll)}
 
     def close(self) -> None:
         tfd, self._tfd = self._tfd, None

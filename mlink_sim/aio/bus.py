@@ -34,8 +34,7 @@ is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it
   station, all answered ahead, those answers are ranked by how many of its commands in the read come after them, and sent
   rank by rank, every other answer in the first. The older commands' answers are due at the master already (their
   cycle began a transmission cycle before the newer one's); the newest can still be on time. The cards take every
-  command in its order all the same (:meth:`Bus.settle`). ``Bus(newest_first=False)`` (the worker's
-  ``MLINK_NEWEST_FIRST=0``) keeps each station's order (docs/cards.md, "A backlog's answers").
+  command in its order all the same (:meth:`Bus.settle`) (docs/cards.md, "A backlog's answers").
 * :func:`due`: which stations' ``poll`` is due at a tick (``Station.next_deadline``): a scan of every hosted
   station once per millisecond.
 """
@@ -131,10 +130,8 @@ class Bus:
     """The stations of one shared socket, by station address (see the module docstring). *clock()*: the time a
     read is stamped with, for the predictions (ns; the worker's ``time.monotonic_ns``)."""
 
-    def __init__(self, ports: list[Port], clock: Callable[[], int] | None = None, *, newest_first: bool = True) -> None:
+    def __init__(self, ports: list[Port], clock: Callable[[], int] | None = None) -> None:
         self.ports: dict[int, Port] = {int(p.station.address): p for p in ports}
-        #: a backlog's answers made ahead go out newest cycle first (:meth:`serve`); False keeps each station's order
-        self.newest_first: bool = newest_first
         self.unaddressed: int = 0  #: datagrams for no station hosted here (or shorter than 4 bytes)
         self.clock: Callable[[], int] = clock if clock is not None else (ports[0].clock if ports else _zero)
         self.ahead: int = 0  #: answers sent ahead, from the cards' predictions
@@ -193,7 +190,7 @@ class Bus:
             elif self._serve_backlog(port, items, now, out) and len(items) > 1:
                 runs.append((start, len(out)))
             served.append(port)
-        if runs and self.newest_first:
+        if runs:
             return _newest_first(out, runs)
         return out
 

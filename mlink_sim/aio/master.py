@@ -2,15 +2,10 @@
 socket, with awaitable requests (docs/master.md, "Async API").
 
 The I/O here only moves bytes and timestamps; the core decides everything. The master owns a non-blocking UDP
-socket. With ``MLINK_RX_STAMPS=1``, where the kernel's receive timestamps are supported
-(:func:`~mlink_sim.aio.mmsg.stamps_enabled`) and a quarter cycle is longer than the clock's spin, each answer is
-stamped with the time the kernel received it, and the socket wakes nobody: the answers are read once per cycle a
-quarter period before the deadline (:class:`~mlink_sim.aio.preread.PreRead`), in the clock's spin and just before
-each cycle's commands go out (two wake-ups per cycle instead of up to one per answer; docs/performance.md, "Fewer
-wake-ups of the master"). Otherwise the socket is watched with ``loop.add_reader``: each wake-up reads every
-datagram waiting (up to a bound), each stamped with ``time.monotonic_ns()`` as it is read, and it is also read in
-the spin and before each cycle's commands, so an answer that arrived in time is never counted missing only because
-the loop was busy with the clock. Where :mod:`~mlink_sim.aio.mmsg` is supported the socket is a ``BurstSocket``: the
+socket, watched with ``loop.add_reader``: each wake-up reads every datagram waiting (up to a bound), each stamped
+with ``time.monotonic_ns()`` as it is read, and it is also read in the clock's spin and before each cycle's commands,
+so an answer that arrived in time is never counted missing only because the loop was busy with the clock. Where
+:mod:`~mlink_sim.aio.mmsg` is supported the socket is a ``BurstSocket``: the
 cycle's burst goes out in one ``sendmmsg`` and a read takes what is waiting with one ``recvmmsg``; a capture's tap
 keeps those calls (:mod:`~mlink_sim.aio.tapped`), an impairment and the virtual fabric take the per-datagram path.
 Transport errors (``sendto``/``recv`` raising ``OSError``, e.g. ``ConnectionRefusedError`` after an ICMP port
@@ -48,7 +43,6 @@ from ..faults import Episode, FaultSpec, FaultStage, MasterFault, StationTraits
 from ..faults.stage import is_healthy
 from ..wire import Link, ml2, ml3
 from . import mmsg
-from .preread import PreRead
 from .tapped import tap
 from .ticker import CycleTimer
 from .udp import bound_socket, close_watched
@@ -132,10 +126,6 @@ class Master:
         #: the master-side faults (mlink_sim.faults.stage), made on the first fault: None costs nothing per cycle
         self.faults: FaultStage | None = None
         self._closed = False
-        #: the answers are read with the kernel's receive timestamps (BurstSocket.recv_burst_stamped), at the
-        #: clock's wake-up, during its spin and at each cycle's start, not on every answer's arrival
-        self.stamped = False
-        self._pre: PreRead | None = None  #: the stamped reads' one wake-up per cycle before the deadline
         self._log = get_logger(__name__).bind(component="master", link=core.plan.link.name)
 
     @staticmethod
@@ -149,7 +139,7 @@ class Master:
                     local: tuple[str, int] = ("127.0.0.1", 0), metrics: MetricsSink | None = None,
                     loop: asyncio.AbstractEventLoop | None = None, strategy: str = "auto",
                     rcvbuf: int = 1 << 20, clock: CycleTimer | None = None, catch_up_ns: int = 0,
-                    capture: Any = None) -> Master:
+                    capture: Any = None, batched: bool = True) -> Master:
         """Open one UDP socket on *local*, start cycling at ``plan.tcycle_ns``; *endpoints* maps every station
         address of the plan to the ``(host, port)`` of its slave.
 
@@ -161,7 +151,10 @@ class Master:
         stalls are recorded through the metrics' ``stall_recorder`` when it has one.
 
         *capture*: a :class:`~mlink_sim.capture.CaptureWriter`; every datagram on the socket is recorded and the
-        core's state, alarm and recovery events become notes in it."""
+        core's state, alarm and recovery events become notes in it.
+
+        *batched*: the batched calls (``sendmmsg``/``recvmmsg``, :mod:`~mlink_sim.aio.mmsg`) where the kernel has
+        them; False keeps the per-datagram calls (the tests compare both paths that way)."""
         missing = [f"{sp.address:02X}H" for sp in plan.stations if sp.address not in endpoints]
         if missing:
             raise ValueError(f"no UDP endpoint for station(s) {', '.join(missing)}")
@@ -172,9 +165,9 @@ class Master:
             add_stations(self.core.addresses)
         sock = bound_socket(local[0], local[1], rcvbuf)
         if capture is not None:
-            self._sock, self._note = tap(capture, sock), capture.note  # the batched calls, tapped
+            self._sock, self._note = tap(capture, sock, batched=batched), capture.note  # the batched calls, tapped
         else:
-            self._sock = mmsg.wrap(sock)  # sendmmsg/recvmmsg where supported (docs/performance.md)
+            self._sock = mmsg.wrap(sock, batched=batched)  # sendmmsg/recvmmsg where supported (docs/performance.md)
         if clock is None:
             recorder = getattr(self.metrics, "stall_recorder", None)
             self._timer = CycleTimer(plan.tcycle_ns, self._on_cycle, loop=loop, strategy=strategy,
@@ -182,30 +175,16 @@ class Master:
                                      on_stall=recorder("master") if callable(recorder) else None)
         else:
             self._timer, self._owns_timer = clock, False
-        if not self._read_stamped(loop, plan.tcycle_ns, self._timer.spin_ns):
-            if len(set(self.endpoints.values())) < len(self.endpoints):  # stations share a port (a packed worker)
-                enable_gro = getattr(self._sock, "enable_gro", None)  # its answers come as one burst: one read
-                if enable_gro is not None:
-                    enable_gro()
-            loop.add_reader(sock.fileno(), self.read_responses)  # a read on every arrival, stamped as it is read
+        if len(set(self.endpoints.values())) < len(self.endpoints):  # stations share a port (a packed worker)
+            enable_gro = getattr(self._sock, "enable_gro", None)  # its answers come as one burst: one read
+            if enable_gro is not None:
+                enable_gro()
+        loop.add_reader(sock.fileno(), self.read_responses)  # a read on every arrival, stamped as it is read
         if clock is None:
             self._timer.start()
         self._log.info("master_started", local=sock.getsockname(), stations=len(plan.stations),
                        tcycle_ns=plan.tcycle_ns, strategy=self._timer.strategy)
         return self
-
-    def _read_stamped(self, loop: asyncio.AbstractEventLoop, period_ns: int, spin_ns: int) -> bool:
-        """Switch this master to the stamped reads where they pay and the socket can: True when it did. Each answer
-        then keeps the time the kernel received it (its round trip, and whether it came within its cycle, are as
-        if it had been read at once), so the socket need not wake the loop for every answer: a pre-read a quarter
-        period before each deadline (:class:`~mlink_sim.aio.preread.PreRead`), the clock's spin and each cycle's
-        start read them (two wake-ups per cycle). Needs a :class:`~mlink_sim.aio.mmsg.BurstSocket`,
-        :func:`~mlink_sim.aio.mmsg.stamps_enabled` (``MLINK_RX_STAMPS=1``: off by default) and a cycle whose
-        quarter is longer than the clock's spin (at 250 µs the master has no time to sleep between answers anyway; docs/performance.md, "Fewer wake-ups
-        of the master")."""
-        self._pre = PreRead.for_stamped(loop, self._sock, self.read_responses, period_ns, spin_ns)
-        self.stamped = self._pre is not None
-        return self.stamped
 
     @property
     def local_address(self) -> tuple[str, int]:
@@ -231,7 +210,6 @@ class Master:
                 f.add_done_callback(_consume)
         if self._timer is not None and self._owns_timer:
             self._timer.stop()
-        self._stop_pre_read()
         core.abort_requests("master closed")
         self._pump()
         for station in list(self._pending_missing):
@@ -424,9 +402,6 @@ class Master:
                 except OSError as exc:  # BlockingIOError (send buffer full) included: that datagram is lost
                     self._on_error(exc)
                 metrics.record_sent(station)
-        pre = self._pre
-        if pre is not None:
-            pre.arm_after(deadline_ns)
         self._pump()
         if faults is not None and faults.watching:
             faults.after_cycle(now_ns)
@@ -443,11 +418,6 @@ class Master:
         faults = self.faults
         clean = faults is None or not faults.active
         on_response = self.core.on_response if clean else self.deliver
-        if self.stamped:  # recvmmsg, each answer with the time the kernel received it
-            for batch in mmsg.drain(sock.recv_burst_stamped, limit, self._on_error):
-                for data, now in batch:
-                    on_response(data, now)
-            return
         burst = getattr(sock, "recv_burst", None)
         if burst is not None:  # recvmmsg: what is waiting in one call, each batch stamped with the time it was read
             on_batch = self.core.on_responses if clean else self._deliver_all
@@ -482,10 +452,6 @@ class Master:
         sock = self._sock
         if sock is None or isinstance(sock, ImpairedSocket) or not layer.active:
             return
-        if self.stamped:  # the layer delays what it reads as it reads it: back to a read on every arrival, for good
-            self.stamped = False
-            self._stop_pre_read()
-            self._loop.add_reader(sock.fileno(), self.read_responses)
         wrapper: ImpairedSocket
 
         def unwrap() -> None:
@@ -495,11 +461,6 @@ class Master:
         wrapper = ImpairedSocket(sock, layer, self._loop, on_ready=self.read_responses, on_error=self._on_error,
                                  on_idle=unwrap)
         self._sock = wrapper
-
-    def _stop_pre_read(self) -> None:
-        pre, self._pre = self._pre, None
-        if pre is not None:
-            pre.close()
 
     def read_one(self) -> None:
         """The clock's ``idle`` hook: one datagram at most, so the spin ends close to its deadline."""

@@ -1,4 +1,4 @@
-"""Batched UDP system calls: ``sendmmsg(2)`` and ``recvmmsg(2)`` for a burst of datagrams (Linux; issue 21).
+"""Batched UDP system calls: ``sendmmsg(2)`` and ``recvmmsg(2)`` for a burst of datagrams (Linux).
 
 :class:`BurstSocket` stands in for a non-blocking UDP ``socket.socket`` (``sendto``, ``recv``, ``recvfrom``,
 ``fileno``, ``getsockname``, ``close`` are the socket's own) and adds three batched calls:
@@ -6,11 +6,7 @@
 * ``send_burst([(datagram, addr), …])``: the whole burst in one ``sendmmsg`` (the master's N commands; a worker's
   answers, however many cycles they answer);
 * ``recv_burst(limit)``: every datagram waiting, up to *limit*, in one ``recvmmsg`` (the master's answers);
-* ``recvfrom_burst(limit)``: the same with each source address (a slave station's commands);
-* ``recv_burst_stamped(limit)``: as ``recv_burst``, each datagram with the time the kernel received it
-  (``SO_TIMESTAMPNS``, after :meth:`BurstSocket.enable_stamps`), on the ``time.monotonic_ns`` clock: a reader
-  that reads late still knows when each answer arrived (the master reads its answers once per cycle with it,
-  docs/performance.md, "Fewer wake-ups of the master").
+* ``recvfrom_burst(limit)``: the same with each source address (a slave station's commands).
 
 Each returns what it did without raising for "nothing waiting": an empty list, not ``BlockingIOError``, so a
 read needs no second system call to learn that the socket is empty. Other socket errors raise ``OSError`` as
@@ -25,8 +21,8 @@ allocated once per socket; a burst copies its datagrams into the send buffer wit
 headers are laid out once per shape (sizes, destinations; the socket keeps its last few,
 :mod:`mlink_sim.aio.sendlayout`).
 
-**Segmentation offload.** Where the kernel has it (Linux ≥ 4.18, :func:`gso_supported`; ``MLINK_GSO=0`` turns
-it off), ``send_burst`` sends the datagrams of a burst that go to one destination with one size as *one* message of
+**Segmentation offload.** Where the kernel has it (Linux ≥ 4.18, :func:`gso_supported`; ``BurstSocket(gso=False)``
+turns it off), ``send_burst`` sends the datagrams of a burst that go to one destination with one size as *one* message of
 its ``sendmmsg``, with ``UDP_SEGMENT`` (up to 64 datagrams to a message, 128 where the kernel takes them,
 :mod:`mlink_sim.aio.sendlayout`): the kernel builds one packet for the group and cuts it into the datagrams only
 where it must (before a device without the offload; at the receiving socket unless that socket asked for
@@ -41,12 +37,15 @@ slave workers of ``mlink-sim up`` (``SlaveServer(shared=True)``).
 **One system call per burst**, whatever its size (up to 1024 messages), and one offloaded send per group of up to
 128 datagrams. A worker that answers two cycles' commands after a stall (124 answers at 62 stations) sends them as
 one packet; cut at 64 into two, the master woke on the first, ran, and found the second half a cycle late
-(docs/performance.md, "A backlog in one system call"). ``MLINK_ONE_CALL=0`` cuts a burst every 64 datagrams
-again (to compare).
+(docs/performance.md, "A backlog in one system call").
 
 Where the calls are missing (not Linux, no libc, a platform ctypes cannot load) :func:`supported` is False and
 callers keep the per-datagram calls: the transport works the same either way (``mlink_sim.aio.master``,
-``mlink_sim.aio.udp.BatchEndpoint``).
+``mlink_sim.aio.udp.BatchEndpoint``). A caller may also ask for the per-datagram calls where the batched ones exist
+(``wrap(sock, batched=False)``; the tests compare both paths that way).
+
+The module also hands out the one ``os.sched_yield`` a process makes right after it sent what wakes another
+(:func:`yield_after_send`).
 """
 
 from __future__ import annotations
@@ -58,7 +57,6 @@ import platform
 import socket
 import struct
 import sys
-import time
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
@@ -76,84 +74,40 @@ from .msghdr import MMsgHdr as _MMsgHdr
 from .msghdr import MsgHdr as _MsgHdr
 from .sendlayout import MAX_VECTOR, Group, Layout, Shapes, encode
 
-__all__ = ["BurstSocket", "CAPACITY", "drain", "gso_supported", "stamps_enabled", "stamps_supported", "supported",
-           "switched_off", "switched_on", "wrap", "yield_after_send", "yielder"]
+__all__ = ["BurstSocket", "CAPACITY", "drain", "gso_supported", "supported", "wrap", "yield_after_send"]
 
 CAPACITY = 64  #: messages per read (more waiting are read in several calls); a send takes up to sendlayout.MAX_VECTOR
 _BUFSIZE = 4096  # bytes per received datagram, as the per-datagram reads (``recv(4096)``)
-# Kernel receive timestamps: <asm-generic/socket.h> SO_TIMESTAMPNS (= SO_TIMESTAMPNS_OLD, 35; on x86-64 and
-# aarch64 its timespec has a 64-bit tv_sec), cmsg type SCM_TIMESTAMPNS = SO_TIMESTAMPNS at level SOL_SOCKET.
-# One control message per datagram: a struct cmsghdr (cmsg_len: size_t, level: int, type: int; 16 bytes) and the
-# struct timespec (tv_sec, tv_nsec: two int64), CMSG_SPACE(16) = 32 bytes. Other architectures (sparc, parisc,
-# mips number the option differently) keep the reads stamped by the reader.
-_SO_TIMESTAMPNS = 35
 _NO_GSO = (errno.EINVAL, errno.EIO, errno.ENOPROTOOPT, errno.EOPNOTSUPP)  # the offload refused (not a lost datagram)
-_CTL_SIZE = 32
-_STAMPS_ARCH = platform.machine() in ("x86_64", "amd64", "aarch64", "arm64")
 
 
 
 
 def supported() -> bool:
-    """True where ``sendmmsg``/``recvmmsg`` can be called (Linux with glibc or musl) and ``MLINK_MMSG=0`` is not
-    set in the environment (that switch keeps the per-datagram calls, to compare or to rule the batching out; the
-    slave workers inherit it). Read whenever a socket is opened."""
-    return _calls is not None and not switched_off("MLINK_MMSG")
-
-
-def stamps_supported() -> bool:
-    """True where :meth:`BurstSocket.enable_stamps` can work: the batched calls, on a 64-bit little-endian x86-64 or
-    aarch64 Linux."""
-    return supported() and _STAMPS_ARCH and sys.byteorder == "little" and ctypes.sizeof(ctypes.c_size_t) == 8
-
-
-def stamps_enabled() -> bool:
-    """True where the stamps are :func:`supported <stamps_supported>` and ``MLINK_RX_STAMPS=1`` is set: the master
-    (and the batched floor of ``scripts/bench_floor.py``) then read their answers with the kernel's stamps, once per
-    cycle. Off by default: on the 2-vCPU bench machine it lowered the CPU per exchange at 15 ML-III stations × 1 ms
-    but raised the missed exchanges at 30 ML-II stations × 1 ms (docs/performance.md, "Fewer wake-ups of the
-    master")."""
-    return stamps_supported() and switched_on("MLINK_RX_STAMPS")
+    """True where ``sendmmsg``/``recvmmsg`` can be called (Linux with glibc or musl)."""
+    return _calls is not None
 
 
 def gso_supported() -> bool:
-    """True where the batched calls are :func:`supported`, the kernel is Linux 4.18 or newer (``UDP_SEGMENT``;
-    ``UDP_GRO`` needs 5.0, which :meth:`BurstSocket.enable_gro` finds out itself) and ``MLINK_GSO=0`` is not
-    set (that switch keeps one ``sendmmsg`` message per datagram, to compare; the workers inherit it)."""
-    return _GSO_KERNEL and supported() and not switched_off("MLINK_GSO")
+    """True where the batched calls are :func:`supported` and the kernel is Linux 4.18 or newer (``UDP_SEGMENT``;
+    ``UDP_GRO`` needs 5.0, which :meth:`BurstSocket.enable_gro` finds out itself)."""
+    return _GSO_KERNEL and supported()
 
 
 def yield_after_send() -> Callable[[], None] | None:
     """``os.sched_yield``, to be called by a process that has just sent the answers of a read and still has work
     before it sleeps (a packed worker: its cards' :meth:`Bus.settle <mlink_sim.aio.bus.Bus.settle>`, about 100 µs
-    for 62 SI-ET3 stations); ``None`` where the call does not exist or ``MLINK_YIELD=0`` is set (to compare).
+    for 62 SI-ET3 stations); ``None`` where the call does not exist.
 
     Why: Linux wakes the reader of a local socket *synchronously* (``WF_SYNC``): the scheduler takes the waker for
     a process about to sleep and may queue the woken one behind it, on the waker's CPU. The worker does not sleep
-    after its send; it settles. The master then reads its answers only after the settle, late, while the other CPU
-    idles. Yielding once after the send lets the master run (or be moved) at once; where nothing else waits on
-    that CPU it returns at once (a system call, under a microsecond). Measured on the 2-vCPU bench machine,
-    62 ML-III × 1 ms, 3 + 3 alternated runs of 20 s: missed 0.75 → 0.35 %, RTT p99 744 → 426 µs
-    (docs/performance.md, "The worker yields after its send"). The master's clock calls it too, between two cycles
-    of a catch-up after a stall, for the same reason (docs/timing.md, "The catch-up yields")."""
-    return yielder("MLINK_YIELD")
-
-
-def yielder(switch: str) -> Callable[[], None] | None:
-    """``os.sched_yield``, or ``None`` where the call does not exist or the environment switch *switch* is set to
-    ``0`` (to compare): the worker's yield after its send and the clock's in a catch-up (``MLINK_YIELD``,
-    :func:`yield_after_send`), the arrival poll's between two empty reads (``MLINK_POLL_YIELD``)."""
-    return None if switched_off(switch) else getattr(os, "sched_yield", None)
-
-
-def switched_off(name: str) -> bool:
-    """The environment switch *name* set to ``0``, ``off``, ``no`` or ``false`` (read when asked)."""
-    return os.environ.get(name, "").strip().lower() in ("0", "off", "no", "false")
-
-
-def switched_on(name: str) -> bool:
-    """The environment switch *name* set to ``1``, ``on``, ``yes`` or ``true`` (read when asked): an opt-in."""
-    return os.environ.get(name, "").strip().lower() in ("1", "on", "yes", "true")
+    after its send; it settles. Without the yield the master reads its answers only after the settle, late, while
+    the other CPU idles. Yielding once after the send lets the master run (or be moved) at once; where nothing else
+    waits on that CPU it returns at once (a system call, under a microsecond). Measured on a 2-vCPU machine,
+    62 ML-III × 1 ms: missed 0.75 → 0.35 %, RTT p99 744 → 426 µs (docs/performance.md). The master's clock calls
+    it too, between two cycles of a catch-up after a stall, and the arrival poll between two empty reads, for the
+    same reason (docs/timing.md, "The catch-up yields")."""
+    return getattr(os, "sched_yield", None)
 
 
 def _kernel_has_gso() -> bool:
@@ -169,9 +123,10 @@ def _kernel_has_gso() -> bool:
 _GSO_KERNEL = _kernel_has_gso()
 
 
-def wrap(sock: socket.socket) -> Any:
-    """*sock* as a :class:`BurstSocket` where the batched calls are :func:`supported`, else *sock* itself."""
-    return BurstSocket(sock) if supported() and sock.type == socket.SOCK_DGRAM else sock
+def wrap(sock: socket.socket, *, batched: bool = True) -> Any:
+    """*sock* as a :class:`BurstSocket` where the batched calls are :func:`supported`, else *sock* itself.
+    *batched*: False keeps *sock* itself (the per-datagram calls) where the batched ones exist too."""
+    return BurstSocket(sock) if batched and supported() and sock.type == socket.SOCK_DGRAM else sock
 
 
 def drain(burst: Callable[[int], list[Any]], limit: int, on_error: Callable[[OSError], None]) -> Iterator[list[Any]]:
@@ -217,10 +172,12 @@ class BurstSocket:
     __slots__ = ("sock", "sendto", "recv", "recvfrom", "fileno", "getsockname", "close", "setsockopt", "_fd",
                  "_cap", "_slay", "_shapes", "_step", "_sdata", "_sview", "_skey", "_names", "_rmsgs", "_riov",
                  "_rbuf", "_rview", "_rnames", "_rnview", "_rwords", "_stride", "_len_at", "_namelen_at", "_bufsize",
-                 "_sources", "_rctl", "_rctlq", "_ctllen_at", "stamped", "_gso", "gro", "_coalesced",
-                 "_gleft", "_gerr")
+                 "_sources", "_offload", "_gso", "gro", "_coalesced", "_gleft", "_gerr")
 
-    def __init__(self, sock: socket.socket, capacity: int = CAPACITY, bufsize: int = _BUFSIZE) -> None:
+    def __init__(self, sock: socket.socket, capacity: int = CAPACITY, bufsize: int = _BUFSIZE, *,
+                 gso: bool = True) -> None:
+        """*gso*: False sends one ``sendmmsg`` message per datagram and reads without ``UDP_GRO`` where the kernel
+        has the offload too (the tests compare both paths that way)."""
         if _calls is None:
             raise OSError(errno.ENOSYS, "sendmmsg/recvmmsg are not available on this platform")
         self.sock = sock
@@ -235,7 +192,6 @@ class BurstSocket:
         self._skey: tuple[tuple[int, ...], tuple[Any, ...]] | None = None  #: the sizes and destinations laid out
         self._slay: Layout | None = None  #: their headers (None: a destination is not numeric)
         self._shapes = Shapes()
-        self._step = capacity if switched_off("MLINK_ONE_CALL") else MAX_VECTOR  #: messages per sendmmsg at most
         self._names: dict[Any, Any] = {}  # addr -> its struct sockaddr (a ctypes buffer), None: not numeric
         # reading: one fixed slot (datagram buffer, source address) per message
         self._bufsize = bufsize
@@ -257,47 +213,21 @@ class BurstSocket:
         self._len_at = _MMsgHdr.msg_len.offset // 4
         self._namelen_at = (_MMsgHdr.msg_hdr.offset + _MsgHdr.msg_namelen.offset) // 4
         self._sources: dict[bytes, Any] = {}
-        self._rctl: Any = None  # the control buffers of the kernel's timestamps (enable_stamps)
-        self._rctlq: Any = None
-        self._ctllen_at = (_MMsgHdr.msg_hdr.offset + _MsgHdr.msg_controllen.offset) // 4  # its low 32 bits
-        self.stamped = False  #: True once enable_stamps() succeeded
         # segmentation offload (see "Segmentation offload" in the module docstring)
-        self._gso = gso_supported()  #: a burst's datagrams of one size to one destination go as one message
+        self._offload = gso and gso_supported()  #: this socket may use the offload (sending and reading)
+        self._gso = self._offload  #: a burst's datagrams of one size to one destination go as one message
         self.gro = False  #: True once enable_gro() succeeded
         self._coalesced: Any = None  #: the UDP_GRO reads (gro.CoalescedReads), once enable_gro() succeeded
         self._gleft: deque[tuple[bytes, Any]] = deque()  #: segments read but not handed over yet (recv/recvfrom)
         self._gerr: OSError | None = None  #: an error met after some segments were read: raised on the next read
 
-    def enable_stamps(self) -> bool:
-        """Ask the kernel to stamp every datagram it receives on this socket (``SO_TIMESTAMPNS``) and give each
-        read slot a control buffer for the stamp, for :meth:`recv_burst_stamped`. False (nothing changed) where
-        :func:`stamps_supported` is False or the option is refused."""
-        if self.stamped:
-            return True
-        if self.gro or not stamps_supported():
-            return False
-        try:
-            self.sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
-        except OSError:
-            return False
-        cap = self._cap
-        self._rctl = ctypes.create_string_buffer(cap * _CTL_SIZE)
-        self._rctlq = memoryview(self._rctl).cast("B").cast("q")
-        base = ctypes.addressof(self._rctl)
-        for i in range(cap):
-            hdr = self._rmsgs[i].msg_hdr
-            hdr.msg_control, hdr.msg_controllen = base + i * _CTL_SIZE, _CTL_SIZE
-        self.stamped = True
-        return True
-
     # ------------------------------------------------------------------ sending
     def send_burst(self, items: Sequence[tuple[bytes, Any]]) -> list[tuple[int, OSError]]:
         """Send every ``(datagram, addr)`` of *items* in order, in one ``sendmmsg`` (one per
-        :data:`~mlink_sim.aio.sendlayout.MAX_VECTOR` messages; per :data:`CAPACITY` datagrams with
-        ``MLINK_ONE_CALL=0``). Returns the datagrams that were not sent, ``[(index, OSError), …]`` (empty when all
-        went)."""
+        :data:`~mlink_sim.aio.sendlayout.MAX_VECTOR` messages). Returns the datagrams that were not sent,
+        ``[(index, OSError), …]`` (empty when all went)."""
         failures: list[tuple[int, OSError]] = []
-        step = self._step
+        step = MAX_VECTOR
         if len(items) <= step:
             self._send_chunk(items, 0, failures)
         else:
@@ -408,11 +338,11 @@ class BurstSocket:
     def enable_gro(self) -> bool:
         """Let the kernel hand over the datagrams a peer sent in one offloaded burst as one buffer (``UDP_GRO``),
         which the reads split again (:meth:`recv_burst`, :meth:`recvfrom_burst`, ``recv``, ``recvfrom``): one
-        read for the whole burst. False (nothing changed) where it is not supported, the socket reads with the
-        kernel's stamps, or the option is refused."""
+        read for the whole burst. False (nothing changed) where it is not supported, the socket was made with
+        ``gso=False``, or the option is refused."""
         if self.gro:
             return True
-        if self.stamped or not gso_supported():
+        if not self._offload:
             return False
         try:
             self.sock.setsockopt(_SOL_UDP, _UDP_GRO, 1)
@@ -478,31 +408,6 @@ class BurstSocket:
             w = i * stride
             words[w + nl] = _NAME_SIZE
             out.append(view[i * size:i * size + words[w + at]].tobytes())
-        return out
-
-    def recv_burst_stamped(self, limit: int = CAPACITY) -> list[tuple[bytes, int]]:
-        """As :meth:`recv_burst`, each datagram with the time the kernel received it, in ``time.monotonic_ns``
-        nanoseconds (after :meth:`enable_stamps`; a datagram without a stamp gets the time it was read). The kernel
-        turns stamping on a moment after the first socket of the system asks (net/core/dev.c, ``netstamp_work``):
-        until then it stamps a datagram when it is read, later than it came, never earlier."""
-        n = self._receive(limit)
-        if not n:
-            return []
-        # CLOCK_REALTIME (the stamps' clock) to CLOCK_MONOTONIC: one offset per read, both clocks read together
-        now = time.monotonic_ns()
-        offset = time.time_ns() - now
-        view, words, q, stride, at, nl, cl, size = (self._rview, self._rwords, self._rctlq, self._stride,
-                                                    self._len_at, self._namelen_at, self._ctllen_at, self._bufsize)
-        out = []
-        for i in range(n):
-            w = i * stride
-            words[w + nl] = _NAME_SIZE
-            t = now
-            if q is not None:
-                if words[w + cl] >= _CTL_SIZE:  # the timestamp's cmsg is there: tv_sec, tv_nsec
-                    t = min(q[4 * i + 2] * 1_000_000_000 + q[4 * i + 3] - offset, now)
-                words[w + cl] = _CTL_SIZE  # the kernel set it to what it wrote: room for the next stamp
-            out.append((view[i * size:i * size + words[w + at]].tobytes(), t))
         return out
 
     def recvfrom_burst(self, limit: int = CAPACITY) -> list[tuple[bytes, Any]]:

@@ -34,7 +34,7 @@ from ..metrics.stalls import WORKER_STALL_NS, StallLog
 from ..faults.plant import PlantFaults
 from .bus import Bus, Port, due
 from .faults import handle_plant_request
-from .mmsg import switched_off, yield_after_send
+from .mmsg import yield_after_send
 from .state import atomic_write, eeprom_path, remove_stale_temps
 from .tapped import tap
 from .udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endpoint
@@ -271,7 +271,7 @@ class SlaveServer:
         its address byte names, through that station's :class:`~mlink_sim.aio.bus.Port` (the same backlog rule
         per station and source), and the answers of the read back in one burst; then the cards take the commands
         their predictions answered (:meth:`Bus.settle <mlink_sim.aio.bus.Bus.settle>`)."""
-        bus = Bus([self._port(hs) for hs in group], time.monotonic_ns, newest_first=not switched_off("MLINK_NEWEST_FIRST"))
+        bus = Bus([self._port(hs) for hs in group], time.monotonic_ns)
         self._buses.append(bus)
         serve, settle = bus.serve, bus.settle
         first = group[0]  # its endpoint is the group's (set once the socket is bound)

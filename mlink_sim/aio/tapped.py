@@ -2,7 +2,7 @@
 
 :func:`tap` gives a :class:`TappedBurstSocket` where ``sendmmsg``/``recvmmsg`` are supported, so a captured run
 makes the same system calls as an uncaptured one, else the per-datagram
-:class:`~mlink_sim.capture.tap.TappedSocket` (``MLINK_MMSG=0``). Both feed the capture's queue one
+:class:`~mlink_sim.capture.tap.TappedSocket` (``tap(..., batched=False)`` asks for it where both exist). Both feed the capture's queue one
 ``(ts_ns, datagram, src, dst)`` tuple per datagram (:attr:`CaptureWriter.sink
 <mlink_sim.capture.CaptureWriter.sink>`); the writer thread does the rest.
 
@@ -30,11 +30,11 @@ _mono = time.monotonic_ns
 _recvfrom_burst = BurstSocket.recvfrom_burst
 
 
-def tap(capture: Any, sock: socket.socket) -> Any:
+def tap(capture: Any, sock: socket.socket, *, batched: bool = True) -> Any:
     """*sock* recording into *capture* (a :class:`~mlink_sim.capture.CaptureWriter`): the batched calls, tapped,
-    where :func:`mmsg.supported <mlink_sim.aio.mmsg.supported>`; else a
+    where :func:`mmsg.supported <mlink_sim.aio.mmsg.supported>` and *batched*; else a
     :class:`~mlink_sim.capture.tap.TappedSocket`."""
-    if mmsg.supported() and sock.type == socket.SOCK_DGRAM:
+    if batched and mmsg.supported() and sock.type == socket.SOCK_DGRAM:
         return TappedBurstSocket(sock, capture.sink)
     return TappedSocket(sock, capture.sink)
 
@@ -64,11 +64,6 @@ class TappedBurstSocket(BurstSocket):
         for data, addr in items:  # a plain loop: cheaper than zip/extend for the few datagrams of a burst
             append((ts, data, local, addr))
         return failures
-
-    def enable_stamps(self) -> bool:
-        """Never: a captured master keeps reading on every arrival (its datagrams are recorded as they are read,
-        through :meth:`recv_burst`), not with the kernel's stamps once per cycle."""
-        return False
 
     def enable_gro(self) -> bool:
         """Never: a captured socket reads each datagram as the kernel cuts it, so that its per-datagram calls

@@ -5,14 +5,12 @@ period against absolute deadlines ``deadline_k = start_ns + k * period_ns`` on t
 clock. Deadlines are computed by integer addition from ``start_ns``, never from "now", so error never
 accumulates: whatever the wake-up jitter, cycle ``k`` is always due at exactly ``start_ns + k * period_ns``.
 
-Wake-up sources (``strategy``), measured in ``docs/timing.md`` with ``scripts/bench_timers.py``:
+Wake-up sources (``strategy``), measured in ``docs/timing.md``:
 
 * ``"call_at"``  – ``loop.call_later``; on uvloop timers are whole milliseconds (libuv), on asyncio the
   selector timeout is rounded up to 1 ms by ``epoll_wait``.
 * ``"timerfd"``  – a Linux ``timerfd`` (``CLOCK_MONOTONIC``, ``TFD_TIMER_ABSTIME``) watched with
   ``loop.add_reader``; hrtimer precision, no timer slack.
-* ``"thread"``   – a helper thread sleeping in ``clock_nanosleep(TIMER_ABSTIME)`` (timer slack set to 1 ns)
-  that wakes the loop with ``call_soon_threadsafe``.
 * ``"<source>+spin"`` – the source is armed ``spin_ns`` before the deadline and the last stretch is a busy
   spin on ``time.monotonic_ns()``. With ``spin_ns=None`` the spin adapts: it tracks the 99th percentile of the
   source's wake-up error (streaming quantile estimate) plus a margin, clamped to ``spin_max_ns``.
@@ -36,18 +34,16 @@ a cycle's send woke its slaves on this CPU, and without the yield they wait behi
 from __future__ import annotations
 
 import asyncio
-import queue
-import threading
 import time
 from collections.abc import Callable
 
 from .._log import get_logger
-from ._timerfd import LookaheadTimer, TimerFD, make_abs_sleeper, set_thread_timer_slack, timerfd_supported
-from .mmsg import switched_on, yield_after_send
+from ._timerfd import TimerFD, timerfd_supported
+from .mmsg import yield_after_send
 
 __all__ = ["CycleTimer", "available_strategies", "STRATEGIES"]
 
-STRATEGIES: tuple[str, ...] = ("call_at", "call_at+spin", "timerfd", "timerfd+spin", "thread", "thread+spin")
+STRATEGIES: tuple[str, ...] = ("call_at", "call_at+spin", "timerfd", "timerfd+spin")
 
 OnCycle = Callable[[int, int, int, int], None]
 #: ``on_stall(deadline_ns, now_ns, cycles_behind, absorbed)``: a wake-up came whole periods after its deadline
@@ -57,7 +53,7 @@ _mono = time.monotonic_ns
 
 # Adaptive spin (strategy "...+spin", spin_ns=None). Starting points are the sources' measured wake-up error
 # on the 2-core bench machine (docs/timing.md); the estimator then follows the machine it runs on.
-_SPIN_INIT_NS = {"call_at": 1_100_000, "timerfd": 60_000, "thread": 100_000}
+_SPIN_INIT_NS = {"call_at": 1_100_000, "timerfd": 60_000}
 _SPIN_MARGIN_NS = 10_000          # added to the p99 estimate of the wake-up error
 _SPIN_MIN_NS = 10_000
 _Q_UP_NS = 2_000                  # quantile estimator step when a wake-up error exceeds the estimate ...
@@ -162,7 +158,6 @@ class CycleTimer:
 
         self._running = False
         self._started = False
-        self._gen = 0
         self._next_k = 0
         self._cycle = -1
         self._deadline = 0
@@ -171,20 +166,15 @@ class CycleTimer:
         self._caught_up_total = 0
         self._errors = 0
         self._spun_ns = 0
-        #: called between two cycles of a catch-up (os.sched_yield; None with MLINK_YIELD=0)
+        #: called between two cycles of a catch-up (os.sched_yield; None where it does not exist)
         self._between = yield_after_send()
         # lazy proxy with bound context: resolved per call, so it follows later structlog.configure()
         self._log = get_logger(__name__, strategy=self._strategy, period_ns=period_ns)
         # per-source resources
         self._handle: asyncio.TimerHandle | asyncio.Handle | None = None
-        self._tfd: LookaheadTimer | TimerFD | None = None
-        self._thread: threading.Thread | None = None
-        self._queue: queue.SimpleQueue[int | None] | None = None
+        self._tfd: TimerFD | None = None
         self._coarse = False
         self._arm: Callable[[int], None] = self._arm_call_at
-        #: how early a wake-up may come and still be spun out rather than re-armed: the lookahead timer's tolerance
-        #: (a wake-up it kept from a cycle ago may come that much before the target; a re-arm would cost a wake-up)
-        self._early_ok = 0
 
     # ------------------------------------------------------------------ public
     @property
@@ -244,19 +234,10 @@ class CycleTimer:
         loop = self._loop if self._loop is not None else asyncio.get_running_loop()
         self._loop = loop
         src = self._source
-        if src == "timerfd":
-            # MLINK_LOOKAHEAD=1: the next wake-up armed a cycle ahead (LookaheadTimer; docs/timing.md, "The clock's
-            # timer, armed a cycle ahead": less CPU, a later p99 wake-up, so off by default)
-            self._tfd = LookaheadTimer(self._period) if switched_on("MLINK_LOOKAHEAD") else TimerFD()
-            self._early_ok = self._tfd.early_ns if isinstance(self._tfd, LookaheadTimer) else 0
+        if src == "timerfd":  # one timerfd, armed after each wake-up for the next
+            self._tfd = TimerFD()
             self._tfd.watch(loop, self._on_wake)
             self._arm = self._tfd.set_abs
-        elif src == "thread":
-            self._queue = queue.SimpleQueue()
-            self._thread = threading.Thread(target=self._thread_main, args=(self._queue, loop, self._gen),
-                                            name="CycleTimer-wake", daemon=True)
-            self._thread.start()
-            self._arm = self._queue.put
         else:
             self._coarse = _is_uvloop(loop)
             self._arm = self._arm_call_at
@@ -269,22 +250,16 @@ class CycleTimer:
         self._log.debug("cycle_timer_started", start_ns=self._start_ns, spin_ns=self._spin)
 
     def stop(self) -> None:
-        """Stop calling ``on_cycle`` and release the fd / thread. Idempotent; safe from inside ``on_cycle``."""
+        """Stop calling ``on_cycle`` and release the timerfd. Idempotent; safe from inside ``on_cycle``."""
         if not self._running:
             return
         self._running = False
-        self._gen += 1
         if self._handle is not None:
             self._handle.cancel()
             self._handle = None
         tfd, self._tfd = self._tfd, None
         if tfd is not None:
             tfd.close_watched(self._loop)
-        thread, self._thread = self._thread, None
-        if self._queue is not None:
-            self._queue.put(None)
-        if thread is not None and thread is not threading.current_thread():
-            thread.join(timeout=max(1.0, 2 * self._period / 1e9))
         self._log.debug("cycle_timer_stopped", cycle=self._cycle, skipped_total=self._skipped_total,
                         errors=self._errors)
 
@@ -303,26 +278,6 @@ class CycleTimer:
             delay = -(-delay // 1_000_000) * 1_000_000
         self._handle = self._loop.call_later(delay / 1e9, self._on_wake)  # type: ignore[union-attr]
 
-    def _thread_main(self, q: queue.SimpleQueue[int | None], loop: asyncio.AbstractEventLoop, gen: int) -> None:
-        set_thread_timer_slack(1)
-        sleep_until = make_abs_sleeper()
-        post = loop.call_soon_threadsafe
-        wake = self._on_thread_wake
-        get = q.get
-        while True:
-            target = get()
-            if target is None:
-                return
-            sleep_until(target)
-            try:
-                post(wake, gen)
-            except RuntimeError:  # loop closed
-                return
-
-    def _on_thread_wake(self, gen: int) -> None:
-        if gen == self._gen:
-            self._on_wake()
-
     # ------------------------------------------------------------------ hot path
     def _clamp_spin(self, spin: int) -> int:
         return min(self._spin_max, max(_SPIN_MIN_NS, spin))
@@ -334,7 +289,7 @@ class CycleTimer:
         mono = _mono
         now = mono()
         d = self._deadline
-        if now < d and d - now > self._spin + self._early_ok:
+        if now < d and d - now > self._spin:
             self._rearm_early(d - self._spin, now)
             return
         if self._adaptive:

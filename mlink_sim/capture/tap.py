@@ -11,7 +11,7 @@ addresses the datagram would carry; the capture does not care where the time com
 Where ``sendmmsg``/``recvmmsg`` are supported, the I/O layer taps its batched calls instead
 (:class:`mlink_sim.aio.tapped.TappedBurstSocket`, fed the same tuples): the master, the slaves and the proxy
 wrap their sockets with :func:`mlink_sim.aio.tapped.tap`, which falls back to a :class:`TappedSocket`
-(``MLINK_MMSG=0``, or no ``recvmmsg``).
+where there is no ``recvmmsg`` (or the caller asks for the per-datagram calls).
 
 ``recv`` needs the datagram's real source address. On a socket that is ``connect()``-ed when it is wrapped, the
 kernel delivers only datagrams from its peer, so the source is ``getpeername()`` and a plain ``recv`` suffices. On

@@ -97,12 +97,10 @@ def test_no_poll_above_the_longest_cycle() -> None:
         loop.close()
 
 
-@pytest.mark.parametrize("lookahead", ["0", "1"])
-async def test_bursts_on_a_socket_are_read_in_the_poll_and_none_is_lost(lookahead, monkeypatch) -> None:
+async def test_bursts_on_a_socket_are_read_in_the_poll_and_none_is_lost() -> None:
     """Bursts of 3 datagrams every 4 ms from another thread, read with a 1 ms lead (2 ms of poll around each):
     once the cycle is learned the poll reads bursts (not only the reader's wake-ups), and every datagram reaches
-    the receiver once; with MLINK_LOOKAHEAD=1 too, each poll then armed a cycle ahead (kept) or re-armed."""
-    monkeypatch.setenv("MLINK_LOOKAHEAD", lookahead)
+    the receiver once."""
     got: list[bytes] = []
     ep = await open_batch_endpoint(lambda batch: got.extend(d for d, _ in batch))
     assert ep.poll_arrivals(parse_arrival_poll("1ms")) and ep.poll is not None
@@ -132,10 +130,6 @@ async def test_bursts_on_a_socket_are_read_in_the_poll_and_none_is_lost(lookahea
         gaps = sorted(b - a for a, b in zip(sent_at, sent_at[1:]))
         assert 3_000 * US <= stats["period_ns"] <= max(12_000 * US, 2 * gaps[len(gaps) // 2]), gaps
         assert 1 <= stats["caught"] <= stats["windows"] and stats["spun_ns"] > 0
-        if lookahead == "1":
-            assert stats["timer_kept"] + stats["timer_rearmed"] >= 1
-        else:
-            assert "timer_kept" not in stats
     finally:
         ep.close()
     assert ep.poll is None
@@ -185,16 +179,13 @@ def test_the_lead_follows_the_timer_s_late_wake_ups_and_a_missed_burst_restores_
         loop.close()
 
 
-@pytest.mark.parametrize("switch", ["", "0"])
-def test_the_poll_yields_the_cpu_between_empty_reads(switch, monkeypatch) -> None:
+def test_the_poll_yields_the_cpu_between_empty_reads(monkeypatch) -> None:
     """While it waits for a burst the poll gives its CPU to any process queued on it (``sched_yield`` after each
     empty read): the master, packed on the same CPU, must run to send the very burst the poll waits for
-    (docs/performance.md, "The arrival poll yields"). None after the read that got the burst; none with
-    MLINK_POLL_YIELD=0."""
+    (docs/performance.md, "The arrival poll yields"). None after the read that got the burst."""
     yields: list[int] = []
     reads: list[int] = []
     monkeypatch.setattr("os.sched_yield", lambda: yields.append(len(reads)))
-    monkeypatch.setenv("MLINK_POLL_YIELD", switch)
 
     def read() -> bool:
         reads.append(1)
@@ -207,7 +198,7 @@ def test_the_poll_yields_the_cpu_between_empty_reads(switch, monkeypatch) -> Non
         poll._due, poll._until, poll.poll_at_ns = now, now + 10**9, now  # a poll set, due now, ending in 1 s
         poll._on_timer()
         assert len(reads) == 4 and poll.caught == 1 and poll.windows == 1
-        assert yields == ([] if switch == "0" else [1, 2, 3])  # one after each empty read, in between
+        assert yields == [1, 2, 3]  # one after each empty read, in between
     finally:
         poll.close()
         loop.close()

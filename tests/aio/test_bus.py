@@ -274,13 +274,13 @@ def test_a_backlog_is_answered_ahead_and_the_cards_take_every_command_in_order(c
         assert st.snapshot().drive == ref.snapshot().drive
 
 
-def _steady_line(stations: int, newest_first: bool = True) -> tuple[MasterCore, Bus, dict[str, int]]:
+def _steady_line(stations: int) -> tuple[MasterCore, Bus, dict[str, int]]:
     """A line of *stations* SI-ET3 stations run to phase 3 and a steady state through a :class:`Bus` (one read per
     cycle), with the time the reads are stamped with."""
     core, cards = _line(Link.ML3, stations)
     now = {"t": 0, "cycle": 0}
     bus = Bus([Port(st, HostedStation(st, "127.0.0.1", 0), 8, [].append, lambda: now["t"]) for st in cards.values()],
-              lambda: now["t"], newest_first=newest_first)
+              lambda: now["t"])
     for cycle in range(1, 1201):
         t = cycle * TCYCLE
         now["t"] = t + 50_000
@@ -318,10 +318,9 @@ def test_a_backlog_answered_ahead_goes_out_newest_cycle_first() -> None:
     assert bus.ahead - ahead == 9 and bus.mispredicted == 0
 
 
-def test_a_backlog_keeps_its_order_where_it_was_not_all_answered_ahead_or_when_switched_off() -> None:
+def test_a_backlog_keeps_its_order_where_it_was_not_all_answered_ahead() -> None:
     """A station whose prediction stops partway (another SEL_MON: the card answers the rest itself) keeps its answers
-    in its commands' order, ahead of the older answers of the others; ``newest_first=False`` (the worker's
-    ``MLINK_NEWEST_FIRST=0``) keeps every station's order."""
+    in its commands' order, ahead of the older answers of the others."""
     core, bus, now = _steady_line(3)
     k = now["cycle"]
     now["cycle"] += 1
@@ -334,9 +333,6 @@ def test_a_backlog_keeps_its_order_where_it_was_not_all_answered_ahead_or_when_s
     bus.settle()
     assert [(a[3], cycle_of(a)) for a, _ in out] == [(3, k + 2), (4, k + 1), (4, k + 2), (5, k + 2), (3, k + 1),
                                                      (5, k + 1)]
-    core, bus, now = _steady_line(3, newest_first=False)
-    k = now["cycle"]
-    assert _backlog(core, bus, now, 2) == [(s, k + c) for s in (3, 4, 5) for c in (1, 2)]
 
 
 def test_a_backlog_after_a_poll_is_answered_ahead_after_each_cards_first_command() -> None:

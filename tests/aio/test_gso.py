@@ -1,8 +1,8 @@
 """Segmentation offload (mlink_sim.aio.mmsg, "Segmentation offload"): a burst's datagrams of one size to one
 destination leave as one offloaded message (``UDP_SEGMENT``) and still arrive as separate datagrams, in order; a socket
 that reads with ``UDP_GRO`` gets such a burst as one buffer and every read cuts it again (the batched reads and the
-per-datagram ``recv``/``recvfrom``); where the kernel refuses the offload the burst still goes; ``MLINK_GSO=0``
-switches it off; a capture's socket never reads coalesced buffers."""
+per-datagram ``recv``/``recvfrom``); where the kernel refuses the offload the burst still goes; ``gso=False``
+turns it off for a socket; a capture's socket never reads coalesced buffers."""
 
 from __future__ import annotations
 
@@ -103,17 +103,6 @@ def test_a_gro_reader_cuts_a_peers_short_last_segment_and_keeps_each_shape_apart
         rx.close()
 
 
-def test_gro_and_the_kernels_stamps_exclude_each_other() -> None:
-    a, b = mmsg.BurstSocket(_udp()), mmsg.BurstSocket(_udp())
-    try:
-        assert a.enable_gro() and not a.enable_stamps()
-        if mmsg.stamps_supported():
-            assert b.enable_stamps() and not b.enable_gro()
-    finally:
-        a.close()
-        b.close()
-
-
 _SO_NO_CHECK = 11  # <asm-generic/socket.h>: no UDP checksum on send, which the kernel's offload refuses (EINVAL)
 
 
@@ -140,10 +129,8 @@ def test_an_offload_the_kernel_refuses_falls_back_and_loses_nothing(lead: int) -
         rx.close()
 
 
-def test_switched_off_each_datagram_is_its_own_message(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("MLINK_GSO", "0")
-    assert not mmsg.gso_supported()
-    tx, rx = mmsg.BurstSocket(_udp()), mmsg.BurstSocket(_udp())
+def test_without_the_offload_each_datagram_is_its_own_message() -> None:
+    tx, rx = mmsg.BurstSocket(_udp(), gso=False), mmsg.BurstSocket(_udp(), gso=False)
     try:
         assert not rx.enable_gro()
         items = [(b"x" * 20, rx.getsockname())] * 4

@@ -1,7 +1,7 @@
 """Batched UDP calls (mlink_sim.aio.mmsg): a burst goes out in order to every destination, reads return what is
 waiting (and [] rather than an exception when nothing is), source addresses read as ``recvfrom`` reads them, a
-failed datagram does not take the rest of the burst with it, and where the calls are switched off every user
-falls back to the per-datagram calls."""
+failed datagram does not take the rest of the burst with it, and where a caller asks for the per-datagram calls
+(``batched=False``) it gets them."""
 
 from __future__ import annotations
 
@@ -123,65 +123,16 @@ def test_a_destination_by_name_is_sent_one_by_one() -> None:
         rx.close()
 
 
-@pytest.mark.skipif(not mmsg.stamps_supported(), reason="kernel receive timestamps not supported here")
-def test_stamped_reads_keep_the_kernels_arrival_time() -> None:
-    """SO_TIMESTAMPNS (<asm-generic/socket.h>): a datagram read long after it came keeps the time it came, on the
-    monotonic clock; the stamps come in arrival order, and beyond one recvmmsg the slots' control buffers are
-    reused."""
-    tx, rx = _udp(), mmsg.BurstSocket(_udp())
-    try:
-        assert rx.enable_stamps() and rx.enable_stamps() and rx.stamped
-        # The kernel turns receive stamping on a moment after the first socket asks (net/core/dev.c, netstamp_work);
-        # until then a datagram is stamped when it is read (later than it came, never earlier).
-        time.sleep(0.05)
-        before = time.monotonic_ns()
-        for i in range(mmsg.CAPACITY + 6):
-            tx.sendto(b"%d" % i, rx.getsockname())
-        after = time.monotonic_ns()
-        time.sleep(0.05)  # read 50 ms after they came
-        read_at = time.monotonic_ns()
-        got: list[tuple[bytes, int]] = []
-        while batch := rx.recv_burst_stamped(1000):
-            assert len(batch) <= mmsg.CAPACITY
-            got += batch
-        assert [d for d, _ in got] == [b"%d" % i for i in range(mmsg.CAPACITY + 6)]
-        stamps = [t for _, t in got]
-        assert stamps == sorted(stamps)
-        assert before - 1_000_000 <= stamps[0] and stamps[-1] <= after + 1_000_000 < read_at  # 1 ms: clock offset
-        assert rx.recv_burst_stamped() == []
-        tx.sendto(b"again", rx.getsockname())  # the control lengths were restored after the first reads
-        time.sleep(0.02)
-        ((data, t),) = rx.recv_burst_stamped(1)
-        assert data == b"again" and read_at < t <= time.monotonic_ns()
-    finally:
-        tx.close()
-        rx.close()
-
-
-def test_stamps_are_opt_in(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv("MLINK_RX_STAMPS", raising=False)
-    assert not mmsg.stamps_enabled()
-    monkeypatch.setenv("MLINK_RX_STAMPS", "0")
-    assert not mmsg.stamps_enabled()
-    monkeypatch.setenv("MLINK_RX_STAMPS", "1")
-    assert mmsg.stamps_enabled() is mmsg.stamps_supported()
-
-
-def test_the_yield_after_a_send_is_on_unless_switched_off(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv("MLINK_YIELD", raising=False)
+def test_the_yield_after_a_send_is_the_schedulers_yield() -> None:
     assert mmsg.yield_after_send() is getattr(os, "sched_yield", None)
-    monkeypatch.setenv("MLINK_YIELD", "off")
-    assert mmsg.yield_after_send() is None
-    assert mmsg.yielder("MLINK_POLL_YIELD") is getattr(os, "sched_yield", None)  # each switch its own
-    monkeypatch.setenv("MLINK_POLL_YIELD", "0")
-    assert mmsg.yielder("MLINK_POLL_YIELD") is None
 
 
-def test_switched_off_the_sockets_stay_plain(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("MLINK_MMSG", "0")
+def test_asked_for_plain_calls_the_sockets_stay_plain() -> None:
     sock = _udp()
     try:
-        assert not mmsg.supported() and mmsg.wrap(sock) is sock
+        assert mmsg.wrap(sock, batched=False) is sock
+        wrapped = mmsg.wrap(sock)
+        assert isinstance(wrapped, mmsg.BurstSocket) and wrapped.sock is sock
     finally:
         sock.close()
 

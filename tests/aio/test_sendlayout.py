@@ -1,7 +1,7 @@
 """A burst's send headers (mlink_sim.aio.sendlayout): the offload's groups (one destination, one size, at most 64
 datagrams and below 64 KiB each), a burst of any size in one ``sendmmsg`` (a worker's answers to two cycles after a
-stall: docs/performance.md, "A backlog in one system call"), ``MLINK_ONE_CALL=0`` cutting it every 64 datagrams
-again, and the last few shapes kept so that alternating bursts are not laid out again."""
+stall: docs/performance.md, "A backlog in one system call"), and the last few shapes kept so that alternating bursts
+are not laid out again."""
 
 from __future__ import annotations
 
@@ -74,23 +74,18 @@ def _backlog(here: Any) -> list[tuple[bytes, Any]]:
     return [(bytes([cycle, station]) * 32, here) for cycle in (2, 1) for station in range(62)]
 
 
-@pytest.mark.parametrize("switch", ["", "MLINK_GSO", "MLINK_ONE_CALL"],
-                         ids=["offload", "one-message-each", "switched-off"])
-def test_a_backlog_of_124_answers_goes_in_one_system_call_in_order(switch: str,
+@pytest.mark.parametrize("gso", [True, False], ids=["offload", "one-message-each"])
+def test_a_backlog_of_124_answers_goes_in_one_system_call_in_order(gso: bool,
                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
-    if switch:
-        monkeypatch.setenv(switch, "0")
-    elif not mmsg.gso_supported():
+    if gso and not mmsg.gso_supported():
         pytest.skip("UDP segmentation offload not available here")
     counts = _counting(monkeypatch)
-    tx, rx = mmsg.BurstSocket(_udp()), _udp()
+    tx, rx = mmsg.BurstSocket(_udp(), gso=gso), _udp()
     try:
         items = _backlog(rx.getsockname())
         assert tx.send_burst(items) == []
-        if switch == "MLINK_ONE_CALL":  # cut every 64 datagrams, as before session 26
-            assert len(counts) == 2
-        else:  # one sendmmsg: one offloaded message of 124 (two of 64 and 60 on a kernel that takes 64), or 124
-            assert counts == ([124] if switch else [1 if sendlayout.max_segments() >= 124 else 2])
+        # one sendmmsg: one offloaded message of 124 (two of 64 and 60 on a kernel that takes 64), or 124 messages
+        assert counts == ([1 if sendlayout.max_segments() >= 124 else 2] if gso else [124])
         assert [d for d, _ in _drain(rx)] == [d for d, _ in items]
     finally:
         tx.close()
@@ -115,9 +110,8 @@ def test_a_gro_reader_gets_a_backlog_in_one_read() -> None:
 
 
 def test_more_than_the_kernel_takes_in_one_call_goes_in_several(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("MLINK_GSO", "0")
     counts = _counting(monkeypatch)
-    tx, rx = mmsg.BurstSocket(_udp()), _udp()
+    tx, rx = mmsg.BurstSocket(_udp(), gso=False), _udp()
     rx.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
     try:
         items = [(i.to_bytes(2, "big"), rx.getsockname()) for i in range(sendlayout.MAX_VECTOR + 5)]

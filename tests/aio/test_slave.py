@@ -9,7 +9,6 @@ import time
 
 import pytest
 
-from mlink_sim.aio.mmsg import switched_on
 from mlink_sim.aio import slave as slave_module
 from mlink_sim.aio.slave import HostedStation, SlaveServer
 from mlink_sim.cards import create_card, settings_for
@@ -160,7 +159,7 @@ async def test_shared_port_the_address_byte_picks_the_station() -> None:
 async def test_shared_port_yields_after_the_answers_went_and_before_the_cards_settle(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """A packed worker sends a read's answers, yields once (``mmsg.yield_after_send``: the master, woken on this
-    CPU, reads them now, not after the cards' work), then settles (``Bus.settle``); with ``MLINK_YIELD=0``, no yield."""
+    CPU, reads them now, not after the cards' work), then settles (``Bus.settle``)."""
     events: list[str] = []
     master = _client()
     real_bus = slave_module.Bus
@@ -181,19 +180,17 @@ async def test_shared_port_yields_after_the_answers_went_and_before_the_cards_se
 
     monkeypatch.setattr(slave_module, "Bus", SpyBus, raising=True)
     monkeypatch.setattr(slave_module.os, "sched_yield", pause)  # what mmsg.yield_after_send hands out
-    for switch, expected in (("1", ["yield with answers waiting", "settle"]), ("0", ["settle"])):
-        monkeypatch.setenv("MLINK_YIELD", switch)
-        events.clear()
-        server = await _shared_server(0x21, 0x22)
-        try:
-            addr = ("127.0.0.1", server.stations[0].port)
-            master.sendto(_nop_to(0x21, 1), addr)
-            master.sendto(_nop_to(0x22, 1), addr)
-            await asyncio.sleep(0.2)
-            assert events == expected * (len(events) // len(expected)) and events
-            assert sorted(await _answers(master, settle=0)) == [1, 1]
-        finally:
-            await server.close()
+    expected = ["yield with answers waiting", "settle"]
+    server = await _shared_server(0x21, 0x22)
+    try:
+        addr = ("127.0.0.1", server.stations[0].port)
+        master.sendto(_nop_to(0x21, 1), addr)
+        master.sendto(_nop_to(0x22, 1), addr)
+        await asyncio.sleep(0.2)
+        assert events == expected * (len(events) // len(expected)) and events
+        assert sorted(await _answers(master, settle=0)) == [1, 1]
+    finally:
+        await server.close()
     master.close()
 
 
@@ -252,8 +249,6 @@ async def test_arrival_poll_on_each_shared_socket_or_a_lone_station_s_only() -> 
             endpoints = {id(hs.endpoint): hs.endpoint for hs in server.stations}.values()
             assert sum(ep is not None and ep.poll is not None for ep in endpoints) == polls
             keys = {"period_ns", "windows", "caught", "spun_ns", "lead_ns", "idle_cpus_poll"}
-            if switched_on("MLINK_LOOKAHEAD"):  # the poll's timer armed a cycle ahead: kept / re-armed
-                keys |= {"timer_kept", "timer_rearmed"}
             assert set(server.cpu()["arrival_poll"]) == (keys if polls else set())
         finally:
             await server.close()

@@ -1,5 +1,6 @@
 """A capture's tap on the batched calls (aio.tapped.TappedBurstSocket): bursts and recvmmsg reads recorded with their real
-addresses, failed datagrams left out, the per-datagram calls still tapped, and MLINK_MMSG=0 keeps TappedSocket."""
+addresses, failed datagrams left out, the per-datagram calls still tapped, and ``batched=False`` keeps
+TappedSocket."""
 
 from __future__ import annotations
 
@@ -90,14 +91,12 @@ def test_the_per_datagram_calls_are_tapped_too() -> None:
         master.close()
 
 
-def test_tap_is_the_batched_tap_unless_mmsg_is_off(tmp_path: Path,
-                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+def test_tap_is_the_batched_tap_unless_asked_for_plain_calls(tmp_path: Path) -> None:
     w = CaptureWriter(tmp_path / "c.pcapng")
     a = _udp()
     assert isinstance(tap(w, a), TappedBurstSocket)
-    monkeypatch.setenv("MLINK_MMSG", "0")
     b = _udp()
-    assert isinstance(tap(w, b), TappedSocket)
+    assert isinstance(tap(w, b, batched=False), TappedSocket)
     a.close()
     b.close()
 

@@ -8,15 +8,12 @@ from __future__ import annotations
 
 import asyncio
 import os
-import threading
 import time
 
 import pytest
 from structlog.testing import capture_logs
 
 from mlink_sim.aio import STRATEGIES, CycleTimer, available_strategies
-from mlink_sim.aio._timerfd import LookaheadTimer
-from mlink_sim.aio.mmsg import switched_on
 from mlink_sim.aio.ticker import learn_wake_error
 
 try:
@@ -65,7 +62,7 @@ def assert_schedule(calls, start_ns: int, period_ns: int, first_cycle: int = 0) 
 
 
 def test_available_strategies_and_auto():
-    assert {"call_at", "call_at+spin", "thread", "thread+spin"} <= set(AVAILABLE)
+    assert {"call_at", "call_at+spin"} <= set(AVAILABLE)
     assert set(AVAILABLE) <= set(STRATEGIES)
     timer = CycleTimer(MS, lambda *a: None, strategy="auto")
     assert timer.strategy == ("timerfd+spin" if "timerfd" in AVAILABLE else "call_at+spin")
@@ -89,29 +86,6 @@ def test_each_strategy_runs_20_cycles_at_1ms(strategy, loop_kind):
         # no drift accumulation: after N cycles the next deadline is start + N*period, exactly
         assert timer.next_deadline_ns == start + (last + 1) * MS
         assert timer.skipped_total == sum(c[3] for c in rec.calls)
-
-    run_on(loop_kind, main)
-
-
-@pytest.mark.skipif("timerfd" not in AVAILABLE, reason="no timerfd here")
-@pytest.mark.parametrize("loop_kind", LOOPS)
-def test_the_lookahead_timer_keeps_the_schedule_and_arms_ahead(loop_kind, monkeypatch):
-    """MLINK_LOOKAHEAD=1 (docs/timing.md, "The clock's timer, armed a cycle ahead"): the same exact schedule, with
-    each wake-up after the first already armed a cycle before (kept) or, where the spin moved it, re-armed."""
-    monkeypatch.setenv("MLINK_LOOKAHEAD", "1")
-
-    async def main():
-        rec = Recorder(want=30)
-        start = time.monotonic_ns() + 2 * MS
-        timer = CycleTimer(MS, rec, strategy="timerfd+spin", start_ns=start)
-        timer.start()
-        tfd = timer._tfd
-        assert isinstance(tfd, LookaheadTimer)
-        await rec.done.wait()
-        timer.stop()
-        assert_schedule(rec.calls, start, MS)
-        assert tfd.closed
-        assert tfd.kept + tfd.rearmed >= len(rec.calls) and tfd.kept >= 1
 
     run_on(loop_kind, main)
 
@@ -174,29 +148,24 @@ def _open_fds() -> set[str]:
     return set(os.listdir("/proc/self/fd")) if os.path.isdir("/proc/self/fd") else set()
 
 
-def _wake_threads() -> list[threading.Thread]:
-    return [t for t in threading.enumerate() if t.name == "CycleTimer-wake"]
 
 
 @pytest.mark.parametrize("loop_kind", LOOPS)
 @pytest.mark.parametrize("strategy", AVAILABLE)
 def test_stop_releases_resources_and_is_idempotent(strategy, loop_kind):
     async def main():
-        fds_before, threads_before = _open_fds(), len(_wake_threads())
+        fds_before = _open_fds()
         rec = Recorder(want=3)
         timer = CycleTimer(MS, rec, strategy=strategy)
         timer.start()
         await rec.done.wait()
         assert timer.running
-        if strategy.startswith("timerfd"):  # two in turn with MLINK_LOOKAHEAD=1 (LookaheadTimer)
-            assert len(_open_fds() - fds_before) == (2 if switched_on("MLINK_LOOKAHEAD") else 1)
-        if strategy.startswith("thread"):
-            assert len(_wake_threads()) == threads_before + 1
+        if strategy.startswith("timerfd"):  # one timerfd
+            assert len(_open_fds() - fds_before) == 1
         timer.stop()
         timer.stop()
         assert not timer.running
         assert _open_fds() - fds_before == set()
-        assert len(_wake_threads()) == threads_before
         n = len(rec.calls)
         await asyncio.sleep(5 * MS / 1e9)
         assert len(rec.calls) == n  # nothing after stop()
@@ -261,10 +230,12 @@ def test_error_logging_is_rate_limited():
 
 def test_spin_settings():
     assert CycleTimer(MS, lambda *a: None, strategy="call_at").spin_ns == 0
-    assert CycleTimer(MS, lambda *a: None, strategy="thread+spin", spin_ns=30_000).spin_ns == 30_000
-    assert CycleTimer(MS, lambda *a: None, strategy="thread+spin", spin_ns=0).spin_ns == 0
-    # an adaptive spin never exceeds its cap (default half a period for timerfd/thread)
-    assert CycleTimer(100_000, lambda *a: None, strategy="thread+spin").spin_ns <= 50_000
+    assert CycleTimer(MS, lambda *a: None, strategy="call_at+spin", spin_ns=30_000).spin_ns == 30_000
+    assert CycleTimer(MS, lambda *a: None, strategy="call_at+spin", spin_ns=0).spin_ns == 0
+    # an adaptive spin never exceeds its cap (default half a period for timerfd, a whole one for call_at)
+    assert CycleTimer(100_000, lambda *a: None, strategy="call_at+spin").spin_ns <= 100_000
+    if "timerfd" in AVAILABLE:
+        assert CycleTimer(100_000, lambda *a: None, strategy="timerfd+spin").spin_ns <= 50_000
 
 
 def test_the_adaptive_spin_learns_the_sources_error_not_the_stalls():
@@ -360,15 +331,12 @@ def test_each_caught_up_cycle_starts_when_it_runs(loop_kind):
         assert calls[i + 1][1] == calls[i][1] + MS and calls[i + 1][1] <= calls[i + 1][2]
 
 
-@pytest.mark.parametrize("switch", ["default", "MLINK_YIELD=0"])
-def test_the_catch_up_yields_the_cpu_between_its_cycles_and_only_there(monkeypatch, switch):
+def test_the_catch_up_yields_the_cpu_between_its_cycles_and_only_there(monkeypatch):
     """docs/timing.md, "The catch-up yields": a cycle's send wakes its slaves; between two cycles run back to back
     the clock yields once, so that they need not wait behind the whole catch-up. On time, it never yields (the
-    clock sleeps or spins then); with MLINK_YIELD=0 it does not yield at all."""
+    clock sleeps or spins then)."""
     events: list[object] = []
     monkeypatch.setattr(os, "sched_yield", lambda: events.append("yield"))
-    if switch != "default":
-        monkeypatch.setenv("MLINK_YIELD", "0")
 
     def block_once(rec, cycle):
         events.append(rec.calls[-1])
@@ -377,9 +345,6 @@ def test_the_catch_up_yields_the_cpu_between_its_cycles_and_only_there(monkeypat
 
     _, timer = run_with_a_stall("asyncio", block_once)
     yields = [i for i, e in enumerate(events) if e == "yield"]
-    if switch != "default":
-        assert not yields and timer.caught_up_total >= 3
-        return
     assert len(yields) == timer.caught_up_total >= 3  # one after each caught-up cycle
     for i in yields:  # each right after a cycle run late by a period or more, and before the next cycle
         _cycle, deadline, now, _ = events[i - 1]
