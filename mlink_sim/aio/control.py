@@ -11,11 +11,12 @@ object per UDP datagram each way, the same shape as a slave's stats endpoint (ai
     ← {"ok": false, "error": "loss: a probability is between 0 and 1 …"}
 
 The operations are a table (:func:`impairment_ops`); another kind of fault adds its own entries. A client:
-:func:`mlink_sim.aio.slave.query_control` (``mlink-sim control``).
+:func:`query_control` (``mlink-sim control``; the network run asks the slave workers' stats endpoints with it too).
 """
 
 from __future__ import annotations
 
+import asyncio
 import json
 from collections.abc import Callable
 from typing import Any
@@ -23,7 +24,7 @@ from typing import Any
 from .._log import get_logger
 from .udp import DatagramEndpoint, open_endpoint
 
-__all__ = ["ControlServer", "Op", "impairment_ops"]
+__all__ = ["ControlServer", "Op", "impairment_ops", "query_control"]
 
 log = get_logger("mlink_sim.control")
 
@@ -105,3 +106,25 @@ class ControlServer:
             payload = json.dumps({"ok": False, "error": "reply too large for one datagram"}).encode()
         if self._endpoint is not None:
             self._endpoint.sendto(payload, addr)
+
+
+async def query_control(host: str, port: int, op: str = "stats", timeout: float = 1.0,
+                        **fields: Any) -> dict[str, Any] | None:
+    """Ask a control endpoint (a slave process's stats endpoint, a run's or a proxy's ``--control``) the operation
+    *op* (*fields* go into the request): its JSON reply, or None when it does not answer in time."""
+    loop = asyncio.get_running_loop()
+    fut: asyncio.Future[bytes] = loop.create_future()
+
+    def on_datagram(data: bytes, addr: Any) -> None:
+        if not fut.done():
+            fut.set_result(data)
+
+    ep = await open_endpoint(on_datagram, "::" if ":" in host else "0.0.0.0", 0)
+    try:
+        ep.sendto(json.dumps({"op": op, **fields}).encode(), (host, port))
+        data = await asyncio.wait_for(fut, timeout)
+        return json.loads(data)
+    except (TimeoutError, ValueError):
+        return None
+    finally:
+        ep.close()

@@ -20,6 +20,7 @@ from .._log import get_logger
 from ..faults import Episode, FaultError, FaultSpec, fault_from_fields
 from ..faults.plant import PlantFaults
 from ..faults.spec import PLANT_FAULTS
+from .control import query_control
 
 __all__ = ["FaultControl", "handle_plant_request", "PlantError", "fault_ops", "parse_fault_text"]
 
@@ -110,8 +111,6 @@ class FaultControl:
         if plant is not None:  # a station in this process (the virtual clock)
             reply = plant(request)
         else:
-            from .slave import query_control
-
             port = worker.control_port
             reply = None
             if worker.alive and port:

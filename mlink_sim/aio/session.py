@@ -26,9 +26,9 @@ from ..config import Config
 from ..metrics.stalls import StallLog
 from ..wire import Link
 from .faults import FaultControl
+from .control import query_control
 from .heap import settle_heap
 from .realtime import cpu_plan as rt_cpu_plan, format_cpus as rt_format_cpus
-from .slave import query_control
 from .ticker import CycleTimer
 from .supervisor import Worker, WorkerError, WorkerSpec, plan_workers
 from .udp import bind_address_for, resolve

@@ -39,7 +39,7 @@ from .state import atomic_write, eeprom_path, remove_stale_temps
 from .tapped import tap
 from .udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endpoint
 
-__all__ = ["HostedStation", "SlaveServer", "query_control"]
+__all__ = ["HostedStation", "SlaveServer"]
 
 log = get_logger("mlink_sim.slave")
 
@@ -443,25 +443,3 @@ class SlaveServer:
             payload = json.dumps({"ok": False, "error": "stats too large for one datagram"}).encode()
         if self._control is not None:
             self._control.sendto(payload, addr)
-
-
-async def query_control(host: str, port: int, op: str = "stats", timeout: float = 1.0,
-                        **fields: Any) -> dict[str, Any] | None:
-    """Ask a slave process's control endpoint (*fields* go into the request); None when it does not answer in
-    time."""
-    loop = asyncio.get_running_loop()
-    fut: asyncio.Future[bytes] = loop.create_future()
-
-    def on_datagram(data: bytes, addr: Any) -> None:
-        if not fut.done():
-            fut.set_result(data)
-
-    ep = await open_endpoint(on_datagram, "::" if ":" in host else "0.0.0.0", 0)
-    try:
-        ep.sendto(json.dumps({"op": op, **fields}).encode(), (host, port))
-        data = await asyncio.wait_for(fut, timeout)
-        return json.loads(data)
-    except (TimeoutError, ValueError):
-        return None
-    finally:
-        ep.close()

@@ -141,7 +141,7 @@ def control_cmd(address: str, op: str, station: str | None, spec: str | None, ti
     import secrets
 
     from ..aio.faults import parse_fault_text
-    from ..aio.slave import query_control
+    from ..aio.control import query_control
     from ..faults import FaultError, fault_from_fields
     from ..impair import ImpairError, parse_impair_text, target_station
 
