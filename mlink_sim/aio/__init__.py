@@ -2,14 +2,14 @@
 
 from typing import Any
 
-from .ticker import STRATEGIES, CycleTimer, available_strategies
+from .timing.ticker import STRATEGIES, CycleTimer, available_strategies
 
 __all__ = ["CycleTimer", "available_strategies", "STRATEGIES", "VirtualNetwork"]
 
 
 def __getattr__(name: str) -> Any:
     if name == "VirtualNetwork":  # imported on demand: it brings the config models and the card cores
-        from .embed import VirtualNetwork
+        from .run.embed import VirtualNetwork
 
         return VirtualNetwork
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -9,9 +9,9 @@ import time
 
 import click
 
-from ..aio.probe import nop_command as _nop  # noqa: F401 - the old name; tests/testbed/test_health.py imports it
-from ..aio.probe import probe
-from ..aio.udp import new_event_loop
+from ..aio.tools.probe import nop_command as _nop  # noqa: F401 - the old name; tests/testbed/test_health.py imports it
+from ..aio.tools.probe import probe
+from ..aio.transport.udp import new_event_loop
 from ..config import parse_address, parse_endpoint
 from ..testbed.health import ATTEMPTS
 from ..wire import Link

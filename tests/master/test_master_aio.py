@@ -1,4 +1,4 @@
-"""mlink_sim.aio.master.Master over real UDP on 127.0.0.1 (port 0) against in-test responders built from a slave
+"""mlink_sim.aio.master.runner.Master over real UDP on 127.0.0.1 (port 0) against in-test responders built from a slave
 core. Bounded in time; no fixed ports."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import time
 import pytest
 from master_fakes import MS, CardSlave
 
-from mlink_sim.aio.master import Master
+from mlink_sim.aio.master.runner import Master
 from mlink_sim.master import NetworkPlan, StationAlarmError, StationPlan, StationState
 from mlink_sim.wire import Link
 
@@ -157,9 +157,9 @@ async def test_events_feed_network_metrics_with_its_counting_rules():
 
 @pytest.mark.parametrize("batched", [True, False], ids=["sendmmsg", "sendto"])
 async def test_master_over_loopback_with_and_without_batched_calls(batched):
-    """The transport with and without sendmmsg/recvmmsg (mlink_sim.aio.mmsg): the same scenario passes either way;
+    """The transport with and without sendmmsg/recvmmsg (mlink_sim.aio.transport.mmsg): the same scenario passes either way;
     the socket is a BurstSocket exactly where the calls are supported and asked for (``batched``)."""
-    from mlink_sim.aio import mmsg
+    from mlink_sim.aio.transport import mmsg
 
     if batched and mmsg._calls is None:
         pytest.skip("sendmmsg/recvmmsg not available here")

@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from mlink_sim.aio._timerfd import timerfd_supported
+from mlink_sim.aio.timing.timerfd import timerfd_supported
 
 from .scripts_loader import script_fixture
 
