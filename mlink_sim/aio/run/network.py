@@ -20,10 +20,13 @@ from ... import _accel
 from ..._log import get_logger
 from ...config import Config, TimelineStep, format_ns
 from ...metrics import write_report
+from .control import ControlServer, impairment_ops
+from .faults import fault_ops
 from .scenario import CheckResult, Scenario, speed_scales
 from .session import EndpointError, NetworkSession, build_plans
 from .status import LiveStatus, StatusInfo, WorstP99, render_lines
 from .supervisor import resolve_workers
+from .virtual_session import VirtualSession
 
 __all__ = ["RunOptions", "RunOutcome", "Verdict", "SIGNAL_EXIT", "EndpointError", "run_up", "run_network",
            "build_plans", "cut_by_duration"]
@@ -95,122 +98,176 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
 
     SIGINT / SIGTERM end the run in order (DISCONNECT, workers stopped, report written) with exit 130 / 143 and
     "interrupted" in the summary and in ``meta.interrupted``; the timeline steps that did not begin are listed as
-    not run (``meta.not_run``)."""
-    loop = asyncio.get_running_loop()
-    stop = asyncio.Event()
-    caught: list[signal.Signals] = []
+    not run (``meta.not_run``).
+
+    The phases, in order: the workers (:func:`_workers`), the session and its control endpoint (:func:`_open`),
+    the bring-up (:func:`_bring_up`), the timeline with the live status (:func:`_timeline`), the report
+    (:func:`_report`), the close (:func:`_close`, whatever happened before) and the verdict (:func:`_verdict`)."""
+    run = _Run(config, opts, asyncio.get_running_loop())
     log.info("cores", mode=_accel.MODE, detail=_accel.REASON)  # compiled or pure (docs/performance.md)
-
-    def on_signal(sig: signal.Signals) -> None:
-        if not caught:
-            caught.append(sig)
-            log.info("signal", signal=sig.name)
-        stop.set()
-
-    for sig in SIGNAL_EXIT:
-        loop.add_signal_handler(sig, on_signal, sig)
-    scenario: Scenario | None = None
-    t0 = loop.time()
-    session: NetworkSession | None = None
-    workers = None
-    session_cls: type[NetworkSession] = NetworkSession
-    extra: dict[str, Any] = {"seed": opts.seed}
-    if opts.clock == "virtual":
-        from .virtual_session import VirtualSession
-
-        session_cls = VirtualSession
-    elif endpoints is None:
-        workers = resolve_workers(opts.workers, len(config.station))
-        if opts.workers == "auto" and workers is not None:
-            _notice(opts, "workers_packed", f"note: {len(config.station)} stations on {os.cpu_count() or 1} CPUs: "
-                    f"hosted in {workers} slave process(es), so the master's clock keeps a CPU (--workers station: "
-                    "one process per station; docs/performance.md)")
+    run.catch_signals()
+    session_cls, workers = _workers(run, endpoints)
     length = opts.duration_ns if opts.duration_ns is not None else config.run_length_ns
     cut = cut_by_duration(config, opts.duration_ns)
     if cut:
         _notice(opts, "steps_cut", f"warning: --duration {format_ns(opts.duration_ns or 0)} ends the run before "
                 f"{len(cut)} timeline step(s), which will not run: {'; '.join(s.describe for s in cut)}")
     scales = speed_scales(config)  # now, not in the event loop once it keeps time
-    status = LiveStatus() if opts.status else None
-    capture = opts.capture
-    control = None
+    run.status = LiveStatus() if opts.status else None
     try:
-        session = await session_cls.open(
-            config, opts.config_path, endpoints=endpoints, workers=workers, state_dir=opts.state_dir,
-            run_dir=opts.run_dir, restart_slaves=opts.restart_slaves, realtime=opts.realtime, capture=capture,
-            **extra)
-        if session.realtime_granted:
-            _notice(opts, "realtime", "realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items()))
-        net = session.net
-        assert net is not None
-        if opts.control is not None:
-            from .control import ControlServer, impairment_ops
-            from .faults import fault_ops
-
-            control = ControlServer({**impairment_ops(session), **fault_ops(session)})
-            host, port = await control.start(*opts.control)
-            _notice(opts, "control", f"control: {host}:{port} (mlink-sim control {host}:{port} "
-                                     "impair|heal|faults|fault|recovery)")
-        # -- bring-up ----------------------------------------------------------------------------------------------
-        bring = loop.create_task(session.bring_up(opts.bringup_timeout_s))
-        stopper = loop.create_task(stop.wait())
-        done, _ = await asyncio.wait({bring, stopper}, return_when=asyncio.FIRST_COMPLETED)
-        if bring not in done:
-            bring.cancel()
-            await asyncio.gather(bring, return_exceptions=True)
-        scenario = Scenario(config, net, scales)
+        session = await _open(run, session_cls, endpoints, workers)
+        stopper = run.loop.create_task(run.stop.wait())
+        await _bring_up(run, session, stopper)
+        assert session.net is not None
+        scenario = Scenario(config, session.net, scales)
+        capture = opts.capture
         if capture is not None:  # the timeline's actions (runs, writes, injected faults) as capture comments
-            scenario.note = lambda text: capture.note(int(loop.time() * 1e9), text)
-        if not stop.is_set():
-            session.not_up()
-            log.info("network_up", stations=len(config.station))
-            if not opts.include_bringup:
-                session.reset_metrics()  # the report is about the running network, not five processes starting
-            # -- timeline + status -----------------------------------------------------------------------------
-            t0 = loop.time()
-            tasks = [loop.create_task(scenario.run(t0, _sleep_until))]
-            frame = _framer(config, session, scenario, t0, length)
-            if status is not None:
-                status.start()
-                tasks.append(loop.create_task(_status_loop(status, frame)))
-            end = loop.create_task(_sleep_until(t0 + length / 1e9)) if length is not None else None
-            waiters = {stopper} | ({end} if end else set())
-            if end is None and not config.timeline:
-                _notice(opts, "no_end", "running until Ctrl-C (no timeline, no --duration)")
-            await asyncio.wait(waiters, return_when=asyncio.FIRST_COMPLETED)
-            for task in [*tasks, *waiters]:
-                task.cancel()
-            await asyncio.gather(*tasks, return_exceptions=True)
-            session.problems.extend(scenario.action_errors)
-            if status is not None:
-                status.stop(frame())
+            scenario.note = lambda text: capture.note(int(run.loop.time() * 1e9), text)
+        if not run.stop.is_set():
+            await _timeline(run, session, scenario, stopper, length)
         stopper.cancel()
-        await session.refresh_slave_stats()
-        await session.close_masters()  # DISCONNECT while the slaves still run
-        scenario.results[:] = scenario.results_naming_stalls(session.metrics.stalls)
-        for c in scenario.results:
-            session.metrics.record_check(c.at_s, c.what, c.ok, c.detail)
-        interrupted = caught[0].name if caught else None
-        report = await session.report(assertions=opts.assertions, slave_stats=False, extra_meta={
-            "interrupted": interrupted, "not_run": [s.describe for s in scenario.not_run()]})
+        report = await _report(run, session, scenario)
     finally:
-        if control is not None:
-            control.close()
-        if status is not None:
-            status.stop()
-        if session is not None:
-            await session.close()
-        if capture is not None:  # in a thread on the wall clock; in place on the virtual clock, whose loop would
-            # busy-poll (and fight the closing thread for the GIL) while it waits for a thread
-            closed = capture.close() if opts.clock == "virtual" else await loop.run_in_executor(None, capture.close)
-            print(closed.summary(), file=sys.stderr)
+        await _close(run)
+    return _verdict(run, report, scenario, session.problems, cut)
+
+
+@dataclasses.dataclass
+class _Run:
+    """What the phases of one run share: the loop, the stop a signal asks for, and what the close must release."""
+
+    config: Config
+    opts: RunOptions
+    loop: asyncio.AbstractEventLoop
+    stop: asyncio.Event = dataclasses.field(default_factory=asyncio.Event)
+    caught: list[signal.Signals] = dataclasses.field(default_factory=list)  #: the signal that ended the run
+    status: LiveStatus | None = None
+    control: ControlServer | None = None
+    session: NetworkSession | None = None
+
+    def catch_signals(self) -> None:
+        """SIGINT / SIGTERM set :attr:`stop` (the first one is kept for the exit status); :func:`_close` removes
+        the handlers."""
         for sig in SIGNAL_EXIT:
-            loop.remove_signal_handler(sig)
-    if opts.report_path is not None:
-        write_report(opts.report_path, report)
-    verdict = Verdict.of(scenario, report, session.problems, caught[0] if caught else None, cut)
-    _print_summary(config, report, scenario, verdict, session.problems, opts)
-    return RunOutcome(verdict.exit_code, report, scenario.results, session.problems)
+            self.loop.add_signal_handler(sig, self._on_signal, sig)
+
+    def _on_signal(self, sig: signal.Signals) -> None:
+        if not self.caught:
+            self.caught.append(sig)
+            log.info("signal", signal=sig.name)
+        self.stop.set()
+
+
+def _workers(run: _Run, endpoints: dict[int, tuple[str, int]] | None) -> tuple[type[NetworkSession], int | None]:
+    """Which session runs the network and how many slave worker processes it starts: the virtual clock's session
+    (no processes), none for ``mlink-sim master`` (*endpoints* given: the slaves run elsewhere), else the
+    ``--workers`` choice, with a notice when "auto" packs the stations."""
+    config, opts = run.config, run.opts
+    if opts.clock == "virtual":
+        return VirtualSession, None
+    if endpoints is not None:
+        return NetworkSession, None
+    workers = resolve_workers(opts.workers, len(config.station))
+    if opts.workers == "auto" and workers is not None:
+        _notice(opts, "workers_packed", f"note: {len(config.station)} stations on {os.cpu_count() or 1} CPUs: "
+                f"hosted in {workers} slave process(es), so the master's clock keeps a CPU (--workers station: "
+                "one process per station; docs/performance.md)")
+    return NetworkSession, workers
+
+
+async def _open(run: _Run, session_cls: type[NetworkSession], endpoints: dict[int, tuple[str, int]] | None,
+                workers: int | None) -> NetworkSession:
+    """Open the session (the workers, one master per link) and, with ``--control``, the control endpoint."""
+    opts = run.opts
+    session = run.session = await session_cls.open(
+        run.config, opts.config_path, endpoints=endpoints, workers=workers, state_dir=opts.state_dir,
+        run_dir=opts.run_dir, restart_slaves=opts.restart_slaves, realtime=opts.realtime, capture=opts.capture,
+        seed=opts.seed)
+    if session.realtime_granted:
+        _notice(opts, "realtime", "realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items()))
+    if opts.control is not None:
+        run.control = ControlServer({**impairment_ops(session), **fault_ops(session)})
+        host, port = await run.control.start(*opts.control)
+        _notice(opts, "control", f"control: {host}:{port} (mlink-sim control {host}:{port} "
+                                 "impair|heal|faults|fault|recovery)")
+    return session
+
+
+async def _bring_up(run: _Run, session: NetworkSession, stopper: asyncio.Task[Any]) -> None:
+    """Wait for every station to reach its phase (or the bring-up timeout), or for a signal (*stopper*)."""
+    bring = run.loop.create_task(session.bring_up(run.opts.bringup_timeout_s))
+    done, _ = await asyncio.wait({bring, stopper}, return_when=asyncio.FIRST_COMPLETED)
+    if bring not in done:
+        bring.cancel()
+        await asyncio.gather(bring, return_exceptions=True)
+
+
+async def _timeline(run: _Run, session: NetworkSession, scenario: Scenario, stopper: asyncio.Task[Any],
+                    length: int | None) -> None:
+    """Run the timeline with the live status from the end of bring-up until its end (*length*), --duration or a
+    signal (*stopper*)."""
+    config, opts, loop, status = run.config, run.opts, run.loop, run.status
+    session.not_up()
+    log.info("network_up", stations=len(config.station))
+    if not opts.include_bringup:
+        session.reset_metrics()  # the report is about the running network, not five processes starting
+    t0 = loop.time()
+    tasks = [loop.create_task(scenario.run(t0, _sleep_until))]
+    frame = _framer(config, session, scenario, t0, length)
+    if status is not None:
+        status.start()
+        tasks.append(loop.create_task(_status_loop(status, frame)))
+    end = loop.create_task(_sleep_until(t0 + length / 1e9)) if length is not None else None
+    waiters = {stopper} | ({end} if end else set())
+    if end is None and not config.timeline:
+        _notice(opts, "no_end", "running until Ctrl-C (no timeline, no --duration)")
+    await asyncio.wait(waiters, return_when=asyncio.FIRST_COMPLETED)
+    for task in [*tasks, *waiters]:
+        task.cancel()
+    await asyncio.gather(*tasks, return_exceptions=True)
+    session.problems.extend(scenario.action_errors)
+    if status is not None:
+        status.stop(frame())
+
+
+async def _report(run: _Run, session: NetworkSession, scenario: Scenario) -> dict[str, Any]:
+    """The slaves' last figures, DISCONNECT (while the slaves still run), the timeline's checks, the report."""
+    await session.refresh_slave_stats()
+    await session.close_masters()
+    scenario.results[:] = scenario.results_naming_stalls(session.metrics.stalls)
+    for c in scenario.results:
+        session.metrics.record_check(c.at_s, c.what, c.ok, c.detail)
+    interrupted = run.caught[0].name if run.caught else None
+    return await session.report(assertions=run.opts.assertions, slave_stats=False, extra_meta={
+        "interrupted": interrupted, "not_run": [s.describe for s in scenario.not_run()]})
+
+
+async def _close(run: _Run) -> None:
+    """Release what the run holds, whatever happened before: the control endpoint, the live status, the session
+    (its workers), the capture, the signal handlers."""
+    if run.control is not None:
+        run.control.close()
+    if run.status is not None:
+        run.status.stop()
+    if run.session is not None:
+        await run.session.close()
+    capture = run.opts.capture
+    if capture is not None:  # in a thread on the wall clock; in place on the virtual clock, whose loop would
+        # busy-poll (and fight the closing thread for the GIL) while it waits for a thread
+        closed = capture.close() if run.opts.clock == "virtual" else await run.loop.run_in_executor(None, capture.close)
+        print(closed.summary(), file=sys.stderr)
+    for sig in SIGNAL_EXIT:
+        run.loop.remove_signal_handler(sig)
+
+
+def _verdict(run: _Run, report: dict[str, Any], scenario: Scenario, problems: list[str],
+             cut: list[TimelineStep]) -> RunOutcome:
+    """Write the report, judge the run (:class:`Verdict`), print the summary."""
+    if run.opts.report_path is not None:
+        write_report(run.opts.report_path, report)
+    verdict = Verdict.of(scenario, report, problems, run.caught[0] if run.caught else None, cut)
+    _print_summary(run.config, report, scenario, verdict, problems, run.opts)
+    return RunOutcome(verdict.exit_code, report, scenario.results, problems)
 
 
 def _notice(opts: RunOptions, event: str, text: str) -> None:
