@@ -7,9 +7,12 @@ with ``time.monotonic_ns()`` as it is read, and it is also read in the clock's s
 so an answer that arrived in time is never counted missing only because the loop was busy with the clock. Where
 :mod:`~mlink_sim.aio.transport.mmsg` is supported the socket is a ``BurstSocket``: the
 cycle's burst goes out in one ``sendmmsg`` and a read takes what is waiting with one ``recvmmsg``; a capture's tap
-keeps those calls (:mod:`~mlink_sim.aio.transport.tapped`), an impairment and the virtual fabric take the per-datagram path.
-Transport errors (``sendto``/``recv`` raising ``OSError``, e.g. ``ConnectionRefusedError`` after an ICMP port
+keeps those calls (:mod:`~mlink_sim.aio.transport.tapped`), an impairment and the virtual fabric take the per-datagram
+path. Transport errors (``sendto``/``recv`` raising ``OSError``, e.g. ``ConnectionRefusedError`` after an ICMP port
 unreachable) are counted in :attr:`Master.transport_errors`, never raised.
+
+Touches: one UDP socket (through the transport layer), the cycle timer, the master core and its fault stage; a
+capture, when given.
 """
 
 from __future__ import annotations
@@ -153,8 +156,8 @@ class Master:
         *capture*: a :class:`~mlink_sim.capture.CaptureWriter`; every datagram on the socket is recorded and the
         core's state, alarm and recovery events become notes in it.
 
-        *batched*: the batched calls (``sendmmsg``/``recvmmsg``, :mod:`~mlink_sim.aio.transport.mmsg`) where the kernel has
-        them; False keeps the per-datagram calls (the tests compare both paths that way)."""
+        *batched*: the batched calls (``sendmmsg``/``recvmmsg``, :mod:`~mlink_sim.aio.transport.mmsg`) where the kernel
+        has them; False keeps the per-datagram calls (the tests compare both paths that way)."""
         missing = [f"{sp.address:02X}H" for sp in plan.stations if sp.address not in endpoints]
         if missing:
             raise ValueError(f"no UDP endpoint for station(s) {', '.join(missing)}")

@@ -12,6 +12,9 @@ object per UDP datagram each way, the same shape as a slave's stats endpoint (ai
 
 The operations are a table (:func:`impairment_ops`); another kind of fault adds its own entries. A client:
 :func:`query_control` (``mlink-sim control``; the network run asks the slave workers' stats endpoints with it too).
+
+Touches: one UDP socket of its own (the endpoint, or the client's); the operations act on the run through the table
+they are given.
 """
 
 from __future__ import annotations

@@ -16,6 +16,8 @@ The master API (``prm_rd``, ``prm_wr``, ``send_config``, ``id_rd``, ``alm_rd``, 
 ``reconnect``, ``set_control``, ``run``, ``stop_station``, ``view``) is the real master's, routed per station
 (:class:`~mlink_sim.aio.run.session.NetworkApi`); a request blocks until answered, advancing simulated time meanwhile.
 :meth:`~VirtualNetwork.station` is the card core itself (``snapshot()``: phase, LEDs, alarms, drive, counters).
+
+Touches: no socket, thread or wall clock; a virtual session on a virtual event loop of its own.
 """
 
 from __future__ import annotations

@@ -1,5 +1,8 @@
 """The timeline's fault checks (docs/faults.md): ``expect = "recovered"`` with ``within`` and ``expect = "refused"``
-with an optional ``alarm``. Both wait, on the run's own clock, for what they judge; neither holds up the timeline."""
+with an optional ``alarm``. Both wait, on the run's own clock, for what they judge; neither holds up the timeline.
+
+Touches: nothing but the episodes the masters' fault stages recorded (read only).
+"""
 
 from __future__ import annotations
 

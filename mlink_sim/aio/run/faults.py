@@ -5,9 +5,11 @@ clocks.
   (:meth:`mlink_sim.aio.master.runner.Master.inject_fault`), in this process.
 * Drive faults (load, lock-rotor, mains-loss) are applied to the card core's drive where it runs: in a slave worker
   of ``mlink-sim up`` through its control endpoint (``{"op": "plant", ...}``, answered by
-  :func:`~mlink_sim.aio.slave.faults.handle_plant_request`), on the virtual clock directly on the fabric's card core. A fault with ``for`` is
-  released by a second request that long after (``loop.call_later``: simulated time on the virtual clock). The
-  master's fault stage records the episode, so the recovery after the fault's end is measured the same way.
+  :func:`~mlink_sim.aio.slave.faults.handle_plant_request`), on the virtual clock directly on the fabric's card core. A
+  fault with ``for`` is released by a second request that long after (``loop.call_later``: simulated time on the virtual
+  clock). The master's fault stage records the episode, so the recovery after the fault's end is measured the same way.
+
+Touches: the masters' fault stages in this process, and the slave workers' control endpoints (drive faults).
 """
 
 from __future__ import annotations

@@ -2,6 +2,9 @@
 
 ``mlink-sim up`` = :func:`run_up` (starts the slave workers, then :func:`run_network`);
 ``mlink-sim master`` = :func:`run_network` against endpoints elsewhere.
+
+Touches: the process's signal handlers (SIGINT, SIGTERM) while it runs, stdout (the status, the summary), stderr
+(notices), the report file; everything else through the session.
 """
 
 from __future__ import annotations

@@ -2,6 +2,8 @@
 
 Speeds are given in Hz in the config and converted with the station's own reference units (o1-03 / n035, via the
 drive settings), so a scenario reads the same whatever the drive's parameters are.
+
+Touches: the network only through its API (requests, controls, faults); the clock through the sleep it is given.
 """
 
 from __future__ import annotations

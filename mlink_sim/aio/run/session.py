@@ -8,6 +8,9 @@
     await session.net.prm_rd(0x21, 0x0180)                           # the master API, routed per station
     report = await session.report()                                  # live figures (docs/report.md)
     await session.close()                                            # DISCONNECT, stop masters and workers
+
+Touches: the worker processes (through the supervisor), one master per link, the slave workers' stats endpoints, the
+run directory; real-time scheduling where asked.
 """
 
 from __future__ import annotations

@@ -7,6 +7,8 @@ window. When stdout is not a terminal, the same lines are printed as plain text 
 
 The header's fields are :data:`STATUS_FIELDS`, one ``(label, value)`` entry each: adding a figure to the status
 is adding one line there.
+
+Touches: the terminal (stdout) only; reads the network's views and metrics.
 """
 
 from __future__ import annotations

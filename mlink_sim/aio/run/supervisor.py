@@ -5,6 +5,8 @@ Each worker runs ``python -m mlink_sim slave --config CONFIG --only ADDRS --read
 kept on restarts). Its log goes to ``RUN_DIR/worker-N.log``. Children get ``PR_SET_PDEATHSIG`` (Linux), so even a
 ``kill -9`` of the supervisor leaves no orphan; a normal stop sends SIGTERM, then SIGKILL after a grace period.
 Each worker runs in a process group of its own, so a Ctrl-C at the terminal reaches only the supervisor.
+
+Touches: child processes (their process groups, their log files in the run directory) and their stdout's ready line.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ _PR_SET_PDEATHSIG = 1
 
 def _child_setup() -> None:  # runs in the child between fork and exec
     # A process group of its own: the terminal's Ctrl-C reaches `up` only, which DISCONNECTs the stations first
-    # and then stops the workers (issue 14, item 6). (uvloop's subprocess has no process_group argument.)
+    # and then stops the workers. (uvloop's subprocess has no process_group argument.)
     os.setpgid(0, 0)
     _die_with_parent()
     unplace_child()  # a worker begins with ordinary scheduling on every CPU, then asks for its own
@@ -76,7 +78,7 @@ def resolve_workers(spec: int | str | None, stations: int, cpus: int | None = No
 
     ``auto`` (the default, also None): one process per station while there are at most ``max(2, CPUs − 1)``
     stations; beyond that, ``CPUs − 1`` processes (at least one), so that the master's cycle clock keeps a CPU of
-    its own. Measured on 2 vCPUs (docs/performance.md, "Slave processes"): 9 ML-II stations at 1 ms missed
+    its own. Measured on 2 vCPUs (docs/performance.md): 9 ML-II stations at 1 ms missed
     3.2 % and 37 % of the cycles with one process per station (slave CPU 101–123 %), 0.58 % and 0.32 % with one
     process (56–58 %); every process wakes up for its own datagrams, and a wake-up costs 20–30 µs of CPU on this
     VM. ``station``: one process per station; a number: that many (round-robin, at most one per station)."""

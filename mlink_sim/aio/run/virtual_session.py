@@ -3,14 +3,17 @@
 What differs from the real-time run is only time and transport. :class:`VirtualSession` is a
 :class:`~mlink_sim.aio.run.session.NetworkSession` whose stations are card cores on a
 :class:`~mlink_sim.aio.virtual.fabric.Fabric` instead of slave processes, and whose masters are
-:class:`~mlink_sim.aio.master.runner.Master` objects on a :class:`~mlink_sim.aio.virtual.fabric.FabricPort` instead of a UDP
-socket, cycled by a :class:`~mlink_sim.aio.virtual.fabric.VirtualCycle`. It must run on a
-:class:`~mlink_sim.aio.virtual.vclock.VirtualEventLoop`. Bring-up, the master API, the timeline, the checks, the report and
-the summary are the real-time run's own code (``aio/run/network.py``, ``aio/run/scenario.py``, ``metrics``).
+:class:`~mlink_sim.aio.master.runner.Master` objects on a :class:`~mlink_sim.aio.virtual.fabric.FabricPort` instead of a
+UDP socket, cycled by a :class:`~mlink_sim.aio.virtual.fabric.VirtualCycle`. It must run on a
+:class:`~mlink_sim.aio.virtual.vclock.VirtualEventLoop`. Bring-up, the master API, the timeline, the checks, the report
+and the summary are the real-time run's own code (``aio/run/network.py``, ``aio/run/scenario.py``, ``metrics``).
 
 The report says ``meta.clock = "virtual"`` and carries the seed and the network model; everything that depends on
 the wall clock is in ``meta.started``, ``meta.host`` and ``meta.wall`` (:data:`WALL_META`), so two runs with the
 same config and seed give the same report once those are left out (:func:`without_wall_clock`).
+
+Touches: no socket and no process: the in-memory fabric, the card cores of this process, the state directory's
+EEPROM images.
 """
 
 from __future__ import annotations

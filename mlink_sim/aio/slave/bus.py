@@ -31,12 +31,14 @@ is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it
   right after answers the rest ahead again (:meth:`Bus._serve_backlog`). Whatever else reaches a card between
   two reads (its ``poll``, a control request, an EEPROM write) drops its prediction first (:meth:`Port.forget`).
 * **A backlog's answers** go out newest cycle first (:func:`_newest_first`): in a read with several commands for a
-  station, all answered ahead, those answers are ranked by how many of its commands in the read come after them, and sent
-  rank by rank, every other answer in the first. The older commands' answers are due at the master already (their
+  station, all answered ahead, those answers are ranked by how many of its commands in the read come after them, and
+  sent rank by rank, every other answer in the first. The older commands' answers are due at the master already (their
   cycle began a transmission cycle before the newer one's); the newest can still be on time. The cards take every
   command in its order all the same (:meth:`Bus.settle`) (docs/cards.md, "A backlog's answers").
 * :func:`due`: which stations' ``poll`` is due at a tick (``Station.next_deadline``): a scan of every hosted
   station once per millisecond.
+
+Touches: nothing of the operating system: the card cores and the answers it hands back (compiled with the cores).
 """
 
 from __future__ import annotations

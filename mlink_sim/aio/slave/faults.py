@@ -3,6 +3,8 @@ endpoint (docs/faults.md). The drive fault is applied to the card core's drive m
 reaches the master only through the station's answers, as a real drive's would.
 
 May import the sans-I/O fault specs (:mod:`mlink_sim.faults`) and nothing of the run above it.
+
+Touches: the drive models of this process's card cores, through their plant faults.
 """
 
 from __future__ import annotations

@@ -12,6 +12,9 @@ A small JSON-over-UDP *control* endpoint answers ``{"op": "stats"}`` with every 
 the process CPU time (``{"op": "cpu"}``: the CPU time only, small at any station count), so the supervisor
 (``mlink-sim up``) can collect slave-side figures without sharing anything but the network. The ``stats`` reply is
 built one station a millisecond, the loop answering the cyclic commands in between (``SlaveServer._reply_stats``).
+
+Touches: the stations' UDP sockets and the control endpoint, the card cores, the EEPROM image files (a worker thread
+writes them).
 """
 
 from __future__ import annotations
@@ -107,8 +110,8 @@ class SlaveServer:
 
         *arrival_poll*: :func:`~mlink_sim.config.units.parse_arrival_poll`'s setting (None: off). Each shared socket,
         or the worker's only socket, is then read in a short busy-poll around the time its next burst of commands is
-        due (:class:`~mlink_sim.aio.timing.arrival.ArrivalPoll`). The sockets of a worker hosting several stations each on
-        its own port are not: their polls would hold each other up."""
+        due (:class:`~mlink_sim.aio.timing.arrival.ArrivalPoll`). The sockets of a worker hosting several stations each
+        on its own port are not: their polls would hold each other up."""
         self.stations = stations
         self.shared = shared
         self.arrival_poll = arrival_poll
@@ -389,7 +392,7 @@ class SlaveServer:
         master), for :data:`_STATS_PACED_S` at most. Built at once it held the worker's loop 1.2–1.4 ms for 8
         stations and 4.1–5.9 ms for 62, and each query made 24–30 answers late at 8 ML-III × 250 µs and 189–294 at
         62 ML-III × 1 ms; paced, 62 stations take 64–121 ms and 0–3 answers per query came late
-        (``scripts/bench_control.py``; docs/performance.md, "A stats query held the worker (session 30)"). Each
+        (docs/performance.md). Each
         station's figures are its own at one instant; the stations' instants lie up to that long apart."""
         head = json.dumps(self._stats_head(since), separators=_COMPACT)
         parts = []

@@ -1,7 +1,10 @@
 """State files (the cards' EEPROM images): where they live, written atomically and durably
 (:func:`mlink_sim._files.write_atomically`: temporary file, fsync, rename, fsync of the directory). A process
 killed in between leaves its temporary file behind; :func:`remove_stale_temps` clears those of a state file at
-start."""
+start.
+
+Touches: the state files and their temporary files; nothing else.
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,8 @@
 """Card cores built from a network config: what a slave process (``mlink-sim slave --config``) and the virtual
-clock's in-process network (:mod:`mlink_sim.aio.run.virtual_session`) both power up, with the same settings."""
+clock's in-process network (:mod:`mlink_sim.aio.run.virtual_session`) both power up, with the same settings.
+
+Touches: the state directory (reads an EEPROM image); builds card cores, starts nothing.
+"""
 
 from __future__ import annotations
 
@@ -26,7 +29,7 @@ class StationSpec:
     frame_size: int | None
     params: list[str]
     load: Any = None
-    link: Link | None = None  #: None: the card's own (F6-22 / S1-1 as the parameters say)
+    link: Link | None = None  #: None: the card's own (the A1000's F6-22, the V7 card's link switch, config/model.py)
     options: dict[str, Any] | None = None
 
 

@@ -1,10 +1,10 @@
 """The worker's arrival poll: a socket read in a short busy-poll around the time the next burst of commands is due,
-instead of a wake-up when it comes (docs/performance.md, "The worker's arrival poll").
+instead of a wake-up when it comes (docs/performance.md).
 
 A master sends its commands once per transmission cycle, so a slave worker knows when the next burst will come:
 one cycle after the last. Left to the event loop, the worker sleeps until the burst arrives and is then woken;
 on a virtual machine whose idle CPU halts, that wake-up took 36 µs (median) of the 250 µs cycle, and in stretches
-it came late enough that one read held two cycles' commands (docs/performance.md, "The sweep at 1 ms again").
+it came late enough that one read held two cycles' commands (docs/performance.md).
 :class:`ArrivalPoll` learns the cycle from the bursts' arrivals, wakes *lead_ns* before the next one is due (a
 timerfd) and reads the socket without blocking until the burst is there, for at most *lead_ns* past its due time;
 then the reader (``loop.add_reader``) has it again. A wake-up before the burst costs the worker its spin; a
@@ -12,9 +12,9 @@ wake-up when the burst comes costs the chain of the exchange.
 
 Between two empty reads the poll yields its CPU (``os.sched_yield``). The master that sends the burst may be
 queued on that very CPU: Linux packs the two processes on one CPU on a small machine, and a spinning worker would
-hold the master's cycle up until its poll gave up, a lead past the burst's due time. With idle CPUs polling (``bench.py --pm-qos``), 8 ML-III × 250 µs, the clock's lateness p99 was 159–162 µs
-without the yield and 29–32 µs with it (docs/performance.md, "The arrival poll yields"). Where nothing else is
-queued, the call returns at once.
+hold the master's cycle up until its poll gave up, a lead past the burst's due time. With idle CPUs polling, at
+8 ML-III × 250 µs, the clock's lateness p99 is 29–32 µs with the yield against 159–162 µs without it
+(docs/performance.md). Where nothing else is queued, the call returns at once.
 
 The lead adapts: a poll that begins *lead_ns* ahead spins for that long less the timer's own wake-up, so the
 poll begins, instead, the timer's late wake-up (the second latest of the last :data:`LATE_SAMPLES`, ≈ p97) plus
@@ -27,14 +27,16 @@ The learned cycle is the median of the gaps between the last :data:`SAMPLES` bur
 :data:`SAME_BURST_NS` apart are one burst). With a ``max_period_ns`` (as "auto" sets) the poll is armed only while
 that cycle is at most it: at 1 ms the wake-up is a small part of the cycle, and a poll there did not lower the
 missed exchanges at 62 ML-III stations (docs/performance.md). Such a poll also stands down while the kernel holds
-the CPU wake-up latency at 0 (``mlink-sim up --realtime``, ``bench.py --pm-qos``, asked once a second): idle CPUs
+the CPU wake-up latency at 0 (``mlink-sim up --realtime``, or any other holder of it; asked once a second): idle CPUs
 then poll, the timer wakes the worker on time, and at 8 ML-III × 250 µs the poll only cost CPU (22.1 against
-19.6 µs per exchange) and held the master's clock up (lateness p99 28 against 5 µs; docs/performance.md, "The
-arrival poll yields"). The setting (``auto``, ``off``, a lead) is parsed by
-:func:`mlink_sim.config.units.parse_arrival_poll`. "auto" polls from at most
+19.6 µs per exchange) and held the master's clock up (lateness p99 28 against 5 µs; docs/performance.md). The setting
+(``auto``, ``off``, a lead) is parsed by :func:`mlink_sim.config.units.parse_arrival_poll`. "auto" polls from at most
 :data:`~mlink_sim.config.units.AUTO_POLL_LEAD_NS` before the burst is due, at cycles up to
 :data:`~mlink_sim.config.units.AUTO_POLL_MAX_PERIOD_NS` (500 µs). 80 µs, because a timerfd woke the halted worker
 ≈ 47 µs late: a fixed 50 µs lead had 3–23 % of the bursts read in the poll, a fixed 80 µs 99.8 %.
+
+Touches a timerfd and the CPU wake-up latency device (read only, :mod:`.realtime`); the socket only through the
+*read* callback its owner (the transport's batch endpoint) hands it.
 """
 
 from __future__ import annotations

@@ -6,6 +6,8 @@ is tens of thousands of objects (pydantic models, construct layouts, the drive t
 15–25 cycles without a command, so every slave reported a communication alarm and tripped bUS. Freezing the
 start-up heap (:func:`gc.freeze`) moves those objects out of the collector's reach, and later collections only
 scan what the run itself allocates.
+
+Touches: the garbage collector of this process.
 """
 
 from __future__ import annotations

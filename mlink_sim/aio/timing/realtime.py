@@ -16,7 +16,7 @@ Four requests, each granted or refused on its own and reported in one line:
   where the wake-up latency is held*. Apart, every command and every answer wakes the other CPU; without the hold
   that CPU has halted, and on this VM the round trip of 62 ML-III stations rose from 252–291 to 311–332 µs (p50)
   for an ordinary user, whom the placement is the one thing granted. Left to itself the kernel runs the master
-  and the worker it wakes on one CPU (docs/performance.md, "Where the time goes, profiled (session 16)").
+  and the worker it wakes on one CPU (docs/performance.md).
   The plan is made from the CPUs the process had before it first placed itself (:func:`allowed_cpus`): a session
   opened after the master took its CPU would otherwise put its workers on that same CPU, under the master's
   higher priority.
@@ -26,6 +26,8 @@ after it sent what wakes another process.
 
 Nothing here raises: a refusal (no ``CAP_SYS_NICE``, ``RLIMIT_MEMLOCK``, a container without the capability, no
 access to ``/dev/cpu_dma_latency``) is reported and the run goes on with ordinary scheduling.
+
+Touches: this process's scheduling policy, CPU affinity and locked memory, and /dev/cpu_dma_latency.
 """
 
 from __future__ import annotations
@@ -48,8 +50,8 @@ WORKER_PRIORITY = 30
 _MCL_CURRENT, _MCL_FUTURE = 1, 2
 
 #: The CPU latency QoS device (Linux, Documentation/power/pm_qos_interface.rst): a process that holds it open
-#: with an s32 written to it has a request for at most that many µs of wake-up latency on every CPU; closing it
-#: (or exiting) withdraws the request.
+#: with a signed 32-bit value written to it has a request for at most that many µs of wake-up latency on every CPU;
+#: closing it (or exiting) withdraws the request.
 PM_QOS_PATH = "/dev/cpu_dma_latency"
 _held: dict[str, int] = {}  # path -> the open descriptor that holds this process's request
 #: The CPUs this process could use before :func:`apply` first narrowed its affinity: what :func:`cpu_plan` plans
@@ -87,7 +89,7 @@ def cpu_plan(cpus: set[int] | None = None) -> tuple[set[int], set[int]]:
 
 
 def allowed_cpus() -> set[int]:
-    """The CPUs this process may use: its affinity as it was before :func:`apply` first placed it, else now."""
+    """The CPUs this process may use: its affinity from before :func:`apply` first placed it, else the present one."""
     return set(_allowed) if _allowed is not None else os.sched_getaffinity(0)
 
 
@@ -137,7 +139,7 @@ def apply(priority: int, cpus: set[int] | None = None) -> str:
 def withdraw() -> None:
     """Undo :func:`apply` in this process: ordinary scheduling, every CPU :func:`allowed_cpus` gives, the CPU
     wake-up latency request withdrawn (locked memory stays locked). For a program that asked, was refused a part and
-    runs on without any of it (``scripts/bench.py``, whose floors and network must run alike). Nothing raises."""
+    runs on without any of it (a benchmark whose floor and network must run alike). Nothing raises."""
     release_wakeup_latency()
     unplace_child()
 
@@ -170,7 +172,7 @@ def hold_wakeup_latency(path: str | None = None) -> str:
     except OSError as exc:
         return f"CPU wake-up latency refused ({_why(exc)})"
     try:
-        os.write(fd, struct.pack("=i", 0))  # an s32 in µs (a 10-character hex string is the other form)
+        os.write(fd, struct.pack("=i", 0))  # a signed 32-bit value in µs (a 10-character hex string is the other form)
     except OSError as exc:
         os.close(fd)
         return f"CPU wake-up latency refused ({_why(exc)})"
@@ -185,7 +187,7 @@ def wakeup_latency_held(path: str | None = None) -> bool:
 
 def wakeup_latency_limit(path: str | None = None) -> int | None:
     """The CPU wake-up latency the kernel holds now for the whole system, in µs: the least of every process's
-    request (this one's, ``mlink-sim up --realtime``'s, ``bench.py --pm-qos``'s, a tuning daemon's); 0 means idle
+    request (this one's, ``mlink-sim up --realtime``'s, a benchmark's, a tuning daemon's); 0 means idle
     CPUs poll. None where it cannot be read (the device is root's only, or missing). Opening the device adds a
     request of the default value, which changes nothing, and closing it withdraws that again."""
     try:

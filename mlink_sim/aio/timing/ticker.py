@@ -26,9 +26,11 @@ Invariant at every on-time call: ``deadline_ns <= now_ns < deadline_ns + period_
   most recent deadline, ``skipped`` says how many were dropped, and the one after is on the next future deadline.
 
 Either way ``on_stall(deadline_ns, now_ns, cycles_behind, absorbed)`` is told once per such wake-up. Between two
-cycles run back to back the clock yields its CPU once (``os.sched_yield``, :func:`~mlink_sim.aio.timing.realtime.yield_after_send`):
-a cycle's send woke its slaves on this CPU, and without the yield they wait behind the whole catch-up
-(docs/timing.md, "The catch-up yields").
+cycles run back to back the clock yields its CPU once (``os.sched_yield``,
+:func:`~mlink_sim.aio.timing.realtime.yield_after_send`): a cycle's send woke its slaves on this CPU, and without the
+yield they wait behind the whole catch-up (docs/timing.md, "The catch-up yields").
+
+Touches: a timerfd (or the loop's own timers) and the CPU it spins on; calls back into its owner only.
 """
 
 from __future__ import annotations

@@ -8,6 +8,8 @@ Python 3.11 has no ``os.timerfd_create`` (added in 3.13), so this calls libc dir
 Constants are the Linux UAPI values (``<sys/timerfd.h>``, ``<linux/time.h>``);
 they are the same on every Linux architecture CPython supports except ``TFD_NONBLOCK``/``TFD_CLOEXEC``,
 which equal ``O_NONBLOCK``/``O_CLOEXEC`` and are therefore taken from :mod:`os`.
+
+Touches: the timerfds it creates (libc through ctypes).
 """
 
 from __future__ import annotations

@@ -3,7 +3,10 @@
 Read-only by construction: the probe sends only main NOPs with no (or a NOP) sub-command, which a card answers as a
 status query when a master owns it or lost it (nothing executed, nothing bound, RWDT not advanced) and as a plain NOP
 in phase 1 (docs/cards.md, "Who may change a station"); tests/e2e/test_protocol_e2e.py checks the station looks the
-same afterwards."""
+same afterwards.
+
+Touches: one UDP socket of its own; sends main NOPs only.
+"""
 
 from __future__ import annotations
 

@@ -3,8 +3,11 @@
 Each *link* listens on a HOST:PORT for the master and forwards to one slave's HOST:PORT from a socket of its own;
 the slave's answers go back to the master that last sent. Every datagram goes through the shared
 :class:`~mlink_sim.impair.ImpairmentLayer` (the station is the envelope's byte 3) while it has a fault; without
-one, a datagram is forwarded as it was read. Delayed datagrams wait in a :class:`~mlink_sim.aio.transport.impaired.DelayLine`.
-The proxy understands nothing else of the protocol: it works with any master, the user's own included.
+one, a datagram is forwarded as it was read. Delayed datagrams wait in a
+:class:`~mlink_sim.aio.transport.impaired.DelayLine`. The proxy understands nothing else of the protocol: it works with
+any master, the user's own included.
+
+Touches: its UDP sockets (one per link and direction), a capture when given.
 """
 
 from __future__ import annotations

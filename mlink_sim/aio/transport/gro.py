@@ -1,5 +1,6 @@
-"""Reading a peer's offloaded bursts as coalesced buffers (``UDP_GRO``; :mod:`mlink_sim.aio.transport.mmsg`, "Segmentation
-offload"): one ``recvmmsg`` for up to :data:`SLOTS` buffers, each cut into its datagrams by one ``struct`` call.
+"""Reading a peer's offloaded bursts as coalesced buffers (``UDP_GRO``; :mod:`mlink_sim.aio.transport.mmsg`,
+"Segmentation offload"): one ``recvmmsg`` for up to :data:`SLOTS` buffers, each cut into its datagrams by one
+``struct`` call.
 
 A socket with ``UDP_GRO`` gets the datagrams a peer sent in one offloaded burst as one buffer, with the segment
 size in a control message. :class:`CoalescedReads` holds the read slots of one such socket: per slot a buffer of
@@ -8,6 +9,8 @@ room for the control message (``struct cmsghdr``: ``cmsg_len``, a ``size_t``, th
 two ints; the segment size is an int at ``CMSG_LEN(0)``). One call reads a burst and learns that nothing more
 waits, where a ``recvmsg`` per buffer needs a second call that fails with ``EAGAIN`` (4 µs in a running network,
 docs/performance.md "The steady state, and the worker's own path").
+
+Touches: the socket it is given (reads only), libc through ctypes.
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ _DATA_AT = socket.CMSG_LEN(0)
 def _cutter(size: int, count: int) -> struct.Struct:
     """The ``struct`` that cuts a coalesced buffer into *count* datagrams of *size* bytes in one call: a
     ``UDP_GRO`` read cut by slicing costs 14 µs for 62 datagrams of 32 bytes on the bench machine, by this
-    2.8 µs (docs/performance.md, "The worker's own path"). Made once per shape and kept (at most 256 shapes: a
+    2.8 µs (docs/performance.md). Made once per shape and kept (at most 256 shapes: a
     peer's segment size is its own choice)."""
     cut = _CUTTERS.get((size, count))
     if cut is None:

@@ -5,6 +5,8 @@ their time (a one-shot timerfd, so a 300 µs delay is 300 µs and not the loop's
 The master's socket is wrapped only while the layer has a fault (``Master.impair_with``): with no impairment,
 datagrams take the master's own path and the layer costs nothing. Once every fault has ended and nothing is
 held any more, the wrapper puts the master's socket back.
+
+Touches: the socket it wraps and a timerfd for the delayed datagrams.
 """
 
 from __future__ import annotations

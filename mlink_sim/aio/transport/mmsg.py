@@ -22,27 +22,29 @@ headers are laid out once per shape (sizes, destinations; the socket keeps its l
 :mod:`mlink_sim.aio.transport.sendlayout`).
 
 **Segmentation offload.** Where the kernel has it (Linux ≥ 4.18, :func:`gso_supported`; ``BurstSocket(gso=False)``
-turns it off), ``send_burst`` sends the datagrams of a burst that go to one destination with one size as *one* message of
-its ``sendmmsg``, with ``UDP_SEGMENT`` (up to 64 datagrams to a message, 128 where the kernel takes them,
-:mod:`mlink_sim.aio.transport.sendlayout`): the kernel builds one packet for the group and cuts it into the datagrams only
-where it must (before a device without the offload; at the receiving socket unless that socket asked for
+turns it off), ``send_burst`` sends the datagrams of a burst that go to one destination with one size as *one* message
+of its ``sendmmsg``, with ``UDP_SEGMENT`` (up to 64 datagrams to a message, 128 where the kernel takes them,
+:mod:`mlink_sim.aio.transport.sendlayout`): the kernel builds one packet for the group and cuts it into the datagrams
+only where it must (before a device without the offload; at the receiving socket unless that socket asked for
 ``UDP_GRO``). Each datagram on a network is an
 ordinary UDP datagram. A socket that reads with ``UDP_GRO`` (:meth:`BurstSocket.enable_gro`) gets such a group as
 one buffer with its segment size, and the reads cut it again (one ``recvmmsg`` for up to four buffers, one
 ``struct`` call to cut each), so every caller still sees one datagram per frame. On this 2-vCPU machine the
 kernel's path costs about 10 µs of CPU per datagram on loopback; a group of 62 costs about as much as one datagram
-(docs/performance.md, "One port per worker, one packet per burst"). It pays where many stations share a port: the
+(docs/performance.md). It pays where many stations share a port: the
 slave workers of ``mlink-sim up`` (``SlaveServer(shared=True)``).
 
 **One system call per burst**, whatever its size (up to 1024 messages), and one offloaded send per group of up to
 128 datagrams. A worker that answers two cycles' commands after a stall (124 answers at 62 stations) sends them as
 one packet; cut at 64 into two, the master woke on the first, ran, and found the second half a cycle late
-(docs/performance.md, "A backlog in one system call").
+(docs/performance.md).
 
 Where the calls are missing (not Linux, no libc, a platform ctypes cannot load) :func:`supported` is False and
 callers keep the per-datagram calls: the transport works the same either way (``mlink_sim.aio.master.runner``,
-``mlink_sim.aio.transport.udp.BatchEndpoint``). A caller may also ask for the per-datagram calls where the batched ones exist
-(``wrap(sock, batched=False)``; the tests compare both paths that way).
+``mlink_sim.aio.transport.udp.BatchEndpoint``). A caller may also ask for the per-datagram calls where the batched ones
+exist (``wrap(sock, batched=False)``; the tests compare both paths that way).
+
+Touches: the socket it wraps, libc through ctypes.
 """
 
 from __future__ import annotations

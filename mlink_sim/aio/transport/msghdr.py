@@ -1,7 +1,10 @@
-"""The libc layer of the batched UDP calls (:mod:`mlink_sim.aio.transport.mmsg`, :mod:`mlink_sim.aio.transport.gro`): ``struct iovec``,
-``struct msghdr`` and ``struct mmsghdr`` as ctypes structures, and ``sendmmsg(2)`` / ``recvmmsg(2)`` from the C
-library (:data:`CALLS`, None where they cannot be loaded: not Linux, no libc, a platform ctypes cannot load).
-Why ctypes: see :mod:`mlink_sim.aio.transport.mmsg`."""
+"""The libc layer of the batched UDP calls (:mod:`mlink_sim.aio.transport.mmsg`, :mod:`mlink_sim.aio.transport.gro`):
+``struct iovec``, ``struct msghdr`` and ``struct mmsghdr`` as ctypes structures, and ``sendmmsg(2)`` / ``recvmmsg(2)``
+from the C library (:data:`CALLS`, None where they cannot be loaded: not Linux, no libc, a platform ctypes cannot load).
+Why ctypes: see :mod:`mlink_sim.aio.transport.mmsg`.
+
+Touches: libc (loaded once); no socket.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""A burst's send headers, laid out once per shape (:mod:`mlink_sim.aio.transport.mmsg`, issue 21).
+"""A burst's send headers, laid out once per shape, for :mod:`mlink_sim.aio.transport.mmsg` (ctypes only; no
+socket of its own but the one-time probe of the kernel's segment limit).
 
 A *shape* is a burst's datagram sizes and destinations. :class:`Layout` points one ``sendmmsg(2)`` vector at the
 datagrams of a burst of that shape, copied one after the other into the socket's send buffer, so that a burst of
@@ -6,24 +7,23 @@ a known shape costs one copy and one system call. The headers are built once per
 few shapes (:class:`Shapes`): a worker's burst after a backlog (two cycles' answers) and its usual burst (one
 cycle's) alternate without laying either out again.
 
-**Segmentation offload** (``UDP_SEGMENT``, Linux 4.18; see "Segmentation offload" in :mod:`mlink_sim.aio.transport.mmsg`).
-Where the socket uses it, the datagrams of one size to one destination form a *group* (:func:`groups`), and the
-vector holds one message per group rather than one per datagram: the group's datagrams as one ``iovec`` each, and
-a control message naming the segment size. A datagram alone is a message without one. So a burst of any number of
-groups leaves in **one** system call, and a group of up to 128 datagrams (where the kernel takes that many,
-:func:`max_segments`) as **one** offloaded send, which a reader with ``UDP_GRO`` gets as one buffer, all at once.
-Before session 26 each group was its own ``sendmsg`` and a burst was cut every 64 datagrams: a worker's 124
-answers to two cycles after a stall went in two sends, and the master, woken by the first, could run before the
-second arrived and find it a cycle late. One system call alone did not stop that (the kernel delivers the
-messages of a ``sendmmsg`` one after the other, and the master read between them in about a quarter of such
-sends); one send of 124 segments does (2 of 217 such sends read in two parts in the trace; docs/performance.md,
-"A backlog in one system call").
+**Segmentation offload** (``UDP_SEGMENT``, Linux 4.18; see "Segmentation offload" in
+:mod:`mlink_sim.aio.transport.mmsg`). Where the socket uses it, the datagrams of one size to one destination form a
+*group* (:func:`groups`), and the vector holds one message per group rather than one per datagram: the group's datagrams
+as one ``iovec`` each, and a control message naming the segment size. A datagram alone is a message without one. So a
+burst of any number of groups leaves in **one** system call, and a group of up to 128 datagrams (where the kernel takes
+that many, :func:`max_segments`) as **one** offloaded send, which a reader with ``UDP_GRO`` gets as one buffer, all at
+once. Why one send: a worker's 124 answers to two cycles after a stall, cut into two sends, wake the master on the
+first, and the master can run before the second arrives and find it a cycle late. One system call of two messages does
+not prevent that (the kernel delivers the messages of a ``sendmmsg`` one after the other, and the master read
+between them in about a quarter of such sends); one send of 124 segments does (2 of 217 such sends read in two
+parts in a trace; docs/performance.md).
 
 Limits, all from the kernel:
 
 * ``UIO_MAXIOV`` (1024): messages per ``sendmmsg`` and ``iovec`` entries per message (:data:`MAX_VECTOR`);
 * ``UDP_MAX_SEGMENTS``: segments per offloaded send, 64 in Linux 4.18 (:data:`MAX_SEGMENTS`, which holds on every
-  kernel with the offload); later kernels take 128 (this one, 6.18, does), which :func:`max_segments` finds out once
+  kernel with the offload); later kernels take 128 (Linux 6.18 does), which :func:`max_segments` finds out once
   per process by trying, on loopback;
 * an offloaded send is one IP datagram before it is cut, below 64 KiB: :data:`GSO_BYTES` per group.
 """
@@ -81,8 +81,7 @@ def max_segments() -> int:
     segments to a socket of its own on loopback (Linux 6.18 here), else :data:`MAX_SEGMENTS`. Asked once per
     process, the first time a socket lays out a burst with the offload. Why it matters: the kernel hands a socket that
     reads with ``UDP_GRO`` one offloaded send as one buffer, all of it at once; two sends arrive one after the other,
-    and the reader may run between them (a worker's answers to two cycles: docs/performance.md, "A backlog in one
-    system call")."""
+    and the reader may run between them (a worker's answers to two cycles: docs/performance.md)."""
     big = 2 * MAX_SEGMENTS
     try:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as rx, socket.socket(socket.AF_INET,

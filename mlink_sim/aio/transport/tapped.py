@@ -1,16 +1,18 @@
-"""A capture's tap on the batched UDP calls (:mod:`~mlink_sim.aio.transport.mmsg`): what ``--capture`` wraps a socket in.
+"""A capture's tap on the batched UDP calls (:mod:`~mlink_sim.aio.transport.mmsg`): what ``--capture`` wraps a
+socket in.
 
 :func:`tap` gives a :class:`TappedBurstSocket` where ``sendmmsg``/``recvmmsg`` are supported, so a captured run
 makes the same system calls as an uncaptured one, else the per-datagram
-:class:`~mlink_sim.capture.tap.TappedSocket` (``tap(..., batched=False)`` asks for it where both exist). Both feed the capture's queue one
-``(ts_ns, datagram, src, dst)`` tuple per datagram (:attr:`CaptureWriter.sink
+:class:`~mlink_sim.capture.tap.TappedSocket` (``tap(..., batched=False)`` asks for it where both exist). Both feed the
+capture's queue one ``(ts_ns, datagram, src, dst)`` tuple per datagram (:attr:`CaptureWriter.sink
 <mlink_sim.capture.CaptureWriter.sink>`); the writer thread does the rest.
 
 A burst of commands is recorded with one clock read (the time ``sendmmsg`` returned) and the destinations the
 burst already carries. The answers one ``recvmmsg`` read share its time and take their sources from the
 ``msg_name`` each message left in the socket's headers (the read is ``recvfrom_burst``'s: each source decoded
-once and kept): reading answers with the capture on costs no ``recvfrom`` per datagram (docs/performance.md,
-"Capture").
+once and kept): reading answers with the capture on costs no ``recvfrom`` per datagram (docs/performance.md).
+
+Touches: the socket it wraps and the capture's queue.
 """
 
 from __future__ import annotations
@@ -40,8 +42,8 @@ def tap(capture: Any, sock: socket.socket, *, batched: bool = True) -> Any:
 
 
 class TappedBurstSocket(BurstSocket):
-    """A :class:`~mlink_sim.aio.transport.mmsg.BurstSocket` that feeds *sink* one ``(ts_ns, datagram, src, dst)`` tuple per
-    datagram its calls move (see the module docstring). The per-datagram calls (``sendto``, ``recv``,
+    """A :class:`~mlink_sim.aio.transport.mmsg.BurstSocket` that feeds *sink* one ``(ts_ns, datagram, src, dst)`` tuple
+    per datagram its calls move (see the module docstring). The per-datagram calls (``sendto``, ``recv``,
     ``recvfrom``) are a :class:`~mlink_sim.capture.tap.TappedSocket`'s."""
 
     __slots__ = ("_append", "_local")

@@ -1,4 +1,7 @@
-"""UDP datagram endpoints and event-loop setup. Moves bytes; decides nothing."""
+"""UDP datagram endpoints and event-loop setup. Moves bytes; decides nothing.
+
+Touches: UDP sockets and the event loop they are watched by (readers, signal handlers).
+"""
 
 from __future__ import annotations
 
@@ -143,8 +146,8 @@ class BatchEndpoint:
     """A non-blocking UDP socket watched with ``loop.add_reader``: each wake-up reads every datagram waiting (at most
     *burst*) and hands them over at once, ``on_batch([(data, addr), …])``, so the receiver can see that it fell
     behind (a slave keeps only the newest command per source, see :mod:`mlink_sim.aio.slave.server`). On a
-    :class:`~mlink_sim.aio.transport.mmsg.BurstSocket` a wake-up reads them with one ``recvmmsg`` (and a second only when
-    the first filled all its slots), else with one ``recvfrom`` per datagram and one more that finds none.
+    :class:`~mlink_sim.aio.transport.mmsg.BurstSocket` a wake-up reads them with one ``recvmmsg`` (and a second only
+    when the first filled all its slots), else with one ``recvfrom`` per datagram and one more that finds none.
 
     ``sendto`` never raises: a full send buffer or an ICMP error reported on the socket is counted in
     :attr:`errors`, like :class:`DatagramEndpoint`."""
@@ -224,7 +227,8 @@ class BatchEndpoint:
             self.sendto(data, addr)
 
     def enable_gro(self) -> bool:
-        """Read a peer's offloaded bursts as one buffer each (:meth:`mlink_sim.aio.transport.mmsg.BurstSocket.enable_gro`);
+        """Read a peer's offloaded bursts as one buffer each
+        (:meth:`mlink_sim.aio.transport.mmsg.BurstSocket.enable_gro`);
         False where the socket cannot."""
         enable = getattr(self._sock, "enable_gro", None)
         return bool(enable()) if enable is not None else False

@@ -14,6 +14,8 @@ unchanged. Responses reach ``MasterCore.on_response`` at their arrival time: RTT
 
 Every datagram of a virtual run passes through here twice, so the module is compiled with the cores
 (``mlink_sim._accel.COMPILED_MODULES``; its classes are native: no attributes beyond those declared).
+
+Touches: no socket: the card cores it delivers to, the state directory's EEPROM images, a capture's sink when given.
 """
 
 from __future__ import annotations

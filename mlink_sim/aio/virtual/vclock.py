@@ -12,6 +12,8 @@ still polled, without blocking, at least every :data:`SLICE_NS` of simulated tim
 
 Order at equal times is fixed (queue insertion order; the loop's ready callbacks before the clock's events), so a
 run is a pure function of its inputs.
+
+Touches: no clock of the operating system: an asyncio loop whose time is the virtual clock's.
 """
 
 from __future__ import annotations

@@ -2,10 +2,12 @@
 
 :class:`VirtualClock` is what :mod:`mlink_sim.aio.virtual.vclock`'s loop and the in-memory network
 (:mod:`mlink_sim.aio.virtual.fabric`) run on: every datagram delivery, cycle and card poll of a virtual run is one event
-here, so the module is compiled with the cores (``mlink_sim._accel.COMPILED_MODULES``, docs/performance.md,
-"Compiled cores"). It lives apart from the asyncio loop, whose classes derive from asyncio's and stay Python.
+here, so the module is compiled with the cores (``mlink_sim._accel.COMPILED_MODULES``, docs/performance.md). It lives
+apart from the asyncio loop, whose classes derive from asyncio's and stay Python.
 
 Order at equal times is fixed (insertion order), so a run is a pure function of its inputs.
+
+Touches: nothing but its own queue (compiled with the cores).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""mlink_sim.aio.run.network: the verdict line and the exit status come from one place (issue 14, items 6–7), and
-the live status fits any terminal (item 14)."""
+"""mlink_sim.aio.run.network: the verdict line and the exit status come from one place, and the live status fits
+any terminal."""
 
 from __future__ import annotations
 

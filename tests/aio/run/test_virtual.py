@@ -1,5 +1,5 @@
-"""The virtual-clock driver (mlink_sim.aio.run.virtual_session, mlink_sim.aio.run.embed): the real master, cards and report on
-simulated time over the in-memory network, deterministic for a seed."""
+"""The virtual-clock driver (mlink_sim.aio.run.virtual_session, mlink_sim.aio.run.embed): the real master, cards and
+report on simulated time over the in-memory network, deterministic for a seed."""
 
 from __future__ import annotations
 
@@ -105,7 +105,7 @@ def test_same_seed_same_report_and_another_seed_differs_only_in_the_drawn_delays
 
 
 def test_same_seed_same_report_with_impairments_and_another_seed_draws_other_faults():
-    """docs/faults.md: every draw of the impairment layer comes from the seed (issue 19, item 6)."""
+    """docs/faults.md: every draw of the impairment layer comes from the seed."""
     impair = "loss=3%,corrupt=1%,duplicate=1%,reorder=0.5%,delay=300us,jitter=200us,for=1s"
     a, b = _run_two_seconds(5, impair), _run_two_seconds(5, impair)
     assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)

@@ -152,7 +152,7 @@ def test_due_names_the_stations_whose_poll_has_come() -> None:
 
 
 def _line(link: Link, stations: int, com_tim: int = 0) -> tuple[MasterCore, dict[int, Station]]:
-    """A master core and its cards (SI-T3 on ML-II, SI-ET3 on ML-III), as ``scripts/bench_exchange.py`` builds them;
+    """A master core and its cards (SI-T3 on ML-II, SI-ET3 on ML-III), as the exchange benchmark builds them;
     *com_tim*: CONNECT's communication cycle in transmission cycles (0: the master's default)."""
     card, size, first = ("si-t3", 17, 0x21) if link is Link.ML2 else ("si-et3", 32, 0x03)
     plan = NetworkPlan(link, TCYCLE, tuple(StationPlan(first + i, link, data_size=size, com_tim=com_tim)
@@ -225,8 +225,8 @@ def test_a_backlog_is_answered_ahead_and_the_cards_take_every_command_in_order(c
     """docs/cards.md, "The answer made ahead": reads holding 2-5 cycles' commands at once (the master catching up
     after a stall of its own, or a worker held up), now and then with another SEL_MON partway through. The bus
     answers each station's run ahead as far as its card's prediction carries it, the rest in the chain, each
-    station's answers to its commands in their order; every answer equals the one the same card, fed the same commands at
-    the same time without predictions, gives, and after each read's settle the cards are the reference cards. Reads
+    station's answers to its commands in their order; every answer equals the one the same card, fed the same commands
+    at the same time without predictions, gives, and after each read's settle the cards are the reference cards. Reads
     3-5 ms after the one before (past the cards' silence deadline: one communication cycle and 2 ms,
     mlink_sim.cards.reception) are answered ahead too: no poll came between. With a communication cycle of two
     transmission cycles (COM_TIM 2) each station's commands are two cycles apart, and so are its predictions."""
@@ -342,9 +342,9 @@ def test_a_backlog_after_a_poll_is_answered_ahead_after_each_cards_first_command
     its station's first command in the chain, at the read's time, and the second (the first answer after the
     failure is not the steady one); the prediction the card offers right after answers the third ahead. Every
     answer is the reference card's (the same commands at the same times, no predictions); after the settle the cards
-    are the reference cards. Before session 32 all three went through the cards before any answer left. (The cards
-    here keep the default silence tolerance; under "absorb" it is the stall bound, and session 33 found live reads
-    without predictions only outside the measured windows: docs/cards.md, "A backlog".)"""
+    are the reference cards, and the answers answered ahead do not wait for the cards' work. (The cards here keep the
+    default silence tolerance; under "absorb" it is the stall bound, and such a backlog comes only with a card
+    silence tolerance shorter than the stall: docs/cards.md, "A backlog".)"""
     core, cards = _line(Link.ML3, 6)
     _, reference = _line(Link.ML3, 6)
     now = {"t": 0}

@@ -232,8 +232,8 @@ async def test_stations_of_different_links_keep_ports_of_their_own() -> None:
 
 
 async def test_arrival_poll_on_each_shared_socket_or_a_lone_station_s_only() -> None:
-    """``SlaveServer(arrival_poll=…)`` (mlink_sim.aio.timing.arrival): a poll on each shared socket and on a worker's only
-    socket, none on the sockets of a worker hosting several stations each on its own port (their polls would hold
+    """``SlaveServer(arrival_poll=…)`` (mlink_sim.aio.timing.arrival): a poll on each shared socket and on a worker's
+    only socket, none on the sockets of a worker hosting several stations each on its own port (their polls would hold
     each other up); the worker's ``cpu`` reply carries the polls' counters."""
     setting = parse_arrival_poll("auto")
 
@@ -263,7 +263,7 @@ async def test_arrival_poll_on_each_shared_socket_or_a_lone_station_s_only() -> 
 async def test_a_stats_reply_is_built_between_bursts_and_says_what_stats_says() -> None:
     """``{"op": "stats"}`` is answered one station at a time (``SlaveServer._reply_stats``): a command that came
     while the reply was built is answered before the reply goes, and the reply is :meth:`SlaveServer.stats` as
-    one compact JSON datagram (docs/performance.md, "A stats query held the worker (session 30)")."""
+    one compact JSON datagram (docs/performance.md)."""
     import json
 
     addresses = list(range(0x21, 0x29))

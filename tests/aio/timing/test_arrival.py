@@ -1,5 +1,5 @@
-"""mlink_sim.aio.timing.arrival.ArrivalPoll: the cycle learned from the bursts' arrivals (their median gap), the poll set a
-lead before the next burst is due (a cycle after the last, or after the last one's due time when a late wake-up
+"""mlink_sim.aio.timing.arrival.ArrivalPoll: the cycle learned from the bursts' arrivals (their median gap), the poll
+set a lead before the next burst is due (a cycle after the last, or after the last one's due time when a late wake-up
 read it), none above ``max_period_ns``; on a real socket the bursts are read in the poll and every datagram is
 handed over once. The setting's parser: mlink_sim.config.units.parse_arrival_poll."""
 
@@ -182,7 +182,7 @@ def test_the_lead_follows_the_timer_s_late_wake_ups_and_a_missed_burst_restores_
 def test_the_poll_yields_the_cpu_between_empty_reads(monkeypatch) -> None:
     """While it waits for a burst the poll gives its CPU to any process queued on it (``sched_yield`` after each
     empty read): the master, packed on the same CPU, must run to send the very burst the poll waits for
-    (docs/performance.md, "The arrival poll yields"). None after the read that got the burst."""
+    (docs/performance.md). None after the read that got the burst."""
     yields: list[int] = []
     reads: list[int] = []
     monkeypatch.setattr("os.sched_yield", lambda: yields.append(len(reads)))
@@ -206,8 +206,8 @@ def test_the_poll_yields_the_cpu_between_empty_reads(monkeypatch) -> None:
 
 def test_auto_stands_down_while_idle_cpus_poll_and_a_lead_given_does_not(monkeypatch) -> None:
     """"auto" (a longest cycle) is armed only while idle CPUs halt: while the kernel holds the CPU wake-up latency
-    at 0 (``mlink-sim up --realtime``, ``bench.py --pm-qos``) the timer wakes the worker on time and the poll only
-    costs CPU (docs/performance.md, "The arrival poll yields"). Asked once a second, not per burst. A lead given
+    at 0 (``mlink-sim up --realtime``, or any other holder of it) the timer wakes the worker on time and the poll only
+    costs CPU (docs/performance.md). Asked once a second, not per burst. A lead given
     polls anyway."""
     limit = [0]
     asked: list[int] = []

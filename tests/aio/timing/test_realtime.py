@@ -75,7 +75,7 @@ def test_refusals_are_reported_not_raised(monkeypatch, tmp_path):
 
 def test_the_cpus_are_placed_only_where_the_wakeup_latency_is_held(monkeypatch, tmp_path):
     """Apart, each command and answer wakes the other CPU; without the hold that CPU has halted and the round trip
-    grows (docs/performance.md, "Where the time goes, profiled (session 16)"), so the kernel keeps the placement."""
+    grows (docs/performance.md), so the kernel keeps the placement."""
     placed: list[set[int]] = []
     monkeypatch.setattr(os, "sched_setscheduler", lambda *_a: None)
     monkeypatch.setattr(os, "sched_setaffinity", lambda _pid, cpus: placed.append(set(cpus)))
@@ -93,7 +93,7 @@ def test_wakeup_latency_request_is_an_s32_zero_held_open_until_released(tmp_path
     try:
         assert realtime.hold_wakeup_latency(str(device)) == "CPU wake-up latency 0 µs"
         assert realtime.wakeup_latency_held(str(device))
-        assert device.read_bytes() == b"\0\0\0\0"  # Documentation/power/pm_qos_interface.rst: an s32, in µs
+        assert device.read_bytes() == b"\0\0\0\0"  # Documentation/power/pm_qos_interface.rst: a signed 32-bit value, in µs
         fd = realtime._held[str(device)]
         assert realtime.hold_wakeup_latency(str(device)) == "CPU wake-up latency 0 µs"  # held once, not reopened
         assert realtime._held[str(device)] == fd and device.stat().st_size == 4
@@ -120,8 +120,8 @@ def test_wakeup_latency_on_this_kernel_reads_back_zero_while_held():
 
 
 def test_the_wakeup_latency_limit_is_the_device_s_s32_or_none(tmp_path):
-    """What the kernel holds for the whole system: the s32 the device reads back (µs; 0: idle CPUs poll); None
-    where it cannot be read (missing, root's only) or reads short."""
+    """What the kernel holds for the whole system: the signed 32-bit value the device reads back (µs; 0: idle CPUs
+    poll); None where it cannot be read (missing, root's only) or reads short."""
     device = tmp_path / "cpu_dma_latency"
     device.write_bytes(struct.pack("=i", 2_000_000_000))  # PM_QOS_DEFAULT_VALUE: no request held
     assert realtime.wakeup_latency_limit(str(device)) == 2_000_000_000
@@ -189,7 +189,7 @@ def test_a_child_of_a_placed_process_starts_unplaced(monkeypatch):
 
 
 def test_withdraw_undoes_what_apply_asked_for(monkeypatch, tmp_path):
-    """``withdraw`` (``scripts/bench.py`` after a partial refusal, so that its floors and network run alike): the
+    """``withdraw`` (a benchmark after a partial refusal, so that its floor and network run alike): the
     wake-up latency request is let go, ordinary scheduling and every CPU the process had come back."""
     calls: list[tuple[str, object]] = []
     monkeypatch.setattr(os, "sched_setscheduler", lambda _pid, policy, _param: calls.append(("policy", policy)))

@@ -1,5 +1,5 @@
-"""Batched UDP calls (mlink_sim.aio.transport.mmsg): a burst goes out in order to every destination, reads return what is
-waiting (and [] rather than an exception when nothing is), source addresses read as ``recvfrom`` reads them, a
+"""Batched UDP calls (mlink_sim.aio.transport.mmsg): a burst goes out in order to every destination, reads return what
+is waiting (and [] rather than an exception when nothing is), source addresses read as ``recvfrom`` reads them, a
 failed datagram does not take the rest of the burst with it, and where a caller asks for the per-datagram calls
 (``batched=False``) it gets them."""
 

@@ -1,6 +1,6 @@
-"""A burst's send headers (mlink_sim.aio.transport.sendlayout): the offload's groups (one destination, one size, at most 64
-datagrams and below 64 KiB each), a burst of any size in one ``sendmmsg`` (a worker's answers to two cycles after a
-stall: docs/performance.md, "A backlog in one system call"), and the last few shapes kept so that alternating bursts
+"""A burst's send headers (mlink_sim.aio.transport.sendlayout): the offload's groups (one destination, one size, at most
+64 datagrams and below 64 KiB each), a burst of any size in one ``sendmmsg`` (a worker's answers to two cycles after a
+stall: docs/performance.md), and the last few shapes kept so that alternating bursts
 are not laid out again."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""A capture's tap on the batched calls (aio.transport.tapped.TappedBurstSocket): bursts and recvmmsg reads recorded with their real
-addresses, failed datagrams left out, the per-datagram calls still tapped, and ``batched=False`` keeps
+"""A capture's tap on the batched calls (aio.transport.tapped.TappedBurstSocket): bursts and recvmmsg reads recorded
+with their real addresses, failed datagrams left out, the per-datagram calls still tapped, and ``batched=False`` keeps
 TappedSocket."""
 
 from __future__ import annotations

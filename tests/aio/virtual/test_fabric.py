@@ -1,5 +1,5 @@
-"""mlink_sim.aio.virtual.fabric: the virtual clock's in-memory network (latency ± seeded jitter, order kept, polls at the
-stations' deadlines, kill and restart) and its cycle."""
+"""mlink_sim.aio.virtual.fabric: the virtual clock's in-memory network (latency ± seeded jitter, order kept, polls at
+the stations' deadlines, kill and restart) and its cycle."""
 
 from __future__ import annotations
 
