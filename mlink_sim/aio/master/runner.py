@@ -46,6 +46,7 @@ from ...faults import Episode, FaultSpec, FaultStage, MasterFault, StationTraits
 from ...faults.stage import is_healthy
 from ...wire import Link, ml2, ml3
 from ..transport import mmsg
+from ..transport.impaired import ImpairedSocket
 from ..transport.tapped import tap
 from ..timing.ticker import CycleTimer
 from ..transport.udp import bound_socket, close_watched
@@ -450,8 +451,6 @@ class Master:
     def impair_with(self, layer: Any) -> None:
         """Route this master's datagrams through the impairment *layer* (``aio/transport/impaired.py``) while it has a
         fault; the socket is unwrapped again once every fault has ended (no cost without impairments)."""
-        from ..transport.impaired import ImpairedSocket
-
         sock = self._sock
         if sock is None or isinstance(sock, ImpairedSocket) or not layer.active:
             return

@@ -23,6 +23,7 @@ from ...drive import DriveSettings, Family
 from ...drive.monitors import hz_to_ref, ref_to_hz
 from ...params import FAMILIES
 from ...wire import InvCmdStat, Link, M2Status
+from .faultchecks import recovered, refused
 
 __all__ = ["SpeedScale", "CheckResult", "NetworkHandle", "Scenario", "StationControls", "speed_scale",
            "speed_scales"]
@@ -273,8 +274,6 @@ class Scenario:
 
     async def _wait_check(self, step: TimelineStep, address: int) -> None:
         """``recovered`` / ``refused``: wait (without holding up the timeline) until the answer is known."""
-        from .faultchecks import recovered, refused
-
         check = recovered if step.expect == "recovered" else refused
         try:
             ok, detail = await check(self.net.fault_control, step, address, self.config.network.transmission_cycle)

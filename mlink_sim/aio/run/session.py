@@ -28,13 +28,17 @@ from ..._log import get_logger
 from ...config import Config
 from ...metrics.stalls import StallLog
 from ...wire import Link
-from .faults import FaultControl
-from .control import query_control
+from ..master.runner import Master
 from ..timing.heap import settle_heap
-from ..timing.realtime import cpu_plan as rt_cpu_plan, format_cpus as rt_format_cpus
+from ..timing.realtime import MASTER_PRIORITY, apply
+from ..timing.realtime import cpu_plan as rt_cpu_plan
+from ..timing.realtime import format_cpus as rt_format_cpus
 from ..timing.ticker import CycleTimer
-from .supervisor import Worker, WorkerError, WorkerSpec, plan_workers
 from ..transport.udp import bind_address_for, resolve
+from .control import query_control
+from .faults import FaultControl
+from .scenario import restart_profile
+from .supervisor import Worker, WorkerError, WorkerSpec, plan_workers
 
 __all__ = ["NetworkSession", "NetworkApi", "EndpointError", "build_plans", "build_report"]
 
@@ -48,7 +52,6 @@ class EndpointError(ValueError):
 def build_plans(config: Config) -> dict[Link, Any]:
     """One :class:`~mlink_sim.master.plan.NetworkPlan` per link present in the config."""
     from ...master.plan import NetworkPlan, StationPlan
-    from .scenario import restart_profile
 
     by_link: dict[Link, list[Any]] = {}
     for st in config.station:
@@ -322,8 +325,6 @@ class NetworkSession:
         task.add_done_callback(self._restart_tasks.discard)
 
     async def _start_masters(self, endpoints: dict[int, tuple[str, int]]) -> None:
-        from ..master.runner import Master
-
         resolved: dict[int, tuple[str, int]] = {}
         for address, (host, port) in endpoints.items():
             try:
@@ -336,8 +337,6 @@ class NetworkSession:
 
         host_info()  # its first call reads the interpreter binary (~17 ms): not in the middle of a run
         if self.cpus is not None:
-            from ..timing.realtime import MASTER_PRIORITY, apply
-
             self.realtime_granted["master"] = apply(MASTER_PRIORITY, self.cpus[0])
         settle_heap()  # before the clock starts: no full collection of the start-up heap mid-cycle
         clock = None
