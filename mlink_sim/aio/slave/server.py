@@ -98,6 +98,7 @@ class SlaveServer:
         capture: Any = None,
         shared: bool = False,
         arrival_poll: tuple[int, int | None] | None = None,
+        batched: bool = True,
     ) -> None:
         """*capture*: a :class:`~mlink_sim.capture.CaptureWriter`: every station socket is tapped, and each
         station's phase changes (seen by the 1 ms tick) become notes.
@@ -111,7 +112,10 @@ class SlaveServer:
         *arrival_poll*: :func:`~mlink_sim.config.units.parse_arrival_poll`'s setting (None: off). Each shared socket,
         or the worker's only socket, is then read in a short busy-poll around the time its next burst of commands is
         due (:class:`~mlink_sim.aio.timing.arrival.ArrivalPoll`). The sockets of a worker hosting several stations each
-        on its own port are not: their polls would hold each other up."""
+        on its own port are not: their polls would hold each other up.
+
+        *batched*: the batched calls (``sendmmsg``/``recvmmsg``, UDP segmentation offload) where the kernel has them;
+        False keeps the per-datagram calls on every socket (the tests compare both paths that way)."""
         self.stations = stations
         self.shared = shared
         self.arrival_poll = arrival_poll
@@ -122,6 +126,7 @@ class SlaveServer:
         self.absorb_ns = absorb_ns
         self._keep_behind = max(_KEEP_BEHIND, absorb_ns // _MIN_CYCLE_NS + 2)
         self.stalls = StallLog("absorb" if absorb_ns else "strict", absorb_ns)
+        self.batched = batched
         self._tick_due = 0
         self.state_dir = Path(state_dir) if state_dir else None
         self._control_addr = control
@@ -153,17 +158,17 @@ class SlaveServer:
             if hs.eeprom is not None and (n := remove_stale_temps(hs.eeprom)):
                 log.info("eeprom_stale_temps_removed", path=str(hs.eeprom), count=n)
         try:
-            wrap = None if self._capture is None else partial(tap, self._capture)
+            wrap = None if self._capture is None else partial(tap, self._capture, batched=self.batched)
             groups = self._port_groups()
             for group in groups:
                 first = group[0]
                 if len(group) == 1:
                     endpoint = await open_batch_endpoint(self._receiver(first), first.host, first.port, wrap=wrap,
-                                                         rcvbuf=_RCVBUF)
+                                                         rcvbuf=_RCVBUF, batched=self.batched)
                 else:
                     endpoint = await open_batch_endpoint(self._bus_receiver(group), first.host, first.port,
                                                          wrap=wrap, burst=_BURST * len(group),
-                                                         rcvbuf=_RCVBUF * len(group))
+                                                         rcvbuf=_RCVBUF * len(group), batched=self.batched)
                     endpoint.enable_gro()  # the master sends each cycle's commands to this port as one burst
                 for hs in group:
                     hs.endpoint, hs.port = endpoint, endpoint.local_address[1]

@@ -251,14 +251,15 @@ class BatchEndpoint:
 async def open_batch_endpoint(on_batch: Callable[[list[tuple[bytes, Any]]], None], host: str = "127.0.0.1",
                               port: int = 0, *, rcvbuf: int = 1 << 20, burst: int = 64,
                               wrap: Callable[[socket.socket], Any] | None = None,
-                              batched: bool | None = None) -> BatchEndpoint:
+                              batched: bool = True) -> BatchEndpoint:
     """Bind a UDP socket on *host*:*port* (0 = any free port) and read it in batches (:class:`BatchEndpoint`).
     *wrap*: wraps the socket (a capture's tap, :func:`mlink_sim.aio.transport.tapped.tap`).
-    *batched*: read with ``recvmmsg`` (:mod:`mlink_sim.aio.transport.mmsg`); None = where it is supported, False = never."""
+    *batched*: read with ``recvmmsg`` (:mod:`mlink_sim.aio.transport.mmsg`) where it is supported; False: never (the
+    tests compare both paths that way)."""
     sock: Any = bound_socket(host, port, rcvbuf)
     if wrap is not None:
         sock = wrap(sock)
-    elif batched or (batched is None and mmsg.supported()):
+    elif batched and mmsg.supported():
         sock = mmsg.BurstSocket(sock)
     try:
         return BatchEndpoint(sock, on_batch, burst)

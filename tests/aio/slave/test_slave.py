@@ -11,6 +11,7 @@ import pytest
 
 from mlink_sim.aio.slave import server as slave_module
 from mlink_sim.aio.slave.server import HostedStation, SlaveServer
+from mlink_sim.aio.transport import mmsg
 from mlink_sim.cards import create_card, settings_for
 from mlink_sim.config.units import parse_arrival_poll
 from mlink_sim.wire import Frame, Kind, Link, decode, encode, ml2
@@ -114,10 +115,10 @@ def test_no_silence_is_due_before_phase_2() -> None:
     assert card.phase == 1 and card.silence_due(10**12) is False
 
 
-async def _shared_server(*addresses: int) -> SlaveServer:
+async def _shared_server(*addresses: int, batched: bool = True) -> SlaveServer:
     stations = [HostedStation(create_card("si-t3", settings=settings_for("si-t3", a, 17, []), now=0), "127.0.0.1", 0)
                 for a in addresses]
-    server = SlaveServer(stations, control=None, shared=True)
+    server = SlaveServer(stations, control=None, shared=True, batched=batched)
     await server.start()
     return server
 
@@ -126,14 +127,17 @@ def _nop_to(address: int, cycle: int) -> bytes:
     return encode(Frame(Link.ML2, Kind.COMMAND, address, cycle, TCYCLE, ml2.M2Command(ml2.Nop(), 0)))
 
 
-async def test_shared_port_the_address_byte_picks_the_station() -> None:
+@pytest.mark.parametrize("batched", [True, False], ids=["recvmmsg", "recvfrom"])
+async def test_shared_port_the_address_byte_picks_the_station(batched: bool) -> None:
     """A packed worker's stations share one port, as stations share a bus (``SlaveServer(shared=True)``): each
     command reaches the station its address byte names (docs/wire-format.md, byte 3: the station address each card
     is set to with F6-20, SI-T3 Table 4, SI-ET3 Table 7), the answers come back from that port, and a command for
-    no station there is counted, not answered."""
-    server = await _shared_server(0x21, 0x22, 0x23)
+    no station there is counted, not answered; the same with the batched calls and without them."""
+    server = await _shared_server(0x21, 0x22, 0x23, batched=batched)
     master = _client()
     try:
+        sock = server.stations[0].endpoint._sock  # type: ignore[union-attr]
+        assert isinstance(sock, mmsg.BurstSocket) is (batched and mmsg.supported())
         ports = {hs.port for hs in server.stations}
         assert len(ports) == 1 and 0 not in ports
         addr = ("127.0.0.1", ports.pop())
