@@ -149,7 +149,7 @@ class RunningNetwork(StationControls, ReportChecks, FaultMethods):
         up, :class:`HostError` if the host failed. Nothing is left running after either."""
         if self._proc is not None:
             raise RuntimeError("network already started")
-        from ..aio.run.supervisor import _die_with_parent
+        from ..aio.run.supervisor import die_with_parent as _die_with_parent
 
         self.run_dir.mkdir(parents=True, exist_ok=True)
         with open(self.log_path, "ab") as log:

@@ -26,7 +26,8 @@ from typing import Any
 from ..._log import get_logger
 from ..timing.realtime import unplace_child
 
-__all__ = ["WorkerSpec", "Worker", "WorkerError", "plan_workers", "parse_workers", "resolve_workers"]
+__all__ = ["WorkerSpec", "Worker", "WorkerError", "die_with_parent", "plan_workers", "parse_workers",
+           "resolve_workers"]
 
 log = get_logger("mlink_sim.supervisor")
 
@@ -37,11 +38,13 @@ def _child_setup() -> None:  # runs in the child between fork and exec
     # A process group of its own: the terminal's Ctrl-C reaches `up` only, which DISCONNECTs the stations first
     # and then stops the workers. (uvloop's subprocess has no process_group argument.)
     os.setpgid(0, 0)
-    _die_with_parent()
+    die_with_parent()
     unplace_child()  # a worker begins with ordinary scheduling on every CPU, then asks for its own
 
 
-def _die_with_parent() -> None:  # runs in the child between fork and exec
+def die_with_parent() -> None:
+    """A child's ``preexec_fn`` (it runs between fork and exec): the child gets SIGTERM when its parent dies, even
+    of a kill -9, so no process is left behind (Linux ``PR_SET_PDEATHSIG``; elsewhere nothing)."""
     try:
         libc = ctypes.CDLL("libc.so.6", use_errno=True)
         libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
