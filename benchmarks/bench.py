@@ -10,7 +10,7 @@ stations as a packed worker does (one socket shared by the N stations where the 
 fewer workers: ``Cell.layout`` "shared"; a socket per station otherwise), driven by a client that sends the same
 bursts on the same ``CycleTimer`` as the master and reads as the master reads, but with no protocol work on either
 side; once with the per-datagram system calls (**plain**), once with ``sendmmsg``/``recvmmsg`` (**batched**,
-``mlink_sim.aio.mmsg``).
+``mlink_sim.aio.transport.mmsg``).
 
 Figures per cell, the network's and the floors' by one definition (:mod:`benchmarks.figures`): missed (the
 exchanges due but not answered within a cycle, over the exchanges due), RTT p50/p99 (every answer read, late ones
@@ -21,7 +21,7 @@ where ``sendmmsg``/``recvmmsg`` exist, the cell's ``io``); the ratios (CPU per e
 against the floor that uses the same calls.
 
 ``--arrival-poll`` sets the workers' arrival poll (``[network] arrival_poll``: ``auto``, the default of
-``mlink-sim up``, ``off`` or a lead; ``mlink_sim.aio.arrival``); the JSON's ``host.arrival_poll`` records it.
+``mlink-sim up``, ``off`` or a lead; ``mlink_sim.aio.timing.arrival``); the JSON's ``host.arrival_poll`` records it.
 
 Run from the repository's root:
 
@@ -43,13 +43,13 @@ either way: a benchmark reports, it does not gate.
 The whole sweep runs as ``mlink-sim up`` runs by default where it may (its ``--realtime``: root or
 ``CAP_SYS_NICE``): the master and the floors' clients at SCHED_FIFO 40 on the highest CPU, the workers and the
 floors' servers at SCHED_FIFO 30 on the others, memory locked, a CPU wake-up latency of 0 µs
-(``mlink_sim.aio.realtime``), floors and simulator alike. Where any of that is refused (an unprivileged user), the
+(``mlink_sim.aio.timing.realtime``), floors and simulator alike. Where any of that is refused (an unprivileged user), the
 run withdraws what it got and every process runs with ordinary scheduling, as that user's ``mlink-sim up`` does; it
 says so on stderr. ``--realtime`` insists (refused, the run does not start: exit 2); ``--no-realtime`` asks for
 nothing. The JSON's ``host.realtime`` says what was granted (null: ordinary scheduling).
 
 ``--pm-qos`` holds the kernel's request for a CPU wake-up latency of 0 µs (``/dev/cpu_dma_latency``, as
-``mlink-sim up --realtime`` does: ``mlink_sim.aio.realtime.hold_wakeup_latency``) for the whole run, so the floors
+``mlink-sim up --realtime`` does: ``mlink_sim.aio.timing.realtime.hold_wakeup_latency``) for the whole run, so the floors
 and the simulator run on CPUs that poll instead of halting when idle (the real-time default holds it already: with
 ``--no-realtime`` it is that request alone); refused (not root), the run does not start (exit 2). The JSON's
 ``host.pm_qos`` says which way a run was made.
@@ -79,10 +79,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
-from mlink_sim.aio import mmsg, realtime
-from mlink_sim.aio.session import NetworkSession
-from mlink_sim.aio.slave import query_control
-from mlink_sim.aio.udp import new_event_loop
+from mlink_sim.aio.timing import realtime
+from mlink_sim.aio.transport import mmsg
+from mlink_sim.aio.run.session import NetworkSession
+from mlink_sim.aio.run.control import query_control
+from mlink_sim.aio.transport.udp import new_event_loop
 from mlink_sim.cli.logs import configure_logging
 from mlink_sim.config import format_ns, load_config, parse_duration_ns
 from mlink_sim.config.units import parse_arrival_poll
@@ -279,7 +280,7 @@ def _states(session: NetworkSession) -> str:
 
 
 async def _ask_workers(session: NetworkSession, op: str, **fields: Any) -> list[dict[str, Any]]:
-    """Every live worker's reply to ``{"op": op, **fields}`` (``mlink_sim.aio.slave``); a worker that does not answer
+    """Every live worker's reply to ``{"op": op, **fields}`` (``mlink_sim.aio.slave.server``); a worker that does not answer
     within 1 s is left out."""
     replies = []
     for w in session.worker_list:

@@ -5,18 +5,15 @@ written whole or not at all."""
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import importlib.machinery
 import os
-import signal
 import sys
 import tempfile
 from pathlib import Path
 
-__all__ = ["ROOT", "child_env", "cores", "die_with_parent", "module_command", "write_atomically"]
+__all__ = ["ROOT", "child_env", "cores", "module_command", "write_atomically"]
 
 ROOT = Path(__file__).resolve().parents[1]  #: the repository's root: the package ``benchmarks`` lives in it
-_PR_SET_PDEATHSIG = 1  # prctl(2)
 
 
 def child_env(env: dict[str, str] | None = None) -> dict[str, str]:
@@ -31,14 +28,6 @@ def module_command(module: str, *args: str) -> list[str]:
     """The command line that runs the benchmark module *module* (``"benchmarks.floor"``) with *args*, by this
     interpreter; start it with ``env=child_env()``."""
     return [sys.executable, "-m", module, *args]
-
-
-def die_with_parent(sig: int = signal.SIGTERM) -> None:
-    """Ask the kernel to send *sig* to this process when its parent dies (``PR_SET_PDEATHSIG``), so that a killed
-    benchmark leaves no helper process behind. Called in a child between fork and exec (``preexec_fn``) or at its
-    start; does nothing where the call does not exist (not Linux)."""
-    with contextlib.suppress(OSError, AttributeError):
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, sig)
 
 
 def cores(cls: type) -> str:

@@ -1,7 +1,7 @@
 """The floor of a capacity cell: the simulator's I/O with no protocol work in it.
 
 **Server** (a subprocess): ONE process serving N station sockets, as a packed slave worker does: the same
-``BatchEndpoint`` per station (``mlink_sim.aio.udp``, watched with ``loop.add_reader``, every waiting datagram read
+``BatchEndpoint`` per station (``mlink_sim.aio.transport.udp``, watched with ``loop.add_reader``, every waiting datagram read
 in one wake-up), each datagram sent straight back to its source from the station's own socket. No card, no
 decode, no 1 ms tick. Sharing one socket (``--shared``), a read holding several cycles' commands is echoed newest
 cycle first, as the worker answers a backlog.
@@ -15,7 +15,7 @@ is awaited as long as the master awaits one (its answer window, the network's ``
 is in the RTT tail, not dropped from it.
 
 Two variants, both measured by the caller in the same run: **plain** (``recvfrom``/``recv`` until the socket is
-empty, one ``sendto`` per datagram) and **batched** (``mlink_sim.aio.mmsg``: the client's burst in one
+empty, one ``sendto`` per datagram) and **batched** (``mlink_sim.aio.transport.mmsg``: the client's burst in one
 ``sendmmsg``, its answers and each station socket's commands in one ``recvmmsg``; the echo's answers stay one
 ``sendto`` each, because each goes out from its own station's socket).
 
@@ -54,13 +54,15 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mlink_sim.aio import mmsg, realtime
-from mlink_sim.aio.ticker import CycleTimer
-from mlink_sim.aio.udp import bound_socket, close_watched, new_event_loop, open_batch_endpoint
+from mlink_sim.aio.timing import realtime
+from mlink_sim.aio.transport import mmsg
+from mlink_sim.aio.timing.ticker import CycleTimer
+from mlink_sim.aio.transport.udp import bound_socket, close_watched, new_event_loop, open_batch_endpoint
 from mlink_sim.config import format_ns, parse_duration_ns
 from mlink_sim.metrics import LatencyHistogram
 
-from benchmarks.common import child_env, die_with_parent, module_command
+from benchmarks.common import child_env, module_command
+from mlink_sim.aio.run.supervisor import die_with_parent
 from benchmarks.figures import During, Window
 
 __all__ = ["Floor", "Work", "floor_from", "floor_window", "host_ticks", "measure_floor", "proc_cpu_s", "proc_wakeups",

@@ -181,7 +181,7 @@ def test_pure_requested():
 #: compiled outside the sans-I/O cores (no socket, no wall clock either): the virtual clock's per-event path, a
 #: slave worker's per-read path (its clock handed in), the metrics' recorder and the capture writer's per-datagram
 #: loop
-_PER_EXCHANGE = {"mlink_sim.aio.vqueue", "mlink_sim.aio.fabric", "mlink_sim.aio.bus", "mlink_sim.metrics.histogram",
+_PER_EXCHANGE = {"mlink_sim.aio.virtual.vqueue", "mlink_sim.aio.virtual.fabric", "mlink_sim.aio.slave.bus", "mlink_sim.metrics.histogram",
                  "mlink_sim.metrics.network", "mlink_sim.capture.pack"}
 
 

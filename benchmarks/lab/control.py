@@ -1,5 +1,5 @@
 """What a control query costs the cycle: a network is brought up as :mod:`benchmarks.bench` brings up a cell, and
-the master asks its worker ``{"op": OP}`` (``stats``, ``cpu``, ``ping``: ``mlink_sim.aio.slave``) every ``--every``
+the master asks its worker ``{"op": OP}`` (``stats``, ``cpu``, ``ping``: ``mlink_sim.aio.slave.server``) every ``--every``
 while every answer later than one transmission cycle is kept. A late answer read from a moment before a query was
 sent to :data:`AFTER_NS` after its reply came counts as the query's (:func:`attribute`); the same number of equally
 long windows half-way between the queries give the background the host makes anyway.
@@ -27,9 +27,9 @@ from bisect import bisect_left, bisect_right
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from mlink_sim.aio import realtime
-from mlink_sim.aio.session import NetworkSession
-from mlink_sim.aio.slave import query_control
+from mlink_sim.aio.timing import realtime
+from mlink_sim.aio.run.session import NetworkSession
+from mlink_sim.aio.run.control import query_control
 from mlink_sim.config import load_config, parse_duration_ns
 
 from benchmarks.bench import Interrupted, measuring, watching_rtt, write_config

@@ -60,8 +60,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mlink_sim.aio.session import NetworkSession
-from mlink_sim.aio.udp import new_event_loop
+from mlink_sim.aio.run.session import NetworkSession
+from mlink_sim.aio.transport.udp import new_event_loop
 from mlink_sim.cli.logs import configure_logging
 from mlink_sim.config import load_config, parse_duration_ns
 from mlink_sim.metrics import LatencyHistogram

@@ -57,7 +57,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mlink_sim.aio import mmsg
+from mlink_sim.aio.transport import mmsg
 from mlink_sim.config import format_ns, load_config, parse_duration_ns
 
 from benchmarks import bench

@@ -25,11 +25,11 @@ import signal
 import sys
 import time
 
-from benchmarks.common import die_with_parent
+from mlink_sim.aio.run.supervisor import die_with_parent
 
 __all__ = ["PRIORITY", "inject", "signal_all"]
 
-PRIORITY = 60  #: SCHED_FIFO priority: above the master's 40 and the workers' 30 (``mlink_sim.aio.realtime``)
+PRIORITY = 60  #: SCHED_FIFO priority: above the master's 40 and the workers' 30 (``mlink_sim.aio.timing.realtime``)
 
 
 def signal_all(pids: list[int], sig: int) -> None:

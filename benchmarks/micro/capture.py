@@ -5,7 +5,7 @@ apart where its noise is small, quoted as the median [p10, p90] over ``--repeat`
 
 * **(a) the tap**, what the event loop pays per datagram: the master's own I/O calls bare and tapped on
   loopback, in alternating blocks of at most 1 000 datagrams (process CPU time): a ``BurstSocket`` (the
-  uncaptured run's socket) against a ``TappedBurstSocket`` (``mlink_sim.aio.tapped``), or, where the kernel
+  uncaptured run's socket) against a ``TappedBurstSocket`` (``mlink_sim.aio.transport.tapped``), or, where the kernel
   lacks the batched calls, a plain socket against a :class:`TappedSocket`. Every kind of call the quickstart makes (``sendto`` of one
   command, ``sendmmsg`` of k, a read of k answers) is measured and weighted by how often its capture holds it
   (:func:`io_calls`);
@@ -57,8 +57,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from mlink_sim.aio import mmsg
-from mlink_sim.aio.tapped import TappedBurstSocket
+from mlink_sim.aio.transport import mmsg
+from mlink_sim.aio.transport.tapped import TappedBurstSocket
 from mlink_sim.capture import CaptureWriter, TappedSocket, read_capture
 
 __all__ = ["DRIFT", "TARGET_US", "hot_path", "main", "measure", "verdict", "writer_cost"]
@@ -155,7 +155,7 @@ def hot_path(calls: Counter[tuple[str, int]], n: int, repeat: int) -> dict[str, 
     adds per datagram with the calls weighted as *calls* counts them (the records go to a deque, as in a run;
     turning them into the file is the writer's part (b)).
 
-    What is measured is what the master runs: with ``sendmmsg``/``recvmmsg`` supported, a :class:`~mlink_sim.aio.mmsg.BurstSocket` (the uncaptured run) against a
+    What is measured is what the master runs: with ``sendmmsg``/``recvmmsg`` supported, a :class:`~mlink_sim.aio.transport.mmsg.BurstSocket` (the uncaptured run) against a
     :class:`~mlink_sim.capture.tap.TappedBurstSocket` (``sendto`` for one command, ``send_burst`` for more,
     ``recv_burst(k)`` for the answers); without, a plain socket against a :class:`TappedSocket` (``sendto`` and
     ``recv`` per datagram). Bare and tapped alternate in blocks of at most 1 000 datagrams."""
@@ -349,7 +349,7 @@ def import_cost(repeat: int) -> dict[str, float]:
         subprocess.run([sys.executable, "-c", code], check=True)
         return _children_cpu() - c0
 
-    base = "import mlink_sim.aio.network, mlink_sim.cli"
+    base = "import mlink_sim.aio.run.network, mlink_sim.cli"
     return spread([cpu(base + ", mlink_sim.capture") - cpu(base) for _ in range(max(3, repeat))])
 
 

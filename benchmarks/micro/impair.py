@@ -40,7 +40,7 @@ from collections.abc import Callable
 from typing import Any
 from pathlib import Path
 
-from mlink_sim.aio.impaired import ImpairedSocket
+from mlink_sim.aio.transport.impaired import ImpairedSocket
 from mlink_sim.impair import Direction, Impairment, ImpairmentLayer
 
 __all__ = ["TARGET_NS", "bench", "delay_check", "loss_check", "main", "up_check"]

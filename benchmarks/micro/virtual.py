@@ -1,6 +1,6 @@
 """Benchmark the virtual clock (``mlink-sim up --clock virtual``, docs/virtual-time.md) against its targets.
 
-Cases, each the ``up`` code path (``aio.network.run_up`` on a ``VirtualEventLoop``) in this process:
+Cases, each the ``up`` code path (``aio.run.network.run_up`` on a ``VirtualEventLoop``) in this process:
 
 * ``quickstart``  -- configs/quickstart.toml, its whole scenario (11 s simulated): target <= 0.5 s wall
 * ``ml3-62``      -- configs/ml3-62-max.toml (62 SI-ET3 at 1 ms) for ``--duration`` (60 s) simulated: target
@@ -28,9 +28,9 @@ from pathlib import Path
 from typing import Any
 
 import mlink_sim.cards  # noqa: F401  # imported lazily by the run: an import, not counted in its wall
-from mlink_sim.aio.network import RunOptions, run_up
-from mlink_sim.aio.vclock import VirtualEventLoop
-from mlink_sim.aio.virtual import without_wall_clock
+from mlink_sim.aio.run.network import RunOptions, run_up
+from mlink_sim.aio.virtual.vclock import VirtualEventLoop
+from mlink_sim.aio.run.virtual_session import without_wall_clock
 from mlink_sim.cli.logs import configure_logging
 from mlink_sim.config import load_config, parse_duration_ns
 
@@ -63,9 +63,9 @@ def floor(path: Path, seconds: float) -> tuple[float, float]:
     """CPU seconds of the cores alone for *seconds* of the config's cyclic traffic after bring-up, every drive
     running at 30 Hz (its ramp included): master core -> card core -> master core in a plain loop. Returns
     (total, the card cores' share with their drives: ``receive`` and ``poll``, timed with ``process_time``)."""
-    from mlink_sim.aio.scenario import speed_scales
-    from mlink_sim.aio.session import build_plans
-    from mlink_sim.aio.stations import build_station, spec_for
+    from mlink_sim.aio.run.scenario import speed_scales
+    from mlink_sim.aio.run.session import build_plans
+    from mlink_sim.aio.slave.stations import build_station, spec_for
     from mlink_sim.master import MasterCore
 
     config = load_config(path)

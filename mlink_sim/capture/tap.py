@@ -9,8 +9,8 @@ A driver that keeps its own time (a virtual clock) calls ``record`` itself with 
 addresses the datagram would carry; the capture does not care where the time comes from.
 
 Where ``sendmmsg``/``recvmmsg`` are supported, the I/O layer taps its batched calls instead
-(:class:`mlink_sim.aio.tapped.TappedBurstSocket`, fed the same tuples): the master, the slaves and the proxy
-wrap their sockets with :func:`mlink_sim.aio.tapped.tap`, which falls back to a :class:`TappedSocket`
+(:class:`mlink_sim.aio.transport.tapped.TappedBurstSocket`, fed the same tuples): the master, the slaves and the proxy
+wrap their sockets with :func:`mlink_sim.aio.transport.tapped.tap`, which falls back to a :class:`TappedSocket`
 where there is no ``recvmmsg`` (or the caller asks for the per-datagram calls).
 
 ``recv`` needs the datagram's real source address. On a socket that is ``connect()``-ed when it is wrapped, the

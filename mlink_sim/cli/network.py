@@ -8,8 +8,8 @@ from typing import Any
 
 import click
 
-from ..aio.network import EndpointError, RunOptions, run_network, run_up
-from ..aio.udp import new_event_loop
+from ..aio.run.network import EndpointError, RunOptions, run_network, run_up
+from ..aio.transport.udp import new_event_loop
 from ..config import Config, format_ns, parse_duration_ns
 from .capture_opts import capture_options, open_capture_or_exit
 from .inputs import InputError, assertions, check_stations, load_checked, report_path
@@ -29,7 +29,7 @@ class _Workers(click.ParamType):
         return "[N|auto|station]"
 
     def convert(self, value: Any, param: Any, ctx: Any) -> int | str:
-        from ..aio.supervisor import parse_workers
+        from ..aio.run.supervisor import parse_workers
 
         try:
             return parse_workers(value)
@@ -48,7 +48,7 @@ def _duration(text: str | None, flag: str) -> int | None:
 
 def _run(coro_factory: Any, clock: str = "real") -> int:
     if clock == "virtual":
-        from ..aio.vclock import VirtualEventLoop
+        from ..aio.virtual.vclock import VirtualEventLoop
 
         loop: Any = VirtualEventLoop()
     else:
@@ -154,7 +154,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, repo
         control=parse_control(control),
         capture=open_capture_or_exit("up", capture_path, capture_max, background=clock != "virtual"),
     )
-    from ..aio.supervisor import WorkerError
+    from ..aio.run.supervisor import WorkerError
 
     try:
         sys.exit(_run(lambda: run_up(config, opts), clock=clock))

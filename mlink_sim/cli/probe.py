@@ -9,8 +9,8 @@ import time
 
 import click
 
-from ..aio.probe import probe
-from ..aio.udp import new_event_loop
+from ..aio.tools.probe import probe
+from ..aio.transport.udp import new_event_loop
 from ..config import parse_address, parse_endpoint
 from ..testbed.health import ATTEMPTS
 from ..wire import Link

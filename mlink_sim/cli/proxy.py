@@ -11,7 +11,7 @@ from typing import Any
 
 import click
 
-from ..aio.udp import new_event_loop, stop_on_signals
+from ..aio.transport.udp import new_event_loop, stop_on_signals
 from ..config import parse_endpoint
 from .capture_opts import capture_options, open_capture_or_exit
 from .logs import configure_logging
@@ -89,8 +89,8 @@ def proxy_cmd(listens, targets, impair_text, seed, control, log_json, log_level,
 
 async def _serve(links: list[Any], spec: Any, seed: int, control_addr: tuple[str, int] | None,
                  capture: Any) -> int:
-    from ..aio.control import ControlServer, impairment_ops
-    from ..aio.proxy import ImpairingProxy
+    from ..aio.run.control import ControlServer, impairment_ops
+    from ..aio.tools.proxy import ImpairingProxy
     from ..impair import ImpairmentLayer
     from ..metrics.network import station_key
 
@@ -140,8 +140,8 @@ def control_cmd(address: str, op: str, station: str | None, spec: str | None, ti
     Prints the answer (JSON); exit 0 if it was done, 1 if refused or unanswered, 2 for a bad request."""
     import secrets
 
-    from ..aio.faults import parse_fault_text
-    from ..aio.slave import query_control
+    from ..aio.run.faults import parse_fault_text
+    from ..aio.run.control import query_control
     from ..faults import FaultError, fault_from_fields
     from ..impair import ImpairError, parse_impair_text, target_station
 

@@ -12,11 +12,11 @@ from pathlib import Path
 import click
 
 from .._log import get_logger
-from ..aio import realtime
-from ..aio.heap import settle_heap
-from ..aio.slave import HostedStation, SlaveServer
-from ..aio.stations import StationSpec, build_station, spec_for
-from ..aio.udp import BindError, loop_name, new_event_loop, stop_on_signals
+from ..aio.timing import realtime
+from ..aio.timing.heap import settle_heap
+from ..aio.slave.server import HostedStation, SlaveServer
+from ..aio.slave.stations import StationSpec, build_station, spec_for
+from ..aio.transport.udp import BindError, loop_name, new_event_loop, stop_on_signals
 from ..config import ConfigError, load_config, parse_address, parse_duration_ns, parse_endpoint
 from ..config.units import parse_arrival_poll
 from ..wire import Link

@@ -21,7 +21,6 @@ starting (leftovers of the same prefix, and of ``mls-<pid>`` runs whose process 
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import json
 import os
 import re
@@ -38,6 +37,7 @@ from typing import Any
 import click
 
 from ..config import Config, ConfigError, load_config, parse_duration_ns
+from ..aio.run.supervisor import die_with_parent
 from . import firewall
 
 __all__ = ["Node", "Plan", "make_plan", "check_prefix", "cleanup", "stale_prefixes", "Testbed", "TestbedError",
@@ -258,12 +258,6 @@ def leftovers(prefix: str, ip: str = "ip") -> list[str]:
 
 # -- running it -----------------------------------------------------------------------------------------------
 
-_PR_SET_PDEATHSIG = 1
-
-
-def _die_with_parent() -> None:  # in the child between fork and exec: no orphans even after a kill -9 of us
-    with contextlib.suppress(OSError):
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
 class Interrupted(Exception):
@@ -298,7 +292,7 @@ class Testbed:
             err = open(self.log_dir / f"{name}.log", "wb")  # noqa: SIM115
         try:
             proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=out, stderr=err, process_group=0,
-                                    preexec_fn=_die_with_parent, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+                                    preexec_fn=die_with_parent, env={**os.environ, "PYTHONUNBUFFERED": "1"})
         finally:
             for fh in (out, err):
                 if fh is not None:

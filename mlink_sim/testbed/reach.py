@@ -11,7 +11,7 @@ from __future__ import annotations
 import asyncio
 import sys
 
-from ..aio.probe import probe
+from ..aio.tools.probe import probe
 from ..config import parse_address, parse_endpoint
 from ..wire import Link
 
@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"reach: {exc}", file=sys.stderr)
         return 2
-    from ..aio.udp import new_event_loop
+    from ..aio.transport.udp import new_event_loop
 
     loop = new_event_loop()
     try:

@@ -30,8 +30,8 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
-from ..aio.scenario import CheckResult, StationControls, speed_scale
-from ..aio.supervisor import parse_workers
+from ..aio.run.scenario import CheckResult, StationControls, speed_scale
+from ..aio.run.supervisor import parse_workers
 from ..config import Config, load_config, resolve_config_path
 from ..master.types import RequestTimeout, StationAlarmError, StationState, StationView
 from .faults import FaultMethods
@@ -149,7 +149,7 @@ class RunningNetwork(StationControls, ReportChecks, FaultMethods):
         up, :class:`HostError` if the host failed. Nothing is left running after either."""
         if self._proc is not None:
             raise RuntimeError("network already started")
-        from ..aio.supervisor import _die_with_parent
+        from ..aio.run.supervisor import die_with_parent as _die_with_parent
 
         self.run_dir.mkdir(parents=True, exist_ok=True)
         with open(self.log_path, "ab") as log:

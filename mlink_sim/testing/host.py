@@ -31,10 +31,10 @@ from typing import Any
 
 
 from .._log import get_logger
-from ..aio.scenario import Scenario, speed_scales
-from ..aio.session import NetworkSession
-from ..aio.supervisor import resolve_workers
-from ..aio.udp import new_event_loop
+from ..aio.run.scenario import Scenario, speed_scales
+from ..aio.run.session import NetworkSession
+from ..aio.run.supervisor import resolve_workers
+from ..aio.transport.udp import new_event_loop
 from ..config import ConfigError, load_config
 from ..faults import fault_from_fields
 from ..jsonable import to_jsonable
@@ -209,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the impairments' draws (docs/faults.md)")
     args = parser.parse_args(argv)
     from .._log import configure_logging
-    from ..aio.supervisor import WorkerError
+    from ..aio.run.supervisor import WorkerError
 
     configure_logging(level=args.log_level)
     loop = new_event_loop()

@@ -10,8 +10,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ..aio.embed import BringUpFailed, VirtualNetwork
-from ..aio.scenario import CheckResult
+from ..aio.run.embed import BringUpFailed, VirtualNetwork
+from ..aio.run.scenario import CheckResult
 from ..config import load_config, resolve_config_path
 from .harness import NetworkNotUp, _AsyncApi
 from ..faults import fault_from_fields

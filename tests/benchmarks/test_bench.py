@@ -297,7 +297,7 @@ def test_realtime_asks_the_same_of_the_network_and_its_floors(monkeypatch, tmp_p
     """With ``--realtime``'s CPU plan the network is opened with the session's real-time requests and both floors
     get the same plan (client on the master's CPUs, server on the workers'); before each network turn the process
     may run on every CPU again, so that the session plans from them all and not from the floor client's one."""
-    from mlink_sim.aio import mmsg
+    from mlink_sim.aio.transport import mmsg
 
     seen: list[tuple[str, object]] = []
 
@@ -327,7 +327,7 @@ def test_a_cell_is_measured_in_turns_with_its_floors_and_their_counts_add_up(mon
     (``benchmarks.figures.turns``), so each side sees the same phases of the host; each side's figures are read from the
     sum of its turns (missed from the summed counts, RTT from the merged histograms, the answers made ahead and any
     the cards contradicted from the summed counts: a contradicted one is a note)."""
-    from mlink_sim.aio import mmsg
+    from mlink_sim.aio.transport import mmsg
 
     order: list[tuple[str, float]] = []
 

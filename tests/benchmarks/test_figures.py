@@ -64,7 +64,7 @@ def test_targets_say_when_the_floor_itself_is_saturated() -> None:
 def test_the_floor_counts_by_the_shared_definition() -> None:
     """A short real floor (2 stations, 5 ms cycle, loopback): its counts obey the shared definition's
     invariants whatever the machine's load (no timing is asserted)."""
-    from mlink_sim.aio.udp import new_event_loop
+    from mlink_sim.aio.transport.udp import new_event_loop
 
     loop = new_event_loop()
     try:
@@ -123,7 +123,7 @@ def test_the_floor_with_the_cores_time_keeps_each_side_busy_in_the_chain(batched
     """``--work``: the server is busy *serve* per datagram before it echoes, the client *encode* per command
     after the cycle's start, so no answer comes back sooner than 2 × encode + serve after its cycle began (a
     lower bound on the monotonic clock, whatever the machine's load)."""
-    from mlink_sim.aio.udp import new_event_loop
+    from mlink_sim.aio.transport.udp import new_event_loop
 
     loop = new_event_loop()
     try:
@@ -138,7 +138,7 @@ def test_the_floor_settles_after_the_echoes_went_not_before() -> None:
     """``--work``'s SETTLE keeps the server busy after a read's echoes went back (a worker's ``Bus.settle``): with
     4 ms of it per read, the answers still come back long before those 4 ms are over (before them, every answer
     would be at least 4 ms late)."""
-    from mlink_sim.aio.udp import new_event_loop
+    from mlink_sim.aio.transport.udp import new_event_loop
 
     loop = new_event_loop()
     try:

@@ -42,8 +42,8 @@ def _in_process(path: Path, *, background: bool) -> tuple[list[tuple], int, list
     import asyncio
     import threading
 
-    from mlink_sim.aio.vclock import VirtualEventLoop
-    from mlink_sim.aio.virtual import VirtualSession
+    from mlink_sim.aio.virtual.vclock import VirtualEventLoop
+    from mlink_sim.aio.run.virtual_session import VirtualSession
     from mlink_sim.capture import CaptureWriter
     from mlink_sim.config import load_config
 

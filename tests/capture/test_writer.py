@@ -10,7 +10,7 @@ from pathlib import Path
 import dpkt
 import pytest
 
-from mlink_sim.aio.tapped import tap
+from mlink_sim.aio.transport.tapped import tap
 from mlink_sim.capture import CaptureWriter, event_text, ip_packet, read_capture
 from mlink_sim.capture.tap import TappedSocket, source_address_for
 from mlink_sim.master import StateChanged, StationState

@@ -23,7 +23,7 @@ CARDS = [("si-t3", 32), ("si-t3", 17), ("si-t-v7", 32), ("si-t-v7", 17), ("si-et
 
 class Checked:
     """A master and its card, each command offered to the card's last prediction first, as a slave worker does
-    (mlink_sim.aio.bus): a predicted answer must be the card's own; a poll between commands drops the prediction."""
+    (mlink_sim.aio.slave.bus): a predicted answer must be the card's own; a poll between commands drops the prediction."""
 
     def __init__(self, card: str, size: int) -> None:
         self.m = Master(station(card, params=PARAMS[card], frame_size=size))

@@ -137,7 +137,7 @@ def test_bus_not_detected_without_run_or_reference_from_the_option() -> None:
 
 
 def test_silence_due_is_exactly_when_poll_counts_the_table_22_failure() -> None:
-    """The I/O layer reads waiting commands before a poll that would count silence (aio/slave.py): silence_due
+    """The I/O layer reads waiting commands before a poll that would count silence (aio/slave/server.py): silence_due
     must turn true at the same instant as the SI-T3 Table 22 reception failure, and not before."""
     m = _running("si-t3")
     st, last = m.st, m.now

@@ -9,7 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from mlink_sim.aio.virtual import WALL_META
+from mlink_sim.aio.run.virtual_session import WALL_META
 
 ROOT = Path(__file__).resolve().parents[2]
 QUICKSTART = ROOT / "configs" / "quickstart.toml"

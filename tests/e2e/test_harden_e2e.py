@@ -230,7 +230,7 @@ def test_address_already_in_use_names_the_address(slave) -> None:
 
 LIBRARY_USE = """
 import asyncio, sys
-from mlink_sim.aio.session import NetworkSession
+from mlink_sim.aio.run.session import NetworkSession
 from mlink_sim.config import load_config
 
 async def main(path):

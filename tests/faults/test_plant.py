@@ -147,9 +147,9 @@ def test_torque_step_on_a_fan_load_is_refused():
 
 
 def test_the_plant_control_request_applies_releases_and_refuses_bad_input():
-    """``{"op": "plant"}`` / ``{"op": "release"}`` on a slave's control endpoint (aio/faults.py): a bad request is an
+    """``{"op": "plant"}`` / ``{"op": "release"}`` on a slave's control endpoint (aio/slave/faults.py): a bad request is an
     ``ok: false`` reply naming what is wrong, never an exception."""
-    from mlink_sim.aio.faults import handle_plant_request
+    from mlink_sim.aio.slave.faults import handle_plant_request
 
     b = Bench("si-t3").up()
     plants = PlantFaults()

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from mlink_sim.aio.embed import VirtualNetwork
+from mlink_sim.aio.run.embed import VirtualNetwork
 from mlink_sim.cli.network import up_cmd
 from mlink_sim.config import ConfigError, parse_config
 from mlink_sim.metrics import check_all, parse_assertion
@@ -116,12 +116,12 @@ def test_plugin_methods_on_the_virtual_clock():
 
 
 def test_control_requests_inject_faults_into_a_running_network():
-    """``{"op": "fault"}`` / ``{"op": "recovery"}`` on the control endpoint of a running ``up`` (aio/faults.py):
+    """``{"op": "fault"}`` / ``{"op": "recovery"}`` on the control endpoint of a running ``up`` (aio/run/faults.py):
     the same faults as the timeline, a repeated request (same ``id``) injected once, bad values refused."""
     import asyncio
 
-    from mlink_sim.aio.control import ControlServer
-    from mlink_sim.aio.faults import fault_ops, parse_fault_text
+    from mlink_sim.aio.run.control import ControlServer
+    from mlink_sim.aio.run.faults import fault_ops, parse_fault_text
 
     assert parse_fault_text("load,torque=5,for=1s") == ("load", {"torque": 5, "for": "1s"})
     with VirtualNetwork("faults-master", seed=3) as net:

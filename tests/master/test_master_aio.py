@@ -1,4 +1,4 @@
-"""mlink_sim.aio.master.Master over real UDP on 127.0.0.1 (port 0) against in-test responders built from a slave
+"""mlink_sim.aio.master.runner.Master over real UDP on 127.0.0.1 (port 0) against in-test responders built from a slave
 core. Bounded in time; no fixed ports."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import time
 import pytest
 from master_fakes import MS, CardSlave
 
-from mlink_sim.aio.master import Master
+from mlink_sim.aio.master.runner import Master
 from mlink_sim.master import NetworkPlan, StationAlarmError, StationPlan, StationState
 from mlink_sim.wire import Link
 
@@ -53,14 +53,14 @@ class Recorder:
     def record_cycle_lateness(self, ns, skipped=0): self.cycles += 1
 
 
-async def loopback_scenario(link: Link) -> None:
+async def loopback_scenario(link: Link, batched: bool = True) -> None:
     plan = NetworkPlan(link, TCYCLE, (StationPlan(0x21, link), StationPlan(0x22, link, sync=False)),
                        request_timeout_ns=5_000_000_000, request_retries=20)
     r1, t1 = await responder(link, 0x21, plan.station(0x21).data_size)
     r2, t2 = await responder(link, 0x22, plan.station(0x22).data_size)
     metrics = Recorder()
     master = await Master.start(plan, {0x21: t1.get_extra_info("sockname"), 0x22: t2.get_extra_info("sockname")},
-                                metrics=metrics)
+                                metrics=metrics, batched=batched)
     try:
         await master.bring_up(timeout=5)  # 21H in phase 3, 22H in phase 2 (sync=False)
         assert await master.prm_rd(0x21, 0x0200) == 100
@@ -156,51 +156,18 @@ async def test_events_feed_network_metrics_with_its_counting_rules():
 
 
 @pytest.mark.parametrize("batched", [True, False], ids=["sendmmsg", "sendto"])
-async def test_master_over_loopback_with_and_without_batched_calls(batched, monkeypatch):
-    """The transport with and without sendmmsg/recvmmsg (mlink_sim.aio.mmsg): the same scenario passes either way;
-    the socket is a BurstSocket exactly where the calls are supported and not switched off."""
-    from mlink_sim.aio import mmsg
+async def test_master_over_loopback_with_and_without_batched_calls(batched):
+    """The transport with and without sendmmsg/recvmmsg (mlink_sim.aio.transport.mmsg): the same scenario passes either way;
+    the socket is a BurstSocket exactly where the calls are supported and asked for (``batched``)."""
+    from mlink_sim.aio.transport import mmsg
 
     if batched and mmsg._calls is None:
         pytest.skip("sendmmsg/recvmmsg not available here")
-    monkeypatch.setenv("MLINK_MMSG", "1" if batched else "0")
     plan = NetworkPlan(Link.ML3, TCYCLE, (StationPlan(0x03, Link.ML3),))
-    master = await Master.start(plan, {0x03: ("127.0.0.1", 9)})
+    master = await Master.start(plan, {0x03: ("127.0.0.1", 9)}, batched=batched)
     try:
         assert isinstance(master._sock, mmsg.BurstSocket) is batched
+        assert asyncio.get_running_loop().remove_reader(master._sock.fileno())  # every answer wakes the reader
     finally:
         await master.close(timeout=0.01)
-    await asyncio.wait_for(loopback_scenario(Link.ML3), timeout=20)
-
-
-@pytest.mark.parametrize("stamps", [True, False], ids=["kernel-stamps", "reader"])
-async def test_master_reads_stamped_answers_without_a_reader(stamps, monkeypatch):
-    """With the kernel's receive timestamps (mmsg.stamps_supported, SO_TIMESTAMPNS) the master's socket wakes
-    nobody: the answers are read at the clock's wake-up, in its spin and at each cycle's start, each with the time
-    it came (opt-in: MLINK_RX_STAMPS=1). Without them every answer wakes the reader. The scenario passes
-    either way."""
-    from mlink_sim.aio import mmsg
-
-    monkeypatch.setenv("MLINK_RX_STAMPS", "1" if stamps else "0")
-    if stamps and not mmsg.stamps_enabled():
-        pytest.skip("kernel receive timestamps not supported here")
-    plan = NetworkPlan(Link.ML3, TCYCLE, (StationPlan(0x03, Link.ML3),))
-    master = await Master.start(plan, {0x03: ("127.0.0.1", 9)})
-    try:
-        assert master.stamped is stamps
-        assert asyncio.get_running_loop().remove_reader(master._sock.fileno()) is not stamps
-    finally:
-        await master.close(timeout=0.01)
-    await asyncio.wait_for(loopback_scenario(Link.ML3), timeout=20)
-
-
-async def test_no_stamped_reads_where_the_pre_read_would_fall_in_the_spin(monkeypatch):
-    """At 250 µs a quarter period is inside the clock's spin: the master keeps its reader (as without stamps)."""
-    monkeypatch.setenv("MLINK_RX_STAMPS", "1")
-    plan = NetworkPlan(Link.ML3, 250_000, (StationPlan(0x03, Link.ML3),))
-    master = await Master.start(plan, {0x03: ("127.0.0.1", 9)})
-    try:
-        assert not master.stamped and master._pre is None
-        assert asyncio.get_running_loop().remove_reader(master._sock.fileno())
-    finally:
-        await master.close(timeout=0.01)
+    await asyncio.wait_for(loopback_scenario(Link.ML3, batched), timeout=20)

@@ -369,7 +369,7 @@ def test_netns_testbed_runs_where_the_forward_chain_drops_bridged_frames(ip, ipt
 
 _BACKLOG_READER = """
 import json, socket, sys, time
-from mlink_sim.aio import mmsg
+from mlink_sim.aio.transport import mmsg
 sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 sock.bind((sys.argv[1], 0))
 sock.setblocking(False)
@@ -391,10 +391,10 @@ print(json.dumps({"gro": gro, "reads": reads, "got": got}), flush=True)
 @pytest.mark.netns
 @pytest.mark.parametrize("read", ["gro", "plain"])
 def test_a_workers_backlog_crosses_a_veth_whole_and_in_order(ip, read):
-    """A worker's 124 answers to two cycles (``mlink_sim.aio.sendlayout``: one offloaded send where the kernel takes
+    """A worker's 124 answers to two cycles (``mlink_sim.aio.transport.sendlayout``: one offloaded send where the kernel takes
     128 segments) leave the host over a veth into a namespace, as in a testbed: every datagram arrives, in order;
     a reader with ``UDP_GRO`` reads them in one call."""
-    from mlink_sim.aio import mmsg, sendlayout
+    from mlink_sim.aio.transport import mmsg, sendlayout
 
     if not mmsg.gso_supported():
         pytest.skip("UDP segmentation offload not available here")

@@ -1,0 +1,539 @@
+"""The master on a real network: :class:`~mlink_sim.master.MasterCore` driven by a :class:`CycleTimer` over one UDP
+socket, with awaitable requests (docs/master.md, "Async API").
+
+The I/O here only moves bytes and timestamps; the core decides everything. The master owns a non-blocking UDP
+socket, watched with ``loop.add_reader``: each wake-up reads every datagram waiting (up to a bound), each stamped
+with ``time.monotonic_ns()`` as it is read, and it is also read in the clock's spin and before each cycle's commands,
+so an answer that arrived in time is never counted missing only because the loop was busy with the clock. Where
+:mod:`~mlink_sim.aio.transport.mmsg` is supported the socket is a ``BurstSocket``: the
+cycle's burst goes out in one ``sendmmsg`` and a read takes what is waiting with one ``recvmmsg``; a capture's tap
+keeps those calls (:mod:`~mlink_sim.aio.transport.tapped`), an impairment and the virtual fabric take the per-datagram
+path. Transport errors (``sendto``/``recv`` raising ``OSError``, e.g. ``ConnectionRefusedError`` after an ICMP port
+unreachable) are counted in :attr:`Master.transport_errors`, never raised.
+
+Touches: one UDP socket (through the transport layer), the cycle timer, the master core and its fault stage; a
+capture, when given.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections import Counter
+from collections.abc import Callable, Coroutine
+from typing import Any, Protocol, TypeVar
+
+
+from ..._log import get_logger
+from ...master import (
+    AlarmCleared,
+    AlarmRaised,
+    Control,
+    Late,
+    MasterCore,
+    Missing,
+    NetworkPlan,
+    Recovered,
+    Request,
+    Rtt,
+    RunHeld,
+    RunResumed,
+    StateChanged,
+    StationState,
+    StationView,
+)
+from ...faults import Episode, FaultSpec, FaultStage, MasterFault, StationTraits
+from ...faults.stage import is_healthy
+from ...wire import Link, ml2, ml3
+from ..transport import mmsg
+from ..transport.impaired import ImpairedSocket
+from ..transport.tapped import tap
+from ..timing.ticker import CycleTimer
+from ..transport.udp import bound_socket, close_watched
+
+__all__ = ["Master", "MetricsSink", "NullMetrics", "run"]
+
+T = TypeVar("T")
+_mono = time.monotonic_ns
+_CONNECTED = (StationState.CONNECTING, StationState.PHASE2, StationState.SYNCING, StationState.PHASE3,
+              StationState.ALARM)
+
+
+class MetricsSink(Protocol):
+    """The hooks the master calls (``mlink_sim.metrics.NetworkMetrics`` implements them)."""
+
+    def record_sent(self, station: int) -> None: ...
+
+    def record_rtt(self, station: int, ns: int) -> None: ...
+
+    def record_late(self, station: int) -> None: ...
+
+    def record_missing(self, station: int) -> None: ...
+
+    def record_cycle_lateness(self, ns: int, skipped: int = 0) -> None: ...
+
+    def record_alarm(self, station: int) -> None: ...
+
+
+class NullMetrics:
+    """A :class:`MetricsSink` that records nothing."""
+
+    def record_sent(self, station: int) -> None:
+        pass
+
+    def record_rtt(self, station: int, ns: int) -> None:
+        pass
+
+    def record_late(self, station: int) -> None:
+        pass
+
+    def record_missing(self, station: int) -> None:
+        pass
+
+    def record_cycle_lateness(self, ns: int, skipped: int = 0) -> None:
+        pass
+
+    def record_alarm(self, station: int) -> None:
+        pass
+
+
+_NOTED = (StateChanged, AlarmRaised, AlarmCleared, Recovered, RunHeld, RunResumed)  # a capture's comments
+_READ_BURST = 512  # datagrams read per wake-up at most, so a flood cannot starve the clock
+
+
+class Master:
+    """A running master. Create with ``await Master.start(...)``; stop with ``await master.close()``."""
+
+    def __init__(self, core: MasterCore, endpoints: dict[int, tuple[str, int]], metrics: MetricsSink,
+                 loop: asyncio.AbstractEventLoop) -> None:
+        self.core = core
+        self.endpoints = dict(endpoints)
+        self.metrics = metrics
+        core.on_rtt = metrics.record_rtt  # what _pump would do with an Rtt event, without the event
+        #: a cycle's burst counted sent in one call (NetworkMetrics.record_sent_burst); a sink of its own, which
+        #: need only have record_sent, one command at a time
+        self._count_sent: Callable[[list[tuple[int, bytes]]], None] = getattr(
+            metrics, "record_sent_burst", self._count_sent_one_by_one)
+        self.transport_errors: Counter[str] = Counter()
+        self._loop = loop
+        #: a socket.socket, or what stands in for it: a BurstSocket (batched calls), a capture's TappedSocket, an
+        #: ImpairedSocket, a FabricPort (the virtual clock); only the first has send_burst/recv_burst
+        self._sock: Any = None
+        self._timer: CycleTimer | None = None
+        self._owns_timer = True
+        self.record_lateness = True  #: False for the 2nd+ master on a shared clock (counted once)
+        self._waiters: list[tuple[Callable[[], bool], asyncio.Future[None]]] = []
+        self._pending_missing: dict[int, int] = {}
+        self._note: Callable[[int, Any], None] | None = None  #: a capture's note hook (``capture=``)
+        #: every alarm each station raised (AlarmRaised), by name: what ``expect = "alarm-seen"`` reads
+        self.alarms_seen: dict[int, Counter[str]] = {}
+        #: the master-side faults (mlink_sim.faults.stage), made on the first fault: None costs nothing per cycle
+        self.faults: FaultStage | None = None
+        self._closed = False
+        self._log = get_logger(__name__).bind(component="master", link=core.plan.link.name)
+
+    @staticmethod
+    def _now() -> int:
+        """The time requests are stamped with (a virtual master reads its simulated clock)."""
+        return _mono()
+
+    # ------------------------------------------------------------------ life cycle
+    @classmethod
+    async def start(cls, plan: NetworkPlan, endpoints: dict[int, tuple[str, int]], *,
+                    local: tuple[str, int] = ("127.0.0.1", 0), metrics: MetricsSink | None = None,
+                    loop: asyncio.AbstractEventLoop | None = None, strategy: str = "auto",
+                    rcvbuf: int = 1 << 20, clock: CycleTimer | None = None, catch_up_ns: int = 0,
+                    capture: Any = None, batched: bool = True) -> Master:
+        """Open one UDP socket on *local*, start cycling at ``plan.tcycle_ns``; *endpoints* maps every station
+        address of the plan to the ``(host, port)`` of its slave.
+
+        *clock*: a :class:`CycleTimer` shared with other masters of the same network (one per link), whose
+        callback calls :meth:`on_cycle` of each; the first master records the cycle lateness. Two spinning
+        timers in one loop delay each other, so ``mlink-sim up`` drives every link from one clock.
+
+        *catch_up_ns*: the host-stall policy of its own clock (``CycleTimer``'s ``catch_up_ns``; 0 = strict);
+        stalls are recorded through the metrics' ``stall_recorder`` when it has one.
+
+        *capture*: a :class:`~mlink_sim.capture.CaptureWriter`; every datagram on the socket is recorded and the
+        core's state, alarm and recovery events become notes in it.
+
+        *batched*: the batched calls (``sendmmsg``/``recvmmsg``, :mod:`~mlink_sim.aio.transport.mmsg`) where the kernel
+        has them; False keeps the per-datagram calls (the tests compare both paths that way)."""
+        missing = [f"{sp.address:02X}H" for sp in plan.stations if sp.address not in endpoints]
+        if missing:
+            raise ValueError(f"no UDP endpoint for station(s) {', '.join(missing)}")
+        loop = loop or asyncio.get_running_loop()
+        self = cls(MasterCore(plan), endpoints, metrics if metrics is not None else NullMetrics(), loop)
+        add_stations = getattr(self.metrics, "add_stations", None)
+        if callable(add_stations):
+            add_stations(self.core.addresses)
+        sock = bound_socket(local[0], local[1], rcvbuf)
+        if capture is not None:
+            self._sock, self._note = tap(capture, sock, batched=batched), capture.note  # the batched calls, tapped
+        else:
+            self._sock = mmsg.wrap(sock, batched=batched)  # sendmmsg/recvmmsg where supported (docs/performance.md)
+        if clock is None:
+            recorder = getattr(self.metrics, "stall_recorder", None)
+            self._timer = CycleTimer(plan.tcycle_ns, self._on_cycle, loop=loop, strategy=strategy,
+                                     idle=self.read_one, catch_up_ns=catch_up_ns,
+                                     on_stall=recorder("master") if callable(recorder) else None)
+        else:
+            self._timer, self._owns_timer = clock, False
+        if len(set(self.endpoints.values())) < len(self.endpoints):  # stations share a port (a packed worker)
+            enable_gro = getattr(self._sock, "enable_gro", None)  # its answers come as one burst: one read
+            if enable_gro is not None:
+                enable_gro()
+        loop.add_reader(sock.fileno(), self.read_responses)  # a read on every arrival, stamped as it is read
+        if clock is None:
+            self._timer.start()
+        self._log.info("master_started", local=sock.getsockname(), stations=len(plan.stations),
+                       tcycle_ns=plan.tcycle_ns, strategy=self._timer.strategy)
+        return self
+
+    @property
+    def local_address(self) -> tuple[str, int]:
+        assert self._sock is not None
+        return self._sock.getsockname()[:2]
+
+    @property
+    def timer(self) -> CycleTimer | None:
+        return self._timer
+
+    async def close(self, timeout: float = 1.0) -> None:
+        """DISCONNECT every connected station (waiting up to *timeout* s), then stop cycling and close the socket."""
+        if self._closed:
+            return
+        self._closed = True
+        core = self.core
+        reqs = [core.disconnect(a, timeout_ns=int(timeout * 1e9), now=self._now())
+                for a in core.addresses if core.state(a) in _CONNECTED]
+        if reqs and self._timer is not None and self._timer.running:
+            futs = [self._future(r) for r in reqs]
+            await asyncio.wait(futs, timeout=timeout)
+            for f in futs:  # a station that did not answer is not an error at shutdown: consume its exception
+                f.add_done_callback(_consume)
+        if self._timer is not None and self._owns_timer:
+            self._timer.stop()
+        core.abort_requests("master closed")
+        self._pump()
+        for station in list(self._pending_missing):
+            self.metrics.record_missing(station)
+        self._pending_missing.clear()
+        for _, fut in self._waiters:
+            if not fut.done():
+                fut.set_exception(ConnectionAbortedError("master closed"))
+        self._waiters.clear()
+        sock, self._sock = self._sock, None
+        if sock is not None:
+            close_watched(self._loop, sock)
+        self._log.info("master_closed", transport_errors=dict(self.transport_errors), drops=len(core.drops))
+
+    async def __aenter__(self) -> Master:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+    # ------------------------------------------------------------------ waiting
+    async def wait_until(self, predicate: Callable[[], bool], timeout: float) -> None:
+        """Wait until *predicate()* holds (checked every cycle); ``TimeoutError`` after *timeout* s."""
+        if predicate():
+            return
+        fut: asyncio.Future[None] = self._loop.create_future()
+        entry = (predicate, fut)
+        self._waiters.append(entry)
+        try:
+            await asyncio.wait_for(fut, timeout)
+        finally:
+            if entry in self._waiters:
+                self._waiters.remove(entry)
+
+    async def bring_up(self, timeout: float = 5.0) -> None:
+        """Wait until every station is at its target phase (3, or 2 without ``sync``)."""
+        try:
+            await self.wait_until(self.core.all_at_target, timeout)
+        except TimeoutError:
+            stuck = {f"{a:02X}H": (v.state.value, v.last_error) for a, v in self.core.views().items()
+                     if not v.at_target}
+            raise TimeoutError(f"bring-up not complete after {timeout} s: {stuck}") from None
+
+    # ------------------------------------------------------------------ requests
+    async def request(self, station: int, body: Any, *, sub: bool | None = None,
+                      timeout: float | None = None) -> Any:
+        """Send *body* (a wire command body) and return the decoded response body; raises
+        :class:`~mlink_sim.master.StationAlarmError` or :class:`~mlink_sim.master.RequestTimeout`."""
+        req = self.core.request(station, body, sub=sub, timeout_ns=None if timeout is None else int(timeout * 1e9),
+                                now=self._now())
+        return await self._future(req)
+
+    def _mod(self, station: int) -> Any:
+        return ml3 if self.core.plan.station(station).link is Link.ML3 else ml2
+
+    async def prm_rd(self, station: int, register: int, size: int = 2, *, sub: bool | None = None,
+                     timeout: float | None = None) -> int | bytes:
+        """PRM_RD of MEMOBUS register *register*: an unsigned int for ``size=2``, else the *size* bytes (LSB first)."""
+        r = await self.request(station, self._mod(station).PrmRd(register, size), sub=sub, timeout=timeout)
+        data = bytes(r.parameter[:size])
+        return int.from_bytes(data, "little") if size == 2 else data
+
+    async def prm_wr(self, station: int, register: int, value: int | bytes, size: int = 2, *,
+                     sub: bool | None = None, timeout: float | None = None) -> None:
+        """PRM_WR; an int *value* is written LSB first in *size* bytes (negative: two's complement)."""
+        if isinstance(value, int):
+            data = (value % (1 << (8 * size))).to_bytes(size, "little")
+        else:
+            data = bytes(value)
+        await self.request(station, self._mod(station).PrmWr(register, size, data.ljust(8, b"\0")), sub=sub,
+                           timeout=timeout)
+
+    async def config(self, station: int, mode: int = 0, *, sub: bool = False, timeout: float | None = None) -> None:
+        """CONFIG: 0 = enable written parameters (RAM), 1 = also store to EEPROM (SI-T3 Table 12, SI-ET3 Table 15)."""
+        await self.request(station, self._mod(station).Config(mode), sub=sub, timeout=timeout)
+
+    async def id_rd(self, station: int, code: int, offset: int = 0, size: int = 8, *,
+                    timeout: float | None = None) -> bytes:
+        """ID_RD: *size* bytes of ID *code* (DEVICE_CODE, SI-T3 Table 10 / ID_CODE, SI-ET3 Table 14) from *offset*."""
+        r = await self.request(station, self._mod(station).IdRd(code, offset, size), timeout=timeout)
+        return bytes(r.id[:size])
+
+    async def alm_rd(self, station: int, mode: int = 0, index: int = 0, *, sub: bool = False,
+                     timeout: float | None = None) -> Any:
+        """ALM_RD: the decoded response body (``alm_data`` per SI-T3 Table 14 / SI-ET3 Tables 16/17)."""
+        return await self.request(station, self._mod(station).AlmRd(mode, index), sub=sub, timeout=timeout)
+
+    async def alm_clr(self, station: int, *, timeout: float | None = None) -> None:
+        """ALM_CLR mode 0: clear present faults and alarms (SI-T3 Table 15)."""
+        await self.request(station, self._mod(station).AlmClr(0), timeout=timeout)
+
+    async def disconnect(self, station: int, *, timeout: float | None = None) -> None:
+        """DISCONNECT and keep the station in phase 1 until :meth:`connect`."""
+        req = self.core.disconnect(station, timeout_ns=None if timeout is None else int(timeout * 1e9), now=self._now())
+        await self._future(req)
+
+    def connect(self, station: int) -> None:
+        """Bring a disconnected station up again (use :meth:`bring_up` to wait for it)."""
+        self.core.connect(station)
+
+    def set_control(self, station: int, forward: bool = False, reverse: bool = False, speed_ref: int = 0,
+                    torque_ref: int = 0, **signals: Any) -> Control:
+        """Cyclic INV_CTL contents (see :meth:`MasterCore.set_control`)."""
+        return self.core.set_control(station, forward, reverse, speed_ref, torque_ref, **signals)
+
+    def view(self, station: int) -> StationView:
+        return self.core.view(station)
+
+    def views(self) -> dict[int, StationView]:
+        return self.core.views()
+
+    # ------------------------------------------------------------------ faults (docs/faults.md)
+    def fault_stage(self) -> FaultStage:
+        """The master-side fault stage of this master's stations, made on first use."""
+        if self.faults is None:
+            core, metrics = self.core, self.metrics
+            self.faults = FaultStage(
+                [StationTraits(sp.address, "v7" if sp.is_v7 else "a1000", sp.subcmd) for sp in core.plan.stations],
+                healthy=lambda a, since: is_healthy(core.view(a), since),
+                on_recovery=getattr(metrics, "record_recovery", None),
+                on_unrecovered=getattr(metrics, "record_unrecovered", None))
+        return self.faults
+
+    def inject_fault(self, station: int, fault: MasterFault) -> Episode:
+        """Start the master-side *fault* (silence, skip-cycles, freeze-wdt, bad-command) on *station* now."""
+        self.core.plan.station(station)  # KeyError for a station of another master
+        return self.fault_stage().inject(station, fault, self._now())
+
+    def begin_fault(self, station: int, fault: FaultSpec, end_ns: int | None = None) -> Episode:
+        """A fault applied on the slave side (a drive fault) begins now: its recovery is measured after
+        :meth:`end_fault` (or *end_ns*, a time on this master's clock)."""
+        return self.fault_stage().begin(station, fault, self._now(), end_ns)
+
+    def end_fault(self, episode: Episode) -> None:
+        self.fault_stage().end(episode, self._now())
+
+    def now_ns(self) -> int:
+        """This master's clock (monotonic ns; a virtual master's simulated time)."""
+        return self._now()
+
+    def deliver(self, datagram: bytes, now: int) -> None:
+        """One response for the core, through the fault stage when a fault is in force (a silenced station's is
+        dropped)."""
+        faults = self.faults
+        if faults is not None and faults.active and len(datagram) > 3:
+            kept = faults.to_master(datagram[3], datagram, now)
+            if kept is None:
+                return
+            datagram = kept
+        self.core.on_response(datagram, now)
+
+    def _future(self, req: Request) -> asyncio.Future[Any]:
+        fut: asyncio.Future[Any] = self._loop.create_future()
+
+        def done(r: Request) -> None:
+            if fut.done():
+                return
+            if r.error is not None:
+                fut.set_exception(r.error)
+            else:
+                fut.set_result(r.result)
+
+        req.add_done_callback(done)
+        return fut
+
+    # ------------------------------------------------------------------ hot path
+    def _on_cycle(self, cycle: int, deadline_ns: int, now_ns: int, skipped: int) -> None:
+        metrics = self.metrics
+        if self.record_lateness:
+            metrics.record_cycle_lateness(now_ns - deadline_ns, skipped)
+        sock = self._sock
+        if sock is None:
+            return
+        self.read_responses()  # answers already here belong to the cycle that just ended
+        endpoints = self.endpoints
+        out = self.core.on_cycle(cycle, now_ns)
+        faults = self.faults
+        if faults is not None and faults.active:
+            out = [(s, d) for s, d in ((s, faults.to_station(s, d, now_ns)) for s, d in out) if d is not None]
+        send_burst = getattr(sock, "send_burst", None)
+        if send_burst is not None and len(out) > 1:  # the burst in one sendmmsg (mlink_sim.aio.transport.mmsg)
+            for _, exc in send_burst([(datagram, endpoints[station]) for station, datagram in out]):
+                self._on_error(exc)  # that datagram is lost, the others went
+            self._count_sent(out)
+        else:
+            sendto = sock.sendto
+            for station, datagram in out:
+                try:
+                    sendto(datagram, endpoints[station])
+                except OSError as exc:  # BlockingIOError (send buffer full) included: that datagram is lost
+                    self._on_error(exc)
+                metrics.record_sent(station)
+        self._pump()
+        if faults is not None and faults.watching:
+            faults.after_cycle(now_ns)
+
+    on_cycle = _on_cycle  #: the cycle callback, for a shared clock
+
+    def read_responses(self, limit: int = _READ_BURST) -> None:
+        """Hand the datagrams waiting on the socket (at most *limit*) to the core, each stamped as it is read:
+        the reader callback and the start of each cycle read them all, the clock's spin one at a time. On a
+        :class:`~mlink_sim.aio.transport.mmsg.BurstSocket` one ``recvmmsg`` reads them all, and they share its time."""
+        sock = self._sock
+        if sock is None:
+            return
+        faults = self.faults
+        clean = faults is None or not faults.active
+        on_response = self.core.on_response if clean else self.deliver
+        burst = getattr(sock, "recv_burst", None)
+        if burst is not None:  # recvmmsg: what is waiting in one call, each batch stamped with the time it was read
+            on_batch = self.core.on_responses if clean else self._deliver_all
+            for batch in mmsg.drain(burst, limit, self._on_error):
+                on_batch(batch, _mono())
+            return
+        recv = sock.recv
+        for _ in range(limit):
+            try:
+                data = recv(4096)
+            except BlockingIOError:
+                return
+            except OSError as exc:
+                self._on_error(exc)
+                continue
+            on_response(data, _mono())
+
+    def _deliver_all(self, datagrams: list[bytes], now: int) -> None:
+        """:meth:`deliver` of each of one read's answers (the faults' path of :meth:`read_responses`)."""
+        for datagram in datagrams:
+            self.deliver(datagram, now)
+
+    def _count_sent_one_by_one(self, out: list[tuple[int, bytes]]) -> None:
+        for station, _ in out:
+            self.metrics.record_sent(station)
+
+    def impair_with(self, layer: Any) -> None:
+        """Route this master's datagrams through the impairment *layer* (``aio/transport/impaired.py``) while it has a
+        fault; the socket is unwrapped again once every fault has ended (no cost without impairments)."""
+        sock = self._sock
+        if sock is None or isinstance(sock, ImpairedSocket) or not layer.active:
+            return
+        wrapper: ImpairedSocket
+
+        def unwrap() -> None:
+            if self._sock is wrapper:  # the wrapper stands in for the socket
+                self._sock = wrapper.sock
+
+        wrapper = ImpairedSocket(sock, layer, self._loop, on_ready=self.read_responses, on_error=self._on_error,
+                                 on_idle=unwrap)
+        self._sock = wrapper
+
+    def read_one(self) -> None:
+        """The clock's ``idle`` hook: one datagram at most, so the spin ends close to its deadline."""
+        self.read_responses(1)
+
+    def _on_error(self, exc: Exception) -> None:
+        name = type(exc).__name__
+        self.transport_errors[name] += 1
+        n = self.transport_errors[name]
+        if n & (n - 1) == 0:  # 1, 2, 4, 8 … : visible, not flooding
+            self._log.debug("transport_error", error=name, detail=str(exc), count=n)
+
+    def _pump(self) -> None:
+        """Feed the core's events to metrics and the log; wake waiters."""
+        events = self.core.events
+        if events:
+            metrics = self.metrics
+            pending = self._pending_missing
+            log = self._log
+            note = self._note
+            ev: Any  # dispatched on its exact type below (`t is Rtt` ...: cheaper than isinstance, not narrowed)
+            for ev in self.core.drain_events():
+                t = type(ev)
+                if note is not None and t in _NOTED:
+                    note(self._now(), ev)
+                if t is Rtt:
+                    metrics.record_rtt(ev.station, ev.ns)
+                elif t is Missing:
+                    # Counted once given up for good: a late answer may still come until the next Missing.
+                    old = pending.get(ev.station)
+                    if old is not None:
+                        metrics.record_missing(ev.station)
+                    pending[ev.station] = ev.cycle
+                elif t is Late:
+                    if pending.get(ev.station) == ev.cycle:
+                        del pending[ev.station]
+                        metrics.record_rtt(ev.station, ev.ns)
+                        metrics.record_late(ev.station)
+                elif t is StateChanged:
+                    log.info("station_state", station=f"{ev.station:02X}H", old=ev.old.value, new=ev.new.value)
+                elif t is AlarmRaised:
+                    record_alarm = getattr(metrics, "record_alarm", None)  # a sink of its own may not count them
+                    if record_alarm is not None:
+                        record_alarm(ev.station)
+                    self.alarms_seen.setdefault(ev.station, Counter())[ev.name or f"{ev.code:02X}H"] += 1
+                    log.info("station_alarm", station=f"{ev.station:02X}H", code=ev.code, name=ev.name,
+                                source=ev.source)
+                elif t is AlarmCleared:
+                    log.info("station_alarm_cleared", station=f"{ev.station:02X}H", source=ev.source)
+                elif t is Recovered:
+                    log.info("station_recovered", station=f"{ev.station:02X}H", reason=ev.reason,
+                             after_ms=round(ev.ns / 1e6, 3))
+                elif t is RunHeld:
+                    log.info("run_held", station=f"{ev.station:02X}H", until=ev.until)
+                elif t is RunResumed:
+                    log.info("run_resumed", station=f"{ev.station:02X}H", reason=ev.reason)
+        if self._waiters:
+            for pred, fut in list(self._waiters):
+                if not fut.done() and pred():
+                    fut.set_result(None)
+
+
+def _consume(fut: asyncio.Future[Any]) -> None:
+    if not fut.cancelled():
+        fut.exception()
+
+
+def run(main: Coroutine[Any, Any, T]) -> T:
+    """Run *main* on uvloop when installed, else on asyncio's default loop."""
+    try:
+        import uvloop
+    except ImportError:  # pragma: no cover
+        return asyncio.run(main)
+    return uvloop.run(main)

@@ -1,0 +1,280 @@
+"""Embedding the virtual network: :class:`VirtualNetwork`, a whole network on simulated time that your own
+program steps (co-simulation, long scenarios, protocol tests). No thread, no socket, no wall clock: time moves
+only inside :meth:`~VirtualNetwork.advance` / :meth:`~VirtualNetwork.run_until` and the blocking master calls.
+
+    from mlink_sim.aio.run.embed import VirtualNetwork
+
+    with VirtualNetwork("configs/quickstart.toml", seed=1) as net:   # stations powered up, bring-up done
+        net.run(0x21, hz=30)                                         # forward at 30 Hz (o1-03 units handled)
+        while net.output_hz(0x21) < 29.9:
+            net.step()                                               # one transmission cycle
+        assert net.prm_rd(0x21, 0x0200) == 20                        # PRM_RD C1-01: 2.0 s, 0.1 s units
+        net.advance(60.0)                                            # a simulated minute, in a few seconds
+        print(net.now, net.report()["rtt"]["p99"])
+
+The master API (``prm_rd``, ``prm_wr``, ``send_config``, ``id_rd``, ``alm_rd``, ``alm_clr``, ``disconnect``,
+``reconnect``, ``set_control``, ``run``, ``stop_station``, ``view``) is the real master's, routed per station
+(:class:`~mlink_sim.aio.run.session.NetworkApi`); a request blocks until answered, advancing simulated time meanwhile.
+:meth:`~VirtualNetwork.station` is the card core itself (``snapshot()``: phase, LEDs, alarms, drive, counters).
+
+Touches: no socket, thread or wall clock; a virtual session on a virtual event loop of its own.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from collections.abc import Awaitable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+from ...config import Config, load_config
+from .scenario import CheckResult, Scenario, StationControls, speed_scales
+from .session import NetworkApi, build_report
+from ..virtual.vclock import VirtualEventLoop
+from .virtual_session import VirtualSession
+
+__all__ = ["VirtualNetwork", "NetworkSnapshot", "BringUpFailed"]
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class NetworkSnapshot:
+    """The whole network at one instant of simulated time: what the masters see and what the stations are."""
+
+    t_s: float  #: simulated time, seconds
+    cycle: int  #: number of the last transmission cycle
+    views: dict[int, Any]  #: address -> the master's :class:`~mlink_sim.master.StationView`
+    stations: dict[int, Any]  #: address -> the card's :class:`~mlink_sim.cards.StationSnapshot` (absent while killed)
+
+
+class BringUpFailed(RuntimeError):
+    """A station did not reach its phase within the bring-up timeout (simulated): ``problems`` says which."""
+
+    def __init__(self, problems: list[str]) -> None:
+        super().__init__("network did not come up: " + "; ".join(problems))
+        self.problems = problems
+
+
+class VirtualNetwork(StationControls):
+    """The network of *config* (a :class:`~mlink_sim.config.Config` or a TOML path) on simulated time.
+
+    *seed*: the jitter draws of the network model (``[network] latency`` / ``jitter``). *bring_up*: bring every
+    station to its phase before returning (:class:`BringUpFailed` if one does not get there within
+    *bringup_timeout* simulated seconds); *reset_after_bringup*: the figures then count from there, as
+    ``mlink-sim up`` does. *state_dir*: the cards' EEPROM images, as ``up --state-dir``."""
+
+    def __init__(self, config: Config | str | Path, *, seed: int = 0, bring_up: bool = True,
+                 bringup_timeout: float = 10.0, reset_after_bringup: bool = True,
+                 state_dir: str | Path | None = None) -> None:
+        if isinstance(config, Config):
+            self.config, path = config, Path(config.network.name + ".toml")
+        else:
+            path = Path(config)
+            self.config = load_config(path)
+        self._scales = speed_scales(self.config)
+        self._links = {st.address: st.link for st in self.config.station}
+        self.loop = VirtualEventLoop()
+        self._lock = threading.Lock()  # one caller at a time (``net.aio`` calls come from worker threads)
+        self.session: VirtualSession = self.call(VirtualSession.open(
+            self.config, path, seed=seed, state_dir=Path(state_dir) if state_dir else None))
+        net = self.session.net
+        assert net is not None  # open() builds it
+        self.net: NetworkApi = net
+        self._scenario: tuple[Scenario, asyncio.Task[None]] | None = None
+        self._closed = False
+        self.final_report: dict[str, Any] | None = None
+        if bring_up:
+            problems = self.call(self.session.bring_up(bringup_timeout))
+            if problems:
+                self.close()
+                raise BringUpFailed(problems)
+            if reset_after_bringup:
+                self.session.reset_metrics()
+
+    # ------------------------------------------------------------------ time
+    @property
+    def now(self) -> float:
+        """Simulated time in seconds (0 at power-up, before bring-up)."""
+        return self.loop.clock.now / 1e9
+
+    @property
+    def now_ns(self) -> int:
+        return self.loop.clock.now
+
+    @property
+    def cycle_s(self) -> float:
+        """The transmission cycle in seconds."""
+        return self.config.network.transmission_cycle / 1e9
+
+    def call(self, coro: Awaitable[T]) -> T:
+        """Run *coro* (anything of the async API) to completion on simulated time and return its result."""
+        with self._lock:
+            return self.loop.run_until_complete(coro)
+
+    def run_until(self, t: float) -> None:
+        """Let the network run until simulated time *t* (seconds; nothing happens if it is past)."""
+        self.run_until_ns(round(t * 1e9))
+
+    def run_until_ns(self, t_ns: int) -> None:
+        clock = self.loop.clock
+        if t_ns <= clock.now:
+            return
+        fut = self.loop.create_future()
+        clock.at(t_ns, _resolve, fut)
+        self.call(fut)
+
+    def advance(self, seconds: float) -> None:
+        """Let the network run for *seconds* of simulated time."""
+        self.run_until_ns(self.loop.clock.now + round(seconds * 1e9))
+
+    def step(self, cycles: int = 1) -> None:
+        """Let the network run for *cycles* transmission cycles."""
+        self.run_until_ns(self.loop.clock.now + cycles * self.config.network.transmission_cycle)
+
+    # ------------------------------------------------------------------ the master API
+    def set_control(self, station: int, **fields: Any) -> None:
+        """Cyclic INV_CTL fields (forward, reverse, speed_ref [raw], fault_reset, ef0, …); others stay as set."""
+        self.net.set_control(station, **fields)
+
+    def view(self, station: int) -> Any:
+        """The master's :class:`~mlink_sim.master.StationView` of *station*."""
+        return self.net.view(station)
+
+    def views(self) -> dict[int, Any]:
+        return self.net.views()
+
+    def prm_rd(self, station: int, register: int, size: int = 2) -> Any:
+        return self.call(self.net.prm_rd(station, register, size))
+
+    def prm_wr(self, station: int, register: int, value: int, size: int = 2) -> None:
+        self.call(self.net.prm_wr(station, register, value, size))
+
+    def send_config(self, station: int, mode: int = 0) -> None:
+        """CONFIG (enter the parameters written by PRM_WR; mode 1 also stores them in EEPROM)."""
+        self.call(self.net.config(station, mode))
+
+    def id_rd(self, station: int, code: int, offset: int = 0, size: int = 8) -> bytes:
+        return self.call(self.net.id_rd(station, code, offset, size))
+
+    def alm_rd(self, station: int, mode: int = 0, index: int = 0) -> Any:
+        return self.call(self.net.alm_rd(station, mode, index))
+
+    def alm_clr(self, station: int) -> None:
+        self.call(self.net.alm_clr(station))
+
+    def disconnect(self, station: int) -> None:
+        self.call(self.net.disconnect(station))
+
+    def reconnect(self, station: int, timeout: float = 10.0) -> None:
+        """CONNECT again after a DISCONNECT and wait until the station is back at its phase."""
+        net = self.net
+
+        async def again() -> None:
+            await net.reconnect(station)
+            await net.master(station).wait_until(lambda: net.view(station).at_target, timeout)
+
+        self.call(again())
+
+    def impair(self, station: int | str | None = "all", spec: Any = None, **fields: Any) -> Any:
+        """Start a network impairment on *station* (``"all"``: every station), replacing the one there:
+        *spec* is an :class:`~mlink_sim.impair.Impairment` or its text (``"loss=5%,delay=200us"``), or give its
+        fields (``loss=0.1, for_=2.0``; durations in seconds). Returns the Impairment (docs/faults.md)."""
+        from ...impair import as_impairment, target_station
+
+        impairment = as_impairment(spec, fields)
+        self.session.impair(target_station(station), impairment)
+        return impairment
+
+    def heal(self, station: int | str | None = "all") -> int:
+        """End the network impairments of *station* (``"all"``: of every station); how many ended."""
+        from ...impair import target_station
+
+        return self.session.heal(target_station(station))
+
+    def kill_slave(self, station: int) -> bool:
+        """The station stops answering, as a killed slave process; powered up again 0.5 s later."""
+        return self.net.kill_slave(station)
+
+    # ------------------------------------------------------------------ the stations
+    def station(self, address: int) -> Any:
+        """The card core of *address* (``snapshot()``, ``counters`` …); None while killed."""
+        return self.session.fabric.station(address)
+
+    def snapshots(self) -> dict[int, Any]:
+        """Every station's :class:`~mlink_sim.cards.StationSnapshot` (the slave side), by address."""
+        return {a: node.station.snapshot() for a, node in self.session.fabric.nodes.items()
+                if node.station is not None}
+
+    def snapshot(self) -> NetworkSnapshot:
+        """The master's view and every station's snapshot, now (for a co-simulation step, or a log of states)."""
+        cycle = self.session.cycle
+        return NetworkSnapshot(self.now, cycle.cycle if cycle is not None else -1, self.views(), self.snapshots())
+
+    # ------------------------------------------------------------------ timeline and figures
+    def start_timeline(self) -> None:
+        """Start the config's timeline now ("0 s" of its steps); its actions run as time advances."""
+        scenario = Scenario(self.config, self.net, self._scales)
+        loop = self.loop
+        task = loop.create_task(scenario.run(loop.time(), _sleep_until))
+        self._scenario = (scenario, task)
+
+    def run_timeline(self) -> list[CheckResult]:
+        """Run the timeline to its end (started now unless :meth:`start_timeline` was called); its checks."""
+        if self._scenario is None:
+            self.start_timeline()
+        assert self._scenario is not None
+        scenario, task = self._scenario
+        self.call(asyncio.shield(task))
+        return list(scenario.results)
+
+    def reset_metrics(self) -> None:
+        """Start the figures afresh from now."""
+        self.session.reset_metrics()
+
+    def report(self, assertions: Sequence[Any] = ()) -> dict[str, Any]:
+        """The report as of now (docs/report.md; ``meta.clock`` = ``"virtual"``); after :meth:`close`, the final one."""
+        if self._closed and self.final_report is not None:
+            return self.final_report
+        return self.call(self.session.report(assertions=assertions))
+
+    def close(self) -> dict[str, Any] | None:
+        """DISCONNECT every station, stop; returns the final report (with the timeline's checks). Idempotent."""
+        if self._closed:
+            return self.final_report
+        self._closed = True
+        session = self.session
+        try:
+            if self._scenario is not None:
+                self._scenario[1].cancel()
+            self.call(session.close_masters())
+            for c in self._scenario[0].results if self._scenario else []:
+                session.metrics.record_check(c.at_s, c.what, c.ok, c.detail)
+            self.final_report = build_report(*self.call(session.snapshot()))
+            self.call(session.close())
+        finally:
+            self.loop.close()
+        return self.final_report
+
+    def __enter__(self) -> VirtualNetwork:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return (f"VirtualNetwork({self.config.network.name!r}, {len(self.config.station)} stations, "
+                f"t={self.now:.6f} s{', closed' if self._closed else ''})")
+
+
+def _resolve(fut: asyncio.Future[None]) -> None:
+    if not fut.done():
+        fut.set_result(None)
+
+
+async def _sleep_until(when: float) -> None:
+    delay = when - asyncio.get_running_loop().time()
+    if delay > 0:
+        await asyncio.sleep(delay)

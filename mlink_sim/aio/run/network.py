@@ -1,0 +1,404 @@
+"""Running a whole network: slave workers (``up``), one master per link, the timeline, live status, the report.
+
+``mlink-sim up`` = :func:`run_up` (starts the slave workers, then :func:`run_network`);
+``mlink-sim master`` = :func:`run_network` against endpoints elsewhere.
+
+Touches: the process's signal handlers (SIGINT, SIGTERM) while it runs, stdout (the status, the summary), stderr
+(notices), the report file; everything else through the session.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import os
+import signal
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+
+from ... import _accel
+from ..._log import get_logger
+from ...config import Config, TimelineStep, format_ns
+from ...metrics import write_report
+from .control import ControlServer, impairment_ops
+from .faults import fault_ops
+from .scenario import CheckResult, Scenario, speed_scales
+from .session import EndpointError, NetworkSession, build_plans
+from .status import LiveStatus, StatusInfo, WorstP99, render_lines
+from .supervisor import resolve_workers
+from .virtual_session import VirtualSession
+
+__all__ = ["RunOptions", "RunOutcome", "Verdict", "SIGNAL_EXIT", "EndpointError", "run_up", "run_network",
+           "build_plans", "cut_by_duration"]
+
+log = get_logger("mlink_sim.network")
+
+
+@dataclasses.dataclass
+class RunOptions:
+    """How a run behaves (command-line flags of ``up`` / ``master``)."""
+
+    config_path: Path
+    duration_ns: int | None = None  #: stop after this long (from the end of bring-up); None = the timeline's end
+    report_path: Path | None = None  #: write the JSON report here (atomically)
+    assertions: Sequence[Any] = ()  #: parsed --assert expressions
+    status: bool = True  #: live status on stdout
+    bringup_timeout_s: float = 10.0
+    include_bringup: bool = False  #: False: the report's figures count from the end of bring-up
+    #: worker processes of the slaves (up): a number, "auto" (one per station up to max(2, CPUs − 1) stations, else
+    #: CPUs − 1 processes) or "station" (one process per station); see ``supervisor.resolve_workers``
+    workers: int | str = "auto"
+    state_dir: Path | None = None  #: EEPROM images of the slaves (up)
+    run_dir: Path | None = None  #: worker logs (up); default a temporary directory
+    restart_slaves: bool = True  #: restart a worker that died (up)
+    log_json: bool = False  #: notices on stderr as JSON log lines (--log-json)
+    #: "real" (slave processes, UDP, the wall clock) or "virtual" (one process, in-memory network, simulated time;
+    #: the loop must be a ``vclock.VirtualEventLoop``), docs/virtual-time.md
+    clock: str = "real"
+    seed: int = 0  #: every random draw: the impairments' (docs/faults.md), the virtual network model's jitter
+    realtime: bool = False  #: SCHED_FIFO, locked memory, the clock on a CPU of its own, where permitted (CLI: on)
+    capture: Any = None  #: a started CaptureWriter recording every datagram of the masters (``--capture``)
+    #: ``--control HOST:PORT``: answer control requests (impair, heal, faults) while running (aio/run/control.py)
+    control: tuple[str, int] | None = None
+
+
+@dataclasses.dataclass
+class RunOutcome:
+    exit_code: int
+    report: dict[str, Any]
+    checks: list[CheckResult]
+    problems: list[str]
+
+
+async def _sleep_until(when: float) -> None:
+    loop = asyncio.get_running_loop()
+    delay = when - loop.time()
+    if delay > 0:
+        await asyncio.sleep(delay)
+
+
+async def run_up(config: Config, opts: RunOptions) -> RunOutcome:
+    """Start the slave worker processes (``--workers``: one per station, or packed), then run the network against
+    them."""
+    return await _run(config, opts, None)
+
+
+async def run_network(config: Config, endpoints: dict[int, tuple[str, int]], opts: RunOptions) -> RunOutcome:
+    """Start one master per link against *endpoints* (slaves started elsewhere) and run the network."""
+    return await _run(config, opts, endpoints)
+
+
+#: Exit status of a run ended by a signal: 128 + the signal number, as a shell reports a process it killed.
+SIGNAL_EXIT = {signal.SIGINT: 130, signal.SIGTERM: 143}
+
+
+async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str, int]] | None) -> RunOutcome:
+    """Bring the stations up, run the timeline with the live status until its end / --duration / a signal, then
+    DISCONNECT, write the report, evaluate the assertions and print the summary.
+
+    SIGINT / SIGTERM end the run in order (DISCONNECT, workers stopped, report written) with exit 130 / 143 and
+    "interrupted" in the summary and in ``meta.interrupted``; the timeline steps that did not begin are listed as
+    not run (``meta.not_run``).
+
+    The phases, in order: the workers (:func:`_workers`), the session and its control endpoint (:func:`_open`),
+    the bring-up (:func:`_bring_up`), the timeline with the live status (:func:`_timeline`), the report
+    (:func:`_report`), the close (:func:`_close`, whatever happened before) and the verdict (:func:`_verdict`)."""
+    run = _Run(config, opts, asyncio.get_running_loop())
+    log.info("cores", mode=_accel.MODE, detail=_accel.REASON)  # compiled or pure (docs/performance.md)
+    run.catch_signals()
+    session_cls, workers = _workers(run, endpoints)
+    length = opts.duration_ns if opts.duration_ns is not None else config.run_length_ns
+    cut = cut_by_duration(config, opts.duration_ns)
+    if cut:
+        _notice(opts, "steps_cut", f"warning: --duration {format_ns(opts.duration_ns or 0)} ends the run before "
+                f"{len(cut)} timeline step(s), which will not run: {'; '.join(s.describe for s in cut)}")
+    scales = speed_scales(config)  # now, not in the event loop once it keeps time
+    run.status = LiveStatus() if opts.status else None
+    try:
+        session = await _open(run, session_cls, endpoints, workers)
+        stopper = run.loop.create_task(run.stop.wait())
+        await _bring_up(run, session, stopper)
+        assert session.net is not None
+        scenario = Scenario(config, session.net, scales)
+        capture = opts.capture
+        if capture is not None:  # the timeline's actions (runs, writes, injected faults) as capture comments
+            scenario.note = lambda text: capture.note(int(run.loop.time() * 1e9), text)
+        if not run.stop.is_set():
+            await _timeline(run, session, scenario, stopper, length)
+        stopper.cancel()
+        report = await _report(run, session, scenario)
+    finally:
+        await _close(run)
+    return _verdict(run, report, scenario, session.problems, cut)
+
+
+@dataclasses.dataclass
+class _Run:
+    """What the phases of one run share: the loop, the stop a signal asks for, and what the close must release."""
+
+    config: Config
+    opts: RunOptions
+    loop: asyncio.AbstractEventLoop
+    stop: asyncio.Event = dataclasses.field(default_factory=asyncio.Event)
+    caught: list[signal.Signals] = dataclasses.field(default_factory=list)  #: the signal that ended the run
+    status: LiveStatus | None = None
+    control: ControlServer | None = None
+    session: NetworkSession | None = None
+
+    def catch_signals(self) -> None:
+        """SIGINT / SIGTERM set :attr:`stop` (the first one is kept for the exit status); :func:`_close` removes
+        the handlers."""
+        for sig in SIGNAL_EXIT:
+            self.loop.add_signal_handler(sig, self._on_signal, sig)
+
+    def _on_signal(self, sig: signal.Signals) -> None:
+        if not self.caught:
+            self.caught.append(sig)
+            log.info("signal", signal=sig.name)
+        self.stop.set()
+
+
+def _workers(run: _Run, endpoints: dict[int, tuple[str, int]] | None) -> tuple[type[NetworkSession], int | None]:
+    """Which session runs the network and how many slave worker processes it starts: the virtual clock's session
+    (no processes), none for ``mlink-sim master`` (*endpoints* given: the slaves run elsewhere), else the
+    ``--workers`` choice, with a notice when "auto" packs the stations."""
+    config, opts = run.config, run.opts
+    if opts.clock == "virtual":
+        return VirtualSession, None
+    if endpoints is not None:
+        return NetworkSession, None
+    workers = resolve_workers(opts.workers, len(config.station))
+    if opts.workers == "auto" and workers is not None:
+        _notice(opts, "workers_packed", f"note: {len(config.station)} stations on {os.cpu_count() or 1} CPUs: "
+                f"hosted in {workers} slave process(es), so the master's clock keeps a CPU (--workers station: "
+                "one process per station; docs/performance.md)")
+    return NetworkSession, workers
+
+
+async def _open(run: _Run, session_cls: type[NetworkSession], endpoints: dict[int, tuple[str, int]] | None,
+                workers: int | None) -> NetworkSession:
+    """Open the session (the workers, one master per link) and, with ``--control``, the control endpoint."""
+    opts = run.opts
+    session = run.session = await session_cls.open(
+        run.config, opts.config_path, endpoints=endpoints, workers=workers, state_dir=opts.state_dir,
+        run_dir=opts.run_dir, restart_slaves=opts.restart_slaves, realtime=opts.realtime, capture=opts.capture,
+        seed=opts.seed)
+    if session.realtime_granted:
+        _notice(opts, "realtime", "realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items()))
+    if opts.control is not None:
+        run.control = ControlServer({**impairment_ops(session), **fault_ops(session)})
+        host, port = await run.control.start(*opts.control)
+        _notice(opts, "control", f"control: {host}:{port} (mlink-sim control {host}:{port} "
+                                 "impair|heal|faults|fault|recovery)")
+    return session
+
+
+async def _bring_up(run: _Run, session: NetworkSession, stopper: asyncio.Task[Any]) -> None:
+    """Wait for every station to reach its phase (or the bring-up timeout), or for a signal (*stopper*)."""
+    bring = run.loop.create_task(session.bring_up(run.opts.bringup_timeout_s))
+    done, _ = await asyncio.wait({bring, stopper}, return_when=asyncio.FIRST_COMPLETED)
+    if bring not in done:
+        bring.cancel()
+        await asyncio.gather(bring, return_exceptions=True)
+
+
+async def _timeline(run: _Run, session: NetworkSession, scenario: Scenario, stopper: asyncio.Task[Any],
+                    length: int | None) -> None:
+    """Run the timeline with the live status from the end of bring-up until its end (*length*), --duration or a
+    signal (*stopper*)."""
+    config, opts, loop, status = run.config, run.opts, run.loop, run.status
+    session.not_up()
+    log.info("network_up", stations=len(config.station))
+    if not opts.include_bringup:
+        session.reset_metrics()  # the report is about the running network, not five processes starting
+    t0 = loop.time()
+    tasks = [loop.create_task(scenario.run(t0, _sleep_until))]
+    frame = _framer(config, session, scenario, t0, length)
+    if status is not None:
+        status.start()
+        tasks.append(loop.create_task(_status_loop(status, frame)))
+    end = loop.create_task(_sleep_until(t0 + length / 1e9)) if length is not None else None
+    waiters = {stopper} | ({end} if end else set())
+    if end is None and not config.timeline:
+        _notice(opts, "no_end", "running until Ctrl-C (no timeline, no --duration)")
+    await asyncio.wait(waiters, return_when=asyncio.FIRST_COMPLETED)
+    for task in [*tasks, *waiters]:
+        task.cancel()
+    await asyncio.gather(*tasks, return_exceptions=True)
+    session.problems.extend(scenario.action_errors)
+    if status is not None:
+        status.stop(frame())
+
+
+async def _report(run: _Run, session: NetworkSession, scenario: Scenario) -> dict[str, Any]:
+    """The slaves' last figures, DISCONNECT (while the slaves still run), the timeline's checks, the report."""
+    await session.refresh_slave_stats()
+    await session.close_masters()
+    scenario.results[:] = scenario.results_naming_stalls(session.metrics.stalls)
+    for c in scenario.results:
+        session.metrics.record_check(c.at_s, c.what, c.ok, c.detail)
+    interrupted = run.caught[0].name if run.caught else None
+    return await session.report(assertions=run.opts.assertions, slave_stats=False, extra_meta={
+        "interrupted": interrupted, "not_run": [s.describe for s in scenario.not_run()]})
+
+
+async def _close(run: _Run) -> None:
+    """Release what the run holds, whatever happened before: the control endpoint, the live status, the session
+    (its workers), the capture, the signal handlers."""
+    if run.control is not None:
+        run.control.close()
+    if run.status is not None:
+        run.status.stop()
+    if run.session is not None:
+        await run.session.close()
+    capture = run.opts.capture
+    if capture is not None:  # in a thread on the wall clock; in place on the virtual clock, whose loop would
+        # busy-poll (and fight the closing thread for the GIL) while it waits for a thread
+        closed = capture.close() if run.opts.clock == "virtual" else await run.loop.run_in_executor(None, capture.close)
+        print(closed.summary(), file=sys.stderr)
+    for sig in SIGNAL_EXIT:
+        run.loop.remove_signal_handler(sig)
+
+
+def _verdict(run: _Run, report: dict[str, Any], scenario: Scenario, problems: list[str],
+             cut: list[TimelineStep]) -> RunOutcome:
+    """Write the report, judge the run (:class:`Verdict`), print the summary."""
+    if run.opts.report_path is not None:
+        write_report(run.opts.report_path, report)
+    verdict = Verdict.of(scenario, report, problems, run.caught[0] if run.caught else None, cut)
+    _print_summary(run.config, report, scenario, verdict, problems, run.opts)
+    return RunOutcome(verdict.exit_code, report, scenario.results, problems)
+
+
+def _notice(opts: RunOptions, event: str, text: str) -> None:
+    """A message for the user on stderr: plain text, or a JSON log line with ``--log-json`` (stderr then carries
+    JSON lines only)."""
+    if opts.log_json:
+        log.warning(event, message=text)
+    else:
+        print(text, file=sys.stderr, flush=True)
+
+
+def cut_by_duration(config: Config, duration_ns: int | None) -> list[TimelineStep]:
+    """The timeline steps a ``--duration`` of *duration_ns* ends the run before (in order of time)."""
+    if duration_ns is None:
+        return []
+    return [s for s in sorted(config.timeline, key=lambda s: s.at) if s.at >= duration_ns]
+
+
+_Signal = signal.Signals  # for the annotations inside Verdict, whose field `signal` hides the module there
+
+
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """The run's outcome in one place, so the summary line and the exit status can never disagree."""
+
+    failed_checks: int
+    failed_asserts: int
+    unreached: int  #: stations that never reached their phase
+    not_run: int  #: timeline steps that never began
+    checks_not_run: int
+    held: int  #: checks and assertions that held
+    signal: signal.Signals | None
+
+    @classmethod
+    def of(cls, scenario: Scenario, report: dict[str, Any], problems: list[str], sig: _Signal | None,
+           cut: list[TimelineStep]) -> Verdict:
+        asserts = report.get("assertions", [])
+        not_run = scenario.not_run()
+        return cls(
+            failed_checks=sum(not c.ok for c in scenario.results),
+            failed_asserts=sum(not a.get("ok") for a in asserts),
+            unreached=sum("did not reach" in p for p in problems),
+            not_run=len(not_run),
+            checks_not_run=sum(s.expect is not None for s in not_run),
+            held=sum(c.ok for c in scenario.results) + sum(bool(a.get("ok")) for a in asserts),
+            signal=sig,
+        )
+
+    @property
+    def exit_code(self) -> int:
+        if self.signal is not None:
+            return SIGNAL_EXIT[self.signal]
+        return 1 if self.failed_checks or self.failed_asserts or self.unreached else 0
+
+    def line(self, duration_ns: int | None) -> str:
+        parts = []
+        if self.signal is not None:
+            parts.append(f"interrupted by {self.signal.name}")
+        failed = self.failed_checks + self.failed_asserts
+        if failed:
+            parts.append(f"{failed} check(s) failed")
+        if self.unreached:
+            parts.append(f"{self.unreached} station(s) did not come up")
+        if self.not_run:
+            why = "" if self.signal is not None else f" (--duration {format_ns(duration_ns or 0)} ended the run)"
+            parts.append(f"{self.not_run} timeline step(s) not run{why}")
+        if not parts and self.held:
+            return "all checks held"
+        if not parts:
+            return "run complete (no checks in the timeline, no --assert)"
+        return "; ".join(parts) + (f"; {self.held} check(s) held" if self.held else "")
+
+
+def _framer(config: Config, session: NetworkSession, scenario: Scenario, t0: float,
+            length: int | None) -> Callable[[], list[str]]:
+    """A function drawing the current status frame (docs/timing.md: bounded work per call)."""
+    loop = asyncio.get_running_loop()
+    p99 = WorstP99()
+    assert session.net is not None
+
+    def frame() -> list[str]:
+        step = scenario.current
+        return render_lines(StatusInfo(
+            config=config, net=session.net, metrics=session.metrics, scales=scenario.scales,
+            elapsed_s=loop.time() - t0, total_s=None if length is None else length / 1e9,
+            step=step.describe if step else None, p99_ns=p99.step(session.metrics)))
+
+    return frame
+
+
+async def _status_loop(status: LiveStatus, frame: Callable[[], list[str]]) -> None:
+    while True:
+        await asyncio.sleep(status.interval)
+        status.show(frame())
+
+
+def _print_summary(config: Config, report: dict[str, Any], scenario: Scenario, verdict: Verdict,
+                   problems: list[str], opts: RunOptions) -> None:
+    out = sys.stdout
+    rtt = report.get("rtt", {})
+    print(f"\n== {config.network.name}: {len(config.station)} stations, "
+          f"{format_ns(config.network.transmission_cycle)} cycle, {report['meta']['duration_s']:.1f} s ==", file=out)
+    if rtt.get("count"):
+        print(f"rtt p50 {format_ns(rtt['p50'])}  p99 {format_ns(rtt['p99'])}  max {format_ns(rtt['max'])}  "
+              f"({rtt['count']} responses); missed cycles {report.get('missed', 0)}, "
+              f"missing responses {report.get('missing', 0)}, late {report.get('late', 0)}", file=out)
+    injected = [f"{key} " + ", ".join(f"{n} {kind}" for kind, n in st["injected"].items() if n)
+                for key, st in report.get("station", {}).items() if any(st.get("injected", {}).values())]
+    if injected:  # docs/faults.md: what was done on purpose, next to what the stations reported
+        print("injected: " + "; ".join(injected), file=out)
+    host = report.get("host")
+    if host:
+        st = host["stall"]
+        bound = f"absorbs up to {format_ns(host['bound'])}" if host["policy"] == "absorb" else "strict"
+        print(f"host stalls {st['count']}, longest {format_ns(st['max'])}, {st['cycles']} cycles delayed: "
+              f"{st['absorbed']} run late, {st['lost']} lost (policy {bound})", file=out)
+    for c in scenario.results:
+        print(f"  {'ok  ' if c.ok else 'FAIL'} {c.what}: {c.detail}", file=out)
+    for step in scenario.not_run():
+        print(f"  --   {step.describe}: not run", file=out)
+    for r in report.get("assertions", []):
+        print(f"  {'ok  ' if r.get('ok') else 'FAIL'} assert {r.get('message') or r.get('text')}", file=out)
+    for p in problems:
+        print(f"  note {p}", file=out)
+    meta = report["meta"]
+    wall = meta.get("wall")
+    if meta.get("clock") == "virtual" and isinstance(wall, dict):
+        print(f"virtual clock (seed {meta.get('seed')}): {wall['simulated_s']:.1f} s simulated in "
+              f"{wall['elapsed_s']:.2f} s wall, {wall['speedup'] or 0:g}x real time", file=out)
+    line = verdict.line(opts.duration_ns)
+    print(line + (f"; report: {opts.report_path}" if opts.report_path else ""), file=out, flush=True)

@@ -1,0 +1,516 @@
+"""A running network as one object: slave workers (optional), one master per link, live metrics, the report.
+
+``mlink-sim up`` / ``mlink-sim master`` (:mod:`mlink_sim.aio.run.network`) and the pytest plugin
+(:mod:`mlink_sim.testing`) are both thin drivers of :class:`NetworkSession`::
+
+    session = await NetworkSession.open(config, config_path=path)   # workers + masters, cycling
+    await session.bring_up(timeout=10)                               # every station at its phase
+    await session.net.prm_rd(0x21, 0x0180)                           # the master API, routed per station
+    report = await session.report()                                  # live figures (docs/report.md)
+    await session.close()                                            # DISCONNECT, stop masters and workers
+
+Touches: the worker processes (through the supervisor), one master per link, the slave workers' stats endpoints, the
+run directory; real-time scheduling where asked.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import tempfile
+import time
+from collections.abc import Sequence
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any, Self
+
+
+from ..._log import get_logger
+from ...config import Config
+from ...metrics.stalls import StallLog
+from ...wire import Link
+from ..master.runner import Master
+from ..timing.heap import settle_heap
+from ..timing.realtime import MASTER_PRIORITY, apply
+from ..timing.realtime import cpu_plan as rt_cpu_plan
+from ..timing.realtime import format_cpus as rt_format_cpus
+from ..timing.ticker import CycleTimer
+from ..transport.udp import bind_address_for, resolve
+from .control import query_control
+from .faults import FaultControl
+from .scenario import restart_profile
+from .supervisor import Worker, WorkerError, WorkerSpec, plan_workers
+
+__all__ = ["NetworkSession", "NetworkApi", "EndpointError", "build_plans", "build_report"]
+
+log = get_logger("mlink_sim.session")
+
+
+class EndpointError(ValueError):
+    """A station endpoint that cannot be used (unresolvable host name)."""
+
+
+def build_plans(config: Config) -> dict[Link, Any]:
+    """One :class:`~mlink_sim.master.plan.NetworkPlan` per link present in the config."""
+    from ...master.plan import NetworkPlan, StationPlan
+
+    by_link: dict[Link, list[Any]] = {}
+    for st in config.station:
+        assert st.link is not None
+        plan = StationPlan(
+            address=st.address,
+            link=st.link,
+            data_size=st.frame_size or 0,
+            com_tim=st.com_tim or 0,
+            sync=st.sync,
+            subcmd=bool(st.subcmd),  # the config's validation fills it in
+            name=st.name or "",
+            card=st.card,
+            et3_syncmode_table19=bool(st.options.get("et3_syncmode_table19", False)),
+            **restart_profile(st),
+        )
+        by_link.setdefault(st.link, []).append(plan)
+    return {
+        link: NetworkPlan(link=link, tcycle_ns=config.network.transmission_cycle, stations=tuple(stations),
+                          answer_window_ns=config.network.absorb_ns)
+        for link, stations in by_link.items()
+    }
+
+
+
+class NetworkApi:
+    """The master API of a whole network: every call is routed to the master of the station's link.
+
+    Keeps each station's INV_CTL fields, so that a partial update (``set_control(0x21, ef0=True)``) leaves the
+    other fields as they were. Implements the scenario's ``NetworkHandle``."""
+
+    def __init__(self, config: Config, masters: dict[Link, Any], workers: dict[int, Worker]) -> None:
+        self.network_config = config
+        self.masters = masters
+        self.workers = workers
+        # the config's validation fills every station's link in
+        self.by_station = {st.address: masters[st.link] for st in config.station}  # type: ignore[index]
+        self._controls: dict[int, dict[str, Any]] = {st.address: {} for st in config.station}
+        self.fault_control = FaultControl(self)  #: station, master and drive faults (docs/faults.md)
+
+    def master(self, station: int) -> Any:
+        """The :class:`~mlink_sim.aio.master.runner.Master` serving *station*."""
+        return self.by_station[station]
+
+    def view(self, station: int) -> Any:
+        """The master's :class:`~mlink_sim.master.StationView` of *station* (state, phase, status, alarms …)."""
+        return self.by_station[station].view(station)
+
+    def alarms_seen(self, station: int) -> dict[str, int]:
+        """Every alarm *station* raised so far, as the master saw it: name -> how many times."""
+        return dict(self.by_station[station].alarms_seen.get(station, {}))
+
+    def views(self) -> dict[int, Any]:
+        out: dict[int, Any] = {}
+        for m in self.masters.values():
+            out.update(m.views())
+        return out
+
+    def control(self, station: int) -> dict[str, Any]:
+        return dict(self._controls[station])
+
+    def set_control(self, station: int, **fields: Any) -> None:
+        """Update the cyclic INV_CTL fields of *station* (forward, reverse, speed_ref, fault_reset, ef0 …)."""
+        merged = self._controls[station]
+        merged.update(fields)
+        self.by_station[station].set_control(station, **merged)
+
+    async def prm_rd(self, station: int, register: int, size: int = 2) -> Any:
+        return await self.by_station[station].prm_rd(station, register, size)
+
+    async def prm_wr(self, station: int, register: int, value: int, size: int = 2) -> Any:
+        return await self.by_station[station].prm_wr(station, register, value, size=size)
+
+    async def config(self, station: int, mode: int = 0) -> Any:
+        return await self.by_station[station].config(station, mode)
+
+    async def id_rd(self, station: int, code: int, offset: int = 0, size: int = 8) -> Any:
+        return await self.by_station[station].id_rd(station, code, offset, size)
+
+    async def alm_rd(self, station: int, mode: int = 0, index: int = 0) -> Any:
+        return await self.by_station[station].alm_rd(station, mode, index)
+
+    async def alm_clr(self, station: int) -> Any:
+        return await self.by_station[station].alm_clr(station)
+
+    async def disconnect(self, station: int) -> Any:
+        return await self.by_station[station].disconnect(station)
+
+    async def reconnect(self, station: int) -> Any:
+        self.by_station[station].connect(station)
+
+    #: the session that owns the impairment layer (``impair``/``heal``), set by it
+    faults: Any = None
+
+    def impair(self, station: int | None, spec: Any) -> None:
+        """Start the network impairment *spec* (an :class:`~mlink_sim.impair.Impairment`) on *station* (None:
+        every station), replacing the one there (docs/faults.md)."""
+        self._faults().impair(station, spec)
+
+    def heal(self, station: int | None = None) -> int:
+        """End every network impairment of *station* (None: of every station); returns how many ended."""
+        return self._faults().heal(station)
+
+    def _faults(self) -> Any:
+        if self.faults is None:
+            raise RuntimeError("this network has no impairment layer")
+        return self.faults
+
+    def kill_slave(self, station: int) -> bool:
+        worker = self.workers.get(station)
+        if worker is None:
+            return False
+        log.warning("killing_slave", station=f"{station:#04x}", pid=worker.pid)
+        worker.kill()
+        return True
+
+    async def fault(self, station: int, fault: Any) -> Any:
+        """Start *fault* (a :mod:`mlink_sim.faults.spec` value) on *station* now; returns its
+        :class:`~mlink_sim.faults.Episode` (recovery measured after its end). Drive faults need the slaves of
+        ``up`` or the virtual clock (:class:`~mlink_sim.aio.slave.faults.PlantError` otherwise)."""
+        return await self.fault_control.inject(station, fault)
+
+
+def _local_target(host: str) -> str:
+    return {"0.0.0.0": "127.0.0.1", "::": "::1", "": "127.0.0.1"}.get(host, host)
+
+
+class NetworkSession:
+    """One running network. Build with :meth:`open`; always :meth:`close` (also after an exception).
+
+    With ``endpoints=None`` the session starts the slaves itself (``mlink-sim up``: one worker process per
+    station, or ``workers`` groups); otherwise it runs only the masters against *endpoints*
+    (``mlink-sim master``)."""
+
+    def __init__(self, config: Config, config_path: Path, *, workers: int | None = None,
+                 state_dir: Path | None = None, run_dir: Path | None = None, restart_slaves: bool = True,
+                 problems: list[str] | None = None, realtime: bool = False, capture: Any = None,
+                 seed: int = 0) -> None:
+        from ...impair import ImpairmentLayer
+        from ...metrics import NetworkMetrics
+
+        self.capture = capture  #: a CaptureWriter recording every master socket (``--capture``), or None
+        self.config = config
+        self.config_path = Path(config_path)
+        self.metrics = NetworkMetrics(config.network.transmission_cycle)
+        self.metrics.stalls = StallLog(config.network.host_stalls, config.network.absorb_ns)
+        self.metrics.stalls.reset(time.monotonic_ns())
+        self.problems: list[str] = problems if problems is not None else []
+        self.masters: dict[Link, Any] = {}
+        self.worker_list: list[Worker] = []
+        self.workers: dict[int, Worker] = {}
+        self.net: NetworkApi | None = None
+        self._clock: CycleTimer | None = None
+        self._cycle_callbacks: list[Any] = []
+        self.started_wall = datetime.now(UTC)
+        self._cpu0 = time.process_time()
+        self._wall0 = time.monotonic()
+        self._span0, self._span_wall, self._measured_from = self._clock_s(), self.started_wall, "start"
+        self._n_workers = workers
+        self._state_dir = state_dir
+        self.run_dir = run_dir
+        self._restart = restart_slaves
+        self.realtime = realtime  #: SCHED_FIFO / mlockall / CPUs where permitted (aio/timing/realtime.py)
+        #: (master CPUs, worker CPUs), planned once, before the master takes its CPU: a worker restarted later
+        #: would otherwise inherit the master's one CPU and plan itself onto it.
+        self.cpus = rt_cpu_plan() if realtime else None
+        self.realtime_granted: dict[str, str] = {}  #: process -> what it was granted
+        self._restart_tasks: set[asyncio.Task[Any]] = set()
+        self._stopping = False
+        self._closed = False
+        self.seed = seed
+        #: network impairments between the masters and the stations (docs/faults.md); seeded by *seed*
+        self.impairments = ImpairmentLayer(seed=seed, listener=self._on_fault)
+
+    # ------------------------------------------------------------------ faults
+    def _now_ns(self) -> int:
+        """Now on the session's clock (real: ``time.monotonic_ns``)."""
+        return time.monotonic_ns()
+
+    def impair(self, station: int | None, spec: Any) -> None:
+        """Start *spec* (an :class:`~mlink_sim.impair.Impairment`) on *station* (None: every station, each on its
+        own, so that a later ``impair`` or ``heal`` of one station replaces or ends it there)."""
+        now = self._now_ns()
+        for address in [st.address for st in self.config.station] if station is None else [station]:
+            self.impairments.impair(spec, address, now)
+        self._route_impairments()
+
+    def heal(self, station: int | None = None) -> int:
+        """End the network impairments of *station* (None: all); returns how many ended."""
+        return self.impairments.heal(station, self._now_ns(), groups=("impair",))
+
+    def _route_impairments(self) -> None:
+        """Put the masters' sockets behind the layer while it has a fault (the virtual fabric reads it itself)."""
+        for master in self.masters.values():
+            master.impair_with(self.impairments)
+
+    def _on_fault(self, event: str, station: int | None, group: str, now: int) -> None:
+        who = "every station" if station is None else f"station {station:02X}H"
+        log.info("fault_" + event, station=who, fault=group)
+        if self.capture is not None:
+            self.capture.note(now, f"{group} {'started' if event == 'start' else 'ended'}: {who}")
+
+    # ------------------------------------------------------------------ life cycle
+    @classmethod
+    async def open(cls, config: Config, config_path: Path | str, *,
+                   endpoints: dict[int, tuple[str, int]] | None = None, **kwargs: Any) -> Self:
+        """Start the slaves (unless *endpoints* is given) and one cycling master per link.
+
+        Raises :class:`~mlink_sim.aio.run.supervisor.WorkerError` (a slave did not start) or :class:`EndpointError`
+        (an endpoint name does not resolve); nothing is left running then."""
+        self = cls(config, Path(config_path), **kwargs)
+        try:
+            if endpoints is None:
+                endpoints = await self._start_workers()
+            await self._start_masters(endpoints)
+        except BaseException:
+            await self.close()
+            raise
+        return self
+
+    async def _start_workers(self) -> dict[int, tuple[str, int]]:
+        run_dir = self.run_dir = self.run_dir or Path(tempfile.mkdtemp(prefix="mlink-sim-run-"))
+        groups = plan_workers([st.address for st in self.config.station], self._n_workers)
+        self.worker_list = [
+            Worker(WorkerSpec(i, self.config_path, addrs, run_dir, self._state_dir,
+                              extra_args=self.config.network.slave_flags() + self._realtime_flags()
+                              + (["--shared-port"] if len(addrs) > 1 else [])),
+                   on_exit=self._on_worker_exit)
+            for i, addrs in enumerate(groups)
+        ]
+        self.workers = {a: w for w in self.worker_list for a in w.spec.addresses}
+        results = await asyncio.gather(*(w.start() for w in self.worker_list), return_exceptions=True)
+        errors = [r for r in results if isinstance(r, BaseException)]
+        if errors:
+            raise errors[0]
+        for w in self.worker_list:
+            if w.ready and "realtime" in w.ready:
+                self.realtime_granted[f"worker:{w.spec.index}"] = w.ready["realtime"]
+        return {
+            st["address"]: (_local_target(st["host"]), st["port"])
+            for w in self.worker_list for st in (w.ready or {}).get("stations", [])
+        }
+
+    def _realtime_flags(self) -> list[str]:
+        """``mlink-sim slave``'s flags for this session's real-time requests: none without ``--realtime``, else
+        ``--realtime --cpus LIST`` (the workers' CPUs of :attr:`cpus`)."""
+        return [] if self.cpus is None else ["--realtime", "--cpus", rt_format_cpus(self.cpus[1])]
+
+    def _on_worker_exit(self, worker: Worker, code: int) -> None:
+        names = ",".join(f"{a:02X}H" for a in worker.spec.addresses)
+        self.problems.append(f"slave worker {worker.spec.index} (station {names}) exited with code {code}")
+        log.warning("slave_exited", worker=worker.spec.index, stations=names, code=code)
+        if self.capture is not None:
+            self.capture.note(time.monotonic_ns(), f"slave worker {worker.spec.index} (station {names}) exited "
+                                                   f"with code {code}")
+        if not self._restart or self._stopping:
+            return
+
+        async def restart() -> None:
+            await asyncio.sleep(0.5)
+            if self._stopping:
+                return
+            try:
+                await worker.restart()
+                log.info("slave_restarted", worker=worker.spec.index, stations=names)
+            except WorkerError as exc:
+                self.problems.append(str(exc))
+
+        task = asyncio.get_running_loop().create_task(restart())
+        self._restart_tasks.add(task)
+        task.add_done_callback(self._restart_tasks.discard)
+
+    async def _start_masters(self, endpoints: dict[int, tuple[str, int]]) -> None:
+        resolved: dict[int, tuple[str, int]] = {}
+        for address, (host, port) in endpoints.items():
+            try:
+                resolved[address] = await resolve(host, port)
+            except OSError as exc:
+                raise EndpointError(f"station {address:#04x}: cannot resolve {host!r}: {exc.strerror or exc}") from None
+        local = bind_address_for(list(resolved.values()))
+        plans = build_plans(self.config)
+        from ...metrics import host_info
+
+        host_info()  # its first call reads the interpreter binary (~17 ms): not in the middle of a run
+        if self.cpus is not None:
+            self.realtime_granted["master"] = apply(MASTER_PRIORITY, self.cpus[0])
+        settle_heap()  # before the clock starts: no full collection of the start-up heap mid-cycle
+        clock = None
+        catch_up = self.config.network.absorb_ns
+        if len(plans) > 1:  # one clock for every link: two spinning timers in one loop would delay each other
+            clock = self._clock = CycleTimer(self.config.network.transmission_cycle, self._on_cycle,
+                                             loop=asyncio.get_running_loop(), catch_up_ns=catch_up,
+                                             on_stall=self.metrics.stall_recorder("master"))
+        for link, plan in plans.items():
+            eps = {sp.address: resolved[sp.address] for sp in plan.stations}
+            master = await Master.start(plan, eps, metrics=self.metrics, local=local, clock=clock,
+                                        catch_up_ns=catch_up, capture=self.capture)
+            master.record_lateness = not self.masters
+            self.masters[link] = master
+        self._cycle_callbacks = [m.on_cycle for m in self.masters.values()]
+        self._route_impairments()
+        if clock is not None:
+            readers = [m.read_one for m in self.masters.values()]
+
+            def idle() -> None:
+                for read in readers:
+                    read()
+
+            clock.idle = idle
+            clock.start()
+        self.net = NetworkApi(self.config, self.masters, self.workers)
+        self.net.faults = self
+
+    def _on_cycle(self, cycle: int, deadline_ns: int, now_ns: int, skipped: int) -> None:
+        for on_cycle in self._cycle_callbacks:
+            on_cycle(cycle, deadline_ns, now_ns, skipped)
+
+    async def bring_up(self, timeout: float) -> list[str]:
+        """Wait until every station is at its target phase or *timeout* s passed; returns (and records in
+        ``problems``) one message per station that did not get there."""
+        results = await asyncio.gather(*(m.bring_up(timeout=timeout) for m in self.masters.values()),
+                                       return_exceptions=True)
+        for result in results:
+            if isinstance(result, BaseException):
+                self.problems.append(f"bring-up: {result}")
+        return self.not_up()
+
+    def not_up(self) -> list[str]:
+        assert self.net is not None
+        out = [f"station {v.address:#04x} did not reach its phase (state {v.state.value})"
+               for v in self.net.views().values() if not v.at_target]
+        self.problems.extend(m for m in out if m not in self.problems)
+        return out
+
+    async def close_masters(self) -> None:
+        """DISCONNECT every station and stop the masters (the slaves keep running). Idempotent."""
+        results = await asyncio.gather(*(asyncio.wait_for(m.close(), 5.0) for m in self.masters.values()),
+                                       return_exceptions=True)
+        for result in results:
+            if isinstance(result, Exception):  # closing must not hide the run's result
+                log.warning("master_close_failed", error=str(result))
+        if self._clock is not None:
+            self._clock.stop()
+
+    async def close(self) -> None:
+        """DISCONNECT every station, stop the masters, then the slave workers. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._stopping = True
+        await self.close_masters()
+        for task in list(self._restart_tasks):
+            task.cancel()
+        await asyncio.gather(*(w.stop() for w in self.worker_list), return_exceptions=True)
+
+    async def __aenter__(self) -> NetworkSession:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+    # ------------------------------------------------------------------ time (the virtual session reads its own)
+    def _clock_s(self) -> float:
+        """The clock the run is measured on, in seconds (real: ``time.monotonic``)."""
+        return time.monotonic()
+
+    def _clock_meta(self) -> dict[str, Any]:
+        """What the report's ``meta`` says about the clock (docs/report.md)."""
+        return {"clock": "real"}
+
+    def _record_cpu(self) -> None:
+        self.metrics.record_cpu("master", time.process_time() - self._cpu0, time.monotonic() - self._wall0)
+
+    # ------------------------------------------------------------------ figures
+    async def refresh_slave_stats(self) -> None:
+        """Pull the slaves' counters (reception failures, WDT errors …) and CPU time into :attr:`metrics`."""
+        stats: dict[str, Any] = {}
+
+        async def one(w: Worker) -> None:
+            if w.alive and w.control_port:
+                reply = await query_control("127.0.0.1", w.control_port, "stats", timeout=1.0,
+                                            since=self.metrics.stalls.origin_ns)
+                if reply:
+                    stats[f"worker:{w.spec.index}"] = reply
+                    self.metrics.stalls.add(f"worker:{w.spec.index}", reply.get("stalls", []))
+                    self.metrics.stalls.set_totals(f"worker:{w.spec.index}", reply.get("stall_totals", {}))
+
+        await asyncio.gather(*(one(w) for w in self.worker_list))
+        wall = time.monotonic() - self._wall0
+        for name, reply in stats.items():
+            self.metrics.record_cpu(name, reply.get("cpu_s", 0.0), reply.get("wall_s", wall) or wall)
+            for key, snap in reply.get("stations", {}).items():
+                counters = snap.get("counters") if isinstance(snap, dict) else None
+                if isinstance(counters, dict):
+                    self.metrics.record_slave_counters(int(key, 16), _flatten_counters(counters))
+
+    def reset_metrics(self) -> None:
+        """Start the master-side figures afresh (e.g. after bring-up, to measure the steady state only). The
+        report's ``meta.started``/``duration_s`` then cover the span from here, ``meta.measured_from`` says
+        ``"bring-up done"``; ``cpu`` keeps covering the whole run (docs/report.md)."""
+        self.metrics.reset()
+        self.metrics.stalls.reset(time.monotonic_ns())
+        self._span0 = self._clock_s()
+        self._span_wall = datetime.now(UTC)
+        self._measured_from = "bring-up done"
+
+    async def snapshot(self, *, extra_meta: dict[str, Any] | None = None,
+                       slave_stats: bool = True) -> tuple[Any, dict[str, Any]]:
+        """A copy of the figures and the report's ``meta`` as of now; build the report from them with
+        ``metrics.report(meta=meta)`` anywhere (outside the loop, so the cycle is not held up)."""
+        from ...metrics import host_info
+
+        if slave_stats:
+            await self.refresh_slave_stats()
+        self._record_cpu()
+        for station, counts in self.impairments.injected().items():
+            self.metrics.record_injected(station, counts)
+        for master in self.masters.values():  # what the fault stages did (docs/faults.md)
+            if master.faults is not None:
+                for station, totals in master.faults.injected().items():
+                    self.metrics.record_injected(station, totals)
+        meta = {
+            "config": str(self.config_path),
+            "network": self.config.network.name,
+            "started": self._span_wall.isoformat(),
+            "duration_s": round(self._clock_s() - self._span0, 3),
+            "measured_from": self._measured_from,
+            "cycle_ns": self.config.network.transmission_cycle,
+            "generation": ", ".join(sorted(link.label for link in self.masters)),
+            "stations": len(self.config.station),
+            "host": host_info(),
+            **self._clock_meta(),
+            **(extra_meta or {}),
+            "problems": list(self.problems),
+        }
+        return self.metrics.copy(), meta
+
+    async def report(self, *, assertions: Sequence[Any] = (), extra_meta: dict[str, Any] | None = None,
+                     slave_stats: bool = True) -> dict[str, Any]:
+        """The report document as of now (schema: docs/report.md), with *assertions* evaluated into it."""
+        metrics, meta = await self.snapshot(extra_meta=extra_meta, slave_stats=slave_stats)
+        return build_report(metrics, meta, assertions)
+
+
+def build_report(metrics: Any, meta: dict[str, Any], assertions: Sequence[Any] = ()) -> dict[str, Any]:
+    """The report of a :meth:`NetworkSession.snapshot`, with *assertions* evaluated into it."""
+    from ...metrics import check_all
+
+    report = metrics.report(meta=meta)
+    report["assertions"] = [r.as_dict() for r in check_all(list(assertions), report)] if assertions else []
+    return report
+
+def _flatten_counters(counters: dict[str, Any]) -> dict[str, int]:
+    out: dict[str, int] = {}
+    for key, value in counters.items():
+        if isinstance(value, bool):
+            continue
+        if isinstance(value, int):
+            out[key] = value
+        elif isinstance(value, dict):
+            out[key] = sum(v for v in value.values() if isinstance(v, int) and not isinstance(v, bool))
+    return out

@@ -1,0 +1,7 @@
+"""The slave side over UDP: the slave server of one process (server), the stations sharing a port as on a bus
+(bus), the card cores built from the configuration (stations), their EEPROM image files (state) and the drive
+faults planted on them (faults).
+
+May import the transport and timing layers and the cores (cards, drive, faults, metrics); not the master, virtual
+or run layers.
+"""

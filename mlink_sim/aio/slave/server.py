@@ -1,0 +1,453 @@
+"""The slave side over UDP: one datagram endpoint per hosted station, feeding the sans-I/O card cores.
+
+The server only moves bytes and keeps time: ``datagram -> station.receive(data, addr, now) -> sendto``. Each
+station's socket is read in batches; a backlog beyond eight commands per source is superseded
+(``SlaveServer._port``, :mod:`mlink_sim.aio.slave.bus`). A 1 ms housekeeping tick calls ``station.poll(now)`` for
+stations whose deadline has come (silence detection, drive). EEPROM images the cards hand over (``take_eeprom``)
+are written atomically in a worker thread, and once an image is written, fsync'd and renamed the card is told
+(``station.eeprom_durable``): a CONFIG to EEPROM answers CMDRDY = 0 until then (docs/cards.md, "EEPROM").
+Temporary files a killed process left are removed at start.
+
+A small JSON-over-UDP *control* endpoint answers ``{"op": "stats"}`` with every station's snapshot, counters and
+the process CPU time (``{"op": "cpu"}``: the CPU time only, small at any station count), so the supervisor
+(``mlink-sim up``) can collect slave-side figures without sharing anything but the network. The ``stats`` reply is
+built one station a millisecond, the loop answering the cyclic commands in between (``SlaveServer._reply_stats``).
+
+Touches: the stations' UDP sockets and the control endpoint, the card cores, the EEPROM image files (a worker thread
+writes them).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import resource
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+
+from ..._log import get_logger
+from ...jsonable import to_jsonable
+from ...metrics.stalls import WORKER_STALL_NS, StallLog
+from ...faults.plant import PlantFaults
+from .bus import Bus, Port, due
+from .faults import handle_plant_request
+from .state import atomic_write, eeprom_path, remove_stale_temps
+from ..transport.tapped import tap
+from ..transport.udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endpoint
+from ..timing.realtime import yield_after_send
+
+__all__ = ["HostedStation", "SlaveServer"]
+
+log = get_logger("mlink_sim.slave")
+
+_POLL_INTERVAL_S = 0.001
+_POLL_INTERVAL_NS = 1_000_000
+_KEEP_BEHIND = 8  # datagrams per source processed from one read; older ones are superseded (see _port)
+_POLL_MAX_KEYS = ("period_ns", "lead_ns")  #: of the arrival polls' counters, those not summed but the largest taken
+_MIN_CYCLE_NS = 250_000  # the shortest transmission cycle (SI-ET3 Table 14): sizes the backlog "absorb" keeps
+_BURST = 64  # datagrams read per wake-up of a station's socket at most (a shared socket: this many per station)
+# Receive buffer of a station's socket; a shared socket asks for this much per station, so that a backlog lasts
+# as long as on a socket of its own (the kernel caps the request at net.core.rmem_max).
+_RCVBUF = 1 << 20
+_STALLS_REPORTED = 256  # recent stalls in each stats reply (the session keeps them by time)
+_COMPACT = (",", ":")  # json.dumps separators of the control replies
+_STATS_PACE_S = 0.001  #: the worker's sleep between two stations of a stats reply (SlaveServer._reply_stats)
+#: … for this long at most: the rest without a pause, so that the reply stays well inside the 1 s a query waits
+#: (``query_control``) on a loaded host too (62 stations paced took 64–121 ms here)
+_STATS_PACED_S = 0.3
+
+
+def _cpu_seconds() -> float:
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    return ru.ru_utime + ru.ru_stime
+
+
+@dataclass
+class HostedStation:
+    """A card core and where it listens."""
+
+    station: Any  #: a mlink_sim.cards Station
+    host: str
+    port: int
+    endpoint: BatchEndpoint | None = None
+    eeprom: Path | None = None
+    bus_port: Any = field(default=None, repr=False, compare=False)  #: the aio.slave.bus.Port that serves it (it counts)
+
+    @property
+    def responses(self) -> int:
+        """The answers sent for this station (counted by its :class:`~mlink_sim.aio.slave.bus.Port`)."""
+        return 0 if self.bus_port is None else int(self.bus_port.responses)
+
+
+class SlaveServer:
+    """Serves one or more stations; ``await start()`` binds, ``await close()`` stops."""
+
+    def __init__(
+        self,
+        stations: list[HostedStation],
+        *,
+        state_dir: str | Path | None = None,
+        control: tuple[str, int] | None = ("127.0.0.1", 0),
+        absorb_ns: int = 0,
+        capture: Any = None,
+        shared: bool = False,
+        arrival_poll: tuple[int, int | None] | None = None,
+        batched: bool = True,
+    ) -> None:
+        """*capture*: a :class:`~mlink_sim.capture.CaptureWriter`: every station socket is tapped, and each
+        station's phase changes (seen by the 1 ms tick) become notes.
+
+        *shared*: the stations of one link that listen on the same host and port (port 0 included) share one
+        socket, as stations share a bus: the station address of each datagram (byte 3, docs/wire-format.md) picks
+        its station, and the answers to one read go back in one burst (``mmsg.BurstSocket.send_burst``: one
+        offloaded packet per burst where the kernel can). A datagram for no station hosted there is counted in
+        :attr:`unaddressed`, as a station on a bus ignores frames for others.
+
+        *arrival_poll*: :func:`~mlink_sim.config.units.parse_arrival_poll`'s setting (None: off). Each shared socket,
+        or the worker's only socket, is then read in a short busy-poll around the time its next burst of commands is
+        due (:class:`~mlink_sim.aio.timing.arrival.ArrivalPoll`). The sockets of a worker hosting several stations each
+        on its own port are not: their polls would hold each other up.
+
+        *batched*: the batched calls (``sendmmsg``/``recvmmsg``, UDP segmentation offload) where the kernel has them;
+        False keeps the per-datagram calls on every socket (the tests compare both paths that way)."""
+        self.stations = stations
+        self.shared = shared
+        self.arrival_poll = arrival_poll
+        self._buses: list[Bus] = []  #: one per shared socket (its ``unaddressed`` count)
+        self._ports: dict[int, Port] = {}  #: each station's Port, by ``id(hs)`` (Port.forget)
+        #: host-stall policy (docs/timing.md): 0 = strict, else the stall bound. With "absorb" a backlog that a
+        #: stall of this worker of up to the bound left on a socket is answered in full (late, not superseded).
+        self.absorb_ns = absorb_ns
+        self._keep_behind = max(_KEEP_BEHIND, absorb_ns // _MIN_CYCLE_NS + 2)
+        self.stalls = StallLog("absorb" if absorb_ns else "strict", absorb_ns)
+        self.batched = batched
+        self._tick_due = 0
+        self.state_dir = Path(state_dir) if state_dir else None
+        self._control_addr = control
+        self._control: DatagramEndpoint | None = None
+        self._tick: asyncio.TimerHandle | None = None
+        self._pending_writes: dict[Path, tuple[HostedStation, int, bytes]] = {}
+        self._writer: asyncio.Task[None] | None = None
+        self._write_wakeup = asyncio.Event()
+        self._started_wall = time.monotonic()
+        self._started_cpu = _cpu_seconds()
+        self.write_errors = 0
+        self._closing = False
+        self._capture = capture
+        self._phases = {id(hs): hs.station.phase for hs in stations}
+        self._cores = [hs.station for hs in stations]  #: the card cores, for the tick's scan (``bus.due``)
+        self.plants = PlantFaults()  #: drive faults in force (``{"op": "plant"}``)
+        self._replies: set[asyncio.Task[None]] = set()  #: ``stats`` replies being built (:meth:`_reply_stats`)
+        for hs in stations:
+            if self.state_dir is not None and hs.eeprom is None:
+                hs.eeprom = eeprom_path(self.state_dir, hs.station.card, hs.station.address)
+            # a CONFIG to EEPROM completes once its image is durable (nothing to wait for without a file)
+            hs.station.eeprom.enabled = hs.eeprom is not None
+
+    # -- lifecycle --------------------------------------------------------------------------------------------
+
+    async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        for hs in self.stations:
+            if hs.eeprom is not None and (n := remove_stale_temps(hs.eeprom)):
+                log.info("eeprom_stale_temps_removed", path=str(hs.eeprom), count=n)
+        try:
+            wrap = None if self._capture is None else partial(tap, self._capture, batched=self.batched)
+            groups = self._port_groups()
+            for group in groups:
+                first = group[0]
+                if len(group) == 1:
+                    endpoint = await open_batch_endpoint(self._receiver(first), first.host, first.port, wrap=wrap,
+                                                         rcvbuf=_RCVBUF, batched=self.batched)
+                else:
+                    endpoint = await open_batch_endpoint(self._bus_receiver(group), first.host, first.port,
+                                                         wrap=wrap, burst=_BURST * len(group),
+                                                         rcvbuf=_RCVBUF * len(group), batched=self.batched)
+                    endpoint.enable_gro()  # the master sends each cycle's commands to this port as one burst
+                for hs in group:
+                    hs.endpoint, hs.port = endpoint, endpoint.local_address[1]
+                if len(group) > 1 or len(groups) == 1:
+                    endpoint.poll_arrivals(self.arrival_poll)
+            if self._control_addr is not None:
+                self._control = await open_endpoint(self._on_control, *self._control_addr)
+        except OSError:
+            await self.close()
+            raise
+        self._writer = loop.create_task(self._write_loop())
+        self._tick_due = time.monotonic_ns() + _POLL_INTERVAL_NS
+        self._tick = loop.call_later(_POLL_INTERVAL_S, self._on_tick)
+        self._started_wall = time.monotonic()
+        self._started_cpu = _cpu_seconds()
+
+    async def close(self) -> None:
+        self._closing = True
+        if self._tick is not None:
+            self._tick.cancel()
+            self._tick = None
+        for hs in self.stations:
+            self._collect_eeprom(hs)
+            if hs.endpoint is not None:
+                hs.endpoint.close()
+        for task in list(self._replies):
+            task.cancel()
+        if self._control is not None:
+            self._control.close()
+        if self._writer is not None:
+            self._write_wakeup.set()
+            await self._writer
+            self._writer = None
+
+    def ready_info(self) -> dict[str, Any]:
+        """What the ``ready`` line reports: where every station listens and the control port."""
+        return {
+            "event": "ready",
+            "pid": os.getpid(),
+            "stations": [
+                {
+                    "address": hs.station.address,
+                    "card": hs.station.card,
+                    "host": hs.host,
+                    "port": hs.port,
+                    "link": hs.station.link.name,
+                    "frame_size": hs.station.data_size,
+                }
+                for hs in self.stations
+            ],
+            "control": None if self._control is None else self._control.local_address[1],
+        }
+
+    # -- datagrams --------------------------------------------------------------------------------------------
+
+    def _port(self, hs: HostedStation) -> Port:
+        """*hs* as its socket's reads see it (:class:`~mlink_sim.aio.slave.bus.Port`). More than ``_keep_behind``
+        datagrams from one source waiting means the worker fell that many cycles behind: the oldest are counted as
+        ``SUPERSEDED`` drops and only the newest ``_keep_behind`` are answered (with the host-stall policy "absorb",
+        as many as a stall of the bound leaves at the shortest cycle: a stall of this process within the bound
+        costs no command). On a bus their slots have passed; answering every one would queue latency up (a 1 MiB
+        receive buffer holds about a second of commands) and keep an overloaded worker behind for good. A hiccup of
+        up to ``_KEEP_BEHIND`` cycles is still answered in full (late, not lost): with 2, a 3-cycle hiccup of a
+        worker on a busy machine became lost commands, reception failures and a bUS trip in the quickstart (3 of 6
+        runs failed; with 8, 0 of 6)."""
+        port = self._ports[id(hs)] = Port(hs.station, hs, self._keep_behind, self._collect_eeprom, time.monotonic_ns)
+        return port
+
+    def _forget(self, hs: HostedStation | None = None) -> None:
+        """Something other than a read is about to reach *hs*'s card (every card's, with None): drop its answer
+        made ahead (:meth:`Port.forget <mlink_sim.aio.slave.bus.Port.forget>`)."""
+        if hs is not None:
+            one = self._ports.get(id(hs))
+            if one is not None:
+                one.forget()
+            return
+        for port in self._ports.values():
+            port.forget()
+
+    def _receiver(self, hs: HostedStation) -> Callable[[list[tuple[bytes, Any]]], None]:
+        """The batch handler of one station's own socket: the answers go back on it (one ``sendto``, or a burst
+        after a backlog)."""
+        serve = self._port(hs).serve
+
+        def on_batch(batch: list[tuple[bytes, Any]]) -> None:
+            out: list[tuple[bytes, Any]] = []
+            serve(batch, out)
+            endpoint = hs.endpoint
+            if endpoint is not None and out:
+                if len(out) == 1:  # the common case: one command, one answer
+                    endpoint.sendto(*out[0])
+                else:
+                    endpoint.send_burst(out)
+
+        return on_batch
+
+    def _port_groups(self) -> list[list[HostedStation]]:
+        """The stations that share a socket: with *shared*, those of one link on one host and port; else one each."""
+        if not self.shared:
+            return [[hs] for hs in self.stations]
+        groups: dict[tuple[str, int, Any], list[HostedStation]] = {}
+        for hs in self.stations:
+            groups.setdefault((hs.host, hs.port, hs.station.link), []).append(hs)
+        return list(groups.values())
+
+    def _bus_receiver(self, group: list[HostedStation]) -> Callable[[list[tuple[bytes, Any]]], None]:
+        """The batch handler of a shared socket (:class:`~mlink_sim.aio.slave.bus.Bus`): each datagram to the station
+        its address byte names, through that station's :class:`~mlink_sim.aio.slave.bus.Port` (the same backlog rule
+        per station and source), and the answers of the read back in one burst; then the cards take the commands
+        their predictions answered (:meth:`Bus.settle <mlink_sim.aio.slave.bus.Bus.settle>`)."""
+        bus = Bus([self._port(hs) for hs in group], time.monotonic_ns)
+        self._buses.append(bus)
+        serve, settle = bus.serve, bus.settle
+        first = group[0]  # its endpoint is the group's (set once the socket is bound)
+
+        pause = yield_after_send()  # the master reads its answers before the settle (realtime.yield_after_send)
+
+        def on_batch(batch: list[tuple[bytes, Any]]) -> None:
+            out = serve(batch)
+            ep = first.endpoint
+            try:
+                if out and ep is not None:
+                    ep.send_burst(out)
+                    if pause is not None:
+                        pause()
+            finally:
+                settle()
+
+        return on_batch
+
+    @property
+    def unaddressed(self) -> int:
+        """Datagrams on a shared port for a station not hosted there (or shorter than 4 bytes)."""
+        return sum(bus.unaddressed for bus in self._buses)
+
+    def _on_tick(self) -> None:
+        now = time.monotonic_ns()
+        lag = now - self._tick_due
+        if lag >= WORKER_STALL_NS:  # this process was held up (metrics/stalls.py): the report names it
+            self.stalls.record("self", self._tick_due, lag, 0, lag <= self.absorb_ns)
+        stations = self.stations
+        for i in due(self._cores, now):  # compiled (mlink_sim.aio.slave.bus): the scan of every station, once a tick
+            hs = stations[i]
+            st = hs.station
+            if hs.endpoint is not None and st.silence_due(now):
+                # After a hold-up of this worker the loop runs its timers before it reads the sockets: the
+                # commands that arrived meanwhile are read first, or they would count as the master's silence
+                # (2 cycles = bUS on an SI-T/V7; seen in tests/testbed/test_netns.py).
+                hs.endpoint.read_pending()
+            self._forget(hs)
+            st.poll(now)
+            self._collect_eeprom(hs)
+        if self._capture is not None:
+            self._note_phases(now)
+        if not self._closing:
+            self._tick_due = time.monotonic_ns() + _POLL_INTERVAL_NS
+            self._tick = asyncio.get_running_loop().call_later(_POLL_INTERVAL_S, self._on_tick)
+
+    def _note_phases(self, now: int) -> None:
+        for hs in self.stations:
+            phase, old = hs.station.phase, self._phases[id(hs)]
+            if old != phase:
+                self._capture.note(now, f"station {hs.station.address:02X}H: phase {old} -> {phase}")
+                self._phases[id(hs)] = phase
+
+    # -- EEPROM -----------------------------------------------------------------------------------------------
+
+    def _collect_eeprom(self, hs: HostedStation) -> None:
+        image = hs.station.take_eeprom()
+        if image is None or hs.eeprom is None:
+            return
+        self._pending_writes[hs.eeprom] = (hs, hs.station.eeprom.taken, image)  # a newer image supersedes a queued one
+        self._write_wakeup.set()
+
+    async def _write_loop(self) -> None:
+        loop = asyncio.get_running_loop()
+        while True:
+            await self._write_wakeup.wait()
+            self._write_wakeup.clear()
+            while self._pending_writes:
+                path, (hs, generation, data) = self._pending_writes.popitem()
+                try:
+                    await loop.run_in_executor(None, atomic_write, path, data)
+                except OSError as exc:
+                    self.write_errors += 1
+                    log.error("eeprom_write_failed", path=str(path), error=str(exc))
+                    ok = False
+                else:
+                    log.info("eeprom_saved", path=str(path), bytes=len(data), generation=generation)
+                    ok = True
+                self._forget(hs)
+                hs.station.eeprom_durable(generation, ok=ok)  # written, fsync'd, renamed: the CONFIG may complete
+            if self._closing:
+                return
+
+    # -- control ----------------------------------------------------------------------------------------------
+
+    def cpu(self) -> dict[str, Any]:
+        """This process's CPU use since start, its arrival polls' counters, and the answers its shared ports made
+        ahead and any of those that the card then contradicted (``Bus.ahead``, ``Bus.mispredicted``) (``{"op":
+        "cpu"}``: small at any station count; ``stats`` has all of it too)."""
+        wall = time.monotonic() - self._started_wall
+        cpu = _cpu_seconds() - self._started_cpu
+        return {"ok": True, "pid": os.getpid(), "wall_s": wall, "cpu_s": cpu,
+                "cpu_pct": 100.0 * cpu / wall if wall > 0 else 0.0, "arrival_poll": self._poll_stats(),
+                "answered_ahead": sum(bus.ahead for bus in self._buses),
+                "mispredicted": sum(bus.mispredicted for bus in self._buses)}
+
+    def stats(self, since: int = 0) -> dict[str, Any]:
+        """Snapshot of every hosted station plus this process's CPU use and its stalls since *since* (monotonic
+        ns): the most recent events and the totals. Reading changes nothing."""
+        return {**self._stats_head(since), "stations": dict(map(self._station_stats, self.stations))}
+
+    def _stats_head(self, since: int) -> dict[str, Any]:
+        return {**self.cpu(), "unaddressed": self.unaddressed,
+                "stalls": self.stalls.events("self", last=_STALLS_REPORTED, since=since),
+                "stall_totals": self.stalls.totals("self", since)}
+
+    @staticmethod
+    def _station_stats(hs: HostedStation) -> tuple[str, Any]:
+        return f"{hs.station.address:#04x}", to_jsonable(hs.station.snapshot())
+
+    async def _reply_stats(self, since: int, addr: Any) -> None:
+        """The ``{"op": "stats"}`` reply, :meth:`stats` built one station at a time, the worker sleeping
+        :data:`_STATS_PACE_S` between two (the loop answers the bursts meanwhile, and the CPU is free for the
+        master), for :data:`_STATS_PACED_S` at most. Built at once it held the worker's loop 1.2–1.4 ms for 8
+        stations and 4.1–5.9 ms for 62, and each query made 24–30 answers late at 8 ML-III × 250 µs and 189–294 at
+        62 ML-III × 1 ms; paced, 62 stations take 64–121 ms and 0–3 answers per query came late
+        (docs/performance.md). Each
+        station's figures are its own at one instant; the stations' instants lie up to that long apart."""
+        head = json.dumps(self._stats_head(since), separators=_COMPACT)
+        parts = []
+        paced_until = time.monotonic() + _STATS_PACED_S
+        for hs in list(self.stations):
+            key, snap = self._station_stats(hs)
+            parts.append(f'"{key}":{json.dumps(snap, separators=_COMPACT)}')
+            await asyncio.sleep(_STATS_PACE_S if time.monotonic() < paced_until else 0)
+        if not self._closing:
+            self._send_control(f'{head[:-1]},"stations":{{{",".join(parts)}}}}}'.encode(), addr)
+
+    def _poll_stats(self) -> dict[str, int]:
+        """The arrival polls' counters, summed over the sockets (:meth:`ArrivalPoll.stats
+        <mlink_sim.aio.timing.arrival.ArrivalPoll.stats>`; the largest learned cycle and lead); empty without a poll."""
+        polls = list({id(ep): ep.poll for hs in self.stations
+                      if (ep := hs.endpoint) is not None and ep.poll is not None}.values())
+        total: dict[str, int] = {}
+        for poll in polls:
+            for key, value in poll.stats().items():
+                total[key] = max(total.get(key, 0), value) if key in _POLL_MAX_KEYS else total.get(key, 0) + value
+        return total
+
+    def _on_control(self, data: bytes, addr: Any) -> None:
+        try:
+            request = json.loads(data)
+            op = request.get("op") if isinstance(request, dict) else None
+        except (ValueError, UnicodeDecodeError):
+            op = None
+        if op == "stats":
+            since = request.get("since", 0)
+            task = asyncio.get_running_loop().create_task(self._reply_stats(
+                since if isinstance(since, int) and not isinstance(since, bool) else 0, addr))
+            self._replies.add(task)
+            task.add_done_callback(self._replies.discard)
+            return
+        if op in ("plant", "release"):  # a drive fault (aio/run/faults.py, docs/faults.md)
+            self._forget()
+            reply = handle_plant_request(request, {hs.station.address: hs.station for hs in self.stations},
+                                         self.plants, time.monotonic_ns())
+        elif op == "cpu":
+            reply = self.cpu()
+        elif op == "ping":
+            reply = {"ok": True, "pid": os.getpid()}
+        else:
+            reply = {"ok": False, "error": "expected a JSON object with op = 'stats', 'cpu', 'ping', 'plant' or "
+                                           "'release'"}
+        self._send_control(json.dumps(reply, separators=_COMPACT).encode(), addr)
+
+    def _send_control(self, payload: bytes, addr: Any) -> None:
+        if len(payload) > 60_000:
+            payload = json.dumps({"ok": False, "error": "stats too large for one datagram"}).encode()
+        if self._control is not None:
+            self._control.sendto(payload, addr)
