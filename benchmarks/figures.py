@@ -1,5 +1,5 @@
 """One definition of "missed", RTT and CPU per exchange, for the simulator (:mod:`benchmarks.bench`) and its floor
-(:mod:`benchmarks.floor`) alike (docs/performance.md, "How a cell is measured").
+(:mod:`benchmarks.floor`) alike (docs/performance.md, "The method").
 
 Both sides count the same things in the measuring window: the cycles their ``CycleTimer`` started and the ones it
 skipped, the commands sent, and every answer read within the answer window (the network's ``stall_bound``, as

@@ -24,8 +24,7 @@ empty, one ``sendto`` per datagram) and **batched** (``mlink_sim.aio.transport.m
 taking the commands they answered ahead: ``Bus.settle``; on a shared socket after one ``sched_yield``, as the
 worker does), the client *ENCODE* per command after the cycle's start and before the burst, and *DECODE* per
 answer after its stamp: a floor that takes as long as the simulator's cores and does none of their work, to tell
-what the chain's length costs from what the simulator's I/O costs (docs/performance.md, "What bounds the missed
-answers"). ``--variant shared-batched`` measures only the floor a packed worker's network is judged against.
+what the chain's length costs from what the simulator's I/O costs (docs/performance.md, "What bounds each figure"). ``--variant shared-batched`` measures only the floor a packed worker's network is judged against.
 
 Missed, RTT and CPU per exchange are :func:`benchmarks.figures.exchange_figures`, the simulator's own definition:
 missed = exchanges due but not answered within a cycle, over the exchanges due; CPU per exchange = (client CPU +

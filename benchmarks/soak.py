@@ -16,7 +16,7 @@ Run from the repository's root:
 ``--stop D@T`` stops each run's whole process group (``up`` and its slave workers) with SIGSTOP for D, T into the
 timeline (after bring-up: the run's ``network_up`` log line), then SIGCONT: a host stall of a chosen length, e.g.
 one beyond the 100 ms bound the policy absorbs, after which the stations must recover by themselves
-(docs/timing.md, "Beyond the bound").
+(docs/timing.md, "Host stalls").
 
 Exit 0 when at least ``--target`` percent of the runs passed, 1 otherwise, 2 on bad arguments.
 Everything it starts (runs, the hog) stops by itself: each run has a timeout and the hog a time limit.

@@ -66,8 +66,7 @@ _STEAL_NOTED = 0.5  #: % of the machine's CPU time the hypervisor took, from whi
 
 def _steal(c: Cell) -> list[str]:
     """A note when the hypervisor took CPU time from the VM during the cell (the simulator's window or its
-    floor's): a floor that misses cycles while the host steals points at the host (docs/performance.md, "Host
-    steal")."""
+    floor's): a floor that misses cycles while the host steals points at the host (docs/performance.md, "Turns, steal and scheduling")."""
     ref = c.ref or {}
     ours, floor = c.steal_pct, float(ref.get("steal_pct", 0.0))
     if max(ours, floor) < _STEAL_NOTED:

@@ -1,6 +1,5 @@
 """What held the CPUs when answers came late: each late cycle of a network (and, with ``--floor``, of its batched
-floor) put beside a ``perf`` record of both CPUs, and named by what ran instead (docs/performance.md, "What holds
-the CPU when answers come late").
+floor) put beside a ``perf`` record of both CPUs, and named by what ran instead (docs/performance.md, "What bounds each figure").
 
 The network is brought up as :mod:`benchmarks.bench` brings up a cell (the same configuration, one worker per CPU but
 one), then measured for ``--duration`` while ``perf record -e cpu-clock -c 100000 -a -k CLOCK_MONOTONIC`` samples
@@ -31,7 +30,7 @@ where **the process that answers** (the worker; the floor's server) was when the
 woken and not yet run), or **asleep**, and then how long after the send the kernel woke it (within 40 µs,
 40–100 µs, over 100 µs: a halted vCPU that the hypervisor ran late). A second table counts the late cycles and
 answers so. The record adds perf's own cost of every switch and wake-up, not measured apart (docs/performance.md,
-"Where the worker was when answers came late").
+"What bounds each figure").
 
 Run from the repository's root, as root:
 

@@ -2,8 +2,7 @@
 
 On a small shared machine the 1 ms cells of the capacity targets miss more than their floor mostly in bursts: a host stall of
 a few ms (a kernel thread, the hypervisor) makes every answer of the cycles it covers late, and the simulator then
-takes longer than the floor to get back to answering within a cycle (docs/performance.md, "What bounds the 1 ms
-cells"). This tool measures that recovery on purpose instead of waiting for the host to stall.
+takes longer than the floor to get back to answering within a cycle (docs/performance.md, "What bounds each figure"). This tool measures that recovery on purpose instead of waiting for the host to stall.
 
 For one cell (``--link``, ``--stations``, ``--cycle``) it measures, in turns of ``--duration`` each:
 

@@ -1,6 +1,6 @@
 """Captures of the wire: pcapng files written off the hot path (:class:`CaptureWriter`, tapped sockets), read
 back (:func:`read_capture`), decoded (``mlink-sim decode --pcap``) and replayed against live slaves
-(``mlink-sim replay``). docs/wire-format.md §10 describes the files."""
+(``mlink-sim replay``). docs/capture.md describes the files."""
 
 from .reader import Capture, CaptureError, CaptureFile, Datagram, read_capture
 from .tap import Record, TappedSocket

@@ -6,7 +6,7 @@ datagrams over one UDP socket, paced by the capture's own timestamps.
 
 Answers are matched to commands by station and cycle number (a response echoes the cycle of the command it
 answers, docs/wire-format.md §1). Fields that change by nature are left out of the comparison
-(:data:`VOLATILE`, :data:`MONITORS`, docs/wire-format.md §10): the RWDT (it follows the slave's own counter);
+(:data:`VOLATILE`, :data:`MONITORS`, docs/capture.md): the RWDT (it follows the slave's own counter);
 the reception-timing warnings (ML-II A.96, ML-III COMM_ALM 1–3), which depend on when each datagram arrives and so
 on the load of the machine that replays, and which of the ML-III reception alarms 9H/AH/BH is raised; the monitors – output frequency and current, MON1…MON6 – which sample
 the drive model at the instant each command arrives (after a stop the motor still coasts: a speed monitor of -33

@@ -46,7 +46,7 @@ def _targets(texts: tuple[str, ...]) -> tuple[tuple[str, int] | None, dict[int, 
 def replay_cmd(capture_path: str, targets: tuple[str, ...], stations: tuple[str, ...], grace: float,
                max_differences: int) -> None:
     """Send the master's frames of FILE on their original timing to the slaves (--to) and compare their answers
-    with the recorded ones (RWDT, monitors and what a moving drive changes left out; docs/wire-format.md §10).
+    with the recorded ones (RWDT, monitors and what a moving drive changes left out; docs/capture.md).
     Exit 0 when every answer is equal, 1 with the first differences."""
     from ..capture import CaptureError, read_capture
     from ..capture.replay import MONITORS, VOLATILE, plan_replay, run_replay

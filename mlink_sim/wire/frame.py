@@ -145,7 +145,7 @@ def steady_delta(datagram: bytes, previous: bytes, cycle_at: int, wdt_at: int) -
 
 
 class Template:
-    """A cyclic datagram kept as a template (the cards' steady-state answers, docs/cards.md "The steady state"):
+    """A cyclic datagram kept as a template (the cards' steady-state answers, docs/cards.md, "Performance: the cyclic path"):
     :attr:`body` is the datagram without its FCS, with its cycle and its (R)WDT byte at *wdt_at* zero. It is packed
     again by the caller only when :meth:`stale` says one of the nine fields it was packed from changed; each
     datagram is then :meth:`seal`: the body with the cycle and the WDT patched in, sealed (:func:`patch_seal`).

@@ -1,5 +1,5 @@
 """benchmarks.soak: ``--stop D@T`` stops a whole run (``up`` and its workers) beyond the stall bound, and the
-stations come back by themselves (docs/timing.md, "Beyond the bound"; the SI-ET3 resets the bUS it was left in,
+stations come back by themselves (docs/timing.md, "Host stalls"; the SI-ET3 resets the bUS it was left in,
 docs/master.md)."""
 
 from __future__ import annotations

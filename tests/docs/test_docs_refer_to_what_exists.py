@@ -73,3 +73,24 @@ def test_the_declared_licence_has_its_file() -> None:
     assert project["license"] == {"text": "MIT"}
     text = (REPO / "LICENSE").read_text()
     assert text.startswith("MIT License") and "WITHOUT WARRANTY OF ANY KIND" in text
+
+
+def _headings() -> dict[str, list[str]]:
+    return {doc.name: [re.sub(r"^#+\s*", "", line).strip().strip("`").lower()
+                       for line in _text(doc).splitlines() if line.startswith("#")]
+            for doc in DOCS if doc.parent.name == "docs"}
+
+
+def test_every_named_section_of_a_page_exists() -> None:
+    """A pointer such as ``docs/timing.md, "Host stalls"`` in the code, the benchmarks, the tests or the docs names a
+    heading of that page (the start of one, or a part of it), so that a reader who follows it finds the section."""
+    headings = _headings()
+    sources = [*REPO.glob("mlink_sim/**/*.py"), *REPO.glob("benchmarks/**/*.py"), *REPO.glob("tests/**/*.py"), *DOCS]
+    missing = []
+    for source in sources:
+        text = re.sub(r"\s*\n\s*(#\s*)?", " ", source.read_text(encoding="utf-8"))
+        for match in re.finditer(r"(?:docs/)?([a-z-]+\.md),?\s+\"([^\"]{3,80})\"", text):
+            page, section = match.group(1), match.group(2).lower().rstrip(".")
+            if page in headings and not any(h.startswith(section) or section in h for h in headings[page]):
+                missing.append(f"{source.relative_to(REPO)}: {page} \"{match.group(2)}\"")
+    assert not missing, "sections that do not exist:\n" + "\n".join(sorted(set(missing)))

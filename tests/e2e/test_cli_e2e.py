@@ -208,8 +208,7 @@ phase = 3
 
 
 def test_a_packed_worker_shares_one_port_and_keeps_it_when_restarted(tmp_path: Path) -> None:
-    """`up` packs the stations of one link into one worker on one port (docs/cards.md, "Stations sharing a
-    port"); killed, the worker comes back on that same port and every station returns to phase 3."""
+    """`up` packs the stations of one link into one worker on one port (docs/cards.md, "Silence, sockets and shared ports"); killed, the worker comes back on that same port and every station returns to phase 3."""
     cfg = tmp_path / "packed.toml"
     cfg.write_text(PACKED)
     report = tmp_path / "r.json"

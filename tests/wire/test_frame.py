@@ -1,4 +1,4 @@
-"""wire.frame's helpers for the cyclic exchange's steady state (docs/cards.md, "The steady state"): a
+"""wire.frame's helpers for the cyclic exchange's steady state (docs/cards.md, "Performance: the cyclic path"): a
 :class:`Template` is packed again only when one of its nine fields changes, and its datagrams are its body with the
 cycle and the (R)WDT patched in and sealed, which :func:`steady_delta` reads back."""
 

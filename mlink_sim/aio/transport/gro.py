@@ -8,7 +8,7 @@ size in a control message. :class:`CoalescedReads` holds the read slots of one s
 room for the control message (``struct cmsghdr``: ``cmsg_len``, a ``size_t``, then ``cmsg_level`` and ``cmsg_type``,
 two ints; the segment size is an int at ``CMSG_LEN(0)``). One call reads a burst and learns that nothing more
 waits, where a ``recvmsg`` per buffer needs a second call that fails with ``EAGAIN`` (4 µs in a running network,
-docs/performance.md "The steady state, and the worker's own path").
+docs/cards.md, "Performance: the cyclic path").
 
 Touches: the socket it is given (reads only), libc through ctypes.
 """
