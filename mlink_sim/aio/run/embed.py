@@ -8,13 +8,18 @@ only inside :meth:`~VirtualNetwork.advance` / :meth:`~VirtualNetwork.run_until` 
         net.run(0x21, hz=30)                                         # forward at 30 Hz (o1-03 units handled)
         while net.output_hz(0x21) < 29.9:
             net.step()                                               # one transmission cycle
-        assert net.prm_rd(0x21, 0x0200) == 20                        # PRM_RD C1-01: 2.0 s, 0.1 s units
+        assert net.prm_rd(0x21, "C1-01") == 2.0                      # PRM_RD by name: 2.0 s (a ParamValue)
+        assert net.prm_rd(0x21, 0x0200) == 20                        # by register: the raw count (0.1 s units)
+        net.prm_wr(0x21, "C1-01", 5.0); net.send_config(0x21)        # 5.0 s, checked against 0.0 … 6000.0 s
         net.advance(60.0)                                            # a simulated minute, in a few seconds
         print(net.now, net.report()["rtt"]["p99"])
 
 The master API (``prm_rd``, ``prm_wr``, ``send_config``, ``id_rd``, ``alm_rd``, ``alm_clr``, ``disconnect``,
 ``reconnect``, ``set_control``, ``run``, ``stop_station``, ``view``) is the real master's, routed per station
 (:class:`~mlink_sim.aio.run.session.NetworkApi`); a request blocks until answered, advancing simulated time meanwhile.
+Parameters go by name (the station's card picks the table) or by register number (raw counts); a bad name, type or
+value raises :class:`~mlink_sim.master.ParamRequestError` before anything is sent. ``view()`` decodes what it
+carries: ``output_hz``, ``status_bits``, ``bit("RUNX")``, ``alarm_text``.
 :meth:`~VirtualNetwork.station` is the card core itself (``snapshot()``: phase, LEDs, alarms, drive, counters).
 
 Touches: no socket, thread or wall clock; a virtual session on a virtual event loop of its own.
@@ -146,10 +151,15 @@ class VirtualNetwork(StationControls):
     def views(self) -> dict[int, Any]:
         return self.net.views()
 
-    def prm_rd(self, station: int, register: int, size: int = 2) -> Any:
+    def prm_rd(self, station: int, register: int | str, size: int = 2) -> Any:
+        """PRM_RD by name (``"C1-01"`` -> a :class:`~mlink_sim.master.ParamValue`, 2.0 with its unit "s") or by
+        register number (the raw unsigned word; *size* bytes when not 2): :meth:`Master.prm_rd
+        <mlink_sim.aio.master.Master.prm_rd>`."""
         return self.call(self.net.prm_rd(station, register, size))
 
-    def prm_wr(self, station: int, register: int, value: int, size: int = 2) -> None:
+    def prm_wr(self, station: int, register: int | str, value: Any, size: int = 2) -> None:
+        """PRM_WR by name in engineering units (``prm_wr(0x21, "C1-01", 5.0)``, range-checked) or by register
+        number with the raw int; :meth:`send_config` makes it take effect."""
         self.call(self.net.prm_wr(station, register, value, size))
 
     def send_config(self, station: int, mode: int = 0) -> None:
