@@ -14,7 +14,7 @@ from ..wire import Link
 from .plan import StationPlan
 from .types import ParamRequestError, ParamValue
 
-__all__ = ["table_for", "read_target", "write_target", "value_of", "SIZES"]
+__all__ = ["card_label", "table_for", "read_target", "write_target", "value_of", "SIZES"]
 
 #: PRM_RD / PRM_WR SIZE: 2, 4, 6 or 8 bytes (SI-T3 Tables 8/9, SI-ET3 "PRM_RD" / "PRM_WR").
 SIZES = (2, 4, 6, 8)
@@ -23,9 +23,13 @@ SIZES = (2, 4, 6, 8)
 _CARD_LABELS = {"sit3": "SI-T3", "siet3": "SI-ET3", "sitv7": "SI-T/V7"}
 
 
+def card_label(card: str) -> str:
+    """A card as its manual names it: "si-t-v7" -> "SI-T/V7"; a name it does not know as it is."""
+    return _CARD_LABELS.get("".join(ch for ch in card.lower() if ch.isalnum()), card)
+
+
 def _where(plan: StationPlan) -> str:
-    key = "".join(ch for ch in plan.card.lower() if ch.isalnum())
-    return f"station {plan.address:02X}H ({_CARD_LABELS.get(key, plan.card or plan.link.label)})"
+    return f"station {plan.address:02X}H ({card_label(plan.card) if plan.card else plan.link.label})"
 
 
 def table_for(plan: StationPlan) -> ParamTable | None:

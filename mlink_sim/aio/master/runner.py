@@ -43,6 +43,7 @@ from ...master import (
     StationState,
     StationView,
 )
+from ...capture.text import card_note
 from ...faults import Episode, FaultSpec, FaultStage, MasterFault, StationTraits
 from ...faults.stage import is_healthy
 from ...wire import Link, ml2, ml3
@@ -184,12 +185,24 @@ class Master:
             enable_gro = getattr(self._sock, "enable_gro", None)  # its answers come as one burst: one read
             if enable_gro is not None:
                 enable_gro()
+        self.note_cards()
         loop.add_reader(sock.fileno(), self.read_responses)  # a read on every arrival, stamped as it is read
         if clock is None:
             self._timer.start()
         self._log.info("master_started", local=sock.getsockname(), stations=len(plan.stations),
                        tcycle_ns=plan.tcycle_ns, strategy=self._timer.strategy)
         return self
+
+    def note_cards(self) -> None:
+        """Tell a capture which card each station is (``station 21H: card SI-T3 (MECHATROLINK-II, 32-byte)``):
+        ``mlink-sim decode`` names the parameters of a MECHATROLINK-II station by it. Nothing without a capture."""
+        note = self._note
+        if note is None:
+            return
+        now = self._now()
+        for sp in self.core.plan.stations:
+            if sp.card:
+                note(now, card_note(sp.address, named.card_label(sp.card), f"({sp.link.label}, {sp.data_size}-byte)"))
 
     @property
     def local_address(self) -> tuple[str, int]:
