@@ -115,9 +115,17 @@ class VirtualNetwork(StationControls):
         return self.config.network.transmission_cycle / 1e9
 
     def call(self, coro: Awaitable[T]) -> T:
-        """Run *coro* (anything of the async API) to completion on simulated time and return its result."""
+        """Run *coro* (anything of the async API) to completion on simulated time and return its result. Should
+        the loop stop on an error of its own before *coro* is done, *coro*'s own outcome is collected when it
+        comes (no "Task exception was never retrieved" at the end)."""
         with self._lock:
-            return self.loop.run_until_complete(coro)
+            task = asyncio.ensure_future(coro, loop=self.loop)
+            try:
+                return self.loop.run_until_complete(task)
+            except BaseException:
+                if not task.done():
+                    task.add_done_callback(_collect)
+                raise
 
     def run_until(self, t: float) -> None:
         """Let the network run until simulated time *t* (seconds; nothing happens if it is past)."""
@@ -277,6 +285,11 @@ class VirtualNetwork(StationControls):
     def __repr__(self) -> str:
         return (f"VirtualNetwork({self.config.network.name!r}, {len(self.config.station)} stations, "
                 f"t={self.now:.6f} s{', closed' if self._closed else ''})")
+
+
+def _collect(task: asyncio.Future[Any]) -> None:
+    if not task.cancelled():
+        task.exception()
 
 
 def _resolve(fut: asyncio.Future[None]) -> None:

@@ -69,3 +69,21 @@ def test_view_decodes_output_hz_and_status_bits(net):
     assert view.alarm_text is None
     assert "FORWARD" not in net.view(0x23).status_bits  # SI-ET3 INVCMD_STAT: not running
     net.stop_station(0x21)
+
+
+def test_a_call_cut_short_by_the_loop_leaves_no_unretrieved_task():
+    """Should the loop stop on an error of its own (here: a body put in the queue past the request's checks, which
+    the cycle cannot encode), the call raises that error, and the request's own failure later (at close) is
+    collected: no "Task exception was never retrieved"."""
+    from mlink_sim.master.types import Request
+
+    loop_errors: list[dict] = []
+    with VirtualNetwork(QUICKSTART, seed=1) as net:
+        net.loop.set_exception_handler(lambda loop, context: loop_errors.append(context))
+        slave = net.net.master(0x23).core._station(0x23)
+        bad = ml3.PrmRd("C1-01", 2)  # type: ignore[arg-type]
+        slave.main_q.append(Request(0x23, bad, False, "PRM_RD", 1, net.now_ns + 10**9))
+        with pytest.raises(ValueError, match="PrmRd"):
+            net.prm_rd(0x23, "C1-02")
+    gc.collect()
+    assert [c for c in loop_errors if "never retrieved" in c.get("message", "")] == []
