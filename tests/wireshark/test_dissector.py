@@ -163,7 +163,7 @@ def virtual_quickstart(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (n020 on the SI-T/V7 22H, C1-02 on the SI-ET3 23H)."""
     capture = tmp_path_factory.mktemp("virtual") / "quickstart.pcapng"
     proc = subprocess.run([sys.executable, "-m", "mlink_sim", "up", "quickstart", "--clock", "virtual", "--no-status",
-                           "--capture", str(capture)], capture_output=True, text=True, timeout=300)
+                           "--duration", "3.4s", "--capture", str(capture)], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     return capture
 
