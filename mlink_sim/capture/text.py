@@ -1,14 +1,37 @@
-"""A capture as text, one line (or one JSON object) per datagram: ``mlink-sim decode --pcap``."""
+"""A capture as text, one line (or one JSON object) per datagram, or counts per station and command:
+``mlink-sim decode --pcap`` (its filters: :class:`Selection`)."""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Iterator
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Protocol
 
-from ..wire import Kind, WireError, decode, describe, format_line
+from ..wire import Frame, Kind, WireError, decode, describe, format_line
 from .reader import Datagram
 
-__all__ = ["datagram_lines", "datagram_records", "station_of"]
+__all__ = ["datagram_lines", "datagram_records", "datagram_stats", "Names", "Selection", "station_of", "card_note", "card_of_note", "stations_of_note"]
+
+_CARD_NOTE = re.compile(r"^station ([0-9A-F]{2})H: card (\S+)")
+_NOTE_STATION = re.compile(r"station (?:([0-9A-Fa-f]{2})H|0x([0-9A-Fa-f]{1,2}))\b")
+
+
+def card_note(station: int, card: str, detail: str = "") -> str:
+    """The note that tells a reader of the capture which card *station* is: ``station 21H: card SI-T3 …``
+    (``mlink-sim decode`` names its parameters by it)."""
+    return f"station {station:02X}H: card {card}{(' ' + detail) if detail else ''}"
+
+
+def card_of_note(text: str) -> tuple[int, str] | None:
+    """``(station, card)`` of a :func:`card_note`, None for any other note."""
+    m = _CARD_NOTE.match(text)
+    return (int(m.group(1), 16), m.group(2)) if m else None
+
+
+def stations_of_note(text: str) -> set[int]:
+    """The stations a note names (``station 21H``, ``station 0x21``); empty for a note about none."""
+    return {int(a or b, 16) for a, b in _NOTE_STATION.findall(text)}
 
 
 def _endpoint(addr: tuple[str, int]) -> str:
@@ -26,39 +49,143 @@ def _direction(data: bytes) -> str:
     return {Kind.COMMAND: "master->slave", Kind.RESPONSE: "slave->master"}.get(kind, "?")  # type: ignore[call-overload]
 
 
-def datagram_records(datagrams: Iterable[Datagram], station: int | None = None) -> Iterator[dict[str, Any]]:
-    """One dict per datagram (of *station* only, when given): relative time, addresses, direction, the decoded
-    frame (``describe``) or the reason it was rejected, and the capture's comments."""
+class Names(Protocol):
+    """What adds names to a decoded frame (``mlink_sim.cli.frame_names.FrameNames``: parameters and units where
+    the card is known); the capture layer only hands it the frames and the notes."""
+
+    def learn(self, comment: str) -> None: ...
+
+    def describe(self, frame: Frame) -> dict[str, Any]: ...
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Which datagrams of a capture to show: one *station* (with the notes about it, wherever they were
+    recorded, and without the notes about other stations), main or sub-commands named in *commands* (then only
+    the notes on the datagrams shown), and a time range *from_ns* … *to_ns* since the first datagram of the
+    capture (both ends included). A note about no station goes with the datagram it was recorded on."""
+
+    station: int | None = None
+    commands: frozenset[str] = frozenset()
+    from_ns: int | None = None
+    to_ns: int | None = None
+
+
+@dataclass
+class _Item:
+    index: int
+    t_ns: int
+    datagram: Datagram
+    shown: bool  #: the datagram itself passes the selection
+    notes: list[str]  #: the notes to show with it (a note about the selected station, also on a hidden datagram)
+    frame: Frame | None = None
+    error: WireError | None = None
+    described: dict[str, Any] | None = None
+
+
+def _command_names(d: dict[str, Any]) -> set[str]:
+    return {d["main"]["command"], *([d["sub"]["command"]] if "sub" in d else [])}
+
+
+def _select(datagrams: Iterable[Datagram], sel: Selection, names: Names | None) -> Iterator[_Item]:
     t0 = None
     for index, d in enumerate(datagrams, 1):
         t0 = d.ts_ns if t0 is None else t0
-        if station is not None and station_of(d.data) != station:
+        t_ns = d.ts_ns - t0
+        if names is not None:
+            for comment in d.comments:
+                names.learn(comment)
+        if (sel.from_ns is not None and t_ns < sel.from_ns) or (sel.to_ns is not None and t_ns > sel.to_ns):
             continue
-        rec: dict[str, Any] = {"index": index, "t": round((d.ts_ns - t0) / 1e9, 6), "src": _endpoint(d.src),
-                               "dst": _endpoint(d.dst), "direction": _direction(d.data), "length": len(d.data)}
-        try:
-            rec["frame"] = describe(decode(d.data))
-        except WireError as exc:
-            rec["error"] = str(exc)
-            rec["reason"] = exc.reason.name
-        if d.comments:
-            rec["comments"] = list(d.comments)
+        item = _Item(index, t_ns, d, sel.station is None or station_of(d.data) == sel.station, [])
+        if item.shown:
+            try:
+                item.frame = decode(d.data)
+            except WireError as exc:
+                item.error = exc
+            if item.frame is not None:
+                item.described = names.describe(item.frame) if names is not None else describe(item.frame)
+            if sel.commands and (item.described is None or not _command_names(item.described) & sel.commands):
+                item.shown = False
+        for comment in d.comments:
+            about = stations_of_note(comment)
+            if sel.station is not None and about and not sel.commands:
+                keep = sel.station in about  # about the station, wherever it was recorded
+            else:
+                keep = item.shown and (sel.station is None or not about or sel.station in about)
+            if keep:
+                item.notes.append(comment)
+        if item.shown or item.notes:
+            yield item
+
+
+def datagram_records(datagrams: Iterable[Datagram], station: int | None = None, *,
+                     selection: Selection | None = None, names: Names | None = None) -> Iterator[dict[str, Any]]:
+    """One dict per datagram of the *selection* (or of *station* only, when given): relative time, addresses,
+    direction, the decoded frame (``describe``, with *names*' additions) or the reason it was rejected, and the
+    capture's comments. A note about the selected station recorded on another station's datagram comes as a
+    dict of its own: ``index``, ``t``, ``comments``, ``note_only`` true."""
+    sel = selection or Selection(station=station)
+    for item in _select(datagrams, sel, names):
+        d = item.datagram
+        t = round(item.t_ns / 1e9, 6)
+        if not item.shown:
+            yield {"index": item.index, "t": t, "comments": item.notes, "note_only": True}
+            continue
+        rec: dict[str, Any] = {"index": item.index, "t": t, "src": _endpoint(d.src), "dst": _endpoint(d.dst),
+                               "direction": _direction(d.data), "length": len(d.data)}
+        if item.described is not None:
+            rec["frame"] = item.described
+        elif item.error is not None:
+            rec["error"] = str(item.error)
+            rec["reason"] = item.error.reason.name
+        if item.notes:
+            rec["comments"] = item.notes
         yield rec
 
 
-def datagram_lines(datagrams: Iterable[Datagram], station: int | None = None) -> Iterator[tuple[str, bool]]:
-    """``(line, ok)`` per datagram: ``t  src -> dst  frame`` (``format_line``), or the rejection reason; comments
-    follow on their own ``#`` lines. Times count from the first datagram of the capture."""
-    t0 = None
-    for d in datagrams:
-        t0 = d.ts_ns if t0 is None else t0
-        if station is not None and station_of(d.data) != station:
+def datagram_lines(datagrams: Iterable[Datagram], station: int | None = None, *,
+                   selection: Selection | None = None, names: Names | None = None) -> Iterator[tuple[str, bool]]:
+    """``(line, ok)`` per datagram of the *selection*: ``t  src -> dst  frame`` (``format_line``, with *names*'
+    additions), or the rejection reason; comments follow on their own ``#`` lines (a note about the selected
+    station recorded on another station's datagram: ``t  # note``). Times count from the first datagram of the
+    capture."""
+    sel = selection or Selection(station=station)
+    for item in _select(datagrams, sel, names):
+        d = item.datagram
+        stamp = f"{item.t_ns / 1e9:11.6f}"
+        if item.shown:
+            head = f"{stamp}  {_endpoint(d.src)} -> {_endpoint(d.dst)}  "
+            if item.frame is not None:
+                yield head + format_line(item.frame, item.described), True
+            else:
+                yield head + f"REJECTED {item.error} ({len(d.data)} bytes)", False
+            stamp = ""
+        for comment in item.notes:
+            yield f"{stamp:11}  # {comment}", True
+
+
+def datagram_stats(datagrams: Iterable[Datagram], selection: Selection | None = None) -> dict[str, Any]:
+    """Counts of the *selection*'s datagrams: ``stations`` = {"21H": {"INV_CTL": {"cmd": n, "rsp": n}, …}} (main
+    commands, and sub-commands other than NOP as ``"sub PRM_RD"``), ``datagrams``, ``rejected``."""
+    stations: dict[str, dict[str, dict[str, int]]] = {}
+    total = rejected = 0
+    for item in _select(datagrams, selection or Selection(), None):
+        if not item.shown:
             continue
-        head = f"{(d.ts_ns - t0) / 1e9:11.6f}  {_endpoint(d.src)} -> {_endpoint(d.dst)}  "
-        try:
-            line, ok = head + format_line(decode(d.data)), True
-        except WireError as exc:
-            line, ok = head + f"REJECTED {exc} ({len(d.data)} bytes)", False
-        yield line, ok
-        for comment in d.comments:
-            yield f"{'':11}  # {comment}", True
+        total += 1
+        station = station_of(item.datagram.data)
+        if item.described is None:
+            rejected += 1
+            continue
+        kind = "cmd" if item.described["kind"] == "command" else "rsp"
+        per = stations.setdefault(f"{station:02X}H", {})
+        keys = [item.described["main"]["command"]]
+        sub = item.described.get("sub")
+        if sub is not None and sub["command"] != "NOP":
+            keys.append("sub " + sub["command"])
+        for key in keys:
+            counts = per.setdefault(key, {"cmd": 0, "rsp": 0})
+            counts[kind] += 1
+    return {"datagrams": total, "rejected": rejected,
+            "stations": {k: dict(sorted(v.items())) for k, v in sorted(stations.items())}}

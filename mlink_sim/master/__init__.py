@@ -33,6 +33,9 @@ from .types import (
     StationDisconnected,
     StationState,
     StationView,
+    ParamRequestError,
+    ParamValue,
+    status_bits,
 )
 
 __all__ = [
@@ -42,6 +45,9 @@ __all__ = [
     "TCYCLE_RANGE_NS",
     "StationState",
     "StationView",
+    "ParamRequestError",
+    "ParamValue",
+    "status_bits",
     "Control",
     "Request",
     "Event",

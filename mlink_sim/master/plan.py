@@ -83,6 +83,10 @@ class StationPlan:
     for stopped: 2 % of the maximum output frequency (E1-04), mlink-sim's choice (docs/master.md); the default
     is 1.2 Hz at E1-04 = 60 Hz and o1-03 = 0 (0.01 Hz)."""
 
+    hz_per_count: float = 0.0
+    """Hz of one count of the output frequency and speed reference in the drive's units (o1-03 / n035: 0.01 at
+    their defaults); the views' ``output_hz`` reads it. 0 = not known (``output_hz`` is then None)."""
+
     search_input: int = 0
     """``Control.multi_inputs`` bits of a speed-search command terminal (VS-606V7 n052–n056 = 14/15): on with
     the run command after a recovery until speed agree."""

@@ -24,7 +24,8 @@ MANAGED = frozenset({Cmd.CONNECT, Cmd.SYNC_SET})
 
 def build(st: Slave, body: Any, sub: bool | None, deadline_ns: int) -> Request:
     """A request for *body* to station *st* (see :meth:`MasterCore.request`); raises TypeError / ValueError for a
-    body that is not a command of the station's generation or a sub-command where the plan has none."""
+    body that is not a command of the station's generation, a sub-command where the plan has none, or a field
+    that does not fit its layout (encoded once here, so that the cycle never meets a body it cannot send)."""
     codec, plan = st.codec, st.plan
     if sub is None:  # V7 §7.1 "PRM_RD can be used only in a sub-command": 32-byte SI-T/V7 PRM_RD/PRM_WR
         sub = (plan.is_v7 and plan.subcmd and type(body) in codec.sub_slot.by_class
@@ -36,7 +37,10 @@ def build(st: Slave, body: Any, sub: bool | None, deadline_ns: int) -> Request:
     if type(body) is not Unknown and type(body) not in slot.by_class:
         where = "sub-command" if sub else "main command"
         raise TypeError(f"{type(body).__module__}.{type(body).__name__} is not a {plan.link.label} {where}")
-    code = slot.code_of(body)
+    try:  # a field that does not fit is refused here, not when the slot encodes it in the cycle
+        code, _ = slot.build(body)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"station {st.address:02X}H: {type(body).__name__} cannot be sent: {exc}") from None
     kind = codec.kind_of(code)
     if kind in MANAGED:
         raise ValueError(f"{kind.value} is sent by the master core itself (bring-up and recovery)")

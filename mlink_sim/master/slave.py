@@ -161,5 +161,6 @@ class Slave:
             self.address, self.plan.label, self.state, self.state.phase, at_target, self.alarm, self.alarm_name,
             self.comm_alm, self.cmd_alm, self.fault, self.warning, self.status, self.output_freq,
             self.output_current, self.mon1, self.mon2, self.rtt, self.last_rx, self.wdt, self.rwdt, self.sent,
-            self.responses, self.missing, self.late, self.recoveries, self.last_error,
+            self.responses, self.missing, self.late, self.recoveries, self.last_error, self.plan.link.name,
+            self.plan.card, self.plan.hz_per_count,
         )

@@ -7,6 +7,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from ..params import ParamError
+from ..wire import CmdAlm, CommAlm, InvCmdStat, Link, M2Status
+
 if TYPE_CHECKING:
     from .commands import Cmd
 
@@ -29,6 +32,9 @@ __all__ = [
     "RequestTimeout",
     "StationDisconnected",
     "Request",
+    "ParamValue",
+    "ParamRequestError",
+    "status_bits",
 ]
 
 
@@ -95,9 +101,45 @@ class Control:
             raise ValueError("multi_inputs holds terminals S3–S8 in bits 0–5")
 
 
+#: The status bits a response reports, by card: SI-T3 "STATUS Field" (MECHATROLINK-II STATUS, bits 0–F), SI-T/V7
+#: §7.3 "STATUS Field" (the same bits 0–D; E and F are not used), SI-ET3 "INVCMD_STAT" (the INV_CTL response's
+#: INVCMD_STAT, bits 0–13 and the SEL_MON statuses 24/25).
+_V7_UNUSED = M2Status.SEL_M | M2Status.ZERO_SERVO
+
+
+def status_bits(link: Link | str, status: int, card: str = "") -> tuple[str, ...]:
+    """The names of the bits set in *status* (ML-I/II STATUS, ML-III INVCMD_STAT), in bit order, as the card's
+    manual names them (SI-T3 / SI-T/V7 "STATUS Field", SI-ET3 "INVCMD_STAT"); the SI-T/V7 has no bits E and F."""
+    flags: type[M2Status] | type[InvCmdStat]
+    if (link if isinstance(link, Link) else Link[link]) is Link.ML3:
+        flags = InvCmdStat
+    else:
+        flags = M2Status
+        if "".join(ch for ch in card.lower() if ch.isalnum()) == "sitv7":
+            status &= ~_V7_UNUSED
+    return tuple(m.name for m in flags if m.name and m.value.bit_count() == 1 and status & m.value)
+
+
+def _code_name(table: Any, code: int) -> str:
+    try:
+        return str(table(code).name)
+    except ValueError:
+        return "(no name in the manual)"
+
+
+def _decimals(step: float) -> int:
+    """Decimals that show one step of *step* (0.01 -> 2), at most 3."""
+    for digits in range(4):
+        if abs(step * 10**digits - round(step * 10**digits)) < 1e-9:
+            return digits
+    return 3
+
+
 @dataclass(frozen=True, slots=True)
 class StationView:
-    """Snapshot of one station as the master sees it (built on demand)."""
+    """Snapshot of one station as the master sees it (built on demand). The raw fields are as the wire carries
+    them; the properties decode them: :attr:`output_hz`, :attr:`status_bits` (and :meth:`bit`),
+    :attr:`alarm_text`."""
 
     address: int
     name: str
@@ -111,7 +153,7 @@ class StationView:
     fault: bool  #: ML-II STATUS.ALM / ML-III CMD_STAT.D_ALM
     warning: bool  #: ML-II STATUS.WARNG / ML-III CMD_STAT.D_WAR
     status: int  #: ML-II STATUS / ML-III INVCMD_STAT (latest INV_CTL response)
-    output_freq: int
+    output_freq: int  #: raw, in the drive's frequency units (o1-03 / n035): :attr:`output_hz` in Hz
     output_current: int
     mon1: int
     mon2: int
@@ -125,6 +167,44 @@ class StationView:
     late: int
     recoveries: int
     last_error: str | None  #: why bring-up is stuck or recovery escalated, if it is
+    link: str = "ML2"  #: the link's name (``Link`` member: "ML1", "ML2", "ML3")
+    card: str = ""  #: the card ("si-t3", "si-et3", "si-t/v7"; empty when the plan does not say)
+    hz_per_count: float = 0.0  #: Hz of one count of ``output_freq`` (the drive's o1-03 / n035 units); 0 = unknown
+
+    @property
+    def output_hz(self) -> float | None:
+        """The output frequency in Hz at the drive's resolution (627 in 0.01 Hz units -> 6.27); None when the
+        station's frequency units are not known (a plan without them)."""
+        step = self.hz_per_count
+        if not step:
+            return None
+        return round(self.output_freq * step, _decimals(step))
+
+    @property
+    def status_bits(self) -> tuple[str, ...]:
+        """The names of the status bits set (:func:`status_bits`: ``("CMDRDY", "PON", "RUNX", …)``)."""
+        return status_bits(self.link, self.status, self.card)
+
+    def bit(self, name: str) -> bool:
+        """Whether status bit *name* is set ("RUNX", "agree"; case-insensitive). ValueError for a name the
+        station's status field does not have."""
+        flags: Any = InvCmdStat if self.link == "ML3" else M2Status
+        member = flags.__members__.get(name.strip().upper())
+        if member is None:
+            known = ", ".join(m.name for m in flags if m.name and m.value.bit_count() == 1)
+            raise ValueError(f"station {self.address:02X}H: no status bit {name!r} on {self.link} (bits: {known})")
+        return name.strip().upper() in self.status_bits
+
+    @property
+    def alarm_text(self) -> str | None:
+        """The alarm as text: ``"E6H COMM_ERROR"`` (ML-II ALARM and its name), ``"COMM_ALM 8H WDT_ERROR"`` /
+        ``"CMD_ALM 1H INVALID_DATA_WARNING"`` (ML-III, SI-ET3 "COMM_ALM" / "CMD_ALM"); None without one."""
+        if self.link != "ML3":
+            return f"{self.alarm:02X}H {self.alarm_name}" if self.alarm else None
+        parts = [f"{label} {code:X}H {_code_name(table, code)}"
+                 for label, table, code in (("COMM_ALM", CommAlm, self.comm_alm), ("CMD_ALM", CmdAlm, self.cmd_alm))
+                 if code]
+        return ", ".join(parts) or None
 
 
 # --- events -------------------------------------------------------------------------------------------------------
@@ -307,3 +387,55 @@ class Request:
     def __repr__(self) -> str:
         state = "pending" if not self.done else ("failed" if self.error else "done")
         return f"<Request {self.command}{' (sub)' if self.sub else ''} station {self.station:02X}H {state}>"
+
+
+# --- parameters by name -------------------------------------------------------------------------------------------
+
+
+class ParamValue(float):
+    """A parameter read by name (``await master.prm_rd(0x21, "C1-01")``): a float in engineering units that compares
+    and computes as one (``== 10.0``), with the row it came from: :attr:`name`, :attr:`unit`, :attr:`raw` (the
+    count the register holds), :attr:`register`. ``str()`` reads as the keypad shows it: ``"10.0 s"``."""
+
+    __slots__ = ("name", "unit", "raw", "register", "text")
+
+    name: str
+    unit: str
+    raw: int
+    register: int
+    text: str
+
+    def __new__(cls, name: str, value: float, unit: str, raw: int, register: int, text: str = "") -> ParamValue:
+        self = super().__new__(cls, value)
+        self.name, self.unit, self.raw, self.register = name, unit, raw, register
+        self.text = text or (f"{value:g} {unit}" if unit else f"{value:g}")
+        return self
+
+    @property
+    def value(self) -> float:
+        """The plain float."""
+        return float(self)
+
+    def __str__(self) -> str:
+        return self.text
+
+    def __repr__(self) -> str:
+        return (f"ParamValue({self.name!r}, {float(self)!r}, {self.unit!r}, raw={self.raw}, "
+                f"register=0x{self.register:04X})")
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (ParamValue, (self.name, float(self), self.unit, self.raw, self.register, self.text))
+
+
+class ParamRequestError(ParamError):
+    """A parameter request that cannot be sent: an unknown name or register, a value of the wrong type, out of
+    range or finer than the setting's resolution, a read-only row. Raised before anything is sent.
+
+    ``station`` (the address), ``name`` (what was asked for), ``allowed`` (the range, or what would be
+    accepted); ``str()`` is one sentence that names all three."""
+
+    def __init__(self, station: int, name: str, allowed: str, message: str) -> None:
+        super().__init__(message)
+        self.station = station
+        self.name = name
+        self.allowed = allowed

@@ -272,6 +272,22 @@ class ParamTable:
         """The row at a MEMOBUS register number (primary or alternative), or None."""
         return self._by_register.get(register)
 
+    def resolve(self, target: str | int) -> Param:
+        """The row named *target* ("C1-01", "n019", case-insensitive) or at register *target* (an int, or text as
+        ``0x0200`` / ``0200H``); raises :class:`ParamError` for an unknown name or register."""
+        if isinstance(target, str):
+            text = target.strip()
+            reg_match = _REG_RE.match(text)
+            if reg_match is None or _NAME_RE.match(text):
+                return self.by_name(text)
+            target = int(reg_match.group(1) or reg_match.group(2), 16)
+        if isinstance(target, bool) or not isinstance(target, int):
+            raise ParamError(f"{target!r} is neither a parameter name (e.g. 'C1-01') nor a register number")
+        row = self.by_register(target)
+        if row is None:
+            raise ParamError(f"no parameter at register {target:04X}H for {self.where}")
+        return row
+
     def group(self, prefix: str) -> tuple[Param, ...]:
         """Rows whose name starts with ``prefix`` (case-insensitive), e.g. ``"F6"``, ``"U1"``."""
         key = prefix.strip().upper()

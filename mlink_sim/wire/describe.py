@@ -103,18 +103,34 @@ def describe(frame: Frame) -> dict[str, Any]:
     return out
 
 
+#: Keys a body dict may carry beyond describe()'s, added by a reader that knows the station's card
+#: (``mlink-sim decode``): ``param`` (the parameter a PRM_RD/PRM_WR addresses: its ``text``, e.g.
+#: ``"C1-01 (0200H) = 1.0 s"``, stands for NO, SIZE and the data) and ``<field>_bits`` (the names of a status
+#: field's bits, shown instead of its hex value).
+_PARAM_FIELDS = ("no", "size", "parameter", "data")
+
+
 def _fmt_body(d: dict[str, Any]) -> str:
+    param = d.get("param")
+    hidden = {"command", "code", "param", *(k for k in d if k.endswith("_bits"))}
+    if param is not None:
+        hidden.update(_PARAM_FIELDS)
     fields = " ".join(
-        f"{k}={v:#x}" if isinstance(v, int) and k in ("no", "signals", "invcmd_ctrl", "invcmd_stat") else f"{k}={v}"
+        f"{k}={'|'.join(d[k + '_bits']) or '0'}" if k + "_bits" in d
+        else f"{k}={v:#x}" if isinstance(v, int) and k in ("no", "signals", "invcmd_ctrl", "invcmd_stat")
+        else f"{k}={v}"
         for k, v in d.items()
-        if k not in ("command", "code")
+        if k not in hidden
     )
+    if param is not None:
+        fields = f"{param['text']} {fields}".rstrip()
     return f"{d['command']}({d['code']:02X}H){(' ' + fields) if fields else ''}"
 
 
-def format_frame(frame: Frame) -> str:
-    """A compact multi-line human-readable rendering of *frame*."""
-    d = describe(frame)
+def format_frame(frame: Frame, d: dict[str, Any] | None = None) -> str:
+    """A compact multi-line human-readable rendering of *frame* (of *d*, its :func:`describe` with names added,
+    when given)."""
+    d = describe(frame) if d is None else d
     link = Link(frame.link).label
     lines = [
         f"{link} {d['kind']} station {frame.station:#04x} ({frame.station:02X}H) cycle {frame.cycle} "
@@ -141,10 +157,11 @@ def format_frame(frame: Frame) -> str:
     return "\n".join(lines)
 
 
-def format_line(frame: Frame) -> str:
+def format_line(frame: Frame, d: dict[str, Any] | None = None) -> str:
     """*frame* on one line (``mlink-sim decode --pcap``): link, kind, station, cycle, main [+ sub] command with their
-    fields, WDT/RWDT and the status/alarm fields that are set."""
-    d = describe(frame)
+    fields, WDT/RWDT and the status/alarm fields that are set (from *d*, its :func:`describe` with names added,
+    when given)."""
+    d = describe(frame) if d is None else d
     kind = "cmd" if frame.kind == 1 else "rsp"
     parts = [f"{d['link']} {kind} {frame.station:02X}H cycle {frame.cycle}", _fmt_body(d["main"])]
     if "sub" in d:

@@ -46,6 +46,8 @@ field("sub", ProtoField.none("mlink.sub", "Sub"))
 field("fcs", ProtoField.uint16("mlink.fcs", "FCS", base.HEX))
 field("fcs_computed", ProtoField.uint16("mlink.fcs.computed", "FCS computed", base.HEX))
 field("fcs_status", ProtoField.uint8("mlink.fcs.status", "FCS status", base.DEC, fcs_status_names))
+field("param", ProtoField.string("mlink.param", "Parameter"))
+field("param_value", ProtoField.string("mlink.param.value", "Value"))
 
 -- bit fields: { {mask, name}, ... } under a parent of `width` bits
 local function bit_fields(prefix, bits, width)
@@ -146,6 +148,52 @@ local function alarm_name(code, status)
   return name or string.format("0x%02x", code)
 end
 
+-- parameters by name: the card of a station from the preference mlink.cards ("si-t3", "22H=si-t/v7,0x21=si-t3"),
+-- the capture's card notes ("station 21H: card SI-T3 ..."), or the link (T.link_card); the card picks the table
+local function card_key(text) return lower((string.gsub(text, "[^%w]", ""))) end
+local pref_cards, pref_all = {}, nil
+local noted = {}
+local comment_field = nil
+do
+  local ok, f = pcall(Field.new, "frame.comment")
+  if ok then comment_field = f end
+end
+
+local function parse_cards(text)
+  pref_cards, pref_all = {}, nil
+  for item in string.gmatch(text or "", "[^,%s]+") do
+    local addr, card = string.match(item, "^(.-)=(.+)$")
+    if addr then
+      local hex = string.match(addr, "^0[xX](%x+)$") or string.match(addr, "^(%x+)[hH]$")
+      if hex then pref_cards[tonumber(hex, 16)] = card_key(card) end
+    else
+      pref_all = card_key(item)
+    end
+  end
+end
+
+local function learn_cards()
+  if comment_field == nil then return end
+  for _, fi in ipairs({ comment_field() }) do
+    local station, card = string.match(tostring(fi.value), "^station (%x%x)H: card (%S+)")
+    if station then noted[tonumber(station, 16)] = card_key(card) end
+  end
+end
+
+local function param_table(link, station)
+  local card = pref_cards[station] or pref_all or noted[station] or T.link_card[link]
+  local family = card and T.card_family[card]
+  return family and T.params[family]
+end
+
+-- the value of a 2-byte register as Param.format writes it ("1.0 s", "150%", "24H")
+local function param_text(row, raw)
+  if row[4] and raw >= 0x8000 then raw = raw - 0x10000 end
+  if string.sub(row[2], -2) == "XH" then return string.format(row[2], raw) .. row[5] end
+  return string.format(row[2], raw * row[3]) .. row[5]
+end
+
+-- returns, for a PRM_RD / PRM_WR body, what naming its parameter needs once the frame's refusal bits are known
 local function dissect_body(tree, range, gen, slot, code, label)
   local layout = T.bodies[gen][slot][code]
   local names = T.gen_commands[gen]
@@ -154,13 +202,37 @@ local function dissect_body(tree, range, gen, slot, code, label)
   if layout == nil then
     sub:add(F.raw, range)
     sub:add_proto_expert_info(ef_unknown, string.format("%s code %02XH has no layout", label, code))
-    return
+    return nil
   end
+  local prm = contains(T.prm_commands, names[code]) and { tree = sub } or nil
   for _, f in ipairs(layout) do
     local name, off, size = f[1], f[2], f[3]
     local item = sub:add_le(BODY[name], range(off, size))
     if BODY_BITS[name] then add_bits(item, range(off, size), BODY_BITS[name]) end
+    if prm then
+      if name == "no" then prm.no, prm.no_range = range(off, size):le_uint(), range(off, size)
+      elseif name == "size" then prm.size = range(off, size):le_uint()
+      elseif name == "data" or name == "parameter" then prm.data = range(off, size) end
+    end
   end
+  if prm then prm.head = string.format("%s: %s (%02XH)", label, names[code], code) end
+  return prm
+end
+
+-- the parameter of a PRM_RD / PRM_WR body by name, with its value unless the station refused the command
+local function name_param(prm, params, refused)
+  if prm == nil or params == nil or prm.no == nil then return nil end
+  local row = params[prm.no]
+  if row == nil then return nil end
+  local text = string.format("%s (%04XH)", row[1], prm.no)
+  prm.tree:add(F.param, prm.no_range, row[1]):set_generated()
+  if prm.data ~= nil and prm.size == 2 and not refused then
+    local value = param_text(row, prm.data(0, 2):le_uint())
+    prm.tree:add(F.param_value, prm.data(0, 2), value):set_generated()
+    text = text .. " = " .. value
+  end
+  prm.tree:set_text(prm.head .. " " .. text)
+  return text
 end
 
 local function dissect(tvb, pinfo, tree)
@@ -208,8 +280,10 @@ local function dissect(tvb, pinfo, tree)
   local frame = T.frames[gen][is_cmd and "cmd" or "rsp"][n]
   local data = tvb(T.header_size, n)
   local names = T.gen_commands[gen]
-  local code, subcode, status, alarm
+  local code, subcode, status, alarm, substatus, main_prm, sub_prm
+  local cmd_alm_v, subcmd_alm_v = 0, 0
   local notes = {}
+  learn_cards()
   for _, f in ipairs(frame) do
     local name, off, size = f[1], f[2], f[3]
     local range = data(off, size)
@@ -222,13 +296,14 @@ local function dissect(tvb, pinfo, tree)
       root:add(F.subcode, range)
       root:add(F.subcmd_name, range, names[subcode] or string.format("0x%02x", subcode)):set_generated()
     elseif name == "main" then
-      dissect_body(root, range, gen, is_cmd and "cmd_main" or "rsp_main", code, "Main")
+      main_prm = dissect_body(root, range, gen, is_cmd and "cmd_main" or "rsp_main", code, "Main")
     elseif name == "sub" then
-      dissect_body(root, range, gen, is_cmd and "cmd_sub" or "rsp_sub", subcode, "Sub")
+      sub_prm = dissect_body(root, range, gen, is_cmd and "cmd_sub" or "rsp_sub", subcode, "Sub")
     elseif name == "status" then
       status = range:le_uint()
       add_bits(root:add_le(F.status, range), range, STATUS_BITS)
     elseif name == "substatus" then
+      substatus = range:uint()
       add_bits(root:add_le(F.substatus, range), range, SUBSTATUS_BITS)
     elseif name == "alarm" then
       alarm = range:uint()
@@ -239,6 +314,7 @@ local function dissect(tvb, pinfo, tree)
       local v = range:le_uint()
       add_bits(root:add_le(F.cmd_stat, range), range, CMD_STAT_FIELDS)
       local cmd_alm, comm_alm = band(rshift(v, 8), 0xF), band(rshift(v, 12), 0xF)
+      cmd_alm_v = cmd_alm
       if cmd_alm ~= 0 then notes[#notes + 1] = "CMD_ALM " .. (T.cmd_alm[cmd_alm] or cmd_alm) end
       if comm_alm ~= 0 then notes[#notes + 1] = "COMM_ALM " .. (T.comm_alm[comm_alm] or comm_alm) end
     elseif name == "sub_ctrl" then
@@ -247,11 +323,15 @@ local function dissect(tvb, pinfo, tree)
       local v = range:le_uint()
       add_bits(root:add_le(F.sub_stat, range), range, SUB_STAT_FIELDS)
       local subcmd_alm = band(rshift(v, 8), 0xF)
+      subcmd_alm_v = subcmd_alm
       if subcmd_alm ~= 0 then notes[#notes + 1] = "SUBCMD_ALM " .. (T.subcmd_alm[subcmd_alm] or subcmd_alm) end
     elseif F[name] then
       root:add(F[name], range)
     end
   end
+  local params = param_table(link, station)
+  local main_param = name_param(main_prm, params, contains(T.refusals_ml2, alarm or 0) or cmd_alm_v ~= 0)
+  local sub_param = name_param(sub_prm, params, band(substatus or 0, T.substatus_errors) ~= 0 or subcmd_alm_v ~= 0)
   if alarm ~= nil and alarm ~= 0 then
     local aname = alarm_name(alarm, status or 0)
     root:add(F.alarm_name, data(1, 1), aname):set_generated()
@@ -263,7 +343,9 @@ local function dissect(tvb, pinfo, tree)
   root:append_text(string.format(", %s %s, station %02XH, %s", T.links[link], T.kinds[kind], station,
     names[code] or string.format("0x%02x", code)))
   info = string.format("%s %s %s", info, is_cmd and "cmd" or "rsp", names[code] or string.format("0x%02x", code))
+  if main_param then info = info .. " " .. main_param end
   if subcode ~= nil then info = info .. " / " .. (names[subcode] or string.format("0x%02x", subcode)) end
+  if sub_param then info = info .. " " .. sub_param end
   info = info .. string.format(" cycle %d", tvb(4, 4):le_uint())
   if #notes > 0 then info = info .. " [" .. table.concat(notes, ", ") .. "]" end
   pinfo.cols.info = info
@@ -297,8 +379,13 @@ local function register_ports()
   udp:add(registered, mlink)
 end
 
+mlink.prefs.cards = Pref.string("Cards of stations", "",
+  "The card of MECHATROLINK-II stations, for parameter names and units: si-t3 or si-t/v7 for all, or "
+  .. "22H=si-t/v7,0x21=si-t3 (ML-III is the SI-ET3, ML-I the SI-T/V7; a capture's card notes are read too)")
+
 function mlink.prefs_changed()
   register_ports()
+  parse_cards(mlink.prefs.cards)
 end
 
 register_ports()

@@ -1,7 +1,8 @@
 """Build the Wireshark dissector ``mlink.lua`` from the package's own tables, so that the two cannot drift.
 
 The shipped file is the generated table section (every command code, body layout, data-area framing, status and
-control bit, alarm code and the CRC-16/X-25 table, each taken from :mod:`mlink_sim.wire`) followed by the
+control bit, alarm code and the CRC-16/X-25 table, each taken from :mod:`mlink_sim.wire`; the parameter names,
+units and scales from :mod:`mlink_sim.params`) followed by the
 hand-written dissector code in ``dissector.lua``. ``tests/wireshark/test_generate.py`` checks that the shipped
 ``mlink.lua`` equals :func:`build`'s output; after changing a wire table run::
 
@@ -19,6 +20,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from ..params import A1000, VS606V7, Param, ParamTable
 from ..wire import codes, fcs, ml2, ml3
 from ..wire.drive_codes import SiT3DriveAlarm, SiT3DriveWarning
 from ..wire.frame import ENVELOPE, FCS_SIZE, HEADER_SIZE, MAGIC
@@ -128,12 +130,31 @@ def _body_fields(gens: dict[str, dict[str, Any]]) -> dict[str, tuple[str, str]]:
     return out
 
 
+def _param_row(param: Param) -> list[Any]:
+    """``{name, format, scale, signed, unit suffix}`` of a row: the value is ``string.format(format, raw * scale)``
+    (``raw`` alone for a hex row) followed by the suffix, as :meth:`Param.format` writes it ("1.0 s", "150%",
+    "24H")."""
+    if param.radix == 16:
+        fmt, scale = f"%0{len(f'{param.maximum:X}')}XH", 1.0
+    else:
+        fmt, scale = f"%.{param.decimals}f", float(param.scale)
+    suffix = param.with_unit("")
+    return [param.name, fmt, scale, param.signed, suffix]
+
+
+def _params(table: ParamTable) -> dict[int, list[Any]]:
+    """Register -> :func:`_param_row`, every register of *table* (alternative registers too)."""
+    return {reg: _param_row(row) for row in table for reg in row.registers}
+
+
 def _lua(value: Any, indent: int = 0) -> str:
     pad = "  " * indent
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, int):
         return str(value)
+    if isinstance(value, float):
+        return repr(value)
     if isinstance(value, str):
         return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(value, (list, tuple)):
@@ -192,6 +213,14 @@ def lua_tables() -> dict[str, Any]:
         "status_alm_bit": int(codes.M2Status.ALM),
         "status_warng_bit": int(codes.M2Status.WARNG),
         "crc_table": _crc_table(),
+        # parameters by name (docs/parameters.md): the card picks the table; ML-III is only the SI-ET3, ML-I only
+        # the SI-T/V7; an ML-II station's card comes from the preference mlink.cards or the capture's card note
+        "params": {"a1000": _params(A1000), "v7": _params(VS606V7)},
+        "card_family": {"sit3": "a1000", "siet3": "a1000", "sitv7": "v7"},
+        "link_card": {int(codes.Link.ML3): "siet3", int(codes.Link.ML1): "sitv7"},
+        "prm_commands": ["PRM_RD", "PRM_WR"],
+        "refusals_ml2": [int(codes.M2Alarm.DATA_SETTING_WARNING), int(codes.M2Alarm.COMMAND_WARNING)],
+        "substatus_errors": int(codes.M2SubStatus.SUBALM | codes.M2SubStatus.SUBWARNG),
     }
 
 

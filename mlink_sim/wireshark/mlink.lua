@@ -748,6 +748,1704 @@ local T = {
   status_alm_bit = 1,
   status_warng_bit = 2,
   crc_table = {0, 4489, 8978, 12955, 17956, 22445, 25910, 29887, 35912, 40385, 44890, 48851, 51820, 56293, 59774, 63735, 4225, 264, 13203, 8730, 22181, 18220, 30135, 25662, 40137, 36160, 49115, 44626, 56045, 52068, 63999, 59510, 8450, 12427, 528, 5017, 26406, 30383, 17460, 21949, 44362, 48323, 36440, 40913, 60270, 64231, 51324, 55797, 12675, 8202, 4753, 792, 30631, 26158, 21685, 17724, 48587, 44098, 40665, 36688, 64495, 60006, 55549, 51572, 16900, 21389, 24854, 28831, 1056, 5545, 10034, 14011, 52812, 57285, 60766, 64727, 34920, 39393, 43898, 47859, 21125, 17164, 29079, 24606, 5281, 1320, 14259, 9786, 57037, 53060, 64991, 60502, 39145, 35168, 48123, 43634, 25350, 29327, 16404, 20893, 9506, 13483, 1584, 6073, 61262, 65223, 52316, 56789, 43370, 47331, 35448, 39921, 29575, 25102, 20629, 16668, 13731, 9258, 5809, 1848, 65487, 60998, 56541, 52564, 47595, 43106, 39673, 35696, 33800, 38273, 42778, 46739, 49708, 54181, 57662, 61623, 2112, 6601, 11090, 15067, 20068, 24557, 28022, 31999, 38025, 34048, 47003, 42514, 53933, 49956, 61887, 57398, 6337, 2376, 15315, 10842, 24293, 20332, 32247, 27774, 42250, 46211, 34328, 38801, 58158, 62119, 49212, 53685, 10562, 14539, 2640, 7129, 28518, 32495, 19572, 24061, 46475, 41986, 38553, 34576, 62383, 57894, 53437, 49460, 14787, 10314, 6865, 2904, 32743, 28270, 23797, 19836, 50700, 55173, 58654, 62615, 32808, 37281, 41786, 45747, 19012, 23501, 26966, 30943, 3168, 7657, 12146, 16123, 54925, 50948, 62879, 58390, 37033, 33056, 46011, 41522, 23237, 19276, 31191, 26718, 7393, 3432, 16371, 11898, 59150, 63111, 50204, 54677, 41258, 45219, 33336, 37809, 27462, 31439, 18516, 23005, 11618, 15595, 3696, 8185, 63375, 58886, 54429, 50452, 45483, 40994, 37561, 33584, 31687, 27214, 22741, 18780, 15843, 11370, 7921, 3960},
+  params = {
+    a1000 = {
+      [258] = {
+        "A1-02",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [259] = {
+        "A1-03",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [384] = {
+        "b1-01",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [385] = {
+        "b1-02",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [386] = {
+        "b1-03",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [387] = {
+        "b1-04",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [401] = {
+        "b3-01",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [402] = {
+        "b3-02",
+        "%.0f",
+        1.0,
+        false,
+        "%",
+      },
+      [403] = {
+        "b3-03",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [405] = {
+        "b3-05",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [496] = {
+        "b3-17",
+        "%.0f",
+        1.0,
+        false,
+        "%",
+      },
+      [497] = {
+        "b3-18",
+        "%.2f",
+        0.01,
+        false,
+        " s",
+      },
+      [498] = {
+        "b3-19",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [448] = {
+        "b3-24",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [456] = {
+        "b3-25",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [512] = {
+        "C1-01",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [513] = {
+        "C1-02",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [514] = {
+        "C1-03",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [515] = {
+        "C1-04",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [516] = {
+        "C1-05",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [517] = {
+        "C1-06",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [518] = {
+        "C1-07",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [519] = {
+        "C1-08",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [520] = {
+        "C1-09",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [521] = {
+        "C1-10",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [523] = {
+        "C2-01",
+        "%.2f",
+        0.01,
+        false,
+        " s",
+      },
+      [524] = {
+        "C2-02",
+        "%.2f",
+        0.01,
+        false,
+        " s",
+      },
+      [525] = {
+        "C2-03",
+        "%.2f",
+        0.01,
+        false,
+        " s",
+      },
+      [526] = {
+        "C2-04",
+        "%.2f",
+        0.01,
+        false,
+        " s",
+      },
+      [640] = {
+        "d1-01",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [641] = {
+        "d1-02",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [642] = {
+        "d1-03",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [643] = {
+        "d1-04",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [644] = {
+        "d1-05",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [645] = {
+        "d1-06",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [646] = {
+        "d1-07",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [647] = {
+        "d1-08",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [648] = {
+        "d1-09",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [651] = {
+        "d1-10",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [652] = {
+        "d1-11",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [653] = {
+        "d1-12",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [654] = {
+        "d1-13",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [655] = {
+        "d1-14",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [656] = {
+        "d1-15",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [657] = {
+        "d1-16",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [658] = {
+        "d1-17",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [649] = {
+        "d2-01",
+        "%.1f",
+        0.1,
+        false,
+        "%",
+      },
+      [650] = {
+        "d2-02",
+        "%.1f",
+        0.1,
+        false,
+        "%",
+      },
+      [666] = {
+        "d5-01",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [768] = {
+        "E1-01",
+        "%.0f",
+        1.0,
+        false,
+        " V",
+      },
+      [770] = {
+        "E1-03",
+        "%01XH",
+        1.0,
+        false,
+        "",
+      },
+      [771] = {
+        "E1-04",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [772] = {
+        "E1-05",
+        "%.1f",
+        0.1,
+        false,
+        " V",
+      },
+      [773] = {
+        "E1-06",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [774] = {
+        "E1-07",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [775] = {
+        "E1-08",
+        "%.1f",
+        0.1,
+        false,
+        " V",
+      },
+      [776] = {
+        "E1-09",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [777] = {
+        "E1-10",
+        "%.1f",
+        0.1,
+        false,
+        " V",
+      },
+      [778] = {
+        "E1-11",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [779] = {
+        "E1-12",
+        "%.1f",
+        0.1,
+        false,
+        " V",
+      },
+      [780] = {
+        "E1-13",
+        "%.1f",
+        0.1,
+        false,
+        " V",
+      },
+      [782] = {
+        "E2-01",
+        "%.2f",
+        0.01,
+        false,
+        " A",
+      },
+      [783] = {
+        "E2-02",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [784] = {
+        "E2-03",
+        "%.2f",
+        0.01,
+        false,
+        " A",
+      },
+      [785] = {
+        "E2-04",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [786] = {
+        "E2-05",
+        "%.3f",
+        0.001,
+        false,
+        " Ω",
+      },
+      [787] = {
+        "E2-06",
+        "%.1f",
+        0.1,
+        false,
+        "%",
+      },
+      [792] = {
+        "E2-11",
+        "%.2f",
+        0.01,
+        false,
+        " kW",
+      },
+      [930] = {
+        "F6-01",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [931] = {
+        "F6-02",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [932] = {
+        "F6-03",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [935] = {
+        "F6-06",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [936] = {
+        "F6-07",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [874] = {
+        "F6-08",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [2911] = {
+        "F6-15",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [875] = {
+        "F6-20",
+        "%02XH",
+        1.0,
+        false,
+        "",
+      },
+      [876] = {
+        "F6-21",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [877] = {
+        "F6-22",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [878] = {
+        "F6-23",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [879] = {
+        "F6-24",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [969] = {
+        "F6-25",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [970] = {
+        "F6-26",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [965] = {
+        "F6-54",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [1080] = {
+        "H1-01",
+        "%02XH",
+        1.0,
+        false,
+        "",
+      },
+      [1081] = {
+        "H1-02",
+        "%02XH",
+        1.0,
+        false,
+        "",
+      },
+      [1024] = {
+        "H1-03",
+        "%02XH",
+        1.0,
+        false,
+        "",
+      },
+      [1025] = {
+        "H1-04",
+        "%02XH",
+        1.0,
+        false,
+        "",
+      },
+      [1026] = {
+        "H1-05",
+        "%02XH",
+        1.0,
+        false,
+        "",
+      },
+      [1027] = {
+        "H1-06",
+        "%02XH",
+        1.0,
+        false,
+        "",
+      },
+      [1028] = {
+        "H1-07",
+        "%02XH",
+        1.0,
+        false,
+        "",
+      },
+      [1029] = {
+        "H1-08",
+        "%02XH",
+        1.0,
+        false,
+        "",
+      },
+      [1035] = {
+        "H2-01",
+        "%03XH",
+        1.0,
+        false,
+        "",
+      },
+      [1036] = {
+        "H2-02",
+        "%03XH",
+        1.0,
+        false,
+        "",
+      },
+      [1037] = {
+        "H2-03",
+        "%03XH",
+        1.0,
+        false,
+        "",
+      },
+      [1053] = {
+        "H4-01",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [1056] = {
+        "H4-04",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [1167] = {
+        "L3-01",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [1168] = {
+        "L3-02",
+        "%.0f",
+        1.0,
+        false,
+        "%",
+      },
+      [1169] = {
+        "L3-03",
+        "%.0f",
+        1.0,
+        false,
+        "%",
+      },
+      [1170] = {
+        "L3-04",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [1171] = {
+        "L3-05",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [1172] = {
+        "L3-06",
+        "%.0f",
+        1.0,
+        false,
+        "%",
+      },
+      [1177] = {
+        "L4-01",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [1178] = {
+        "L4-02",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [1282] = {
+        "o1-03",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [64] = {
+        "U1-01",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [65] = {
+        "U1-02",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [66] = {
+        "U1-03",
+        "%.2f",
+        0.01,
+        false,
+        " A",
+      },
+      [67] = {
+        "U1-04",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [68] = {
+        "U1-05",
+        "%.2f",
+        0.01,
+        true,
+        " Hz",
+      },
+      [69] = {
+        "U1-06",
+        "%.1f",
+        0.1,
+        false,
+        " V",
+      },
+      [70] = {
+        "U1-07",
+        "%.0f",
+        1.0,
+        false,
+        " V",
+      },
+      [71] = {
+        "U1-08",
+        "%.1f",
+        0.1,
+        true,
+        " kW",
+      },
+      [72] = {
+        "U1-09",
+        "%.1f",
+        0.1,
+        true,
+        "%",
+      },
+      [73] = {
+        "U1-10",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [74] = {
+        "U1-11",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [75] = {
+        "U1-12",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [78] = {
+        "U1-13",
+        "%.1f",
+        0.1,
+        true,
+        "%",
+      },
+      [79] = {
+        "U1-14",
+        "%.1f",
+        0.1,
+        true,
+        "%",
+      },
+      [80] = {
+        "U1-15",
+        "%.1f",
+        0.1,
+        true,
+        "%",
+      },
+      [83] = {
+        "U1-16",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [128] = {
+        "U2-01",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [129] = {
+        "U2-02",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [130] = {
+        "U2-03",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [131] = {
+        "U2-04",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [132] = {
+        "U2-05",
+        "%.2f",
+        0.01,
+        false,
+        " A",
+      },
+      [133] = {
+        "U2-06",
+        "%.2f",
+        0.01,
+        true,
+        " Hz",
+      },
+      [134] = {
+        "U2-07",
+        "%.1f",
+        0.1,
+        false,
+        " V",
+      },
+      [135] = {
+        "U2-08",
+        "%.0f",
+        1.0,
+        false,
+        " V",
+      },
+      [136] = {
+        "U2-09",
+        "%.1f",
+        0.1,
+        true,
+        " kW",
+      },
+      [137] = {
+        "U2-10",
+        "%.1f",
+        0.1,
+        true,
+        "%",
+      },
+      [138] = {
+        "U2-11",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [139] = {
+        "U2-12",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [140] = {
+        "U2-13",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [141] = {
+        "U2-14",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [2016] = {
+        "U2-15",
+        "%.2f",
+        0.01,
+        false,
+        "%",
+      },
+      [2017] = {
+        "U2-16",
+        "%.1f",
+        0.1,
+        true,
+        "%",
+      },
+      [2018] = {
+        "U2-17",
+        "%.1f",
+        0.1,
+        true,
+        "%",
+      },
+      [142] = {
+        "U2-20",
+        "%.0f",
+        1.0,
+        true,
+        " °C",
+      },
+      [144] = {
+        "U3-01",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [2048] = {
+        "U3-01",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [145] = {
+        "U3-02",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [2049] = {
+        "U3-02",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [146] = {
+        "U3-03",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [2050] = {
+        "U3-03",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [147] = {
+        "U3-04",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [2051] = {
+        "U3-04",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [2052] = {
+        "U3-05",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [2053] = {
+        "U3-06",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [2054] = {
+        "U3-07",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [2055] = {
+        "U3-08",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [2056] = {
+        "U3-09",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [2057] = {
+        "U3-10",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [148] = {
+        "U3-11",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [2058] = {
+        "U3-11",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [149] = {
+        "U3-12",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [2059] = {
+        "U3-12",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [150] = {
+        "U3-13",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [2060] = {
+        "U3-13",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [151] = {
+        "U3-14",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [2061] = {
+        "U3-14",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [2062] = {
+        "U3-15",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [2063] = {
+        "U3-16",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [2064] = {
+        "U3-17",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [2065] = {
+        "U3-18",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [2066] = {
+        "U3-19",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+      [2067] = {
+        "U3-20",
+        "%.0f",
+        1.0,
+        false,
+        " h",
+      },
+    },
+    v7 = {
+      [257] = {
+        "n001",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [258] = {
+        "n002",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [259] = {
+        "n003",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [260] = {
+        "n004",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [261] = {
+        "n005",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [262] = {
+        "n006",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [267] = {
+        "n011",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [268] = {
+        "n012",
+        "%.1f",
+        0.1,
+        false,
+        " V",
+      },
+      [269] = {
+        "n013",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [270] = {
+        "n014",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [271] = {
+        "n015",
+        "%.1f",
+        0.1,
+        false,
+        " V",
+      },
+      [272] = {
+        "n016",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [273] = {
+        "n017",
+        "%.1f",
+        0.1,
+        false,
+        " V",
+      },
+      [274] = {
+        "n018",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [275] = {
+        "n019",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [276] = {
+        "n020",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [277] = {
+        "n021",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [278] = {
+        "n022",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [279] = {
+        "n023",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [280] = {
+        "n024",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [281] = {
+        "n025",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [282] = {
+        "n026",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [283] = {
+        "n027",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [284] = {
+        "n028",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [285] = {
+        "n029",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [286] = {
+        "n030",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [287] = {
+        "n031",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [288] = {
+        "n032",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [289] = {
+        "n033",
+        "%.0f",
+        1.0,
+        false,
+        "%",
+      },
+      [290] = {
+        "n034",
+        "%.0f",
+        1.0,
+        false,
+        "%",
+      },
+      [291] = {
+        "n035",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [292] = {
+        "n036",
+        "%.1f",
+        0.1,
+        false,
+        " A",
+      },
+      [306] = {
+        "n050",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [307] = {
+        "n051",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [308] = {
+        "n052",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [309] = {
+        "n053",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [310] = {
+        "n054",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [311] = {
+        "n055",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [312] = {
+        "n056",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [313] = {
+        "n057",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [314] = {
+        "n058",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [315] = {
+        "n059",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [348] = {
+        "n092",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [349] = {
+        "n093",
+        "%.0f",
+        1.0,
+        false,
+        "%",
+      },
+      [350] = {
+        "n094",
+        "%.0f",
+        1.0,
+        false,
+        "%",
+      },
+      [351] = {
+        "n095",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [357] = {
+        "n101",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [358] = {
+        "n102",
+        "%.0f",
+        1.0,
+        false,
+        "%",
+      },
+      [359] = {
+        "n103",
+        "%.1f",
+        0.1,
+        false,
+        "",
+      },
+      [362] = {
+        "n106",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [363] = {
+        "n107",
+        "%.3f",
+        0.001,
+        false,
+        " Ω",
+      },
+      [364] = {
+        "n108",
+        "%.2f",
+        0.01,
+        false,
+        " mH",
+      },
+      [366] = {
+        "n110",
+        "%.0f",
+        1.0,
+        false,
+        "%",
+      },
+      [367] = {
+        "n111",
+        "%.1f",
+        0.1,
+        false,
+        "",
+      },
+      [368] = {
+        "n112",
+        "%.1f",
+        0.1,
+        false,
+        " s",
+      },
+      [376] = {
+        "n120",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [377] = {
+        "n121",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [378] = {
+        "n122",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [379] = {
+        "n123",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [380] = {
+        "n124",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [381] = {
+        "n125",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [382] = {
+        "n126",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [383] = {
+        "n127",
+        "%.2f",
+        0.01,
+        false,
+        " Hz",
+      },
+      [434] = {
+        "n178",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [435] = {
+        "n179",
+        "%.0f",
+        1.0,
+        false,
+        "",
+      },
+      [35] = {
+        "U-01",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [36] = {
+        "U-02",
+        "%.1f",
+        0.1,
+        false,
+        " Hz",
+      },
+      [39] = {
+        "U-03",
+        "%.1f",
+        0.1,
+        false,
+        " A",
+      },
+      [40] = {
+        "U-04",
+        "%.0f",
+        1.0,
+        false,
+        " V",
+      },
+      [49] = {
+        "U-05",
+        "%.0f",
+        1.0,
+        false,
+        " V",
+      },
+      [43] = {
+        "U-06",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [45] = {
+        "U-07",
+        "%04XH",
+        1.0,
+        false,
+        "",
+      },
+      [50] = {
+        "U-08",
+        "%.0f",
+        1.0,
+        true,
+        "%",
+      },
+    },
+  },
+  card_family = {
+    sit3 = "a1000",
+    siet3 = "a1000",
+    sitv7 = "v7",
+  },
+  link_card = {
+    [3] = "siet3",
+    [1] = "sitv7",
+  },
+  prm_commands = {"PRM_RD", "PRM_WR"},
+  refusals_ml2 = {148, 149},
+  substatus_errors = 3,
 }
 
 -- The dissector code. `T` (above, generated) holds every table; nothing below names a code or a bit of its own.
@@ -798,6 +2496,8 @@ field("sub", ProtoField.none("mlink.sub", "Sub"))
 field("fcs", ProtoField.uint16("mlink.fcs", "FCS", base.HEX))
 field("fcs_computed", ProtoField.uint16("mlink.fcs.computed", "FCS computed", base.HEX))
 field("fcs_status", ProtoField.uint8("mlink.fcs.status", "FCS status", base.DEC, fcs_status_names))
+field("param", ProtoField.string("mlink.param", "Parameter"))
+field("param_value", ProtoField.string("mlink.param.value", "Value"))
 
 -- bit fields: { {mask, name}, ... } under a parent of `width` bits
 local function bit_fields(prefix, bits, width)
@@ -898,6 +2598,52 @@ local function alarm_name(code, status)
   return name or string.format("0x%02x", code)
 end
 
+-- parameters by name: the card of a station from the preference mlink.cards ("si-t3", "22H=si-t/v7,0x21=si-t3"),
+-- the capture's card notes ("station 21H: card SI-T3 ..."), or the link (T.link_card); the card picks the table
+local function card_key(text) return lower((string.gsub(text, "[^%w]", ""))) end
+local pref_cards, pref_all = {}, nil
+local noted = {}
+local comment_field = nil
+do
+  local ok, f = pcall(Field.new, "frame.comment")
+  if ok then comment_field = f end
+end
+
+local function parse_cards(text)
+  pref_cards, pref_all = {}, nil
+  for item in string.gmatch(text or "", "[^,%s]+") do
+    local addr, card = string.match(item, "^(.-)=(.+)$")
+    if addr then
+      local hex = string.match(addr, "^0[xX](%x+)$") or string.match(addr, "^(%x+)[hH]$")
+      if hex then pref_cards[tonumber(hex, 16)] = card_key(card) end
+    else
+      pref_all = card_key(item)
+    end
+  end
+end
+
+local function learn_cards()
+  if comment_field == nil then return end
+  for _, fi in ipairs({ comment_field() }) do
+    local station, card = string.match(tostring(fi.value), "^station (%x%x)H: card (%S+)")
+    if station then noted[tonumber(station, 16)] = card_key(card) end
+  end
+end
+
+local function param_table(link, station)
+  local card = pref_cards[station] or pref_all or noted[station] or T.link_card[link]
+  local family = card and T.card_family[card]
+  return family and T.params[family]
+end
+
+-- the value of a 2-byte register as Param.format writes it ("1.0 s", "150%", "24H")
+local function param_text(row, raw)
+  if row[4] and raw >= 0x8000 then raw = raw - 0x10000 end
+  if string.sub(row[2], -2) == "XH" then return string.format(row[2], raw) .. row[5] end
+  return string.format(row[2], raw * row[3]) .. row[5]
+end
+
+-- returns, for a PRM_RD / PRM_WR body, what naming its parameter needs once the frame's refusal bits are known
 local function dissect_body(tree, range, gen, slot, code, label)
   local layout = T.bodies[gen][slot][code]
   local names = T.gen_commands[gen]
@@ -906,13 +2652,37 @@ local function dissect_body(tree, range, gen, slot, code, label)
   if layout == nil then
     sub:add(F.raw, range)
     sub:add_proto_expert_info(ef_unknown, string.format("%s code %02XH has no layout", label, code))
-    return
+    return nil
   end
+  local prm = contains(T.prm_commands, names[code]) and { tree = sub } or nil
   for _, f in ipairs(layout) do
     local name, off, size = f[1], f[2], f[3]
     local item = sub:add_le(BODY[name], range(off, size))
     if BODY_BITS[name] then add_bits(item, range(off, size), BODY_BITS[name]) end
+    if prm then
+      if name == "no" then prm.no, prm.no_range = range(off, size):le_uint(), range(off, size)
+      elseif name == "size" then prm.size = range(off, size):le_uint()
+      elseif name == "data" or name == "parameter" then prm.data = range(off, size) end
+    end
   end
+  if prm then prm.head = string.format("%s: %s (%02XH)", label, names[code], code) end
+  return prm
+end
+
+-- the parameter of a PRM_RD / PRM_WR body by name, with its value unless the station refused the command
+local function name_param(prm, params, refused)
+  if prm == nil or params == nil or prm.no == nil then return nil end
+  local row = params[prm.no]
+  if row == nil then return nil end
+  local text = string.format("%s (%04XH)", row[1], prm.no)
+  prm.tree:add(F.param, prm.no_range, row[1]):set_generated()
+  if prm.data ~= nil and prm.size == 2 and not refused then
+    local value = param_text(row, prm.data(0, 2):le_uint())
+    prm.tree:add(F.param_value, prm.data(0, 2), value):set_generated()
+    text = text .. " = " .. value
+  end
+  prm.tree:set_text(prm.head .. " " .. text)
+  return text
 end
 
 local function dissect(tvb, pinfo, tree)
@@ -960,8 +2730,10 @@ local function dissect(tvb, pinfo, tree)
   local frame = T.frames[gen][is_cmd and "cmd" or "rsp"][n]
   local data = tvb(T.header_size, n)
   local names = T.gen_commands[gen]
-  local code, subcode, status, alarm
+  local code, subcode, status, alarm, substatus, main_prm, sub_prm
+  local cmd_alm_v, subcmd_alm_v = 0, 0
   local notes = {}
+  learn_cards()
   for _, f in ipairs(frame) do
     local name, off, size = f[1], f[2], f[3]
     local range = data(off, size)
@@ -974,13 +2746,14 @@ local function dissect(tvb, pinfo, tree)
       root:add(F.subcode, range)
       root:add(F.subcmd_name, range, names[subcode] or string.format("0x%02x", subcode)):set_generated()
     elseif name == "main" then
-      dissect_body(root, range, gen, is_cmd and "cmd_main" or "rsp_main", code, "Main")
+      main_prm = dissect_body(root, range, gen, is_cmd and "cmd_main" or "rsp_main", code, "Main")
     elseif name == "sub" then
-      dissect_body(root, range, gen, is_cmd and "cmd_sub" or "rsp_sub", subcode, "Sub")
+      sub_prm = dissect_body(root, range, gen, is_cmd and "cmd_sub" or "rsp_sub", subcode, "Sub")
     elseif name == "status" then
       status = range:le_uint()
       add_bits(root:add_le(F.status, range), range, STATUS_BITS)
     elseif name == "substatus" then
+      substatus = range:uint()
       add_bits(root:add_le(F.substatus, range), range, SUBSTATUS_BITS)
     elseif name == "alarm" then
       alarm = range:uint()
@@ -991,6 +2764,7 @@ local function dissect(tvb, pinfo, tree)
       local v = range:le_uint()
       add_bits(root:add_le(F.cmd_stat, range), range, CMD_STAT_FIELDS)
       local cmd_alm, comm_alm = band(rshift(v, 8), 0xF), band(rshift(v, 12), 0xF)
+      cmd_alm_v = cmd_alm
       if cmd_alm ~= 0 then notes[#notes + 1] = "CMD_ALM " .. (T.cmd_alm[cmd_alm] or cmd_alm) end
       if comm_alm ~= 0 then notes[#notes + 1] = "COMM_ALM " .. (T.comm_alm[comm_alm] or comm_alm) end
     elseif name == "sub_ctrl" then
@@ -999,11 +2773,15 @@ local function dissect(tvb, pinfo, tree)
       local v = range:le_uint()
       add_bits(root:add_le(F.sub_stat, range), range, SUB_STAT_FIELDS)
       local subcmd_alm = band(rshift(v, 8), 0xF)
+      subcmd_alm_v = subcmd_alm
       if subcmd_alm ~= 0 then notes[#notes + 1] = "SUBCMD_ALM " .. (T.subcmd_alm[subcmd_alm] or subcmd_alm) end
     elseif F[name] then
       root:add(F[name], range)
     end
   end
+  local params = param_table(link, station)
+  local main_param = name_param(main_prm, params, contains(T.refusals_ml2, alarm or 0) or cmd_alm_v ~= 0)
+  local sub_param = name_param(sub_prm, params, band(substatus or 0, T.substatus_errors) ~= 0 or subcmd_alm_v ~= 0)
   if alarm ~= nil and alarm ~= 0 then
     local aname = alarm_name(alarm, status or 0)
     root:add(F.alarm_name, data(1, 1), aname):set_generated()
@@ -1015,7 +2793,9 @@ local function dissect(tvb, pinfo, tree)
   root:append_text(string.format(", %s %s, station %02XH, %s", T.links[link], T.kinds[kind], station,
     names[code] or string.format("0x%02x", code)))
   info = string.format("%s %s %s", info, is_cmd and "cmd" or "rsp", names[code] or string.format("0x%02x", code))
+  if main_param then info = info .. " " .. main_param end
   if subcode ~= nil then info = info .. " / " .. (names[subcode] or string.format("0x%02x", subcode)) end
+  if sub_param then info = info .. " " .. sub_param end
   info = info .. string.format(" cycle %d", tvb(4, 4):le_uint())
   if #notes > 0 then info = info .. " [" .. table.concat(notes, ", ") .. "]" end
   pinfo.cols.info = info
@@ -1049,8 +2829,13 @@ local function register_ports()
   udp:add(registered, mlink)
 end
 
+mlink.prefs.cards = Pref.string("Cards of stations", "",
+  "The card of MECHATROLINK-II stations, for parameter names and units: si-t3 or si-t/v7 for all, or "
+  .. "22H=si-t/v7,0x21=si-t3 (ML-III is the SI-ET3, ML-I the SI-T/V7; a capture's card notes are read too)")
+
 function mlink.prefs_changed()
   register_ports()
+  parse_cards(mlink.prefs.cards)
 end
 
 register_ports()

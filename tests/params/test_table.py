@@ -225,3 +225,13 @@ def test_check_rejects_non_integers() -> None:
 def test_derive_rejects_unknown_rows() -> None:
     with pytest.raises(ValueError, match="no row X1-99"):
         A1000.derive("x", {"X1-99": {"maximum": 1}})
+
+
+def test_resolve_takes_a_name_or_a_register():
+    from mlink_sim.params import A1000, ParamError
+
+    p = A1000.by_name("C1-01")
+    assert A1000.resolve("c1-01") is A1000.resolve(0x0200) is A1000.resolve("0200H") is A1000.resolve("0x0200") is p
+    for bad in ("C9-99", 0x7777, 1.5):
+        with pytest.raises(ParamError):
+            A1000.resolve(bad)

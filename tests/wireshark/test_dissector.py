@@ -50,7 +50,8 @@ def _body_values(tree: Any) -> dict[str, str]:
     """The body fields of a ``mlink.main``/``mlink.sub`` subtree (an empty body is shown as "")."""
     if not isinstance(tree, dict):
         return {}
-    return {k.removeprefix("mlink."): v for k, v in tree.items() if k.startswith("mlink.") and not k.endswith("_tree")}
+    return {k.removeprefix("mlink."): v for k, v in tree.items()
+            if k.startswith("mlink.") and not k.endswith("_tree") and k not in ("mlink.param", "mlink.param.value")}
 
 
 def check_fields(layer: dict[str, Any], d: dict[str, Any]) -> None:
@@ -154,3 +155,54 @@ def test_quickstart_capture_through_tshark_equals_decode(tshark: str, tmp_path: 
     comments = [c for dg in datagrams for c in dg.comments]
     for station in ("21H", "22H", "23H"):  # the master's events: bring-up as packet comments
         assert f"StateChanged station {station}: old=syncing new=phase3" in comments
+
+
+@pytest.fixture(scope="module")
+def virtual_quickstart(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The quickstart on the virtual clock, recorded: its master's card notes and the timeline's set-param steps
+    (n020 on the SI-T/V7 22H, C1-02 on the SI-ET3 23H)."""
+    capture = tmp_path_factory.mktemp("virtual") / "quickstart.pcapng"
+    proc = subprocess.run([sys.executable, "-m", "mlink_sim", "up", "quickstart", "--clock", "virtual", "--no-status",
+                           "--duration", "3.4s", "--capture", str(capture)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return capture
+
+
+def _decode_params(capture: Path) -> list[tuple[int, str, str]]:
+    """``(frame number, parameter name, value text)`` of every PRM_RD/PRM_WR body ``mlink-sim decode`` names."""
+    from mlink_sim.cli.frame_names import FrameNames
+
+    names = FrameNames()
+    out = []
+    for number, dg in enumerate(read_capture(capture).datagrams, 1):
+        for comment in dg.comments:
+            names.learn(comment)
+        d = names.describe(decode(dg.data))
+        for region in ("main", "sub"):
+            param = d.get(region, {}).get("param")
+            if param is not None:
+                out.append((number, param["name"], param["text"].split(" = ", 1)[1] if "value" in param else ""))
+    return out
+
+
+def _tshark_params(tshark: str, capture: Path, *options: str) -> list[tuple[int, str, str]]:
+    out = run_tshark(tshark, capture, *options, "-Y", "mlink.param", "-T", "fields", "-e", "frame.number",
+                     "-e", "mlink.param", "-e", "mlink.param.value")
+    rows = []
+    for line in out.splitlines():
+        number, name, value = (line.split("\t") + ["", ""])[:3]
+        rows.append((int(number), name, value))
+    return rows
+
+
+def test_parameters_by_name_as_decode_names_them(tshark: str, virtual_quickstart: Path) -> None:
+    expected = _decode_params(virtual_quickstart)
+    assert {(name, value) for _, name, value in expected} >= {("n020", "1.0 s"), ("C1-02", "1.0 s")}
+    assert _tshark_params(tshark, virtual_quickstart) == expected
+
+
+def test_the_cards_preference_picks_the_table(tshark: str, virtual_quickstart: Path) -> None:
+    rows = _tshark_params(tshark, virtual_quickstart, "-o", "mlink.cards:22H=si-t3")
+    assert rows and all(name != "n020" for _, name, _ in rows)  # 0114H is no A1000 parameter
+    info = run_tshark(tshark, virtual_quickstart, "-Y", "mlink.param")
+    assert "22H cmd INV_CTL / PRM_WR n020 (0114H) = 1.0 s cycle" in info

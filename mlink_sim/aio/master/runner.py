@@ -25,6 +25,7 @@ from typing import Any, Protocol, TypeVar
 
 
 from ..._log import get_logger
+from ...master import named
 from ...master import (
     AlarmCleared,
     AlarmRaised,
@@ -42,6 +43,7 @@ from ...master import (
     StationState,
     StationView,
 )
+from ...capture.text import card_note
 from ...faults import Episode, FaultSpec, FaultStage, MasterFault, StationTraits
 from ...faults.stage import is_healthy
 from ...wire import Link, ml2, ml3
@@ -183,12 +185,24 @@ class Master:
             enable_gro = getattr(self._sock, "enable_gro", None)  # its answers come as one burst: one read
             if enable_gro is not None:
                 enable_gro()
+        self.note_cards()
         loop.add_reader(sock.fileno(), self.read_responses)  # a read on every arrival, stamped as it is read
         if clock is None:
             self._timer.start()
         self._log.info("master_started", local=sock.getsockname(), stations=len(plan.stations),
                        tcycle_ns=plan.tcycle_ns, strategy=self._timer.strategy)
         return self
+
+    def note_cards(self) -> None:
+        """Tell a capture which card each station is (``station 21H: card SI-T3 (MECHATROLINK-II, 32-byte)``):
+        ``mlink-sim decode`` names the parameters of a MECHATROLINK-II station by it. Nothing without a capture."""
+        note = self._note
+        if note is None:
+            return
+        now = self._now()
+        for sp in self.core.plan.stations:
+            if sp.card:
+                note(now, card_note(sp.address, named.card_label(sp.card), f"({sp.link.label}, {sp.data_size}-byte)"))
 
     @property
     def local_address(self) -> tuple[str, int]:
@@ -269,21 +283,33 @@ class Master:
     def _mod(self, station: int) -> Any:
         return ml3 if self.core.plan.station(station).link is Link.ML3 else ml2
 
-    async def prm_rd(self, station: int, register: int, size: int = 2, *, sub: bool | None = None,
-                     timeout: float | None = None) -> int | bytes:
-        """PRM_RD of MEMOBUS register *register*: an unsigned int for ``size=2``, else the *size* bytes (LSB first)."""
-        r = await self.request(station, self._mod(station).PrmRd(register, size), sub=sub, timeout=timeout)
+    async def prm_rd(self, station: int, register: int | str, size: int = 2, *, sub: bool | None = None,
+                     timeout: float | None = None) -> Any:
+        """PRM_RD of a parameter by name or of a MEMOBUS register by number (docs/master.md, "Parameters by name").
+
+        A name (``"C1-01"``, ``"n019"``; the station's card picks the table) returns a
+        :class:`~mlink_sim.master.ParamValue`: a float in engineering units (``10.0``) with ``unit``, ``raw`` and
+        ``register``. A register number returns the raw value: an unsigned int for ``size=2``, else the *size*
+        bytes (LSB first). An unknown name or a bad register or size raises
+        :class:`~mlink_sim.master.ParamRequestError` before anything is sent."""
+        plan = self.core.plan.station(station)
+        reg, param = named.read_target(plan, register, size)
+        r = await self.request(station, self._mod(station).PrmRd(reg, size), sub=sub, timeout=timeout)
         data = bytes(r.parameter[:size])
+        if param is not None:
+            return named.value_of(param, data)
         return int.from_bytes(data, "little") if size == 2 else data
 
-    async def prm_wr(self, station: int, register: int, value: int | bytes, size: int = 2, *,
+    async def prm_wr(self, station: int, register: int | str, value: Any, size: int = 2, *,
                      sub: bool | None = None, timeout: float | None = None) -> None:
-        """PRM_WR; an int *value* is written LSB first in *size* bytes (negative: two's complement)."""
-        if isinstance(value, int):
-            data = (value % (1 << (8 * size))).to_bytes(size, "little")
-        else:
-            data = bytes(value)
-        await self.request(station, self._mod(station).PrmWr(register, size, data.ljust(8, b"\0")), sub=sub,
+        """PRM_WR of a parameter by name in engineering units (``prm_wr(0x21, "C1-01", 5.0)``: 50 counts of
+        0.1 s), checked against the row's range and resolution; or of a register by number with a raw int
+        (written LSB first in *size* bytes, negative as two's complement) or the bytes. A bad name, type or
+        value raises :class:`~mlink_sim.master.ParamRequestError` before anything is sent. CONFIG
+        (:meth:`config`) makes the written values take effect."""
+        plan = self.core.plan.station(station)
+        reg, data, _ = named.write_target(plan, register, value, size)
+        await self.request(station, self._mod(station).PrmWr(reg, size, data.ljust(8, b"\0")), sub=sub,
                            timeout=timeout)
 
     async def config(self, station: int, mode: int = 0, *, sub: bool = False, timeout: float | None = None) -> None:

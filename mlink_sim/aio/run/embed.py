@@ -8,13 +8,18 @@ only inside :meth:`~VirtualNetwork.advance` / :meth:`~VirtualNetwork.run_until` 
         net.run(0x21, hz=30)                                         # forward at 30 Hz (o1-03 units handled)
         while net.output_hz(0x21) < 29.9:
             net.step()                                               # one transmission cycle
-        assert net.prm_rd(0x21, 0x0200) == 20                        # PRM_RD C1-01: 2.0 s, 0.1 s units
+        assert net.prm_rd(0x21, "C1-01") == 2.0                      # PRM_RD by name: 2.0 s (a ParamValue)
+        assert net.prm_rd(0x21, 0x0200) == 20                        # by register: the raw count (0.1 s units)
+        net.prm_wr(0x21, "C1-01", 5.0); net.send_config(0x21)        # 5.0 s, checked against 0.0 … 6000.0 s
         net.advance(60.0)                                            # a simulated minute, in a few seconds
         print(net.now, net.report()["rtt"]["p99"])
 
 The master API (``prm_rd``, ``prm_wr``, ``send_config``, ``id_rd``, ``alm_rd``, ``alm_clr``, ``disconnect``,
 ``reconnect``, ``set_control``, ``run``, ``stop_station``, ``view``) is the real master's, routed per station
 (:class:`~mlink_sim.aio.run.session.NetworkApi`); a request blocks until answered, advancing simulated time meanwhile.
+Parameters go by name (the station's card picks the table) or by register number (raw counts); a bad name, type or
+value raises :class:`~mlink_sim.master.ParamRequestError` before anything is sent. ``view()`` decodes what it
+carries: ``output_hz``, ``status_bits``, ``bit("RUNX")``, ``alarm_text``.
 :meth:`~VirtualNetwork.station` is the card core itself (``snapshot()``: phase, LEDs, alarms, drive, counters).
 
 Touches: no socket, thread or wall clock; a virtual session on a virtual event loop of its own.
@@ -110,9 +115,17 @@ class VirtualNetwork(StationControls):
         return self.config.network.transmission_cycle / 1e9
 
     def call(self, coro: Awaitable[T]) -> T:
-        """Run *coro* (anything of the async API) to completion on simulated time and return its result."""
+        """Run *coro* (anything of the async API) to completion on simulated time and return its result. Should
+        the loop stop on an error of its own before *coro* is done, *coro*'s own outcome is collected when it
+        comes (no "Task exception was never retrieved" at the end)."""
         with self._lock:
-            return self.loop.run_until_complete(coro)
+            task = asyncio.ensure_future(coro, loop=self.loop)
+            try:
+                return self.loop.run_until_complete(task)
+            except BaseException:
+                if not task.done():
+                    task.add_done_callback(_collect)
+                raise
 
     def run_until(self, t: float) -> None:
         """Let the network run until simulated time *t* (seconds; nothing happens if it is past)."""
@@ -146,10 +159,15 @@ class VirtualNetwork(StationControls):
     def views(self) -> dict[int, Any]:
         return self.net.views()
 
-    def prm_rd(self, station: int, register: int, size: int = 2) -> Any:
+    def prm_rd(self, station: int, register: int | str, size: int = 2) -> Any:
+        """PRM_RD by name (``"C1-01"`` -> a :class:`~mlink_sim.master.ParamValue`, 2.0 with its unit "s") or by
+        register number (the raw unsigned word; *size* bytes when not 2): :meth:`Master.prm_rd
+        <mlink_sim.aio.master.Master.prm_rd>`."""
         return self.call(self.net.prm_rd(station, register, size))
 
-    def prm_wr(self, station: int, register: int, value: int, size: int = 2) -> None:
+    def prm_wr(self, station: int, register: int | str, value: Any, size: int = 2) -> None:
+        """PRM_WR by name in engineering units (``prm_wr(0x21, "C1-01", 5.0)``, range-checked) or by register
+        number with the raw int; :meth:`send_config` makes it take effect."""
         self.call(self.net.prm_wr(station, register, value, size))
 
     def send_config(self, station: int, mode: int = 0) -> None:
@@ -267,6 +285,11 @@ class VirtualNetwork(StationControls):
     def __repr__(self) -> str:
         return (f"VirtualNetwork({self.config.network.name!r}, {len(self.config.station)} stations, "
                 f"t={self.now:.6f} s{', closed' if self._closed else ''})")
+
+
+def _collect(task: asyncio.Future[Any]) -> None:
+    if not task.cancelled():
+        task.exception()
 
 
 def _resolve(fut: asyncio.Future[None]) -> None:

@@ -144,8 +144,11 @@ class StationControls:
         self.set_control(station, forward=False, reverse=False)
 
     def output_hz(self, station: int) -> float:
-        """Output frequency of *station* in Hz (from the latest INV_CTL response)."""
-        return self._scales[station].to_hz(self.view(station).output_freq)
+        """Output frequency of *station* in Hz at the drive's resolution (the view's ``output_hz``: 6.27, not
+        6.2700000000000005), from the latest INV_CTL response."""
+        view = self.view(station)
+        hz = view.output_hz
+        return hz if hz is not None else self._scales[station].to_hz(view.output_freq)
 
     def running(self, station: int) -> bool:
         link = self._links[station]

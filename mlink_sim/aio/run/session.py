@@ -37,7 +37,7 @@ from ..timing.ticker import CycleTimer
 from ..transport.udp import bind_address_for, resolve
 from .control import query_control
 from .faults import FaultControl
-from .scenario import restart_profile
+from .scenario import restart_profile, speed_scale
 from .supervisor import Worker, WorkerError, WorkerSpec, plan_workers
 
 __all__ = ["NetworkSession", "NetworkApi", "EndpointError", "build_plans", "build_report"]
@@ -66,6 +66,7 @@ def build_plans(config: Config) -> dict[Link, Any]:
             name=st.name or "",
             card=st.card,
             et3_syncmode_table19=bool(st.options.get("et3_syncmode_table19", False)),
+            hz_per_count=speed_scale(st).to_hz(1),  # the views' output_hz (o1-03 / n035 units)
             **restart_profile(st),
         )
         by_link.setdefault(st.link, []).append(plan)
@@ -119,10 +120,12 @@ class NetworkApi:
         merged.update(fields)
         self.by_station[station].set_control(station, **merged)
 
-    async def prm_rd(self, station: int, register: int, size: int = 2) -> Any:
+    async def prm_rd(self, station: int, register: int | str, size: int = 2) -> Any:
+        """PRM_RD by name (a ``ParamValue`` in units) or register number (raw): ``Master.prm_rd``."""
         return await self.by_station[station].prm_rd(station, register, size)
 
-    async def prm_wr(self, station: int, register: int, value: int, size: int = 2) -> Any:
+    async def prm_wr(self, station: int, register: int | str, value: Any, size: int = 2) -> Any:
+        """PRM_WR by name (engineering units, range-checked) or register number (raw): ``Master.prm_wr``."""
         return await self.by_station[station].prm_wr(station, register, value, size=size)
 
     async def config(self, station: int, mode: int = 0) -> Any:

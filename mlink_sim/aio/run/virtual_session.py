@@ -157,6 +157,7 @@ class VirtualSession(NetworkSession):
             master = VirtualMaster.attach(plan, self.fabric, cycle, metrics=self.metrics, loop=loop)
             if self.capture is not None:
                 master._note = self.capture.note
+                master.note_cards()  # decode --pcap names the parameters by them
             master.record_lateness = not self.masters
             self.masters[link] = master
         self._cycle_callbacks = [m.on_cycle for m in self.masters.values()]
