@@ -239,7 +239,7 @@ async def _report(run: _Run, session: NetworkSession, scenario: Scenario) -> dic
     await session.close_masters()
     scenario.results[:] = scenario.results_naming_stalls(session.metrics.stalls)
     for c in scenario.results:
-        session.metrics.record_check(c.at_s, c.what, c.ok, c.detail)
+        session.metrics.record_check(c.at_s, c.what, c.ok, c.detail, c.cause)
     interrupted = run.caught[0].name if run.caught else None
     return await session.report(assertions=run.opts.assertions, slave_stats=False, extra_meta={
         "interrupted": interrupted, "not_run": [s.describe for s in scenario.not_run()]})
@@ -388,7 +388,8 @@ def _print_summary(config: Config, report: dict[str, Any], scenario: Scenario, v
         print(f"host stalls {st['count']}, longest {format_ns(st['max'])}, {st['cycles']} cycles delayed: "
               f"{st['absorbed']} run late, {st['lost']} lost (policy {bound})", file=out)
     for c in scenario.results:
-        print(f"  {'ok  ' if c.ok else 'FAIL'} {c.what}: {c.detail}", file=out)
+        why = f" — {c.cause}" if c.cause else ""
+        print(f"  {'ok  ' if c.ok else 'FAIL'} {c.what}: {c.detail}{why}", file=out)
     for step in scenario.not_run():
         print(f"  --   {step.describe}: not run", file=out)
     for r in report.get("assertions", []):

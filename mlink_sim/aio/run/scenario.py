@@ -23,6 +23,7 @@ from ...drive import DriveSettings, Family
 from ...drive.monitors import hz_to_ref, ref_to_hz
 from ...params import FAMILIES
 from ...wire import InvCmdStat, Link, M2Status
+from .explain import explain
 from .faultchecks import recovered, refused
 
 __all__ = ["SpeedScale", "CheckResult", "NetworkHandle", "Scenario", "StationControls", "speed_scale",
@@ -85,15 +86,22 @@ def speed_scales(config: Config) -> dict[int, SpeedScale]:
     return {st.address: speed_scale(st) for st in config.station}
 
 
+#: The checks a failure of which the drive's state explains (``CheckResult.cause``).
+DRIVE_CHECKS = frozenset({"running", "stopped", "speed-agree", "output-hz", "no-alarm", "alarm"})
+
+
 @dataclass(frozen=True)
 class CheckResult:
-    """Outcome of one ``expect`` step for one station."""
+    """Outcome of one ``expect`` step for one station. ``cause``: for a failed check of the drive
+    (:data:`DRIVE_CHECKS`), what the drive model was doing at that moment and why (:func:`~.explain.explain`);
+    None where it could not be read (the slaves of ``mlink-sim master`` run elsewhere)."""
 
     at_s: float
     station: int
     what: str
     ok: bool
     detail: str
+    cause: str | None = None
 
 
 def _with_stalls(check: CheckResult, stalls: Any, t0: float) -> CheckResult:
@@ -120,6 +128,7 @@ class NetworkHandle(Protocol):
     def kill_slave(self, station: int) -> bool: ...
     def impair(self, station: int | None, spec: Any) -> None: ...
     def alarms_seen(self, station: int) -> dict[str, int]: ...
+    async def drive_activity(self, station: int) -> Any: ...
     def heal(self, station: int | None = None) -> int: ...
 
 
@@ -177,7 +186,9 @@ class Scenario:
         self._t0: float | None = None  # the loop time of "0 s", once run() began
         #: called with each action step's description as it begins (a capture's comments: ``--capture``)
         self.note: Callable[[str], None] | None = None
-        self._waiting: set[asyncio.Task[None]] = set()  # checks that wait (recovered, refused)
+        self._waiting: set[asyncio.Task[None]] = set()  # checks that wait (recovered, refused), explanations
+        #: each station's parameter values in effect (raw, by name): the config's, then each set-param step's
+        self.values = {st.address: station_values(st) for st in config.station}
 
     @property
     def current(self) -> TimelineStep | None:
@@ -207,14 +218,38 @@ class Scenario:
                 await self._act(step)
             elif step.expect in ("recovered", "refused"):
                 for address in self._targets(step):
-                    task = asyncio.get_running_loop().create_task(self._wait_check(step, address))
-                    self._waiting.add(task)
-                    task.add_done_callback(self._waiting.discard)
+                    self._spawn(self._wait_check(step, address))
             else:
                 for address in self._targets(step):
-                    self.results.append(self.check(step, address))
+                    result = self.check(step, address)
+                    self.results.append(result)
+                    if not result.ok and step.expect in DRIVE_CHECKS:
+                        self._spawn(self._explain(result, address))
         if self._waiting:
             await asyncio.gather(*list(self._waiting))
+
+    def _spawn(self, coro: Awaitable[None]) -> None:
+        """Run *coro* beside the timeline (not holding it up); :meth:`run` waits for it at the end."""
+        task = asyncio.get_running_loop().create_task(coro)  # type: ignore[arg-type]
+        self._waiting.add(task)
+        task.add_done_callback(self._waiting.discard)
+
+    async def _explain(self, result: CheckResult, address: int) -> None:
+        """Give the failed *result* its cause: the drive's activity, read now (docs/configuration.md, "When a check
+        fails")."""
+        try:
+            activity = await self.net.drive_activity(address)
+        except Exception as exc:  # noqa: BLE001 - an explanation that cannot be had leaves the check as it is
+            log.info("check_cause_unread", station=f"{address:#04x}", error=str(exc))
+            return
+        if activity is None or self._t0 is None:
+            return
+        cause = explain(activity, self.values[address], self._t0)
+        for i, r in enumerate(self.results):
+            if r is result:
+                self.results[i] = dataclasses.replace(result, cause=cause or None)
+                log.info("timeline_check_cause", what=result.what, cause=cause)
+                return
 
     # -- actions ----------------------------------------------------------------------------------------------
 
@@ -252,6 +287,7 @@ class Scenario:
             param, raw = FAMILIES[CARD_FAMILY[st.card]].parse_assignment(f"{step.param}={step.value}")
             await net.prm_wr(address, param.register, param.encode(raw))
             await net.config(address, 0)
+            self.values[address][param.name] = raw
         elif step.do == "fault-reset":
             net.set_control(address, forward=False, reverse=False, fault_reset=True)
             await asyncio.sleep(0.05)
