@@ -13,6 +13,7 @@ Touches: nothing (pure text from values).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 from ...drive.activity import PARAM_ROLES, DriveActivity, ramp_seconds
@@ -94,11 +95,12 @@ def _ramping(a: DriveActivity, family: Family, roles: Mapping[str, str | None], 
              f"{_hz(a.output_hz)} Hz, from {_hz(a.aim_from_hz)} Hz")
     text = (f"{verb} at {param_text(family, name, values)} per {param_text(family, roles['max_hz'] or '', values)}"
             f": {where} after {at - since:.1f} s")
-    held = a.accel_held or a.decel_held
-    if not held:
+    if not (a.accel_held or a.decel_held):
         text += f", there at {since + full:.1f} s"
-    else:
-        text += f", {at - since - full:.1f} s behind the ramp"
+    else:  # where the ramp alone would be by now (its start's S-curve as half its time late)
+        moved = min(abs(a.target_hz - a.aim_from_hz),
+                    max(0.0, at - since - a.s_curve_s[0] / 2.0) * a.max_hz / a.ramp_s if a.ramp_s > 0 else math.inf)
+        text += f" (the ramp alone: {_hz(a.aim_from_hz + math.copysign(moved, a.target_hz - a.aim_from_hz))} Hz)"
     if a.accel_held:
         sel, lvl = roles["stall_accel"] or "", roles["stall_accel_level"] or ""
         level = param_text(family, lvl, values) if sel != lvl else f"{a.stall_accel_pct:g}%"
@@ -108,5 +110,6 @@ def _ramping(a: DriveActivity, family: Family, roles: Mapping[str, str | None], 
     if a.decel_held:
         text += (f"; held by deceleration stall prevention, {param_text(family, roles['stall_decel'] or '', values)}"
                  f": DC bus {a.dc_bus_v:.0f} V at its {a.stall_bus_v:.0f} V level, the energy the load gives back "
-                 "has nowhere else to go (no braking resistor, docs/drive-model.md section 5)")
+                 "has nowhere else to go (no braking resistor, docs/drive-model.md section 5); a longer "
+                 f"{name} gives it back more slowly, {roles['stop_method']} = 1 coasts to a stop")
     return text

@@ -24,6 +24,7 @@ from ..._log import get_logger
 from ...config import Config, TimelineStep, format_ns
 from ...metrics import write_report
 from .control import ControlServer, impairment_ops
+from .expectations import timeline_warnings
 from .faults import fault_ops
 from .scenario import CheckResult, Scenario, speed_scales
 from .session import EndpointError, NetworkSession, build_plans
@@ -111,6 +112,8 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
     run.catch_signals()
     session_cls, workers = _workers(run, endpoints)
     length = opts.duration_ns if opts.duration_ns is not None else config.run_length_ns
+    for line in timeline_warnings(config, str(opts.config_path)):  # docs/configuration.md
+        _notice(opts, "check_beyond_settings", f"warning: {line}")
     cut = cut_by_duration(config, opts.duration_ns)
     if cut:
         _notice(opts, "steps_cut", f"warning: --duration {format_ns(opts.duration_ns or 0)} ends the run before "
