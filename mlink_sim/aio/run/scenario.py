@@ -9,7 +9,7 @@ Touches: the network only through its API (requests, controls, faults); the cloc
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Coroutine
 import dataclasses
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -228,9 +228,9 @@ class Scenario:
         if self._waiting:
             await asyncio.gather(*list(self._waiting))
 
-    def _spawn(self, coro: Awaitable[None]) -> None:
+    def _spawn(self, coro: Coroutine[Any, Any, None]) -> None:
         """Run *coro* beside the timeline (not holding it up); :meth:`run` waits for it at the end."""
-        task = asyncio.get_running_loop().create_task(coro)  # type: ignore[arg-type]
+        task = asyncio.get_running_loop().create_task(coro)
         self._waiting.add(task)
         task.add_done_callback(self._waiting.discard)
 
