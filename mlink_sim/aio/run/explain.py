@@ -13,7 +13,6 @@ Touches: nothing (pure text from values).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 
 from ...drive.activity import PARAM_ROLES, DriveActivity, ramp_seconds
@@ -27,6 +26,10 @@ RUN_SOURCE = {
     Family.A1000: ("b1-02", 3, "b1-01", 3, "SI-T3 Table 4, SI-ET3 Table 7"),
     Family.V7: ("n003", 3, "n004", 9, "SI-T/V7 §6"),
 }
+
+
+#: An output this far short of where the ramp alone would be is behind it (something held it).
+_BEHIND_HZ = 0.5
 
 
 def param_text(family: Family, name: str, values: Mapping[str, int]) -> str:
@@ -95,21 +98,23 @@ def _ramping(a: DriveActivity, family: Family, roles: Mapping[str, str | None], 
              f"{_hz(a.output_hz)} Hz, from {_hz(a.aim_from_hz)} Hz")
     text = (f"{verb} at {param_text(family, name, values)} per {param_text(family, roles['max_hz'] or '', values)}"
             f": {where} after {at - since:.1f} s")
-    if not (a.accel_held or a.decel_held):
+    alone = a.ramp_alone_hz()
+    behind = abs(alone - a.aim_from_hz) - abs(a.output_hz - a.aim_from_hz) > _BEHIND_HZ
+    if behind:
+        text += f" (the ramp alone: {_hz(alone)} Hz)"
+    else:
         text += f", there at {since + full:.1f} s"
-    else:  # where the ramp alone would be by now (its start's S-curve as half its time late)
-        moved = min(abs(a.target_hz - a.aim_from_hz),
-                    max(0.0, at - since - a.s_curve_s[0] / 2.0) * a.max_hz / a.ramp_s if a.ramp_s > 0 else math.inf)
-        text += f" (the ramp alone: {_hz(a.aim_from_hz + math.copysign(moved, a.target_hz - a.aim_from_hz))} Hz)"
-    if a.accel_held:
+    if a.stall_accel or (behind and a.accel_held):
         sel, lvl = roles["stall_accel"] or "", roles["stall_accel_level"] or ""
-        level = param_text(family, lvl, values) if sel != lvl else f"{a.stall_accel_pct:g}%"
-        text += (f"; held by acceleration stall prevention, {param_text(family, sel, values)}: output current "
-                 f"{a.output_current_a:.1f} A at its level {level} of the drive's rated current "
-                 f"({a.stall_current_a:.1f} A)")
-    if a.decel_held:
+        if sel != lvl:
+            what, level = param_text(family, sel, values), f", {param_text(family, lvl, values)} of the drive's rated current"
+        else:
+            what, level = f"{param_text(family, sel, values)} of the drive's rated current", ""
+        text += (f"; held by acceleration stall prevention, {what}: output current {a.output_current_a:.1f} A "
+                 f"against its level{level} ({a.stall_current_a:.1f} A)")
+    if a.stall_decel or (behind and a.decel_held):
         text += (f"; held by deceleration stall prevention, {param_text(family, roles['stall_decel'] or '', values)}"
-                 f": DC bus {a.dc_bus_v:.0f} V at its {a.stall_bus_v:.0f} V level, the energy the load gives back "
+                 f": DC bus {a.dc_bus_v:.0f} V against its {a.stall_bus_v:.0f} V level, the energy the load gives back "
                  "has nowhere else to go (no braking resistor, docs/drive-model.md section 5); a longer "
                  f"{name} gives it back more slowly, {roles['stop_method']} = 1 coasts to a stop")
     return text

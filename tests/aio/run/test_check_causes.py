@@ -77,7 +77,7 @@ def test_failed_checks_on_the_defaults_name_the_ramp_and_the_stall_prevention_ho
     assert "there at 6.9 s" in accel
     stop = fails["6s station 0x03"]
     assert "— stopping at C1-02 = 1.0 s per E1-04 = 60.0 Hz (default)" in stop
-    assert "held by deceleration stall prevention, L3-04 = 1 (default): DC bus 375 V at its 375 V level" in stop
+    assert "held by deceleration stall prevention, L3-04 = 1 (default): DC bus 375 V against its 375 V level" in stop
     checks = {c["what"]: c for c in json.loads(report.read_text())["checks"]}
     assert checks["6s station 0x03: expect stopped"]["cause"] in stop
     assert "cause" in REPORT_SCHEMA["$defs"]["check"]["properties"]
@@ -117,3 +117,66 @@ def test_explain_names_a_fault_and_when_it_came_from_the_timelines_zero():
     d = Drive(Family.V7, s, LoadSpec())
     d.command(DriveCommand(external_fault=True), 7_200_000_000)
     assert "alarm EF0 since 5.20 s (coast stop)" in explain(d.activity(), FAMILIES["v7"].defaults(), 2.0)
+
+
+LIMITS = """
+[network]
+transmission_cycle = "2ms"
+
+[[station]]
+address = 0x21
+card = "si-t3"
+params = { "b1-01" = 3, "b1-02" = 3, "C1-01" = 2.0, "C1-02" = 0.5, "L3-04" = 0 }
+
+[[station]]
+address = 0x22
+card = "si-t3"
+params = { "b1-01" = 3, "b1-02" = 3, "C1-01" = 0.1 }
+load = { kind = "inertia", inertia = 0.5 }
+
+[[station]]
+address = 0x23
+card = "si-t-v7"
+params = { "n003" = 3, "n004" = 9, "n019" = 0.1 }
+load = { kind = "inertia", inertia = 0.5 }
+
+[[timeline]]
+at = "0s"
+do = "run"
+speed_hz = 40.0
+
+[[timeline]]
+at = "0.5s"
+station = 0x22
+expect = "output-hz"
+output_hz = 40.0
+
+[[timeline]]
+at = "0.5s"
+station = 0x23
+expect = "speed-agree"
+
+[[timeline]]
+at = "3s"
+station = 0x21
+do = "stop"
+
+[[timeline]]
+at = "5s"
+station = 0x21
+expect = "no-alarm"
+"""
+
+
+def test_failed_checks_name_the_current_limit_and_an_ov_trip_with_its_time(tmp_path):
+    config = tmp_path / "limits.toml"
+    config.write_text(LIMITS)
+    run = _up(config, "--clock", "virtual")
+    assert run.returncode == 1, run.stdout + run.stderr
+    fails = _fail_lines(run.stdout)
+    assert ("(the ramp alone: 40.0 Hz); held by acceleration stall prevention, L3-01 = 1 (default): output current "
+            in fails["0.5s station 0x22"])
+    assert "against its level, L3-02 = 150% (default) of the drive's rated current (39.9 A)" in fails["0.5s station 0x22"]
+    assert ("held by acceleration stall prevention, n093 = 170% (default) of the drive's rated current: output "
+            "current" in fails["0.5s station 0x23"])
+    assert fails["5s station 0x21"].endswith("— alarm ov since 3.14 s (coast stop)")
