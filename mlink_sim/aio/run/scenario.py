@@ -187,8 +187,7 @@ class Scenario:
         #: called with each action step's description as it begins (a capture's comments: ``--capture``)
         self.note: Callable[[str], None] | None = None
         self._waiting: set[asyncio.Task[None]] = set()  # checks that wait (recovered, refused), explanations
-        #: each station's parameter values in effect (raw, by name): the config's, then each set-param step's
-        self.values = {st.address: station_values(st) for st in config.station}
+        self._values: dict[int, dict[str, int]] = {}  # values_of(), read when first needed
 
     @property
     def current(self) -> TimelineStep | None:
@@ -228,6 +227,15 @@ class Scenario:
         if self._waiting:
             await asyncio.gather(*list(self._waiting))
 
+    def values_of(self, address: int) -> dict[str, int]:
+        """*address*'s parameter values in effect (raw, by name): the config's on the family defaults, then each
+        ``set-param`` step's. Built when first needed (a failed check, a set-param step), not for every station when
+        the timeline starts: the loop keeps time by then."""
+        values = self._values.get(address)
+        if values is None:
+            values = self._values[address] = station_values(self.config.station_by_address(address))
+        return values
+
     def _spawn(self, coro: Coroutine[Any, Any, None]) -> None:
         """Run *coro* beside the timeline (not holding it up); :meth:`run` waits for it at the end."""
         task = asyncio.get_running_loop().create_task(coro)
@@ -244,7 +252,7 @@ class Scenario:
             return
         if activity is None or self._t0 is None:
             return
-        cause = explain(activity, self.values[address], self._t0)
+        cause = explain(activity, self.values_of(address), self._t0)
         for i, r in enumerate(self.results):
             if r is result:
                 self.results[i] = dataclasses.replace(result, cause=cause or None)
@@ -287,7 +295,7 @@ class Scenario:
             param, raw = FAMILIES[CARD_FAMILY[st.card]].parse_assignment(f"{step.param}={step.value}")
             await net.prm_wr(address, param.register, param.encode(raw))
             await net.config(address, 0)
-            self.values[address][param.name] = raw
+            self.values_of(address)[param.name] = raw
         elif step.do == "fault-reset":
             net.set_control(address, forward=False, reverse=False, fault_reset=True)
             await asyncio.sleep(0.05)

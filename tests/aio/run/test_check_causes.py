@@ -180,3 +180,27 @@ def test_failed_checks_name_the_current_limit_and_an_ov_trip_with_its_time(tmp_p
     assert ("held by acceleration stall prevention, n093 = 170% (default) of the drive's rated current: output "
             "current" in fails["0.5s station 0x23"])
     assert fails["5s station 0x21"].endswith("— alarm ov since 3.14 s (coast stop)")
+
+
+def test_a_cause_names_the_value_a_set_param_step_wrote_not_the_default(tmp_path):
+    config = tmp_path / "set.toml"
+    config.write_text(DEFAULTS.split("[[station]]\naddress = 0x03")[0] + """
+[[timeline]]
+at = "0s"
+do = "set-param"
+param = "C1-01"
+value = 8.0
+
+[[timeline]]
+at = "0.5s"
+do = "run"
+speed_hz = 40.0
+
+[[timeline]]
+at = "2s"
+expect = "output-hz"
+output_hz = 40.0
+""")
+    run = _up(config, "--clock", "virtual")
+    assert run.returncode == 1, run.stdout + run.stderr
+    assert "— accelerating at C1-01 = 8.0 s per E1-04 = 60.0 Hz (default): " in _fail_lines(run.stdout)["2s station 0x21"]
