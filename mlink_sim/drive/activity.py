@@ -20,12 +20,7 @@ from .faults import Fault
 from .integrate import IntegratorState
 from .settings import DriveSettings, Family
 
-__all__ = ["BUS_HOLD_MARGIN_V", "CURRENT_HOLD_SHARE", "DriveActivity", "PARAM_ROLES", "ramp_seconds", "read_activity"]
-
-#: A DC bus this close to the deceleration stall level may be held (:attr:`DriveActivity.decel_held`) ...
-BUS_HOLD_MARGIN_V = 10.0
-#: ... and an output current this share of the acceleration stall level (:attr:`DriveActivity.accel_held`).
-CURRENT_HOLD_SHARE = 0.8
+__all__ = ["DriveActivity", "PARAM_ROLES", "ramp_seconds", "read_activity"]
 
 #: Setting -> parameter name, per family (docs/drive-model.md sections 3 and 5). ``None``: the drive has no
 #: parameter for it (the VS-606V7's decel stall level and speed-agree width are fixed).
@@ -106,26 +101,11 @@ class DriveActivity:
     speed_search: bool
     coast_on_stop: bool  #: b1-03 / n005: the run command off coasts
 
-    @property
-    def decel_held(self) -> bool:
-        """Deceleration stall prevention may hold the ramp: the hold is on, or the bus is within
-        :data:`BUS_HOLD_MARGIN_V` of its level while the output is above its target. The hold goes on and off
-        every few milliseconds around the level (the bus drains between two holds), so one reading may miss it;
-        whether the ramp is behind (:meth:`ramp_alone_hz`) tells."""
-        return self.stall_decel or (self.output_on and self.output_hz > self.target_hz + 1e-6
-                                    and self.dc_bus_v >= self.stall_bus_v - BUS_HOLD_MARGIN_V)
-
-    @property
-    def accel_held(self) -> bool:
-        """Acceleration stall prevention may hold the ramp: the hold is on, or the output current is at
-        :data:`CURRENT_HOLD_SHARE` of its level or more while the output is below its target (as
-        :attr:`decel_held`: the hold goes on and off, and each release starts the S-curve afresh)."""
-        return self.stall_accel or (self.output_on and self.target_hz > self.output_hz + 1e-6
-                                    and self.output_current_a >= CURRENT_HOLD_SHARE * self.stall_current_a)
-
     def ramp_alone_hz(self) -> float:
         """Where the ramp alone would have the output now, from where and when its aim last changed (linear at
-        its rate, the start's S-curve as half its time late): further than the output, something held it."""
+        its rate, the start's S-curve as half its time late). An output short of it was held: stall prevention holds
+        the soft starter (:attr:`stall_accel` / :attr:`stall_decel` while the hold is on: it goes on and off every
+        few milliseconds around its level), and so does the torque limit (docs/drive-model.md sections 1 and 5)."""
         left = (self.at_ns - self.aim_since_ns) / 1e9 - self.s_curve_s[0] / 2.0
         delta = self.target_hz - self.aim_from_hz
         if self.ramp_s <= 0.0:

@@ -39,6 +39,7 @@ transmission_cycle = "2ms"
 address = 0x22
 card = "si-t-v7"
 params = { "n003" = 3, "n004" = 9 }
+load = { kind = "fan" }
 
 [[timeline]]
 at = "0s"
@@ -66,8 +67,33 @@ def test_v7_warnings_name_n019_and_n020_with_values_that_would_do():
                                " of 40 Hz at 6.3 s at the earliest: n019 = 10.0 s (default) per n011 = 60.0 Hz "
                                "(default)")
     assert "set n019 = 2.8 or less, or check at 6.4 s or later" in lines[0]
-    assert "(10s station 0x22: expect stopped): the output stops at 14.7 s at the earliest: n020 = 10.0 s" in lines[1]
-    assert "set n020 = 2.6 or less" in lines[1]
+    assert ("(10s station 0x22: expect stopped): the output stops at 14.7 s on the drive model: n020 = 10.0 s "
+            "(default) per n011 = 60.0 Hz (default)") in lines[1]
+    assert "set n020 = 2.6 or less, or check at 14.8 s or later" in lines[1]
+
+
+def test_a_stop_stall_prevention_stretches_on_an_inertia_load_names_coasting_and_coasting_holds(tmp_path):
+    config = tmp_path / "inertia.toml"
+    config.write_text(CONFIG.replace('card = "si-t-v7"\nparams = { "n003" = 3, "n004" = 9 }\nload = { kind = "fan" }',
+                                     'card = "si-t3"\nparams = { "b1-01" = 3, "b1-02" = 3, "C1-01" = 1.0, '
+                                     '"C1-02" = 1.0 }'))
+    lines = timeline_warnings(load_config(config))
+    assert len(lines) == 1, lines
+    assert ": the output stops at 2" in lines[0] and "on the drive model: C1-02 = 1.0 s per E1-04" in lines[0]
+    assert ("deceleration stall prevention, L3-04 = 1 (default), holds the ramp while the load's energy comes back "
+            "into the DC bus (docs/drive-model.md section 5); set b1-03 = 1 (coast to stop), or check at") in lines[0]
+    config.write_text(config.read_text().replace('"C1-02" = 1.0 }', '"C1-02" = 1.0, "b1-03" = 1 }'))
+    assert timeline_warnings(load_config(config)) == []
+    run = _cli("up", str(config), "--clock", "virtual", "--no-status")
+    assert run.returncode == 0 and "all checks held" in run.stdout, run.stdout + run.stderr
+
+
+def test_the_value_a_warning_names_for_a_v7_holds_on_the_virtual_clock(tmp_path):
+    config = tmp_path / "v7.toml"
+    config.write_text(CONFIG.replace('"n004" = 9 }', '"n004" = 9, "n019" = 2.8, "n020" = 2.6 }'))
+    assert timeline_warnings(load_config(config)) == []
+    run = _cli("up", str(config), "--clock", "virtual", "--no-status")
+    assert run.returncode == 0 and "all checks held" in run.stdout, run.stdout + run.stderr
 
 
 def test_a_run_the_drive_does_not_take_from_the_network_names_b1_02_and_b1_01():

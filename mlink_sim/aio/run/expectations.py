@@ -19,7 +19,7 @@ import math
 from dataclasses import dataclass
 
 from ...config import CARD_FAMILY, Config, StationConfig, TimelineStep
-from ...drive import DriveSettings, Family
+from ...drive import Drive, DriveCommand, DriveSettings, Family, LoadSpec, hz_to_ref
 from ...drive.activity import PARAM_ROLES, ramp_seconds
 from ...params import FAMILIES
 from .explain import RUN_SOURCE, param_text
@@ -32,6 +32,10 @@ __all__ = ["timeline_warnings"]
 _LAG_CYCLES = 2
 #: A suggested ramp time leaves this share of the time available to spare (command timing, rounding).
 _SPARE = 0.9
+#: The drive model's sub-step when it runs a stop ahead (:func:`_model_stop_s`; the runs use 1 ms).
+_MODEL_STEP_NS = 2_000_000
+#: ... and how far past the check it looks for the end of the stop.
+_MODEL_BEYOND_S = 30.0
 
 
 @dataclass
@@ -49,9 +53,10 @@ def timeline_warnings(config: Config, source: str = "") -> list[str]:
     docstring), prefixed with *source* (the file) when given; empty when there is none."""
     out: list[str] = []
     index = {id(step): i for i, step in enumerate(config.timeline)}
+    stops: dict[tuple[object, ...], float | None] = {}  # the model's stops, shared by stations set up alike
     for st in config.station:
         steps = [s for s in sorted(config.timeline, key=lambda s: s.at) if s.station in ("all", st.address)]
-        for text in _station(config, st, steps, index):
+        for text in _station(config, st, steps, index, stops):
             out.append(f"{source + ': ' if source else ''}{text}")
     return out
 
@@ -60,7 +65,8 @@ def _label(step: TimelineStep, address: int) -> str:
     return step.describe.replace("all stations", f"station {address:#04x}")
 
 
-def _station(config: Config, st: StationConfig, steps: list[TimelineStep], index: dict[int, int]) -> list[str]:
+def _station(config: Config, st: StationConfig, steps: list[TimelineStep], index: dict[int, int],
+             stops: dict[tuple[object, ...], float | None]) -> list[str]:
     family = Family(CARD_FAMILY[st.card])
     table = FAMILIES[family.value]
     values = station_values(st)
@@ -96,7 +102,11 @@ def _station(config: Config, st: StationConfig, steps: list[TimelineStep], index
             else:
                 ramp = _Ramp(at, 0.0 if settings.coast_on_run_off else f_now, 0.0, False)
         elif step.expect in ("output-hz", "speed-agree", "stopped"):
-            text = _check(step, at, ramp, settings, family, roles, values, lag)
+            if step.expect == "stopped" and not ramp.running and _stall_possible(settings, ramp):
+                text = _model_check(at, ramp, values, _Model(family, st.load.model_dump(exclude_none=True), stops),
+                                    roles, lag)
+            else:
+                text = _check(step, at, ramp, settings, family, roles, values, lag)
             if text:
                 out.append(f"timeline[{index[id(step)]}] ({_label(step, st.address)}): {text}")
     return out
@@ -159,3 +169,77 @@ def _check(step: TimelineStep, at: float, ramp: _Ramp, s: DriveSettings, family:
     return (f"the output {what} at {ramp.t + need:.1f} s at the earliest: {param_text(family, name, values)} per "
             f"{param_text(family, max_name, values)} (the ramp, docs/drive-model.md section 3); {fix}"
             f"check at {later:g} s or later")
+
+
+
+def _stall_possible(s: DriveSettings, ramp: _Ramp) -> bool:
+    """A ramp stop from a turning output with deceleration stall prevention on (A1000 L3-04, V7 n092): how long it
+    takes is for the drive model to say (the load's energy comes back into the DC bus)."""
+    return s.stall_decel and not s.coast_on_run_off and ramp.f0 != 0.0
+
+
+@dataclass
+class _Model:
+    """The drive model of one station's family and load, running stops ahead; *stops* is shared by the stations of
+    a config (stations set up alike run once)."""
+
+    family: Family
+    load: dict[str, object]
+    stops: dict[tuple[object, ...], float | None]
+
+    def stop_s(self, values: dict[str, int], f0: float, longest_s: float) -> float | None:
+        """Seconds the model takes to stop from a steady *f0* Hz (None: not within *longest_s*)."""
+        key = (self.family, tuple(sorted(values.items())), tuple(sorted(self.load.items())), round(f0, 3), longest_s)
+        if key not in self.stops:
+            settings = DriveSettings.from_params(self.family, values)
+            self.stops[key] = _model_stop_s(settings, LoadSpec.from_config(self.load), f0, longest_s)
+        return self.stops[key]
+
+
+def _model_stop_s(s: DriveSettings, load: LoadSpec, f0: float, longest_s: float) -> float | None:
+    """Seconds the drive model takes to stop from a steady *f0* Hz with these settings and this load (its own
+    equations: stall prevention holds the ramp while the load's energy comes back into the DC bus, docs/drive-model.md
+    section 5); None when it has not stopped after *longest_s*."""
+    d = Drive(s.family, s, load, substep_ns=_MODEL_STEP_NS)
+    up = int((ramp_seconds(f0, s.accel_s, s.max_freq_hz, s.s_curve_s[0], s.s_curve_s[1]) + 2.0) * 1e9)
+    d.command(DriveCommand(forward=True, freq_ref_raw=hz_to_ref(s, f0)), 0)
+    d.advance(up)
+    d.command(DriveCommand(), up)
+    t, step = up, 50_000_000
+    while d.status.running:
+        if t - up > longest_s * 1e9 or d.status.faulted:
+            return None
+        t += step
+        d.advance(t)
+    return (t - up) / 1e9
+
+
+def _model_check(at: float, ramp: _Ramp, values: dict[str, int], model: _Model, roles: dict[str, str | None],
+                 lag: float) -> str | None:
+    """A ``stopped`` check after a ramp stop that stall prevention may stretch, judged on the drive model: None when
+    it stops in time, else when it stops and what would do (a shorter deceleration time where the model stops in
+    time with it, else coasting to a stop)."""
+    family, f0 = model.family, abs(ramp.f0)
+    avail = at - ramp.t - lag
+    longest = avail + _MODEL_BEYOND_S
+    took = model.stop_s(values, f0, longest)
+    if took is not None and took <= avail:
+        return None
+    s = DriveSettings.from_params(family, values)
+    name, stop = roles["decel"] or "", roles["stop_method"] or ""
+    param = FAMILIES[family.value].by_name(name)
+    fix = f"set {stop} = 1 (coast to stop)"
+    room = _SPARE * avail - s.s_curve_s[2] / 2.0 - s.s_curve_s[3] / 2.0
+    if room > 0.0:
+        raw = param.to_raw(math.floor(room * s.max_freq_hz / f0 / param.scale) * param.scale)
+        if 0 < raw < values[name] and (t := model.stop_s({**values, name: raw}, f0, longest)) is not None and t <= avail:
+            fix = f"set {name} = {param.format_number(raw)} or less"
+    ramp_s = ramp_seconds(f0, s.decel_s, s.max_freq_hz, s.s_curve_s[2], s.s_curve_s[3])
+    held = took is None or took > ramp_s + 0.1
+    when = f"does not stop within {longest:.1f} s" if took is None else f"stops at {ramp.t + took:.1f} s"
+    why = (f"; deceleration stall prevention, {param_text(family, roles['stall_decel'] or '', values)}, holds the "
+           "ramp while the load's energy comes back into the DC bus (docs/drive-model.md section 5)") if held else ""
+    later = "" if took is None else f", or check at {math.ceil((ramp.t + took + lag) * 10.0) / 10.0:g} s or later"
+    return (f"the output {when} on the drive model: {param_text(family, name, values)} per "
+            f"{param_text(family, roles['max_hz'] or '', values)} (the ramp, docs/drive-model.md section 3){why}; "
+            f"{fix}{later}")

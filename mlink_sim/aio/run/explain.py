@@ -13,6 +13,7 @@ Touches: nothing (pure text from values).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 from ...drive.activity import PARAM_ROLES, DriveActivity, ramp_seconds
@@ -104,17 +105,18 @@ def _ramping(a: DriveActivity, family: Family, roles: Mapping[str, str | None], 
         text += f" (the ramp alone: {_hz(alone)} Hz)"
     else:
         text += f", there at {since + full:.1f} s"
-    if a.stall_accel or (behind and a.accel_held):
+    accel = a.target_hz > a.output_hz
+    if a.stall_accel or (behind and accel and not a.torque_limited and math.isfinite(a.stall_current_a)):
         sel, lvl = roles["stall_accel"] or "", roles["stall_accel_level"] or ""
         if sel != lvl:
-            what, level = param_text(family, sel, values), f", {param_text(family, lvl, values)} of the drive's rated current"
+            what, level = param_text(family, sel, values), f" {param_text(family, lvl, values)} of the drive's rated current"
         else:
             what, level = f"{param_text(family, sel, values)} of the drive's rated current", ""
-        text += (f"; held by acceleration stall prevention, {what}: output current {a.output_current_a:.1f} A "
-                 f"against its level{level} ({a.stall_current_a:.1f} A)")
-    if a.stall_decel or (behind and a.decel_held):
+        text += (f"; held by acceleration stall prevention, {what}: output current {a.output_current_a:.1f} A, "
+                 f"its level{level} ({a.stall_current_a:.1f} A)")
+    if a.stall_decel or (behind and not accel and math.isfinite(a.stall_bus_v)):  # the only hold of a decel
         text += (f"; held by deceleration stall prevention, {param_text(family, roles['stall_decel'] or '', values)}"
-                 f": DC bus {a.dc_bus_v:.0f} V against its {a.stall_bus_v:.0f} V level, the energy the load gives back "
-                 "has nowhere else to go (no braking resistor, docs/drive-model.md section 5); a longer "
-                 f"{name} gives it back more slowly, {roles['stop_method']} = 1 coasts to a stop")
+                 f": DC bus {a.dc_bus_v:.0f} V, its level {a.stall_bus_v:.0f} V; the energy the load gives back "
+                 "has nowhere else to go (no braking resistor, docs/drive-model.md section 5): a load with friction "
+                 f"or a fan takes it, {roles['stop_method']} = 1 coasts to a stop")
     return text

@@ -77,7 +77,7 @@ def test_failed_checks_on_the_defaults_name_the_ramp_and_the_stall_prevention_ho
     assert "there at 6.9 s" in accel
     stop = fails["6s station 0x03"]
     assert "— stopping at C1-02 = 1.0 s per E1-04 = 60.0 Hz (default)" in stop
-    assert "held by deceleration stall prevention, L3-04 = 1 (default): DC bus 375 V against its 375 V level" in stop
+    assert "held by deceleration stall prevention, L3-04 = 1 (default): DC bus 375 V, its level 375 V" in stop
     checks = {c["what"]: c for c in json.loads(report.read_text())["checks"]}
     assert checks["6s station 0x03: expect stopped"]["cause"] in stop
     assert "cause" in REPORT_SCHEMA["$defs"]["check"]["properties"]
@@ -176,7 +176,7 @@ def test_failed_checks_name_the_current_limit_and_an_ov_trip_with_its_time(tmp_p
     fails = _fail_lines(run.stdout)
     assert ("(the ramp alone: 40.0 Hz); held by acceleration stall prevention, L3-01 = 1 (default): output current "
             in fails["0.5s station 0x22"])
-    assert "against its level, L3-02 = 150% (default) of the drive's rated current (39.9 A)" in fails["0.5s station 0x22"]
+    assert "A, its level L3-02 = 150% (default) of the drive's rated current (39.9 A)" in fails["0.5s station 0x22"]
     assert ("held by acceleration stall prevention, n093 = 170% (default) of the drive's rated current: output "
             "current" in fails["0.5s station 0x23"])
     assert fails["5s station 0x21"].endswith("— alarm ov since 3.14 s (coast stop)")
