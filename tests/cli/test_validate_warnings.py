@@ -126,3 +126,10 @@ def test_validate_and_up_warn_on_the_docs_first_scenario_and_its_fix_holds(tmp_p
     assert not [line for line in _cli("validate", str(config)).stdout.splitlines() if line.startswith("warning")]
     fixed = _cli("up", str(config), "--clock", "virtual", "--no-status")
     assert fixed.returncode == 0 and "all checks held" in fixed.stdout, fixed.stdout + fixed.stderr
+
+
+def test_a_set_param_step_before_the_run_that_sets_b1_02_counts():
+    text = CONFIG.replace('card = "si-t-v7"\nparams = { "n003" = 3, "n004" = 9 }', 'card = "si-t3"\nparams = { "b1-01" = 3 }')
+    text = text.replace('[[timeline]]\nat = "0s"\ndo = "run"', '[[timeline]]\nat = "0s"\ndo = "set-param"\nparam = "b1-02"\n'
+                        'value = 3\n\n[[timeline]]\nat = "0.1s"\ndo = "run"')
+    assert not [w for w in timeline_warnings(parse_config(text)) if "from elsewhere" in w]

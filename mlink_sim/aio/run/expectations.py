@@ -76,16 +76,7 @@ def _station(config: Config, st: StationConfig, steps: list[TimelineStep], index
     runs = [s for s in steps if s.do == "run"]
     if not runs:
         return []
-    run_name, run_value, ref_name, ref_value, source = RUN_SOURCE[family]
-    out = []
-    if not settings.run_from_network:
-        out.append(f"station {st.address:#04x}: the timeline runs it, but {param_text(family, run_name, values)} "
-                   f"takes the run command from elsewhere; set {run_name} = {run_value} ({source})")
-    if not settings.ref_from_network and any(s.speed_hz for s in runs):
-        out.append(f"station {st.address:#04x}: the timeline sets its speed, but {param_text(family, ref_name, values)}"
-                   f" takes the reference from elsewhere; set {ref_name} = {ref_value} ({source})")
-    if out:
-        return out
+    out: list[str] = []
     ramp = _Ramp()
     for step in steps:
         at = step.at / 1e9
@@ -93,6 +84,8 @@ def _station(config: Config, st: StationConfig, steps: list[TimelineStep], index
             param, raw = table.parse_assignment(f"{step.param}={step.value}")
             values[param.name] = raw
             settings = DriveSettings.from_params(family, values)
+        elif step.do == "run" and not (settings.run_from_network and settings.ref_from_network):
+            return out + _sources(st.address, family, settings, values)  # the drive does not run: nothing to follow
         elif step.do in ("run", "stop"):
             f_now = _position(ramp, settings, at)
             if step.do == "run":
@@ -109,6 +102,19 @@ def _station(config: Config, st: StationConfig, steps: list[TimelineStep], index
                 text = _check(step, at, ramp, settings, family, roles, values, lag)
             if text:
                 out.append(f"timeline[{index[id(step)]}] ({_label(step, st.address)}): {text}")
+    return out
+
+
+def _sources(address: int, family: Family, s: DriveSettings, values: dict[str, int]) -> list[str]:
+    """The run command or reference the drive does not take from the network, with what to set."""
+    run_name, run_value, ref_name, ref_value, source = RUN_SOURCE[family]
+    out = []
+    if not s.run_from_network:
+        out.append(f"station {address:#04x}: the timeline runs it, but {param_text(family, run_name, values)} takes "
+                   f"the run command from elsewhere; set {run_name} = {run_value} ({source})")
+    if not s.ref_from_network:
+        out.append(f"station {address:#04x}: the timeline sets its speed, but {param_text(family, ref_name, values)} "
+                   f"takes the reference from elsewhere; set {ref_name} = {ref_value} ({source})")
     return out
 
 
