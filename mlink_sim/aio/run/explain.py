@@ -5,8 +5,8 @@ fails").
 sentence that names the parameters behind it, with their values and whether they are the drive's defaults (the
 defaults of :mod:`mlink_sim.params`): ``"accelerating at C1-01 = 10.0 s (default) per E1-04 = 60.0 Hz (default): 11.4
 of 40 Hz after 2.0 s, there at 6.9 s"``, ``"stopping at C1-02 = 1.0 s per E1-04 = 60.0 Hz (default): 33.9 Hz, from
-40.0 Hz after 2.5 s, 1.7 s behind the ramp; held by deceleration stall prevention, L3-04 = 1 (default): DC bus
-375 V at its 375 V level …"``, ``"alarm ov since 5.20 s (coast stop)"``.
+40.0 Hz after 2.5 s (the ramp alone: 0.0 Hz); held by deceleration stall prevention, L3-04 = 1 (default): DC bus
+375 V, its level 375 V; …"``, ``"alarm ov since 5.20 s (coast stop)"``.
 
 Touches: nothing (pure text from values).
 """
