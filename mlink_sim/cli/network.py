@@ -217,7 +217,10 @@ def master_cmd(config_path, endpoints, seed, duration, report, asserts, status, 
 @click.command("validate")
 @click.argument("config_path", metavar="CONFIG", type=click.Path(dir_okay=False))
 def validate_cmd(config_path: str) -> None:
-    """Check CONFIG without starting anything; print a one-screen summary."""
+    """Check CONFIG without starting anything; print a one-screen summary, and a warning for each timeline check
+    the drives' settings cannot meet (exit 0 all the same)."""
+    from ..aio.run.expectations import timeline_warnings
+
     config, _ = load_checked(config_path)
     net = config.network
     click.echo(f"{config_path}: network {net.name!r}, {len(config.station)} station(s), "
@@ -227,3 +230,5 @@ def validate_cmd(config_path: str) -> None:
         click.echo(f"  {st.address:02X}H {st.card:<8} {st.link.label:<17} {st.frame_size}-byte COM_TIM {st.com_tim}"
                    f"{' sync' if st.sync else ' async'}{' subcmd' if st.subcmd else ''}"
                    f"{'  ' + st.endpoint if st.endpoint else ''}")
+    for line in timeline_warnings(config, config_path):
+        click.echo(f"warning: {line}")

@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import Final
 
+from .activity import DriveActivity, read_activity
 from .faults import Fault, minor_code
 from .integrate import CHANGED, IntegratorState, begin_search, ol1_trip_ahead, steady_to, substep
 from .monitors import read_monitor, read_sel_mon
@@ -62,6 +63,7 @@ class Drive:
         "family", "settings", "load", "_x", "_events", "_remote_override", "_sub", "_t", "_cmd",
         "_fault", "_fault_stop", "_history", "_latched", "_cond", "_ope", "_stop_alarm", "_d104", "_ef_since",
         "_event_at", "_status", "_skey", "_slast", "steady_epoch", "_ref_hz", "_remote", "_net_run", "_net_ref",
+        "_aim", "_aim_at", "_aim_from", "_fault_at", "_fast", "_use2",
     )
 
     def __init__(self, family: Family, settings: DriveSettings, load: LoadSpec, *, now: int = 0,
@@ -89,6 +91,14 @@ class Drive:
         self._skey: tuple[bool, ...] = ()
         self._slast: DriveStatus | None = None
         self._ref_hz = 0.0
+        # what activity() reads: the soft starter's aim (run, direction, target), since when and from where; when
+        # the fault in effect tripped; a fast stop; the second ramp times selected
+        self._aim: tuple[bool, int, float] = (False, 1, 0.0)
+        self._aim_at = int(now)
+        self._aim_from = 0.0
+        self._fault_at = 0
+        self._fast = False
+        self._use2 = False
         #: Bumped whenever the drive becomes steady or stops being steady: while it is steady and this number
         #: is unchanged, no output or monitor of the drive changes (only the oL1 thermal state moves).
         self.steady_epoch = 0
@@ -216,6 +226,7 @@ class Drive:
                 self._fault_stop = StopMethod.COAST
             return
         self._fault, self._fault_stop = fault, stop
+        self._fault_at = self._t
         self._history.insert(0, fault)
         del self._history[10:]
         self._event("fault", f"{fault.display} {stop.name}")
@@ -314,6 +325,10 @@ class Drive:
                 fast_rate = INF
         if not x.out:
             x.output_off()
+        aim = (x.run, x.dt, x.mt)
+        if aim != self._aim:
+            self._aim, self._aim_at, self._aim_from = aim, self._t, x.m
+        self._fast, self._use2 = fast, use2
         x.A = fmax / acc_s if acc_s > 0 else INF
         x.Js = x.A / s0 if s0 > 0 else INF
         x.Je = x.A / s1 if s1 > 0 else INF
@@ -535,6 +550,16 @@ class Drive:
             return -1
         ev = self._event_at
         return QUIET_FOREVER if ev is None else ev
+
+    def activity(self) -> DriveActivity:
+        """What the drive is doing and what holds it, as of :attr:`now` (docs/drive-model.md, "Activity"). Reading
+        it changes nothing: the drive is not advanced."""
+        c, f = self._cmd, self._fault
+        return read_activity(
+            self.settings, self._x, at_ns=self._t, run_requested=c.forward != c.reverse, net=(self._net_run,
+            self._net_ref), reference_hz=self._ref_hz, fault=(f, self._fault_at, self._fault_stop.name),
+            minors=self.status.minors, ope=self._ope, baseblock_input=Fault.BB in self._cond, fast=self._fast,
+            second=self._use2, aim=(self._aim_at, self._aim_from))
 
     @property
     def command_in_effect(self) -> DriveCommand:

@@ -352,11 +352,15 @@ class NetworkMetrics:
             st[1] += st[3]
         st[2], st[3] = seconds, wall
 
-    def record_check(self, at: float, what: str, ok: bool, detail: str | None = None) -> None:
-        """A timeline check's outcome, ``at`` seconds into the run."""
+    def record_check(self, at: float, what: str, ok: bool, detail: str | None = None, cause: str | None = None
+                     ) -> None:
+        """A timeline check's outcome, ``at`` seconds into the run; *cause*: what the drive was doing when a check
+        of it failed (docs/report.md, ``checks[].cause``)."""
         entry: dict[str, Any] = {"at": round(float(at), 6), "what": what, "ok": bool(ok)}
         if detail:
             entry["detail"] = detail
+        if cause:
+            entry["cause"] = cause
         self.checks.append(entry)
 
     # ------------------------------------------------------------------ figures

@@ -205,6 +205,8 @@ REPORT_SCHEMA: dict[str, Any] = {
                 "what": {"type": "string"},
                 "ok": {"type": "boolean"},
                 "detail": {"type": "string"},
+                "cause": {"type": "string", "description": "a failed check of the drive: what the drive model was "
+                          "doing at that moment and why (docs/configuration.md, 'When a check fails')"},
             },
         },
         "assertion": {

@@ -24,6 +24,7 @@ from ..._log import get_logger
 from ...config import Config, TimelineStep, format_ns
 from ...metrics import write_report
 from .control import ControlServer, impairment_ops
+from .expectations import timeline_warnings
 from .faults import fault_ops
 from .scenario import CheckResult, Scenario, speed_scales
 from .session import EndpointError, NetworkSession, build_plans
@@ -111,6 +112,8 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
     run.catch_signals()
     session_cls, workers = _workers(run, endpoints)
     length = opts.duration_ns if opts.duration_ns is not None else config.run_length_ns
+    for line in timeline_warnings(config, str(opts.config_path)):  # docs/configuration.md
+        _notice(opts, "check_beyond_settings", f"warning: {line}")
     cut = cut_by_duration(config, opts.duration_ns)
     if cut:
         _notice(opts, "steps_cut", f"warning: --duration {format_ns(opts.duration_ns or 0)} ends the run before "
@@ -239,7 +242,7 @@ async def _report(run: _Run, session: NetworkSession, scenario: Scenario) -> dic
     await session.close_masters()
     scenario.results[:] = scenario.results_naming_stalls(session.metrics.stalls)
     for c in scenario.results:
-        session.metrics.record_check(c.at_s, c.what, c.ok, c.detail)
+        session.metrics.record_check(c.at_s, c.what, c.ok, c.detail, c.cause)
     interrupted = run.caught[0].name if run.caught else None
     return await session.report(assertions=run.opts.assertions, slave_stats=False, extra_meta={
         "interrupted": interrupted, "not_run": [s.describe for s in scenario.not_run()]})
@@ -388,7 +391,8 @@ def _print_summary(config: Config, report: dict[str, Any], scenario: Scenario, v
         print(f"host stalls {st['count']}, longest {format_ns(st['max'])}, {st['cycles']} cycles delayed: "
               f"{st['absorbed']} run late, {st['lost']} lost (policy {bound})", file=out)
     for c in scenario.results:
-        print(f"  {'ok  ' if c.ok else 'FAIL'} {c.what}: {c.detail}", file=out)
+        why = f" — {c.cause}" if c.cause else ""
+        print(f"  {'ok  ' if c.ok else 'FAIL'} {c.what}: {c.detail}{why}", file=out)
     for step in scenario.not_run():
         print(f"  --   {step.describe}: not run", file=out)
     for r in report.get("assertions", []):

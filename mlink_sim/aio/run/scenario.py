@@ -9,7 +9,7 @@ Touches: the network only through its API (requests, controls, faults); the cloc
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Coroutine
 import dataclasses
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -23,6 +23,7 @@ from ...drive import DriveSettings, Family
 from ...drive.monitors import hz_to_ref, ref_to_hz
 from ...params import FAMILIES
 from ...wire import InvCmdStat, Link, M2Status
+from .explain import explain
 from .faultchecks import recovered, refused
 
 __all__ = ["SpeedScale", "CheckResult", "NetworkHandle", "Scenario", "StationControls", "speed_scale",
@@ -85,15 +86,22 @@ def speed_scales(config: Config) -> dict[int, SpeedScale]:
     return {st.address: speed_scale(st) for st in config.station}
 
 
+#: The checks a failure of which the drive's state explains (``CheckResult.cause``).
+DRIVE_CHECKS = frozenset({"running", "stopped", "speed-agree", "output-hz", "no-alarm", "alarm"})
+
+
 @dataclass(frozen=True)
 class CheckResult:
-    """Outcome of one ``expect`` step for one station."""
+    """Outcome of one ``expect`` step for one station. ``cause``: for a failed check of the drive
+    (:data:`DRIVE_CHECKS`), what the drive model was doing at that moment and why (:func:`~.explain.explain`);
+    None where it could not be read (the slaves of ``mlink-sim master`` run elsewhere)."""
 
     at_s: float
     station: int
     what: str
     ok: bool
     detail: str
+    cause: str | None = None
 
 
 def _with_stalls(check: CheckResult, stalls: Any, t0: float) -> CheckResult:
@@ -120,6 +128,7 @@ class NetworkHandle(Protocol):
     def kill_slave(self, station: int) -> bool: ...
     def impair(self, station: int | None, spec: Any) -> None: ...
     def alarms_seen(self, station: int) -> dict[str, int]: ...
+    async def drive_activity(self, station: int) -> Any: ...
     def heal(self, station: int | None = None) -> int: ...
 
 
@@ -180,7 +189,8 @@ class Scenario:
         self._t0: float | None = None  # the loop time of "0 s", once run() began
         #: called with each action step's description as it begins (a capture's comments: ``--capture``)
         self.note: Callable[[str], None] | None = None
-        self._waiting: set[asyncio.Task[None]] = set()  # checks that wait (recovered, refused)
+        self._waiting: set[asyncio.Task[None]] = set()  # checks that wait (recovered, refused), explanations
+        self._values: dict[int, dict[str, int]] = {}  # values_of(), read when first needed
 
     @property
     def current(self) -> TimelineStep | None:
@@ -210,14 +220,47 @@ class Scenario:
                 await self._act(step)
             elif step.expect in ("recovered", "refused"):
                 for address in self._targets(step):
-                    task = asyncio.get_running_loop().create_task(self._wait_check(step, address))
-                    self._waiting.add(task)
-                    task.add_done_callback(self._waiting.discard)
+                    self._spawn(self._wait_check(step, address))
             else:
                 for address in self._targets(step):
-                    self.results.append(self.check(step, address))
+                    result = self.check(step, address)
+                    self.results.append(result)
+                    if not result.ok and step.expect in DRIVE_CHECKS:
+                        self._spawn(self._explain(result, address))
         if self._waiting:
             await asyncio.gather(*list(self._waiting))
+
+    def values_of(self, address: int) -> dict[str, int]:
+        """*address*'s parameter values in effect (raw, by name): the config's on the family defaults, then each
+        ``set-param`` step's. Built when first needed (a failed check, a set-param step), not for every station when
+        the timeline starts: the loop keeps time by then."""
+        values = self._values.get(address)
+        if values is None:
+            values = self._values[address] = station_values(self.config.station_by_address(address))
+        return values
+
+    def _spawn(self, coro: Coroutine[Any, Any, None]) -> None:
+        """Run *coro* beside the timeline (not holding it up); :meth:`run` waits for it at the end."""
+        task = asyncio.get_running_loop().create_task(coro)
+        self._waiting.add(task)
+        task.add_done_callback(self._waiting.discard)
+
+    async def _explain(self, result: CheckResult, address: int) -> None:
+        """Give the failed *result* its cause: the drive's activity, read now (docs/configuration.md, "When a check
+        fails")."""
+        try:
+            activity = await self.net.drive_activity(address)
+        except Exception as exc:  # noqa: BLE001 - an explanation that cannot be had leaves the check as it is
+            log.info("check_cause_unread", station=f"{address:#04x}", error=str(exc))
+            return
+        if activity is None or self._t0 is None:
+            return
+        cause = explain(activity, self.values_of(address), self._t0)
+        for i, r in enumerate(self.results):
+            if r is result:
+                self.results[i] = dataclasses.replace(result, cause=cause or None)
+                log.info("timeline_check_cause", what=result.what, cause=cause)
+                return
 
     # -- actions ----------------------------------------------------------------------------------------------
 
@@ -255,6 +298,7 @@ class Scenario:
             param, raw = FAMILIES[CARD_FAMILY[st.card]].parse_assignment(f"{step.param}={step.value}")
             await net.prm_wr(address, param.register, param.encode(raw))
             await net.config(address, 0)
+            self.values_of(address)[param.name] = raw
         elif step.do == "fault-reset":
             net.set_control(address, forward=False, reverse=False, fault_reset=True)
             await asyncio.sleep(0.05)

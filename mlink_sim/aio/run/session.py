@@ -101,6 +101,29 @@ class NetworkApi:
         """The master's :class:`~mlink_sim.master.StationView` of *station* (state, phase, status, alarms …)."""
         return self.by_station[station].view(station)
 
+    async def drive_activity(self, station: int) -> Any:
+        """What *station*'s drive model is doing (:class:`~mlink_sim.drive.activity.DriveActivity`): read on the
+        card core in this process (the virtual clock), else asked of its slave worker (``{"op": "drive"}``); None
+        when the slave runs elsewhere (``mlink-sim master``) or does not answer within 0.5 s."""
+        from ...drive.activity import DriveActivity
+
+        worker = self.workers.get(station)
+        if worker is None:
+            return None
+        read = getattr(worker, "activity", None)
+        if read is not None:
+            return read()
+        port = worker.control_port
+        if not (worker.alive and port):
+            return None
+        reply = await query_control("127.0.0.1", port, "drive", timeout=0.5, station=station)
+        if not reply or not reply.get("ok"):
+            return None
+        try:
+            return DriveActivity.from_dict(reply["activity"])
+        except (ValueError, KeyError, TypeError):
+            return None
+
     def alarms_seen(self, station: int) -> dict[str, int]:
         """Every alarm *station* raised so far, as the master saw it: name -> how many times."""
         return dict(self.by_station[station].alarms_seen.get(station, {}))

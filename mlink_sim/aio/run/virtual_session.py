@@ -109,6 +109,11 @@ class _VirtualWorker:
         fabric.rearm(self.address)  # the drive is moving again: poll it
         return reply
 
+    def activity(self) -> Any:
+        """The station's ``Drive.activity()`` (None while it is down), read on the card core itself."""
+        station = self.session.fabric.station(self.address)
+        return None if station is None else station.drive.drive.activity()
+
 
 class VirtualSession(NetworkSession):
     """A :class:`NetworkSession` on simulated time (see the module docstring). Open it with

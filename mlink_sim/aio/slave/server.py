@@ -437,14 +437,24 @@ class SlaveServer:
             self._forget()
             reply = handle_plant_request(request, {hs.station.address: hs.station for hs in self.stations},
                                          self.plants, time.monotonic_ns())
+        elif op == "drive":  # what a station's drive is doing, for a failed check (aio/run/explain.py)
+            reply = self._drive_activity(request.get("station"))
         elif op == "cpu":
             reply = self.cpu()
         elif op == "ping":
             reply = {"ok": True, "pid": os.getpid()}
         else:
-            reply = {"ok": False, "error": "expected a JSON object with op = 'stats', 'cpu', 'ping', 'plant' or "
-                                           "'release'"}
+            reply = {"ok": False, "error": "expected a JSON object with op = 'stats', 'cpu', 'ping', 'drive', "
+                                           "'plant' or 'release'"}
         self._send_control(json.dumps(reply, separators=_COMPACT).encode(), addr)
+
+    def _drive_activity(self, station: Any) -> dict[str, Any]:
+        """``{"op": "drive", "station": 33}``: the station's ``Drive.activity()`` as of its last advance (reading it
+        changes nothing)."""
+        for hs in self.stations:
+            if hs.station.address == station:
+                return {"ok": True, "activity": hs.station.drive.drive.activity().as_dict()}
+        return {"ok": False, "error": f"no station {station!r} in this process"}
 
     def _send_control(self, payload: bytes, addr: Any) -> None:
         if len(payload) > 60_000:
