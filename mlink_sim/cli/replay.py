@@ -6,6 +6,8 @@ import sys
 
 import click
 
+from .params import ADDR, Seconds
+
 __all__ = ["replay_cmd"]
 
 
@@ -37,26 +39,21 @@ def _targets(texts: tuple[str, ...]) -> tuple[tuple[str, int] | None, dict[int, 
 @click.option("--to", "targets", required=True, multiple=True, metavar="[ADDR=]HOST:PORT",
               help="The live slave to send the frames to; ADDR=HOST:PORT per station for a capture of several "
                    "(repeatable).")
-@click.option("--station", "stations", multiple=True, metavar="ADDR",
+@click.option("--station", "stations", multiple=True, type=ADDR,
               help="Replay only this station's frames (repeatable).")
-@click.option("--grace", default=0.3, show_default=True, type=click.FloatRange(0.0, 60.0),
-              help="Seconds to wait for the last answers.")
+@click.option("--grace", default="300ms", show_default=True, type=Seconds(60.0, zero=True),
+              help="How long to wait for the last answers.")
 @click.option("--max-differences", default=10, show_default=True, type=click.IntRange(1, 10_000),
               help="How many differences to print before stopping the comparison.")
-def replay_cmd(capture_path: str, targets: tuple[str, ...], stations: tuple[str, ...], grace: float,
+def replay_cmd(capture_path: str, targets: tuple[str, ...], stations: tuple[int, ...], grace: float,
                max_differences: int) -> None:
     """Send the master's frames of FILE on their original timing to the slaves (--to) and compare their answers
     with the recorded ones (RWDT, monitors and what a moving drive changes left out; docs/wire-format.md §10).
     Exit 0 when every answer is equal, 1 with the first differences."""
     from ..capture import CaptureError, read_capture
     from ..capture.replay import MONITORS, VOLATILE, plan_replay, run_replay
-    from ..config import parse_address
-
     default, per_station = _targets(targets)
-    try:
-        wanted = [parse_address(s) for s in stations] or None
-    except ValueError as exc:
-        raise click.BadParameter(str(exc), param_hint="--station") from None
+    wanted = list(stations) or None
     try:
         plan = plan_replay(read_capture(capture_path).datagrams, wanted)
     except (CaptureError, ValueError) as exc:
