@@ -68,7 +68,7 @@ def _decode_pcap(path: str, station: str | None, as_json: bool) -> None:
 @click.option("--frame-size", type=click.Choice(["17", "32", "64"]), help="Reject other data sizes.")
 @click.option("--pcap", "pcap", type=click.Path(dir_okay=False), help="Decode every datagram of this pcap/pcapng "
               "capture: one line each, relative time, addresses, frame.")
-@click.option("--station", help="With --pcap: only this station's datagrams, e.g. 0x21.")
+@click.option("--station", metavar="ADDR", help="With --pcap: only this station's datagrams, e.g. 21H or 0x21.")
 def decode_cmd(hexdata: tuple[str, ...], as_json: bool, frame_size: str | None, pcap: str | None,
                station: str | None) -> None:
     """Decode one datagram given as HEX (spaces and colons allowed), or a capture with --pcap FILE."""

@@ -89,9 +89,16 @@ class Seconds(click.ParamType):
         return seconds
 
 
+class _Spelled(click.Choice):
+    """A choice shown as the config spells it (click lower-cases the choices of a case-insensitive one)."""
+
+    def get_metavar(self, param: Any, ctx: Any = None) -> str:
+        return f"[{'|'.join(map(str, self.choices))}]"
+
+
 #: ``ADDR`` options and arguments
 ADDR = Address()
 #: ``--link``: the config's spelling, any case; the value is ``ML1``, ``ML2`` or ``ML3``
-LINK = click.Choice(LINKS, case_sensitive=False)
+LINK = _Spelled(LINKS, case_sensitive=False)
 #: ``--card``: the config's spelling, any case; the value is lower case
-CARD = click.Choice(CARDS, case_sensitive=False)
+CARD = _Spelled(CARDS, case_sensitive=False)
