@@ -379,7 +379,7 @@ def _print_summary(config: Config, report: dict[str, Any], scenario: Scenario, v
         print(f"rtt p50 {format_ns(rtt['p50'])}  p99 {format_ns(rtt['p99'])}  max {format_ns(rtt['max'])}  "
               f"({rtt['count']} responses); missed cycles {report.get('missed', 0)}, "
               f"missing responses {report.get('missing', 0)}, late {report.get('late', 0)}", file=out)
-    injected = [f"{key} " + ", ".join(f"{n} {kind}" for kind, n in st["injected"].items() if n)
+    injected = [f"{int(key, 16):02X}H " + ", ".join(f"{n} {kind}" for kind, n in st["injected"].items() if n)
                 for key, st in report.get("station", {}).items() if any(st.get("injected", {}).values())]
     if injected:  # docs/faults.md: what was done on purpose, next to what the stations reported
         print("injected: " + "; ".join(injected), file=out)
