@@ -29,7 +29,7 @@ from ..wire.frame import HEADER
 from .reader import Datagram
 
 __all__ = ["ReplayPlan", "ReplayResult", "VOLATILE", "MONITORS", "SETTLE_NS",
-           "plan_replay", "compare", "answer_moving", "run_replay"]
+           "plan_replay", "compare", "answer_moving", "run_replay", "scope"]
 
 #: left out of every comparison
 VOLATILE = ("rwdt",)
@@ -162,10 +162,19 @@ def answer_moving(data: bytes) -> bool:
     return not isinstance(view, str) and _moving(view)
 
 
-def compare(recorded: bytes, live: bytes, *, moving: bool = False) -> list[str]:
+def scope(strict: bool = False) -> str:
+    """What :func:`compare` compares and what it leaves out (with *strict* or not), in one line for the user."""
+    compared = "status, alarm, every field of each command's answer (parameters, I/O, phase)"
+    left = ["RWDT", "reception-timing warnings", "the ramp's status bits while the drive moves"]
+    if strict:
+        return f"compared: {compared}, output frequency, monitors; not compared: {', '.join(left)}"
+    return f"compared: {compared}; not compared: {', '.join(left)}, output frequency, monitors – use --strict"
+
+
+def compare(recorded: bytes, live: bytes, *, moving: bool = False, strict: bool = False) -> list[str]:
     """The differences between two answers, as ``field: recorded X, live Y``. Left out: :data:`VOLATILE`,
-    :data:`MONITORS`, the reception-timing warnings, and, when either answer shows the drive turning or *moving*
-    says it turned a moment ago, the speed-derived status bits."""
+    the reception-timing warnings, :data:`MONITORS` unless *strict*, and, when either answer shows the drive
+    turning or *moving* says it turned a moment ago, the speed-derived status bits."""
     if recorded == live:
         return []
     a, b = _view(recorded), _view(live)
@@ -174,7 +183,7 @@ def compare(recorded: bytes, live: bytes, *, moving: bool = False) -> list[str]:
                                   f"live {b if isinstance(b, str) else 'valid'}"]
     a, b = _without_timing_warning(a), _without_timing_warning(b)
     moving = moving or _moving(a) or _moving(b)
-    skip = set(VOLATILE) | {f"{region}.{n}" for region in ("main", "sub") for n in MONITORS}
+    skip = set(VOLATILE) | (set() if strict else {f"{region}.{n}" for region in ("main", "sub") for n in MONITORS})
     out = []
     for key in sorted(set(a) | set(b)):
         if key in skip or key.endswith("_bits"):  # *_bits are names of the masked integers compared below
@@ -199,9 +208,12 @@ def _describe_cmd(data: bytes) -> str:
 
 
 def run_replay(plan: ReplayPlan, targets: dict[int, tuple[str, int]], *, grace_s: float = 0.3,
-               max_differences: int = 10, spin_ns: int = 200_000) -> ReplayResult:
+               max_differences: int = 10, spin_ns: int = 200_000, speed: float | None = 1.0,
+               strict: bool = False) -> ReplayResult:
     """Send every planned command to its station's slave (*targets*: station -> ``(host, port)``) at its original
-    offset, collect the answers, compare. OSError when a host does not resolve."""
+    offset divided by *speed* (None: each as soon as the answer to the one before came, or *grace_s* after it
+    when it does not come; a command the capture has no answer to is not waited for), collect the answers,
+    compare (*strict*: the monitors too). OSError when a host does not resolve."""
     resolved: dict[int, Any] = {}
     family = socket.AF_INET
     for station, (host, port) in targets.items():
@@ -227,10 +239,13 @@ def run_replay(plan: ReplayPlan, targets: dict[int, tuple[str, int]], *, grace_s
 
     try:
         t0 = time.monotonic_ns()
-        for offset, station, _, data in plan.commands:
-            due = t0 + offset
+        waiting: tuple[int, int] | None = None  #: speed None: the answer the next command waits for
+        for offset, station, cycle, data in plan.commands:
+            due = t0 + round(offset / speed) if speed is not None else time.monotonic_ns() + round(grace_s * 1e9)
             while True:
                 drain()
+                if speed is None and (waiting is None or waiting in answers):
+                    break
                 left = due - time.monotonic_ns()
                 if left <= 0:
                     break
@@ -241,6 +256,7 @@ def run_replay(plan: ReplayPlan, targets: dict[int, tuple[str, int]], *, grace_s
                 result.sent += 1
             except OSError:
                 result.transport_errors += 1
+            waiting = (station, cycle) if (station, cycle) in plan.recorded else None
         end = time.monotonic() + grace_s
         while time.monotonic() < end:
             select.select([sock], [], [], max(0.0, end - time.monotonic()))
@@ -265,7 +281,7 @@ def run_replay(plan: ReplayPlan, targets: dict[int, tuple[str, int]], *, grace_s
             diffs = ["no answer (the capture has one)"]
         else:
             result.compared += 1
-            diffs = compare(recorded, live, moving=settling)
+            diffs = compare(recorded, live, moving=settling, strict=strict)
             result.equal += not diffs
         if diffs and len(result.differences) < max_differences:
             result.differences.append(f"{where}: {'; '.join(diffs)}")

@@ -12,21 +12,55 @@ import click
 from .. import __version__, _accel
 from .decode import decode_cmd
 
-__all__ = ["main", "cli"]
+__all__ = ["main", "cli", "SHORT_HELP"]
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 110})
+#: One line per command in ``mlink-sim --help`` (click's ``short_help``: whole sentences, never cut).
+SHORT_HELP = {
+    "up": "Bring a network up (slaves, master, timeline) and check it; exit 0 if every check held.",
+    "master": "Run only the master of a network against slaves started elsewhere.",
+    "slave": "Serve one station (--card, --station) or the stations of a --config over UDP.",
+    "validate": "Check a config without starting anything.",
+    "examples": "List the shipped example networks; 'examples copy NAME' copies one to edit.",
+    "probe": "Send a NOP to a station; exit 0 only on a valid answer (health checks).",
+    "decode": "Decode a datagram given as hex, or every datagram of a capture (--pcap).",
+    "replay": "Send a capture's master frames to live slaves and compare their answers.",
+    "proxy": "Forward datagrams between a master and slaves through loss, delay and corruption.",
+    "control": "Send a request to a running network, proxy or slave (impair, fault, stats …).",
+    "wireshark": "Install or locate the Wireshark dissector of mlink-sim's datagrams.",
+    "compose": "Write a docker-compose testbed: one container per station and a master.",
+}
+
+_EPILOG = """\b
+Examples:
+  mlink-sim up quickstart
+      run the quickstart network and its checks
+  mlink-sim examples copy quickstart my-net.toml
+      start a network of your own from an example
+  mlink-sim slave --card si-t3 --station 21H --listen 127.0.0.1:47001
+      one SI-T3 station for a master of your own
+
+'mlink-sim COMMAND --help' says more; docs/README.md is the manual."""
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 110}, epilog=_EPILOG)
 @click.version_option(__version__, prog_name="mlink-sim",
                       message=f"%(prog)s, version %(version)s; cores: {_accel.describe()}")
 def cli() -> None:
     """mlink-sim – a real-time MECHATROLINK-I/II/III master/slave simulator (SI-T3, SI-ET3, SI-T/V7) over UDP."""
 
 
-cli.add_command(decode_cmd)
+def _add(cmd: click.Command) -> None:
+    cmd.short_help = SHORT_HELP.get(cmd.name or "", cmd.short_help)
+    cli.add_command(cmd)
+
+
+_add(decode_cmd)
 
 
 def _register_optional() -> None:
     # Commands are imported here so that a slow import of one does not slow `mlink-sim decode`.
+    from .examples import examples_cmd
     from .network import master_cmd, up_cmd, validate_cmd
     from .probe import probe_cmd
     from .proxy import control_cmd, proxy_cmd
@@ -35,13 +69,13 @@ def _register_optional() -> None:
     from .wireshark import wireshark_cmd
 
     for cmd in (slave_cmd, up_cmd, master_cmd, probe_cmd, validate_cmd, replay_cmd, wireshark_cmd, proxy_cmd,
-                control_cmd):
-        cli.add_command(cmd)
+                control_cmd, examples_cmd):
+        _add(cmd)
     try:
         from .compose import compose_cmd
     except ImportError:  # pragma: no cover
         return
-    cli.add_command(compose_cmd)
+    _add(compose_cmd)
 
 
 def _terminated(signum: int, frame: object) -> None:

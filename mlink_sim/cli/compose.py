@@ -8,7 +8,8 @@ import sys
 import click
 
 from .._files import write_atomically
-from ..config import ConfigError, load_config, parse_duration_ns, resolve_config_path
+from ..config import ConfigError, load_config, resolve_config_path
+from .params import Duration
 from ..testbed.compose import DEFAULT_IMAGE, DEFAULT_REPORT_DIR, DEFAULT_STATION_PORT, render_compose
 
 __all__ = ["compose_cmd"]
@@ -46,7 +47,7 @@ def _command_line(config_path: str, output: str | None, image: str, report_dir: 
               help="Directory of the report inside the master container (the 'reports' volume).")
 @click.option("--port", "port", default=DEFAULT_STATION_PORT, show_default=True, type=click.IntRange(1, 65535),
               help="UDP port every station listens on inside its container.")
-@click.option("--duration", help="Passed to `mlink-sim master --duration` (default: the config's timeline).")
+@click.option("--duration", type=Duration(), help="Passed to `mlink-sim master --duration` (default: the config's timeline).")
 @click.option("--assert", "asserts", multiple=True, metavar="EXPR",
               help="Passed to `mlink-sim master --assert`; repeatable, e.g. 'rtt.p99 < 2ms'.")
 @click.option("--start-interval", is_flag=True,
@@ -67,11 +68,6 @@ def compose_cmd(config_path: str, output: str | None, image: str, report_dir: st
         click.echo(f"mlink-sim compose: {exc}", err=True)
         sys.exit(2)
     config_path = str(resolve_config_path(config_path))  # a shipped example's name: the file it names
-    if duration is not None:
-        try:
-            parse_duration_ns(duration)
-        except ValueError as exc:
-            raise click.BadParameter(str(exc), param_hint="--duration") from None
     if not report_dir.startswith("/"):
         raise click.BadParameter("must be an absolute path inside the container, e.g. /reports",
                                  param_hint="--report-dir")

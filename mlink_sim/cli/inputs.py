@@ -68,5 +68,5 @@ def check_stations(option: str, addresses: Iterable[int], config: Config, source
     known = {st.address for st in config.station}
     for address in addresses:
         if address not in known:
-            names = ", ".join(f"{a:#04x}" for a in sorted(known))
-            raise InputError(f"{option} {address:#04x}: not a station of {source} (stations: {names})")
+            names = ", ".join(f"{a:02X}H" for a in sorted(known))
+            raise InputError(f"{option} {address:02X}H: not a station of {source} (stations: {names})")

@@ -14,6 +14,7 @@ from ..config import Config, format_ns, parse_duration_ns
 from .capture_opts import capture_options, open_capture_or_exit
 from .inputs import InputError, assertions, check_stations, load_checked, report_path
 from .logs import configure_logging
+from .params import Duration, station_name
 from .proxy import parse_control
 from .slave import _parse_endpoints
 
@@ -60,17 +61,37 @@ def _run(coro_factory: Any, clock: str = "real") -> int:
     return outcome.exit_code
 
 
+#: The live status explained, at the end of ``up --help`` and ``master --help``.
+STATUS_HELP = """\b
+The live status (--no-status: none):
+  header   elapsed/planned time; p99: the worst station's RTT p99; missed: cycles the master's
+           clock skipped (it fell behind); stalls: host stalls of mlink-sim's own processes, count
+           (longest) (docs/timing.md); step: the timeline step begun last
+  ADDR     the station, as the manuals write it (21H; 0x21 is accepted on input)
+  PHASE    P1 answers, P2 connected (asynchronous), P3 connected and synchronous: cyclic data;
+           else the master's state: offline, connecting, syncing, alarm
+  RUN      FWD, REV or stop, from the station's status
+  OUTPUT   the drive's output frequency in Hz; RTT: the last command's round trip
+  STATE    ok: no alarm, no warning; else the alarm or warning the station reports"""
+
 _common = [
-    click.option("--duration", help="Run length after bring-up, e.g. 30s (default: the timeline's end + 1 s)."),
+    click.option("--duration", type=Duration(), help="Run length after bring-up, e.g. 30s (default: the timeline's "
+                                                    "end + 1 s)."),
+    click.option("--timeline/--no-timeline", "timeline", default=True, show_default=True,
+                 help="Run the config's timeline; --no-timeline: bring the network up and run it (cyclic NOPs, no "
+                      "checks) until Ctrl-C or --duration."),
     click.option("--report", "report", type=click.Path(dir_okay=False), help="Write the JSON report here."),
     click.option("--assert", "asserts", multiple=True, metavar="EXPR",
                  help="Check a bound at the end, e.g. 'rtt.p99 < 500us' (repeatable; docs/report.md)."),
-    click.option("--status/--no-status", default=True, show_default=True, help="Live status lines on stdout."),
-    click.option("--bringup-timeout", default="10s", show_default=True, help="How long bring-up may take."),
+    click.option("--status/--no-status", default=True, show_default=True,
+                 help="Live status on stdout (its columns: see above)."),
+    click.option("--bringup-timeout", default="10s", show_default=True, type=Duration(),
+                 help="How long bring-up may take."),
     click.option("--include-bringup", is_flag=True,
                  help="Count bring-up in the report and --assert figures (default: from the end of bring-up)."),
     click.option("--control", "control", metavar="HOST:PORT",
-                 help="Answer control requests here while running: impair, heal, faults ('mlink-sim control'; "
+                 help="Answer control requests here while running: impair, heal, faults, fault, recovery "
+                      "('mlink-sim control'; "
                       "docs/faults.md). Port 0: any free port, printed on stderr."),
     click.option("--log-json", is_flag=True, help="Log JSON lines on stderr."),
     click.option("--log-level", default="warning", show_default=True,
@@ -90,17 +111,26 @@ def _with_stalls(fn: Any) -> Any:
     fn = click.option("--realtime/--no-realtime", "rt", default=True, show_default=True,
                       help="SCHED_FIFO, locked memory, the master's clock on a CPU of its own, where permitted; "
                            "stderr says what was granted (docs/timing.md).")(fn)
-    fn = click.option("--stall-bound", help="Longest stall 'absorb' absorbs (default: the config's, 100ms).")(fn)
+    fn = click.option("--stall-bound", type=Duration("ms"),
+                      help="Longest stall 'absorb' absorbs (default: the config's, 100ms).")(fn)
     return click.option("--host-stalls", type=click.Choice(["absorb", "strict"]),
                         help="Host-stall policy (default: the config's, 'absorb'): absorb runs the cycles a stall "
                              "of mlink-sim's own processes delayed late instead of losing them.")(fn)
+
+
+def _without_timeline(config: Config, timeline: bool) -> Config:
+    """``--no-timeline``: the config without its timeline and its ``network.duration`` (the run ends at Ctrl-C or
+    ``--duration``)."""
+    if timeline:
+        return config
+    return config.model_copy(update={"timeline": [], "network": config.network.model_copy(update={"duration": None})})
 
 
 def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
     update: dict[str, Any] = {}
     if policy is not None:
         update["host_stalls"] = policy
-    ns = _duration(bound, "--stall-bound")
+    ns = None if bound is None else parse_duration_ns(bound, default_unit="ms")
     if ns is not None:
         if not 0 < ns <= 1_000_000_000:
             raise click.BadParameter(f"expected a duration above 0 and at most 1s, got {bound!r}",
@@ -111,7 +141,7 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
     return config.model_copy(update={"network": config.network.model_copy(update=update)})
 
 
-@click.command("up")
+@click.command("up", epilog=STATUS_HELP)
 @click.argument("config_path", metavar="CONFIG", type=click.Path(dir_okay=False))
 @click.option("--workers", type=_Workers(), default="auto", show_default=True,
               help="Slave processes: N (stations spread round-robin), 'station' (one per station) or 'auto' (one "
@@ -124,15 +154,18 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random draw: impairments (docs/faults.md), the virtual clock's jitter.")
 @_with_common
 @_with_stalls
-def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, report, asserts, status,
+def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, timeline, report, asserts, status,
            bringup_timeout, include_bringup, control, log_json, log_level, host_stalls, stall_bound, rt, capture_path,
            capture_max) -> None:
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held.
 
-    CONFIG is a TOML file or the name of a shipped example (quickstart, ml2-mixed-2ms, …)."""
+    CONFIG is a TOML file or the name of a shipped example ('mlink-sim examples' lists them)."""
     configure_logging(json=log_json, level=log_level)
     config, path = load_checked(config_path)
-    config = _stalls(config, host_stalls, stall_bound)
+    config = _without_timeline(_stalls(config, host_stalls, stall_bound), timeline)
+    if clock == "virtual" and not timeline and duration is None:
+        raise InputError("--clock virtual --no-timeline runs until --duration (simulated time has no Ctrl-C); "
+                         "add --duration, e.g. --duration 10s")
     if clock == "virtual" and (workers != "auto" or run_dir):
         click.echo("note: --clock virtual runs every station in this process: --workers and --run-dir are not used",
                    err=True)
@@ -166,19 +199,19 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, repo
         sys.exit(2)
 
 
-@click.command("master")
+@click.command("master", epilog=STATUS_HELP)
 @click.argument("config_path", metavar="CONFIG", type=click.Path(dir_okay=False))
 @click.option("--endpoint", "endpoints", multiple=True, metavar="ADDR=HOST:PORT",
               help="Where station ADDR listens (overrides the config's endpoint); repeatable.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the impairments' draws (docs/faults.md).")
 @_with_common
 @_with_stalls
-def master_cmd(config_path, endpoints, seed, duration, report, asserts, status, bringup_timeout, include_bringup,
+def master_cmd(config_path, endpoints, seed, duration, timeline, report, asserts, status, bringup_timeout, include_bringup,
                control, log_json, log_level, host_stalls, stall_bound, rt, capture_path, capture_max) -> None:
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
     config, path = load_checked(config_path)
-    config = _stalls(config, host_stalls, stall_bound)
+    config = _without_timeline(_stalls(config, host_stalls, stall_bound), timeline)
     overrides = _parse_endpoints(endpoints)
     check_stations("--endpoint", overrides, config, str(path))
     resolved: dict[int, tuple[str, int]] = {}
@@ -186,7 +219,7 @@ def master_cmd(config_path, endpoints, seed, duration, report, asserts, status, 
     for st in config.station:
         host, port = overrides.get(st.address) or st.host_port(config.network.host)
         if port == 0:
-            missing.append(f"{st.address:#04x}")
+            missing.append(station_name(st.address))
         resolved[st.address] = (host, port)
     if missing:
         raise click.UsageError(

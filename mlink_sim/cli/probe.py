@@ -11,9 +11,10 @@ import click
 
 from ..aio.tools.probe import probe
 from ..aio.transport.udp import new_event_loop
-from ..config import parse_address, parse_endpoint
+from ..config import parse_endpoint
 from ..testbed.health import ATTEMPTS
 from ..wire import Link
+from .params import ADDR, LINK, Seconds, station_name
 
 __all__ = ["probe_cmd"]
 
@@ -22,19 +23,18 @@ _ATTEMPTS: list[tuple[Link, int]] = [(Link[name.upper()], size) for name, size i
 
 
 @click.command("probe")
-@click.argument("target")
-@click.option("--station", "station_text", required=True, help="Station address, e.g. 0x21.")
-@click.option("--link", "link_name", type=click.Choice(["ml1", "ml2", "ml3"], case_sensitive=False), help="Link (default: try all).")
+@click.argument("target", metavar="HOST:PORT")
+@click.option("--station", "station", type=ADDR, required=True, help="Station address, e.g. 21H or 0x21.")
+@click.option("--link", "link_name", type=LINK, help="Link (default: try all).")
 @click.option("--frame-size", type=click.Choice(["17", "32", "64"]), help="Data size (default: try all).")
-@click.option("--timeout", default=2.0, show_default=True, type=click.FloatRange(min=0, min_open=True),
-              help="Seconds to wait in all (> 0).")
-def probe_cmd(target: str, station_text: str, link_name: str | None, frame_size: str | None, timeout: float) -> None:
-    """Send a NOP to the station at TARGET (HOST:PORT); exit 0 only on a valid answer."""
+@click.option("--timeout", default="2s", show_default=True, type=Seconds(),
+              help="How long to wait in all, e.g. 500ms (a bare number is seconds).")
+def probe_cmd(target: str, station: int, link_name: str | None, frame_size: str | None, timeout: float) -> None:
+    """Send a NOP to the station at HOST:PORT; exit 0 only on a valid answer."""
     try:
         host, port = parse_endpoint(target)
-        station = parse_address(station_text)
     except ValueError as exc:
-        raise click.BadParameter(str(exc)) from None
+        raise click.BadParameter(str(exc), param_hint="HOST:PORT") from None
     attempts = [
         (lk, sz) for lk, sz in _ATTEMPTS
         if (link_name is None or lk.name.lower() == link_name.lower()) and (frame_size is None or sz == int(frame_size))
@@ -51,8 +51,8 @@ def probe_cmd(target: str, station_text: str, link_name: str | None, frame_size:
     finally:
         loop.close()
     if frame is None:
-        click.echo(f"mlink-sim probe: no valid answer from station {station:#04x} at {target} within {timeout:g}s",
+        click.echo(f"mlink-sim probe: no valid answer from station {station_name(station)} at {target} within {timeout:g}s",
                    err=True)
         sys.exit(1)
-    click.echo(f"station {station:#04x} at {target} answered: {frame.link.label}, {frame.data_size}-byte data, "
+    click.echo(f"station {station_name(station)} at {target} answered: {frame.link.label}, {frame.data_size}-byte data, "
                f"{(time.monotonic() - t0) * 1e3:.1f} ms")

@@ -1,5 +1,5 @@
-"""``mlink-sim proxy`` (an impairing UDP proxy) and ``mlink-sim control`` (requests to a running ``up`` or proxy);
-docs/faults.md."""
+"""``mlink-sim proxy`` (an impairing UDP proxy) and ``mlink-sim control`` (requests to a running ``up``/``master``,
+proxy or slave); docs/faults.md."""
 
 from __future__ import annotations
 
@@ -15,8 +15,9 @@ from ..aio.transport.udp import new_event_loop, stop_on_signals
 from ..config import parse_endpoint
 from .capture_opts import capture_options, open_capture_or_exit
 from .logs import configure_logging
+from .params import Seconds
 
-__all__ = ["proxy_cmd", "control_cmd", "parse_control"]
+__all__ = ["proxy_cmd", "control_cmd", "parse_control", "CONTROL_OPS"]
 
 _ATTEMPTS = 3
 
@@ -54,8 +55,8 @@ def _impairment(text: str | None) -> Any:
 @click.option("--impair", "impair_text", metavar="SPEC",
               help="Impair every station from the start, e.g. 'loss=5%,delay=200us,jitter=50us' (docs/faults.md).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random draw.")
-@click.option("--control", default="127.0.0.1:0", show_default=True,
-              help="HOST:PORT of the control endpoint (impair/heal while it runs: 'mlink-sim control'; 'off').")
+@click.option("--control", default="127.0.0.1:0", show_default=True, metavar="HOST:PORT",
+              help="The control endpoint (impair/heal while it runs: 'mlink-sim control'; 'off').")
 @click.option("--log-json", is_flag=True, help="Log JSON lines on stderr.")
 @click.option("--log-level", default="warning", show_default=True,
               type=click.Choice(["debug", "info", "warning", "error"]))
@@ -120,29 +121,53 @@ async def _serve(links: list[Any], spec: Any, seed: int, control_addr: tuple[str
     return 128 + caught[0]
 
 
-@click.command("control")
+#: What each control endpoint answers (aio/run/control.py, aio/run/faults.py, aio/slave/server.py): the
+#: operations ``control`` offers, by the command whose endpoint answers them.
+CONTROL_OPS = {
+    "impair": "up/master --control, proxy", "heal": "up/master --control, proxy",
+    "faults": "up/master --control, proxy", "fault": "up/master --control", "recovery": "up/master --control",
+    "stats": "slave", "cpu": "slave", "plant": "slave", "release": "slave", "ping": "all",
+}
+
+
+@click.command("control", short_help="Send a request to a running network, proxy or slave (impair, fault, stats …).")
 @click.argument("address", metavar="HOST:PORT")
-@click.argument("op", type=click.Choice(["impair", "heal", "faults", "fault", "recovery", "ping"]))
-@click.argument("station", required=False)
-@click.argument("spec", required=False)
-@click.option("--timeout", default=3.0, show_default=True,
-              help="Seconds to wait for the answer (the request is sent up to three times).")
+@click.argument("op", metavar="OP", type=click.Choice(list(CONTROL_OPS)))
+@click.argument("station", metavar="[ADDR|all]", required=False)
+@click.argument("spec", metavar="[SPEC|HANDLE]", required=False)
+@click.option("--timeout", default="3s", show_default=True, type=Seconds(60.0),
+              help="How long to wait for the answer (the request is sent up to three times).")
 def control_cmd(address: str, op: str, station: str | None, spec: str | None, timeout: float) -> None:
-    """Send a request to the control endpoint of a running 'mlink-sim up --control' or 'mlink-sim proxy'.
+    """Send the request OP to the control endpoint at HOST:PORT and print the answer (JSON). Each endpoint
+    answers its own operations:
 
     \b
-      mlink-sim control 127.0.0.1:47100 impair 0x21 'loss=10%,delay=200us,for=2s'
-      mlink-sim control 127.0.0.1:47100 impair all 'corrupt=1%'
-      mlink-sim control 127.0.0.1:47100 heal [0x21]
-      mlink-sim control 127.0.0.1:47100 faults
-      mlink-sim control 127.0.0.1:47100 fault 0x21 'silence,for=200ms'    (up only; docs/faults.md)
-      mlink-sim control 127.0.0.1:47100 recovery [0x21]
-    Prints the answer (JSON); exit 0 if it was done, 1 if refused or unanswered, 2 for a bad request."""
+    a network, mlink-sim up/master --control HOST:PORT (docs/faults.md):
+      impair ADDR|all SPEC   impair a station's datagrams, e.g. impair 21H 'loss=10%,delay=200us,for=2s'
+      heal [ADDR|all]        end the impairments
+      faults                 the impairments in force and what they injected
+      fault ADDR|all SPEC    a station, master or drive fault, e.g. fault 21H 'silence,for=200ms'
+      recovery [ADDR|all]    each station's latest fault episode and its recovery time
+    \b
+    an impairing proxy, mlink-sim proxy --control HOST:PORT: impair, heal, faults (as above)
+    \b
+    a slave, mlink-sim slave --control HOST:PORT (printed on its start):
+      stats                  every station's snapshot, counters, the process's CPU time and host stalls
+      cpu                    the process's CPU time only
+      plant ADDR SPEC        a drive fault on the station's model, e.g. plant 21H 'load,torque=5'; the answer
+                             carries a HANDLE
+      release ADDR HANDLE    end the drive fault HANDLE
+    \b
+    any of them: ping (is it there?)
+
+    Exit 0 if it was done, 1 if refused or unanswered, 2 for a bad request."""
     import secrets
 
-    from ..aio.run.faults import parse_fault_text
     from ..aio.run.control import query_control
+    from ..aio.run.faults import parse_fault_text
+    from ..config import parse_address
     from ..faults import FaultError, fault_from_fields
+    from ..faults.spec import PLANT_FAULTS
     from ..impair import ImpairError, parse_impair_text, target_station
 
     host, port = _endpoint(address, "HOST:PORT")
@@ -151,21 +176,40 @@ def control_cmd(address: str, op: str, station: str | None, spec: str | None, ti
         if op in ("impair", "heal", "fault", "recovery") and station is not None:
             target_station(station)
             fields["station"] = station
-        if op == "fault":
+        if op in ("plant", "release"):
+            if station is None or spec is None:
+                what = "SPEC, e.g. plant 21H 'load,torque=5'" if op == "plant" else "HANDLE, e.g. release 21H 1"
+                raise click.UsageError(f"{op} needs ADDR and {what}")
+            fields["station"] = parse_address(station)  # a slave takes the address as a number
+        if op == "plant":
+            assert spec is not None
+            action, values = parse_fault_text(spec)
+            fault = fault_from_fields(action, values)
+            if fault.action not in PLANT_FAULTS:
+                raise click.UsageError(f"plant takes a drive fault ({', '.join(PLANT_FAULTS)}), got {fault.action!r}")
+            fields["fault"] = fault.as_fields()
+        elif op == "release":
+            assert spec is not None
+            if not spec.isdigit():
+                raise click.UsageError(f"release: HANDLE is the number plant answered, got {spec!r}")
+            fields["handle"] = int(spec)
+        elif op == "fault":
             if spec is None:
-                raise click.UsageError("fault needs STATION and SPEC, e.g. fault 0x21 'silence,for=200ms'")
+                raise click.UsageError("fault needs ADDR and SPEC, e.g. fault 21H 'silence,for=200ms'")
             action, values = parse_fault_text(spec)
             fault_from_fields(action, values)
             fields["fault"] = spec
             fields["id"] = secrets.token_hex(8)  # a repeated request is not injected twice
         elif op == "impair":
             if spec is None:
-                raise click.UsageError("impair needs STATION and SPEC, e.g. impair 0x21 'loss=10%,for=2s'")
+                raise click.UsageError("impair needs ADDR and SPEC, e.g. impair 21H 'loss=10%,for=2s'")
             parse_impair_text(spec)
             fields["impair"] = spec
-        elif spec is not None:
+        elif op not in ("plant", "release") and spec is not None:
             raise click.UsageError(f"{op} takes no SPEC")
-    except (ImpairError, FaultError) as exc:
+        if op in ("faults", "stats", "cpu", "ping") and station is not None:
+            raise click.UsageError(f"{op} takes no station")
+    except (ImpairError, FaultError, ValueError) as exc:
         raise click.UsageError(str(exc)) from None
     reply = None
     for _ in range(_ATTEMPTS):  # UDP: a request can go unanswered; each operation can be repeated safely
@@ -176,4 +220,7 @@ def control_cmd(address: str, op: str, station: str | None, spec: str | None, ti
         click.echo(f"mlink-sim control: no answer from {address} within {timeout:g} s", err=True)
         sys.exit(1)
     click.echo(json.dumps(reply, indent=2))
+    if not reply.get("ok"):
+        click.echo(f"mlink-sim control: {address} refused {op}: {reply.get('error', 'no reason given')} ({op} is "
+                   f"answered by: {CONTROL_OPS[op]})", err=True)
     sys.exit(0 if reply.get("ok") else 1)

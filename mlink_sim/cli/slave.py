@@ -22,6 +22,7 @@ from ..config.units import parse_arrival_poll
 from ..wire import Link
 from .capture_opts import capture_options, open_capture_or_exit
 from .inputs import InputError, check_stations
+from .params import ADDR, CARD, CARDS, LINK, Duration, station_name
 from .logs import configure_logging
 
 __all__ = ["slave_cmd", "station_specs_from_config"]
@@ -37,7 +38,7 @@ def _check_link(card: str, link_name: str | None) -> None:
 
     links = CARD_LINKS[card]
     if link_name.upper() not in {lk.name for lk in links}:
-        names = " or ".join(lk.name.lower() for lk in links)
+        names = " or ".join(lk.name for lk in links)
         raise InputError(f"--link {link_name}: {card} speaks {'/'.join(lk.label for lk in links)}; use --link {names}")
 
 
@@ -52,14 +53,15 @@ def station_specs_from_config(
         try:
             st = config.station_by_address(address)
         except KeyError:
-            raise click.BadParameter(f"{address:#04x} is not a station of {config_path}", param_hint="--only") from None
+            raise click.BadParameter(f"{station_name(address)} is not a station of {config_path}",
+                                     param_hint="--only") from None
         host, port = endpoints.get(address) or st.host_port(config.network.host)
         specs.append(spec_for(st, host, port))
     return specs
 
 
 async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool = False,
-                 cpus: set[int] | None = None) -> int:
+                 cpus: set[int] | None = None, control_host: str | None = None) -> int:
     """Serve until SIGINT / SIGTERM; the exit status, 128 + the signal's number (130 / 143)."""
     loop = asyncio.get_running_loop()
     stop, caught = stop_on_signals(loop)
@@ -69,16 +71,20 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
     if rt:  # docs/timing.md, "Real-time scheduling": below the master's clock, off its CPU
         info["realtime"] = realtime.apply(realtime.WORKER_PRIORITY, cpus if cpus else realtime.cpu_plan()[1])
         if not ready_json:
-            print(f"mlink-sim slave: realtime: {info['realtime']}", file=sys.stderr, flush=True)
+            print(f"mlink-sim slave: realtime: {info['realtime']} (--no-realtime: none of it)", file=sys.stderr,
+                  flush=True)
     if ready_json:
         print(json.dumps(info), flush=True)
     else:
         for st in info["stations"]:
             print(
-                f"mlink-sim slave ready: {st['card']} station {st['address']:#04x} on {st['host']}:{st['port']} "
+                f"mlink-sim slave ready: {st['card']} station {station_name(st['address'])} on {st['host']}:{st['port']} "
                 f"({st['link']}, {st['frame_size']}-byte frames, {loop_name(loop)})",
                 flush=True,
             )
+        if info["control"] is not None:
+            where = f"{control_host}:{info['control']}"
+            print(f"mlink-sim slave control: {where} (mlink-sim control {where} stats|cpu|plant|release)", flush=True)
     log.info("ready", stations=[f"{s['address']:#04x}@{s['host']}:{s['port']}" for s in info["stations"]],
              control=info["control"])
     await stop.wait()
@@ -93,7 +99,7 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
     for text in values:
         addr, sep, target = text.partition("=")
         if not sep:
-            raise click.BadParameter(f"expected ADDRESS=HOST:PORT such as 0x21=0.0.0.0:47001, got {text!r}",
+            raise click.BadParameter(f"expected ADDR=HOST:PORT such as 21H=0.0.0.0:47001, got {text!r}",
                                      param_hint="--endpoint")
         try:
             out[parse_address(addr)] = parse_endpoint(target)
@@ -103,38 +109,44 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
 
 
 @click.command("slave")
-@click.option("--card", type=click.Choice(["si-t3", "si-et3", "si-t-v7"]), help="Option card to emulate.")
-@click.option("--station", "station_text", help="Station address, e.g. 0x21 (F6-20 / V7 switches).")
-@click.option("--listen", default="127.0.0.1:0", show_default=True, help="HOST:PORT to listen on (0 = any free port).")
+@click.option("--card", type=CARD, metavar="CARD", help=f"Option card to emulate: {', '.join(CARDS)}.")
+@click.option("--station", "station_text", type=ADDR, help="Station address, e.g. 21H or 0x21 (F6-20 / V7 switches).")
+@click.option("--listen", default="127.0.0.1:0", show_default=True, metavar="HOST:PORT",
+              help="Where to listen (port 0: any free port).")
 @click.option("--frame-size", type=click.Choice(["17", "32", "64"]), help="Data size (F6-21 / V7 S1-2).")
-@click.option("--link", "link_name", type=click.Choice(["ml1", "ml2", "ml3"], case_sensitive=False),
-              help="ml1 = 4 Mbps MECHATROLINK-I (F6-22 = 1 / V7 S1-1 off); default ml2 (ml3 for si-et3).")
+@click.option("--link", "link_name", type=LINK,
+              help="ML1 = 4 Mbps MECHATROLINK-I (F6-22 = 1 / V7 S1-1 off); default ML2 (ML3 for si-et3).")
 @click.option("--param", "params", multiple=True, metavar="NAME=VALUE",
               help="Parameter in engineering units (C1-01=5.0) or raw register (0x0200=50); repeatable.")
 @click.option("--config", "config_path", type=click.Path(dir_okay=False), help="Serve stations of this network config.")
-@click.option("--only", help="With --config: comma-separated station addresses (default: all).")
+@click.option("--only", metavar="ADDR[,ADDR…]", help="With --config: these stations only (default: all).")
 @click.option("--endpoint", "endpoints", multiple=True, metavar="ADDR=HOST:PORT",
               help="With --config: where a station listens (overrides the config); repeatable.")
 @click.option("--state-dir", type=click.Path(file_okay=False), help="Directory of the EEPROM images (CONFIG_MOD 1).")
-@click.option("--control", default="127.0.0.1:0", show_default=True,
-              help="HOST:PORT of the JSON stats endpoint ('off' to disable).")
+@click.option("--control", default="127.0.0.1:0", show_default=True, metavar="HOST:PORT",
+              help="The control endpoint: stats, cpu, plant, release ('mlink-sim control'); 'off' to disable.")
 @click.option("--log-json", is_flag=True, help="Log JSON lines on stderr.")
 @click.option("--log-level", default="info", type=click.Choice(["debug", "info", "warning", "error"]))
 @click.option("--ready-json", is_flag=True, help="Print the ready line as JSON (for supervisors).")
 @click.option("--host-stalls", type=click.Choice(["strict", "absorb"]), default="strict", show_default=True,
-              help="strict: judge the master by the wall clock, as the manuals do (test your own master); absorb: "
-                   "a stall of mlink-sim's own processes up to --stall-bound costs no command (docs/timing.md).")
-@click.option("--stall-bound", default="100ms", show_default=True, help="With --host-stalls absorb: the bound.")
+              help="strict: judge the master by the wall clock, as the manuals do – a slave started alone tests "
+                   "your own master, so strict is its default; absorb (the default of up/master, whose master is "
+                   "mlink-sim's): a stall of mlink-sim's own processes up to --stall-bound costs no command "
+                   "(docs/timing.md).")
+@click.option("--stall-bound", default="100ms", show_default=True, type=Duration("ms"),
+              help="With --host-stalls absorb: the bound (a bare number is ms).")
 @click.option("--shared-port", is_flag=True,
               help="With --config: the stations of one link share one UDP port where their endpoints allow it "
                    "(port 0, or the same port); the address byte picks the station, as on a bus. What the packed "
                    "workers of `mlink-sim up` do (docs/cards.md).")
-@click.option("--arrival-poll", "arrival_poll", default="auto", show_default=True,
+@click.option("--arrival-poll", "arrival_poll", default="auto", show_default=True, metavar="auto|off|DURATION",
               help="auto: at cycles up to 500us, busy-poll from 80us before each burst of commands is due (no "
                    "wake-up on arrival), unless idle CPUs poll (CPU wake-up latency held at 0); a lead such as "
                    "80us: that lead at any cycle; off: never (docs/timing.md).")
-@click.option("--realtime", "rt", is_flag=True,
-              help="SCHED_FIFO, locked memory, off the master's CPU, where permitted (docs/timing.md).")
+@click.option("--realtime/--no-realtime", "rt", default=False, show_default=True,
+              help="SCHED_FIFO, locked memory, off the master's CPU, where permitted (docs/timing.md). Off by "
+                   "default: a slave started alone does not know where its master runs, and a fixed real-time "
+                   "priority could preempt a master on the same machine (up turns it on for its own workers).")
 @click.option("--cpus", "cpus_text", default=None, metavar="LIST",
               help="With --realtime: the CPUs to run on, e.g. 0,2 (default: those this process may use but the "
                    "highest, which the master of `mlink-sim up` takes).")
@@ -167,7 +179,10 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
         if config_path:
             if card or station_text:
                 raise click.UsageError("--config takes the card and station from the file; drop --card/--station")
-            only_list = [parse_address(a) for a in only.split(",")] if only else None
+            try:
+                only_list = [parse_address(a) for a in only.split(",")] if only else None
+            except ValueError as exc:
+                raise click.BadParameter(str(exc), param_hint="--only") from None
             specs = station_specs_from_config(config_path, only_list, _parse_endpoints(endpoints))
         else:
             if not card or not station_text:
@@ -193,7 +208,8 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
                          shared=shared_port, arrival_poll=poll)
     loop = new_event_loop()
     try:
-        code = loop.run_until_complete(_serve(server, ready_json, log_json, rt, cpus))
+        code = loop.run_until_complete(_serve(server, ready_json, log_json, rt, cpus,
+                                              control_addr[0] if control_addr else None))
     except OSError as exc:
         where = "" if isinstance(exc, BindError) else f" on {', '.join(f'{s.host}:{s.port}' for s in stations)}"
         click.echo(f"mlink-sim slave: cannot listen{where}: {exc.strerror or exc}", err=True)

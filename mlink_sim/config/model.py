@@ -325,7 +325,7 @@ class TimelineStep(BaseModel):
 
     @property
     def describe(self) -> str:
-        who = "all stations" if self.station == "all" else f"station {self.station:#04x}"
+        who = "all stations" if self.station == "all" else f"station {self.station:02X}H"
         what = f"do {self.do}" if self.do else f"expect {self.expect}"
         extra = ""
         if self.do == "run":

@@ -50,7 +50,7 @@ TIME_UNITS: dict[str, int] = {"ns": 1, "us": 1_000, "µs": 1_000, "μs": 1_000, 
 _UNIT_LIST = "ns, us, µs, ms, s"
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _PCT_SUFFIX = re.compile(r"\.(\d+)(?![A-Za-z0-9_])")
-_ADDRESS = re.compile(r"0[xX][0-9A-Fa-f]+|\d+|\*")
+_ADDRESS = re.compile(r"0[xX][0-9A-Fa-f]+|[0-9A-Fa-f]+[hH](?![\w])|\d+|\*")  # 0x21, 21H (the manuals'), 33, *
 _NUMBER = re.compile(r"(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 _UNIT = re.compile(r"[A-Za-zµμ%]+")
 _TOKEN = re.compile(r"[A-Za-z_µμ%][\wµμ%]*|\d[\w.]*|[=<>!&|]+|\S")   # what 'got' shows
@@ -317,13 +317,16 @@ class _Parser:
         self.skip_ws()
         m = _ADDRESS.match(self.text, self.pos)
         if not m:
-            raise self.error(f"a station address after '{name}[' (hex 0x21, decimal 33, or * for every station)")
+            raise self.error(f"a station address after '{name}[' (21H or 0x21, decimal 33, or * for every station)")
         at, self.pos = self.pos, m.end()
         raw = m.group()
         if raw == "*":
             key = "*"
         else:
-            value = int(raw, 0) if raw[:2].lower() == "0x" else int(raw, 10)
+            if raw[:2].lower() == "0x":
+                value = int(raw, 16)
+            else:
+                value = int(raw[:-1], 16) if raw[-1] in "hH" else int(raw, 10)
             if value > 0xFF:
                 raise self.error("a station address from 0x00 to 0xff", at=at)
             if self.stations is not None and value not in self.stations:

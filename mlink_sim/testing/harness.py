@@ -36,6 +36,7 @@ from ..config import Config, load_config, resolve_config_path
 from ..master.types import RequestTimeout, StationAlarmError, StationState, StationView
 from .faults import FaultMethods
 from .metrics import ReportChecks
+from .wait import poll_until
 
 __all__ = ["RunningNetwork", "NetworkNotUp", "HostError"]
 
@@ -333,13 +334,12 @@ class RunningNetwork(StationControls, ReportChecks, FaultMethods):
         """Let the network cycle for *seconds*."""
         time.sleep(seconds)
 
-    def wait_until(self, predicate: Callable[[], bool], timeout: float, interval: float = 0.02) -> None:
-        """Poll *predicate* every *interval* s; ``TimeoutError`` if it does not hold within *timeout* s."""
-        deadline = time.monotonic() + timeout
-        while not predicate():
-            if time.monotonic() >= deadline:
-                raise TimeoutError(f"condition not met within {timeout} s")
-            time.sleep(interval)
+    def wait_until(self, check: Callable[[], Any], timeout: float, interval: float = 0.02, *,
+                   until: Callable[[Any], Any] | None = None) -> Any:
+        """Poll *check* every *interval* s until it holds, or with *until*, until ``until(check())`` holds
+        (``wait_until(lambda: net.output_hz(0x21), 10, until=lambda hz: hz > 29.5)``); return the last result.
+        ``TimeoutError`` after *timeout* s, naming the last value seen."""
+        return poll_until(check, until, timeout, interval, time.monotonic, time.sleep)
 
     def wait_timeline(self, timeout: float | None = None) -> list[CheckResult]:
         """Wait for the config's timeline (``timeline=True``) to finish; returns its checks."""

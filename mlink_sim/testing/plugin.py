@@ -44,7 +44,34 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addini("mlink_config", "Config of the mlink_network fixture (if no marker and no --mlink-config).")
 
 
+#: pytest-asyncio's setting of the event loop scope of async fixtures (docs/ci.md, "pytest-asyncio")
+LOOP_SCOPE_OPTION = "asyncio_default_fixture_loop_scope"
+
+
+def _state_loop_scope(config: pytest.Config) -> None:
+    """Where pytest-asyncio runs beside this plugin and the project leaves :data:`LOOP_SCOPE_OPTION` unset,
+    pytest-asyncio warns on every run that its default will change. This plugin's fixtures are synchronous (the
+    network runs in processes or threads of its own), so the scope is not this plugin's to choose: it states
+    pytest-asyncio's own behaviour of today (``fixture-scope``: an async fixture's loop lives as long as the
+    fixture), which changes nothing and ends the warning. A value the project sets wins; a pytest-asyncio without
+    ``fixture-scope`` is left alone."""
+    if not config.pluginmanager.hasplugin("asyncio"):
+        return
+    try:
+        if config.getini(LOOP_SCOPE_OPTION):
+            return
+        from pytest_asyncio import plugin as asyncio_plugin
+    except (ValueError, ImportError):
+        return
+    current = getattr(asyncio_plugin, "_MATCH_FIXTURE_SCOPE", None)
+    cache = getattr(config, "_inicache", None)
+    if isinstance(current, str) and isinstance(cache, dict):
+        cache[LOOP_SCOPE_OPTION] = current  # what getini answers from here on
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-asyncio's own pytest_configure reads the option
 def pytest_configure(config: pytest.Config) -> None:
+    _state_loop_scope(config)
     config.addinivalue_line(
         "markers",
         "mlink_network(config, *, clock='real', seed=0, workers='auto', timeline=False, bringup_timeout=10.0): "

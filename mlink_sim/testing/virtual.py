@@ -17,6 +17,7 @@ from .harness import NetworkNotUp, _AsyncApi
 from ..faults import fault_from_fields
 from .faults import FaultMethods, episode_dict
 from .metrics import ReportChecks
+from .wait import poll_until
 
 __all__ = ["VirtualRunningNetwork"]
 
@@ -92,15 +93,11 @@ class VirtualRunningNetwork(ReportChecks, FaultMethods):
         """Let the network cycle for *seconds* of simulated time (returns as soon as they are computed)."""
         self._net().advance(seconds)
 
-    def wait_until(self, predicate: Callable[[], bool], timeout: float, interval: float = 0.02) -> None:
-        """Check *predicate* every *interval* simulated seconds; ``TimeoutError`` if it does not hold within
-        *timeout* simulated seconds."""
+    def wait_until(self, check: Callable[[], Any], timeout: float, interval: float = 0.02, *,
+                   until: Callable[[Any], Any] | None = None) -> Any:
+        """:meth:`RunningNetwork.wait_until <mlink_sim.testing.RunningNetwork.wait_until>` in simulated seconds."""
         net = self._net()
-        deadline = net.now + timeout
-        while not predicate():
-            if net.now >= deadline:
-                raise TimeoutError(f"condition not met within {timeout} s (simulated)")
-            net.advance(interval)
+        return poll_until(check, until, timeout, interval, lambda: net.now, net.advance, " (simulated)")
 
     def wait_timeline(self, timeout: float | None = None) -> list[CheckResult]:
         """Run the config's timeline (``timeline=True``) to its end; returns its checks."""

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from mlink_sim.capture import CaptureWriter, Datagram, read_capture
-from mlink_sim.capture.replay import compare, plan_replay
+from mlink_sim.capture.replay import compare, plan_replay, scope
 from mlink_sim.wire import Frame, Kind, Link, M2Alarm, M2Status, decode, encode, ml2, ml3
 
 HERE = Path(__file__).parent
@@ -49,6 +49,16 @@ def test_monitors_left_out_and_speed_bits_while_moving_only() -> None:
     assert diffs == ["status: recorded 68, live 580"]  # AGREE at rest is compared
     assert compare(_rsp(ml2.InvCtlResponse(), status=rest), _rsp(ml2.InvCtlResponse(), status=rest | agree),
                    moving=True) == []  # right after a stop it is not
+
+
+def test_strict_compares_the_output_frequency_and_monitors_too() -> None:
+    moving = int(M2Status.CMDRDY | M2Status.RUNX)
+    a = _rsp(ml2.InvCtlResponse(output_freq=300, mon1=5), status=moving)
+    b = _rsp(ml2.InvCtlResponse(output_freq=290, mon1=5), status=moving)
+    assert compare(a, b) == []
+    assert compare(a, b, strict=True) == ["main.output_freq: recorded 300, live 290"]
+    assert "not compared:" in scope() and scope().endswith("output frequency, monitors – use --strict")
+    assert "output frequency, monitors; not compared: RWDT" in scope(strict=True) and "--strict" not in scope(True)
 
 
 def test_reception_timing_warning_left_out_but_alarms_kept() -> None:
@@ -150,7 +160,10 @@ def test_replay_against_a_fresh_slave(tmp_path: Path) -> None:
 
     ok = _replay_against_fresh_slave(recorded)
     assert ok.returncode == 0, ok.stdout + ok.stderr
-    assert "all equal" in ok.stdout
+    assert "all equal" in ok.stdout and "not compared: RWDT" in ok.stdout and "use --strict" in ok.stdout
+    fast = _replay_against_fresh_slave(recorded, "--speed", "max")
+    assert fast.returncode == 0, fast.stdout + fast.stderr
+    assert "all equal" in fast.stdout and "as fast as answers come" in fast.stderr
 
     changed = tmp_path / "changed.pcapng"
     _modified(recorded, changed)
@@ -159,10 +172,10 @@ def test_replay_against_a_fresh_slave(tmp_path: Path) -> None:
     assert "CONNECT" in bad.stdout and "main.com_tim: recorded 2, live 1" in bad.stdout
 
 
-def _replay_against_fresh_slave(capture: Path) -> subprocess.CompletedProcess[str]:
+def _replay_against_fresh_slave(capture: Path, *extra: str) -> subprocess.CompletedProcess[str]:
     fresh = _Slave()
     try:
-        return subprocess.run([*MLINK, "replay", str(capture), "--to", f"127.0.0.1:{fresh.port}"],
+        return subprocess.run([*MLINK, "replay", str(capture), "--to", f"127.0.0.1:{fresh.port}", *extra],
                               capture_output=True, text=True, timeout=60)
     finally:
         fresh.stop()
@@ -184,6 +197,9 @@ def test_replay_usage_errors(tmp_path: Path) -> None:
     assert CliRunner().invoke(replay_cmd, [str(two), "--to", "nonsense"]).exit_code == 2
     both = CliRunner().invoke(replay_cmd, [str(two), "--to", "127.0.0.1:9", "--to", "127.0.0.1:10"])
     assert both.exit_code == 2 and "one --to without a station" in both.output
+    for speed in ("0", "fast", "-1"):
+        bad = CliRunner().invoke(replay_cmd, [str(two), "--to", "127.0.0.1:9", "--speed", speed])
+        assert bad.exit_code == 2 and "or 'max'" in bad.output
     one = CliRunner().invoke(replay_cmd, [str(two), "--to", "127.0.0.1:9", "--to", "0x22=127.0.0.1:0"])
     assert one.exit_code == 2 and "port cannot be 0" in one.output
 

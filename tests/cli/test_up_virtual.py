@@ -55,3 +55,38 @@ def test_a_failed_check_exits_1_and_a_bad_model_exits_2(tmp_path):
     result = _up(str(bad))
     assert result.returncode == 2
     assert "jitter" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_no_timeline_runs_the_network_until_duration(tmp_path):
+    report = tmp_path / "r.json"
+    r = _up("quickstart", "--no-timeline", "--duration", "3s", "--report", str(report))
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "run complete (no checks in the timeline, no --assert)" in r.stdout and "FAIL" not in r.stdout
+    doc = json.loads(report.read_text())
+    assert 2.9 <= doc["meta"]["duration_s"] < 4.0 and doc["meta"]["not_run"] == []
+    assert doc["rtt"]["count"] > 0  # the stations answered the whole time
+    untimed = _up("quickstart", "--no-timeline")
+    assert untimed.returncode == 2 and "add --duration" in untimed.stderr
+
+
+def test_no_timeline_runs_the_network_until_ctrl_c():
+    import signal
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-m", "mlink_sim", "up", "quickstart", "--no-timeline", "--no-status",
+                             "--no-realtime"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        assert proc.stderr is not None
+        deadline = time.monotonic() + 60
+        for line in proc.stderr:
+            if "running until Ctrl-C" in line or time.monotonic() > deadline:
+                break
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, out
+    assert "interrupted by SIGINT" in out and "not run" not in out

@@ -202,10 +202,10 @@ def test_command_line_errors_are_one_line_exit_2(tmp_path: Path) -> None:
     latin1.write_bytes(LONG.replace('name = "e2e"', 'name = "caf\xe9"').encode("latin-1"))
     cases = [
         (["up", str(cfg), "--assert", "station[0x99].late == 0"], "expected a station of the configuration"),
-        (["master", str(cfg), "--endpoint", "0x99=127.0.0.1:1"], "--endpoint 0x99: not a station of"),
-        (["slave", "--config", str(cfg), "--endpoint", "0x99=127.0.0.1:0"], "--endpoint 0x99: not a station of"),
-        (["slave", "--card", "si-t3", "--station", "0x21", "--link", "ml3"], "--link ml3: si-t3 speaks"),
-        (["slave", "--card", "si-et3", "--station", "0x03", "--link", "ml2"], "--link ml2: si-et3 speaks"),
+        (["master", str(cfg), "--endpoint", "0x99=127.0.0.1:1"], "--endpoint 99H: not a station of"),
+        (["slave", "--config", str(cfg), "--endpoint", "0x99=127.0.0.1:0"], "--endpoint 99H: not a station of"),
+        (["slave", "--card", "si-t3", "--station", "0x21", "--link", "ml3"], "--link ML3: si-t3 speaks"),
+        (["slave", "--card", "si-et3", "--station", "0x03", "--link", "ml2"], "--link ML2: si-et3 speaks"),
         (["up", str(cfg), "--report", str(tmp_path / "no" / "such" / "r.json")], "does not exist"),
         (["validate", str(latin1)], "not a UTF-8 text file (byte 0xe9"),
         (["up", str(latin1)], "not a UTF-8 text file"),

@@ -88,6 +88,11 @@ def test_normalised_text():
     assert str(parse_assertion("missed_rate < 1%")) == "missed_rate < 1%"
 
 
+def test_a_station_as_the_manuals_write_it():
+    assert str(parse_assertion("station[21H].late == 0")) == "station[0x21].late == 0"
+    assert str(parse_assertion("station[3eh].late == 0")) == "station[0x3e].late == 0"
+
+
 def test_stations_known_before_the_run():
     assert parse_assertion("station[0x21].late == 0", stations={0x21, 0x22}).path[1] == "0x21"
     assert parse_assertion("station[*].late == 0", stations={0x21}).path[1] == "*"
@@ -131,7 +136,7 @@ def test_stations_known_before_the_run():
         ("station.late == 0",
          "expected '[' and a station address after 'station' (e.g. station[0x21]) at column 8, got '.'"),
         ("station[].late == 0",
-         "expected a station address after 'station[' (hex 0x21, decimal 33, or * for every station) "
+         "expected a station address after 'station[' (21H or 0x21, decimal 33, or * for every station) "
          "at column 9, got ']'"),
         ("station[0x21 .late == 0", "expected ']' after the station address '0x21' at column 14, got '.'"),
         ("station[0x100].late == 0", "expected a station address from 0x00 to 0xff at column 9, got '0x100'"),

@@ -17,11 +17,11 @@ def _near(*stalls_ms: float) -> str:
 
 
 def test_every_failed_check_after_a_stall_beyond_the_bound():
-    failed = [f"2s station 0x21: expect output-hz: output 0.00 Hz; {_near(12.6, 130.5)}",
-              f"2s station 0x23: expect output-hz: output 0.00 Hz; {_near(130.5)}"]
+    failed = [f"2s station 21H: expect output-hz: output 0.00 Hz; {_near(12.6, 130.5)}",
+              f"2s station 23H: expect output-hz: output 0.00 Hz; {_near(130.5)}"]
     reason = beyond_the_bound(failed, 100 * MS)
     assert reason is not None and reason.startswith("the host stalled beyond the 100 ms bound")
-    assert "station 0x21" in reason and "station 0x23" in reason
+    assert "station 21H" in reason and "station 23H" in reason
 
 
 def test_one_failure_without_such_a_stall_is_a_failure():
@@ -34,8 +34,8 @@ def test_one_failure_without_such_a_stall_is_a_failure():
 SUMMARY = """== e2e: 2 stations, 2ms cycle, 4.5 s ==
 rtt p50 86.78us  p99 379.1us  max 5.505ms  (4373 responses); missed cycles 65, missing responses 0, late 0
 host stalls 3, longest 130.5ms, 73 cycles delayed: 8 run late, 65 lost (policy absorbs up to 100ms)
-  FAIL 2s station 0x21: expect output-hz 20±0.5 Hz: output 0.00 Hz, expected 20 ± 0.5 Hz; {near}
-  ok   3.5s station 0x21: expect stopped: running=False, output 0.00 Hz
+  FAIL 2s station 21H: expect output-hz 20±0.5 Hz: output 0.00 Hz, expected 20 ± 0.5 Hz; {near}
+  ok   3.5s station 21H: expect stopped: running=False, output 0.00 Hz
 1 check(s) failed; 1 check(s) held
 """
 

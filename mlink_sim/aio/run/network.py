@@ -28,7 +28,7 @@ from .expectations import timeline_warnings
 from .faults import fault_ops
 from .scenario import CheckResult, Scenario, speed_scales
 from .session import EndpointError, NetworkSession, build_plans
-from .status import LiveStatus, StatusInfo, WorstP99, render_lines
+from .status import LiveStatus, StatusInfo, SummaryWriter, WorstP99, render_lines
 from .supervisor import resolve_workers
 from .virtual_session import VirtualSession
 
@@ -190,7 +190,8 @@ async def _open(run: _Run, session_cls: type[NetworkSession], endpoints: dict[in
         run_dir=opts.run_dir, restart_slaves=opts.restart_slaves, realtime=opts.realtime, capture=opts.capture,
         seed=opts.seed)
     if session.realtime_granted:
-        _notice(opts, "realtime", "realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items()))
+        _notice(opts, "realtime", "realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items())
+                + " (--no-realtime: none of it)")
     if opts.control is not None:
         run.control = ControlServer({**impairment_ops(session), **fault_ops(session)})
         host, port = await run.control.start(*opts.control)
@@ -233,7 +234,7 @@ async def _timeline(run: _Run, session: NetworkSession, scenario: Scenario, stop
     await asyncio.gather(*tasks, return_exceptions=True)
     session.problems.extend(scenario.action_errors)
     if status is not None:
-        status.stop(frame())
+        status.stop(frame(status.width))
 
 
 async def _report(run: _Run, session: NetworkSession, scenario: Scenario) -> dict[str, Any]:
@@ -348,31 +349,32 @@ class Verdict:
 
 
 def _framer(config: Config, session: NetworkSession, scenario: Scenario, t0: float,
-            length: int | None) -> Callable[[], list[str]]:
-    """A function drawing the current status frame (docs/timing.md: bounded work per call)."""
+            length: int | None) -> Callable[[int | None], list[str]]:
+    """A function drawing the current status frame for a terminal of a given width (None: not a terminal;
+    docs/timing.md: bounded work per call)."""
     loop = asyncio.get_running_loop()
     p99 = WorstP99()
     assert session.net is not None
 
-    def frame() -> list[str]:
+    def frame(width: int | None) -> list[str]:
         step = scenario.current
         return render_lines(StatusInfo(
             config=config, net=session.net, metrics=session.metrics, scales=scenario.scales,
             elapsed_s=loop.time() - t0, total_s=None if length is None else length / 1e9,
-            step=step.describe if step else None, p99_ns=p99.step(session.metrics)))
+            step=step.describe if step else None, p99_ns=p99.step(session.metrics)), width)
 
     return frame
 
 
-async def _status_loop(status: LiveStatus, frame: Callable[[], list[str]]) -> None:
+async def _status_loop(status: LiveStatus, frame: Callable[[int | None], list[str]]) -> None:
     while True:
         await asyncio.sleep(status.interval)
-        status.show(frame())
+        status.show(frame(status.width))
 
 
 def _print_summary(config: Config, report: dict[str, Any], scenario: Scenario, verdict: Verdict,
                    problems: list[str], opts: RunOptions) -> None:
-    out = sys.stdout
+    out = SummaryWriter.for_terminal(sys.stdout)
     rtt = report.get("rtt", {})
     print(f"\n== {config.network.name}: {len(config.station)} stations, "
           f"{format_ns(config.network.transmission_cycle)} cycle, {report['meta']['duration_s']:.1f} s ==", file=out)
@@ -380,7 +382,7 @@ def _print_summary(config: Config, report: dict[str, Any], scenario: Scenario, v
         print(f"rtt p50 {format_ns(rtt['p50'])}  p99 {format_ns(rtt['p99'])}  max {format_ns(rtt['max'])}  "
               f"({rtt['count']} responses); missed cycles {report.get('missed', 0)}, "
               f"missing responses {report.get('missing', 0)}, late {report.get('late', 0)}", file=out)
-    injected = [f"{key} " + ", ".join(f"{n} {kind}" for kind, n in st["injected"].items() if n)
+    injected = [f"{int(key, 16):02X}H " + ", ".join(f"{n} {kind}" for kind, n in st["injected"].items() if n)
                 for key, st in report.get("station", {}).items() if any(st.get("injected", {}).values())]
     if injected:  # docs/faults.md: what was done on purpose, next to what the stations reported
         print("injected: " + "; ".join(injected), file=out)

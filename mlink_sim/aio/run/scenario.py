@@ -379,4 +379,4 @@ class Scenario:
 
 def _label(step: TimelineStep, address: int) -> str:
     """The check's description for one station (a step on all stations names each)."""
-    return step.describe if step.station != "all" else step.describe.replace("all stations", f"station {address:#04x}")
+    return step.describe if step.station != "all" else step.describe.replace("all stations", f"station {address:02X}H")

@@ -407,7 +407,7 @@ class NetworkSession:
 
     def not_up(self) -> list[str]:
         assert self.net is not None
-        out = [f"station {v.address:#04x} did not reach its phase (state {v.state.value})"
+        out = [f"station {v.address:02X}H did not reach its phase (state {v.state.value})"
                for v in self.net.views().values() if not v.at_target]
         self.problems.extend(m for m in out if m not in self.problems)
         return out

@@ -13,16 +13,19 @@ Touches: the terminal (stdout) only; reads the network's views and metrics.
 
 from __future__ import annotations
 
+import shutil
 import sys
+import textwrap
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, TextIO
 
 from ...config import Config, format_ns
 from ...wire import InvCmdStat, Link, M2Status
 
-__all__ = ["StatusInfo", "STATUS_FIELDS", "WorstP99", "LiveStatus", "render_lines", "station_line", "fit"]
+__all__ = ["StatusInfo", "STATUS_FIELDS", "COLUMNS", "LEGEND", "WorstP99", "LiveStatus", "render_lines", "station_cells",
+           "station_line", "fit", "SummaryWriter"]
 
 
 @dataclass(frozen=True)
@@ -75,8 +78,20 @@ class WorstP99:
         return max(values) if values else None
 
 
-def station_line(st: Any, view: Any, hz: float) -> str:
-    """``21H si-t3   P3  FWD  30.00 Hz  ok         rtt 0.21 ms``"""
+#: The headings of the station lines, over their columns (:func:`station_cells`).
+COLUMNS = ("ADDR", "CARD", "LINK", "PHASE", "RUN", "OUTPUT", "RTT", "STATE")
+
+#: What the terms of the status mean: one line at 120 columns, wrapped between its items on a narrower terminal;
+#: ``up --help`` says the same at length.
+LEGEND = ("P1/P2/P3: phase (answers/connected/cyclic)", "ok: no alarm", "missed: cycles skipped",
+          "stalls: host stalls (longest)")
+
+#: Below this width the columns are separated by one space instead of two, and the header may take two lines.
+NARROW = 100
+
+
+def station_cells(st: Any, view: Any, hz: float) -> tuple[str, ...]:
+    """One station's :data:`COLUMNS`: ``("21H", "si-t3", "ML2", "P3", "FWD", "30.00 Hz", "0.21 ms", "ok")``."""
     link: Link = st.link
     status = view.status
     if link is Link.ML3:
@@ -92,24 +107,59 @@ def station_line(st: Any, view: Any, hz: float) -> str:
         alarm = f"warn {view.alarm_name or ''}".strip()
     else:
         alarm = "ok"
-    rtt = f"rtt {view.rtt_ns / 1e6:.2f} ms" if view.rtt_ns is not None else "rtt  -"
+    rtt = f"{view.rtt_ns / 1e6:.2f} ms" if view.rtt_ns is not None else "-"
     phase = f"P{view.phase}" if view.phase else view.state.value
-    return (f"  {st.address:02X}H {st.card:<8} {link.name} {phase:<8} {run_state:<4} {hz:7.2f} Hz  "
-            f"{alarm:<14} {rtt}")
+    return (f"{st.address:02X}H", st.card, link.name, phase, run_state, f"{hz:.2f} Hz", rtt, alarm)
 
 
-def render_lines(info: StatusInfo) -> list[str]:
-    """The header, then one line per station."""
-    fields = "  ".join(f"{label} {value(info)}".strip() for label, value in STATUS_FIELDS)
-    lines = [f"{info.config.network.name}  {fields}"]
+def station_line(st: Any, view: Any, hz: float) -> str:
+    """``  21H si-t3  ML2  P3  FWD  30.00 Hz  0.21 ms  ok``: one station on its own (no column widths)."""
+    return "  " + "  ".join(station_cells(st, view, hz))
+
+
+def _table(rows: list[tuple[str, ...]], gap: int) -> list[str]:
+    """*rows* (the headings first) as aligned columns *gap* spaces apart; figures right-aligned, the last column
+    (free text) not padded."""
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    right = {COLUMNS.index("OUTPUT"), COLUMNS.index("RTT")}
+    out = []
+    for r in rows:
+        cells = [c.rjust(w) if i in right else c.ljust(w) for i, (c, w) in enumerate(zip(r[:-1], widths))]
+        out.append(" " * gap + (" " * gap).join([*cells, r[-1]]))
+    return out
+
+
+def _wrap_fields(first: str, fields: Sequence[str], width: int | None, sep: str = "  ") -> list[str]:
+    """*first*, then *fields* joined by *sep* on as few lines of *width* as hold them whole (a field is never
+    split; continuation lines indented by two spaces); width None: one line."""
+    lines = [first]
+    for text in fields:
+        if width is None or len(lines[-1]) + len(sep) + len(text) <= width:
+            lines[-1] += (sep if lines[-1] else "") + text
+        else:
+            lines.append("  " + text)
+    return lines
+
+
+def render_lines(info: StatusInfo, width: int | None = None) -> list[str]:
+    """The header, the legend, the column headings, then one line per station, laid out for a terminal *width*
+    columns wide (None: not a terminal, the wide layout). Below :data:`NARROW` columns the padding goes first:
+    one space between columns, the header's fields over two lines where one does not hold them, so that the
+    step, the longest stall and every RTT stay on the screen."""
+    narrow = width is not None and width < NARROW
+    fields = [f"{label} {value(info)}".strip() for label, value in STATUS_FIELDS]
+    name = info.config.network.name
+    header = _wrap_fields(name, fields, width)
+    legend = _wrap_fields("  " + LEGEND[0], LEGEND[1:], width, " · ")
+    rows: list[tuple[str, ...]] = [COLUMNS]
     for st in info.config.station:
         view = info.net.view(st.address)
         try:
             hz = info.scales[st.address].to_hz(view.output_freq)
         except Exception:  # noqa: BLE001 - a display must never stop the run
             hz = float("nan")
-        lines.append(station_line(st, view, hz))
-    return lines
+        rows.append(station_cells(st, view, hz))
+    return [*header, *legend, *_table(rows, 1 if narrow else 2)]
 
 
 def fit(lines: list[str], height: int) -> list[str]:
@@ -124,9 +174,11 @@ def fit(lines: list[str], height: int) -> list[str]:
 class LiveStatus:
     """Where the frames go: a rich ``Live`` display on a terminal, else plain lines every ``interval`` s."""
 
-    def __init__(self, file: TextIO | None = None) -> None:
+    def __init__(self, file: TextIO | None = None, size: tuple[int, int] | None = None) -> None:
+        """*size*: ``(columns, rows)`` of the terminal, when it is not the one *file* is (tests); default: asked."""
         self.file = file or sys.stdout
         self.tty = self.file.isatty()
+        self.size = size
         self.interval = 0.5 if self.tty else 5.0
         self._live: Any = None
         self._console: Any = None
@@ -138,7 +190,9 @@ class LiveStatus:
         from rich.console import Console
         from rich.live import Live
 
-        self._console = Console(file=self.file, highlight=False, markup=False, emoji=False)
+        width, height = self.size or (None, None)
+        self._console = Console(file=self.file, highlight=False, markup=False, emoji=False, width=width,
+                                height=height)
         # Log lines on the same terminal go above the frame instead of through it.
         self._live = Live(console=self._console, auto_refresh=False, transient=False, vertical_overflow="crop",
                           redirect_stdout=False, redirect_stderr=sys.stderr.isatty())
@@ -163,6 +217,15 @@ class LiveStatus:
         rows = fit(lines, height - 1)
         self._live.update(Group(*(Text(line, no_wrap=True, overflow="ellipsis") for line in rows)), refresh=True)
 
+    @property
+    def width(self) -> int | None:
+        """The terminal's width in columns, for :func:`render_lines`; None when the status is not on a terminal."""
+        if not self.tty:
+            return None
+        if self._console is not None:
+            return int(self._console.size.width)
+        return self.size[0] if self.size else shutil.get_terminal_size().columns
+
     def stop(self, lines: list[str] | None = None) -> None:
         """Show the last frame (if given) and leave it on the screen."""
         if lines is not None:
@@ -170,3 +233,37 @@ class LiveStatus:
         if self._live is not None:
             self._live.stop()
             self._live = None
+
+
+class SummaryWriter:
+    """A text file whose lines are wrapped to *width* columns (continuation lines indented under the line's own
+    indent and four spaces more): the run's final summary on a terminal. Width None: lines pass unchanged."""
+
+    def __init__(self, file: TextIO, width: int | None) -> None:
+        self.file = file
+        self.width = width
+        self._pending = ""
+
+    @classmethod
+    def for_terminal(cls, file: TextIO) -> SummaryWriter:
+        """Wrapped to the terminal's width when *file* is a terminal, else unchanged."""
+        return cls(file, shutil.get_terminal_size().columns if file.isatty() else None)
+
+    def write(self, text: str) -> int:
+        self._pending += text
+        *whole, self._pending = self._pending.split("\n")
+        for line in whole:
+            self.file.write("\n".join(self._wrap(line)) + "\n")
+        return len(text)
+
+    def _wrap(self, line: str) -> list[str]:
+        if self.width is None or len(line) <= self.width:
+            return [line]
+        indent = " " * (len(line) - len(line.lstrip(" ")))
+        return textwrap.wrap(line, self.width, subsequent_indent=indent + "    ", break_on_hyphens=False) or [line]
+
+    def flush(self) -> None:
+        if self._pending:
+            self.file.write(self._pending)
+            self._pending = ""
+        self.file.flush()

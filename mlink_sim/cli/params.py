@@ -1,0 +1,104 @@
+"""The option types every command shares, so that one idea is spelled one way on the whole command line:
+
+- ``ADDR`` a station address, ``21H`` as the manuals write it, ``0x21`` or ``33`` accepted too;
+- ``HOST:PORT`` an endpoint (``[::1]:47001`` for IPv6; port 0 where a command listens: any free port);
+- ``DURATION`` a time with its unit, ``250us``, ``2ms``, ``30s`` (a bare number is seconds);
+- ``ML1|ML2|ML3`` a link, as the config's ``link`` field spells it, in any case;
+- ``CARD`` an option card, ``si-t3``, ``si-et3`` or ``si-t-v7`` as the config's ``card`` field spells it, in any
+  case.
+
+Output names a station the manuals' way, :func:`station_name` (``21H``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import click
+
+from ..units import parse_address, parse_duration_ns
+
+__all__ = ["ADDR", "LINK", "CARD", "Address", "Duration", "Seconds", "station_name", "CARDS", "LINKS"]
+
+CARDS = ("si-t3", "si-et3", "si-t-v7")
+LINKS = ("ML1", "ML2", "ML3")
+
+
+def station_name(address: int) -> str:
+    """``0x21`` -> ``"21H"``, the manuals' notation."""
+    return f"{address:02X}H"
+
+
+class Address(click.ParamType):
+    """``ADDR``: ``21H``, ``0x21`` or ``33`` -> the address as an int."""
+
+    name = "ADDR"
+
+    def get_metavar(self, param: Any, ctx: Any = None) -> str:
+        return "ADDR"
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> int:
+        try:
+            return parse_address(value)
+        except ValueError as exc:
+            self.fail(str(exc), param, ctx)
+
+
+class Duration(click.ParamType):
+    """``DURATION``: checked here (a time with its unit; a bare number is in *default_unit*), passed on as the
+    text the user typed, which the command parses with the same rule."""
+
+    name = "DURATION"
+
+    def __init__(self, default_unit: str = "s") -> None:
+        self.default_unit = default_unit
+
+    def get_metavar(self, param: Any, ctx: Any = None) -> str:
+        return "DURATION"
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> str:
+        try:
+            parse_duration_ns(value, default_unit=self.default_unit)
+        except ValueError as exc:
+            self.fail(str(exc), param, ctx)
+        return str(value)
+
+
+class Seconds(click.ParamType):
+    """``DURATION`` given as ``500ms`` or ``2s`` (a bare number is seconds) -> seconds as a float above 0 and at
+    most *maximum*."""
+
+    name = "DURATION"
+
+    def __init__(self, maximum: float = 3600.0, *, zero: bool = False) -> None:
+        self.maximum = maximum
+        self.zero = zero
+
+    def get_metavar(self, param: Any, ctx: Any = None) -> str:
+        return "DURATION"
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> float:
+        if isinstance(value, float):
+            return value
+        try:
+            seconds = parse_duration_ns(value, default_unit="s") / 1e9
+        except ValueError as exc:
+            self.fail(str(exc), param, ctx)
+        if not (0 <= seconds if self.zero else 0 < seconds) or seconds > self.maximum:
+            low = "0" if self.zero else "above 0"
+            self.fail(f"expected a duration of {low} to {self.maximum:g}s, got {value!r}", param, ctx)
+        return seconds
+
+
+class _Spelled(click.Choice):
+    """A choice shown as the config spells it (click lower-cases the choices of a case-insensitive one)."""
+
+    def get_metavar(self, param: Any, ctx: Any = None) -> str:
+        return f"[{'|'.join(map(str, self.choices))}]"
+
+
+#: ``ADDR`` options and arguments
+ADDR = Address()
+#: ``--link``: the config's spelling, any case; the value is ``ML1``, ``ML2`` or ``ML3``
+LINK = _Spelled(LINKS, case_sensitive=False)
+#: ``--card``: the config's spelling, any case; the value is lower case
+CARD = _Spelled(CARDS, case_sensitive=False)
