@@ -130,7 +130,7 @@ def settings_for(
     if card == "si-t-v7":
         if not 0x20 <= station <= 0x3F:
             raise ValueError(
-                f"SI-T/V7: station {station:#04x} cannot be set with S1-3 and S2 (20H–3FH; 21H–3EH are valid)"
+                f"SI-T/V7: station {station:02X}H cannot be set with S1-3 and S2 (20H–3FH; 21H–3EH are valid)"
             )
         if frame_size not in (None, 17, 32):
             raise ValueError(f"SI-T/V7: frame size {frame_size} is not possible (S1-2 selects 17 or 32 bytes)")
@@ -147,7 +147,7 @@ def settings_for(
     f6_20 = table.by_name("F6-20")
     if not f6_20.minimum <= station <= f6_20.maximum:
         raise ParamError(
-            f"{label}: station {station:#04x} is outside the F6-20 range "
+            f"{label}: station {station:02X}H is outside the F6-20 range "
             f"{f6_20.minimum:02X}H–{f6_20.maximum:02X}H"
         )
     params["F6-20"] = station

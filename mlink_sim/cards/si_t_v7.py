@@ -70,7 +70,7 @@ class SiTV7(Ml2Station):
     def _power_up(self, values: Mapping[str, int], settings: CardSettings) -> None:
         station = settings.station if settings.station is not None else 0x21
         if not 0x20 <= station <= 0x3F:
-            raise ValueError(f"SI-T/V7: station {station:#04x} cannot be set with S1-3 and S2 (20H–3FH)")
+            raise ValueError(f"SI-T/V7: station {station:02X}H cannot be set with S1-3 and S2 (20H–3FH)")
         self.address = station
         self.link = Link.ML2 if settings.s1_1_10mbps else Link.ML1
         self.data_size = 32 if settings.s1_2_32byte and settings.s1_1_10mbps else 17

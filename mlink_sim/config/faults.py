@@ -49,7 +49,7 @@ def check_fault_targets(step: Any, stations: Sequence[Any], where: str) -> None:
     """What the targeted *stations* need for *step*'s fault (called once their defaults are filled in)."""
     if step.do == "bad-command":
         for st in stations:
-            label = f"station {st.address:#04x} ({st.card}, {st.frame_size}-byte)"
+            label = f"station {st.address:02X}H ({st.card}, {st.frame_size}-byte)"
             if step.kind == "combination" and not st.subcmd:
                 raise ValueError(f"{where}.kind: a combination error pairs a main command with a sub-command "
                                  f"(SI-T3 Table 7, SI-ET3 Table 13), but {label} has subcmd = false")
@@ -59,7 +59,7 @@ def check_fault_targets(step: Any, stations: Sequence[Any], where: str) -> None:
     if step.do == "load" and step.torque:
         for st in stations:
             if st.load.kind == "fan":
-                raise ValueError(f"{where}.torque: station {st.address:#04x} has a fan load, and the model carries "
+                raise ValueError(f"{where}.torque: station {st.address:02X}H has a fan load, and the model carries "
                                  f"one load-torque law per shaft (docs/drive-model.md §4): step its inertia instead, "
                                  f"or give it a constant or friction load")
 

@@ -73,7 +73,7 @@ def _check_params(source: str, config: Config) -> None:
             try:
                 FAMILIES[CARD_FAMILY[st.card]].parse_assignment(f"{step.param}={step.value}")
             except ParamError as exc:
-                problems.append(f"{source}: timeline[{i}].param: {exc} (station {st.address:#04x}, {st.card})")
+                problems.append(f"{source}: timeline[{i}].param: {exc} (station {st.address:02X}H, {st.card})")
                 break
     if problems:
         raise ConfigError("\n".join(problems))

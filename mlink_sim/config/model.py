@@ -437,12 +437,12 @@ class Config(BaseModel):
                 st.link = self.network.link or CARD_LINKS[st.card][-1]
             link = st.link
             if st.address in seen:
-                raise ValueError(f"{where}.address: {st.address:#04x} is already used by station[{seen[st.address]}]")
+                raise ValueError(f"{where}.address: {st.address:02X}H is already used by station[{seen[st.address]}]")
             seen[st.address] = i
             lo, hi = ADDRESS_RANGE[st.card]
             if not lo <= st.address <= hi:
                 raise ValueError(
-                    f"{where}.address: {st.address:#04x} is outside {st.card}'s range {lo:02X}H–{hi:02X}H"
+                    f"{where}.address: {st.address:02X}H is outside {st.card}'s range {lo:02X}H–{hi:02X}H"
                 )
             if link not in CARD_LINKS[st.card]:
                 spoken = "/".join(lk.label for lk in CARD_LINKS[st.card])
@@ -463,7 +463,7 @@ class Config(BaseModel):
                 raise ValueError(f"network.transmission_cycle: {why} (for {where}, {st.frame_size}-byte)")
         for i, step in enumerate(self.timeline):
             if step.station != "all" and step.station not in seen:
-                raise ValueError(f"timeline[{i}].station: {step.station:#04x} is not a station of this network")
+                raise ValueError(f"timeline[{i}].station: {step.station:02X}H is not a station of this network")
             targets = self.station if step.station == "all" else [self.station[seen[step.station]]]
             check_fault_targets(step, targets, f"timeline[{i}]")
         return self

@@ -44,7 +44,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addini("mlink_config", "Config of the mlink_network fixture (if no marker and no --mlink-config).")
 
 
-#: pytest-asyncio's setting of the event loop scope of async fixtures (docs/ci.md, "pytest-asyncio")
+#: pytest-asyncio's setting of the event loop scope of async fixtures (docs/ci.md, "Fixtures and options")
 LOOP_SCOPE_OPTION = "asyncio_default_fixture_loop_scope"
 
 

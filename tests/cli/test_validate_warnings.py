@@ -63,11 +63,11 @@ expect = "stopped"
 def test_v7_warnings_name_n019_and_n020_with_values_that_would_do():
     lines = timeline_warnings(parse_config(CONFIG), "v7.toml")
     assert len(lines) == 2, lines
-    assert lines[0].startswith("v7.toml: timeline[1] (2s station 0x22: expect speed-agree): the output is within 2 Hz"
+    assert lines[0].startswith("v7.toml: timeline[1] (2s station 22H: expect speed-agree): the output is within 2 Hz"
                                " of 40 Hz at 6.3 s at the earliest: n019 = 10.0 s (default) per n011 = 60.0 Hz "
                                "(default)")
     assert "set n019 = 2.8 or less, or check at 6.4 s or later" in lines[0]
-    assert ("(10s station 0x22: expect stopped): the output stops at 14.7 s on the drive model: n020 = 10.0 s "
+    assert ("(10s station 22H: expect stopped): the output stops at 14.7 s on the drive model: n020 = 10.0 s "
             "(default) per n011 = 60.0 Hz (default)") in lines[1]
     assert "set n020 = 2.6 or less, or check at 14.8 s or later" in lines[1]
 
@@ -100,9 +100,9 @@ def test_a_run_the_drive_does_not_take_from_the_network_names_b1_02_and_b1_01():
     text = CONFIG.replace('card = "si-t-v7"\nparams = { "n003" = 3, "n004" = 9 }', 'card = "si-t3"')
     lines = timeline_warnings(parse_config(text))
     assert lines == [
-        "station 0x22: the timeline runs it, but b1-02 = 1 (default) takes the run command from elsewhere; set "
+        "station 22H: the timeline runs it, but b1-02 = 1 (default) takes the run command from elsewhere; set "
         "b1-02 = 3 (SI-T3 Table 4, SI-ET3 Table 7)",
-        "station 0x22: the timeline sets its speed, but b1-01 = 1 (default) takes the reference from elsewhere; set "
+        "station 22H: the timeline sets its speed, but b1-01 = 1 (default) takes the reference from elsewhere; set "
         "b1-01 = 3 (SI-T3 Table 4, SI-ET3 Table 7)"]
 
 

@@ -62,7 +62,7 @@ def timeline_warnings(config: Config, source: str = "") -> list[str]:
 
 
 def _label(step: TimelineStep, address: int) -> str:
-    return step.describe.replace("all stations", f"station {address:#04x}")
+    return step.describe.replace("all stations", f"station {address:02X}H")
 
 
 def _station(config: Config, st: StationConfig, steps: list[TimelineStep], index: dict[int, int],
@@ -110,10 +110,10 @@ def _sources(address: int, family: Family, s: DriveSettings, values: dict[str, i
     run_name, run_value, ref_name, ref_value, source = RUN_SOURCE[family]
     out = []
     if not s.run_from_network:
-        out.append(f"station {address:#04x}: the timeline runs it, but {param_text(family, run_name, values)} takes "
+        out.append(f"station {address:02X}H: the timeline runs it, but {param_text(family, run_name, values)} takes "
                    f"the run command from elsewhere; set {run_name} = {run_value} ({source})")
     if not s.ref_from_network:
-        out.append(f"station {address:#04x}: the timeline sets its speed, but {param_text(family, ref_name, values)} "
+        out.append(f"station {address:02X}H: the timeline sets its speed, but {param_text(family, ref_name, values)} "
                    f"takes the reference from elsewhere; set {ref_name} = {ref_value} ({source})")
     return out
 

@@ -25,7 +25,7 @@ async def recovered(faults: Any, step: Any, address: int, tcycle_ns: int) -> tup
     within = step.within
     episode = stage.latest(address)
     if episode is None:
-        return False, f"no fault was injected into station {address:#04x} before this check"
+        return False, f"no fault was injected into station {address:02X}H before this check"
     while True:
         now = master.now_ns()
         if episode.recovered_ns is not None:
@@ -54,7 +54,7 @@ async def refused(faults: Any, step: Any, address: int, tcycle_ns: int) -> tuple
     episode = next((ep for ep in reversed(stage.log.episodes)
                     if ep.station == address and ep.what.startswith("bad-command")), None)
     if episode is None:
-        return False, f"no bad command was injected into station {address:#04x} before this check"
+        return False, f"no bad command was injected into station {address:02X}H before this check"
     answer = None
     while master.now_ns() < deadline:
         last = stage.last_answer(address)

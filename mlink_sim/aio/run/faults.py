@@ -86,7 +86,7 @@ class FaultControl:
             if worker.alive and port:
                 reply = await query_control("127.0.0.1", port, request.pop("op"), timeout=1.0, **request)
             if reply is None:
-                raise PlantError(f"the slave of station {station:#04x} did not answer the drive-fault request")
+                raise PlantError(f"the slave of station {station:02X}H did not answer the drive-fault request")
         if not reply.get("ok"):
             raise PlantError(str(reply.get("error")))
         return int(reply.get("handle", 0))
@@ -126,7 +126,7 @@ def fault_ops(session: Any) -> dict[str, Any]:
 
         address = parse_address(value)
         if address not in session.net.by_station:
-            raise ValueError(f"station: {address:#04x} is not a station of this network")
+            raise ValueError(f"station: {address:02X}H is not a station of this network")
         return [address]
 
     def fault(request: dict[str, Any]) -> dict[str, Any]:

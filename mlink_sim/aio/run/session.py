@@ -356,7 +356,7 @@ class NetworkSession:
             try:
                 resolved[address] = await resolve(host, port)
             except OSError as exc:
-                raise EndpointError(f"station {address:#04x}: cannot resolve {host!r}: {exc.strerror or exc}") from None
+                raise EndpointError(f"station {address:02X}H: cannot resolve {host!r}: {exc.strerror or exc}") from None
         local = bind_address_for(list(resolved.values()))
         plans = build_plans(self.config)
         from ...metrics import host_info

@@ -40,7 +40,7 @@ def handle_plant_request(request: Mapping[str, Any], stations: Mapping[int, Any]
             handle = request.get("handle")
             # address is an int here: station is None otherwise
             if not isinstance(handle, int) or not plants.release(address, station, handle, now):  # type: ignore[arg-type]
-                return {"ok": False, "error": f"no drive fault {handle!r} in force on station {address:#04x}"}
+                return {"ok": False, "error": f"no drive fault {handle!r} in force on station {address:02X}H"}
             return {"ok": True}
         fields = dict(request.get("fault") or {})
         fault = fault_from_fields(str(fields.pop("do", "")), fields)

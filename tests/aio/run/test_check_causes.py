@@ -72,14 +72,14 @@ def test_failed_checks_on_the_defaults_name_the_ramp_and_the_stall_prevention_ho
     run = _up(config, "--clock", "virtual", "--report", str(report))
     assert run.returncode == 1, run.stdout + run.stderr
     fails = _fail_lines(run.stdout)
-    accel = fails["2s station 0x21"]
+    accel = fails["2s station 21H"]
     assert "— accelerating at C1-01 = 10.0 s (default) per E1-04 = 60.0 Hz (default): 11.4 of 40 Hz after 2.0 s" in accel
     assert "there at 6.9 s" in accel
-    stop = fails["6s station 0x03"]
+    stop = fails["6s station 03H"]
     assert "— stopping at C1-02 = 1.0 s per E1-04 = 60.0 Hz (default)" in stop
     assert "held by deceleration stall prevention, L3-04 = 1 (default): DC bus 375 V, its level 375 V" in stop
     checks = {c["what"]: c for c in json.loads(report.read_text())["checks"]}
-    assert checks["6s station 0x03: expect stopped"]["cause"] in stop
+    assert checks["6s station 03H: expect stopped"]["cause"] in stop
     assert "cause" in REPORT_SCHEMA["$defs"]["check"]["properties"]
 
 
@@ -98,7 +98,7 @@ output_hz = 40.0
 """)
     run = _up(config, "--no-realtime")
     assert run.returncode == 1, run.stdout + run.stderr
-    line = _fail_lines(run.stdout)["1s station 0x21"]
+    line = _fail_lines(run.stdout)["1s station 21H"]
     assert "— accelerating at C1-01 = 10.0 s (default) per E1-04 = 60.0 Hz (default)" in line, line
 
 
@@ -175,11 +175,11 @@ def test_failed_checks_name_the_current_limit_and_an_ov_trip_with_its_time(tmp_p
     assert run.returncode == 1, run.stdout + run.stderr
     fails = _fail_lines(run.stdout)
     assert ("(the ramp alone: 40.0 Hz); held by acceleration stall prevention, L3-01 = 1 (default): output current "
-            in fails["0.5s station 0x22"])
-    assert "A, its level L3-02 = 150% (default) of the drive's rated current (39.9 A)" in fails["0.5s station 0x22"]
+            in fails["0.5s station 22H"])
+    assert "A, its level L3-02 = 150% (default) of the drive's rated current (39.9 A)" in fails["0.5s station 22H"]
     assert ("held by acceleration stall prevention, n093 = 170% (default) of the drive's rated current: output "
-            "current" in fails["0.5s station 0x23"])
-    assert fails["5s station 0x21"].endswith("— alarm ov since 3.14 s (coast stop)")
+            "current" in fails["0.5s station 23H"])
+    assert fails["5s station 21H"].endswith("— alarm ov since 3.14 s (coast stop)")
 
 
 def test_a_cause_names_the_value_a_set_param_step_wrote_not_the_default(tmp_path):
@@ -203,4 +203,4 @@ output_hz = 40.0
 """)
     run = _up(config, "--clock", "virtual")
     assert run.returncode == 1, run.stdout + run.stderr
-    assert "— accelerating at C1-01 = 8.0 s per E1-04 = 60.0 Hz (default): " in _fail_lines(run.stdout)["2s station 0x21"]
+    assert "— accelerating at C1-01 = 8.0 s per E1-04 = 60.0 Hz (default): " in _fail_lines(run.stdout)["2s station 21H"]
