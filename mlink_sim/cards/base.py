@@ -363,7 +363,9 @@ class Station(abc.ABC):
             if seen is None:
                 self.counters.drop("DUPLICATE")
                 return False
-            new, before, elapsed = seen
+            new, before, elapsed, jump = seen
+            if jump:  # a number the elapsed time does not allow: one failure (reception.py, SI-T3 Table 22)
+                self._incident("cycle_discontinuity", level="warning", source=repr(source), cycle=cycle)
             if new:
                 self._failures(FailureKind.GAP, new, before, now)
             if tcycle_ns != self.tcycle_ns:
