@@ -14,6 +14,7 @@ from ..config import Config, format_ns, parse_duration_ns
 from .capture_opts import capture_options, open_capture_or_exit
 from .inputs import InputError, assertions, check_stations, load_checked, report_path
 from .logs import configure_logging
+from .control_token import endpoint_token
 from .proxy import parse_control
 from .slave import _parse_endpoints
 
@@ -72,6 +73,11 @@ _common = [
     click.option("--control", "control", metavar="HOST:PORT",
                  help="Answer control requests here while running: impair, heal, faults ('mlink-sim control'; "
                       "docs/faults.md). Port 0: any free port, printed on stderr."),
+    click.option("--control-token", "control_token", metavar="TOKEN",
+                 help="The token every control request carries; required to bind --control to an address other "
+                      "than loopback."),
+    click.option("--control-token-file", "control_token_file", metavar="FILE", type=click.Path(dir_okay=False),
+                 help="Read the control token from FILE (its first line)."),
     click.option("--log-json", is_flag=True, help="Log JSON lines on stderr."),
     click.option("--log-level", default="warning", show_default=True,
                  type=click.Choice(["debug", "info", "warning", "error"])),
@@ -125,8 +131,8 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
 @_with_common
 @_with_stalls
 def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, report, asserts, status,
-           bringup_timeout, include_bringup, control, log_json, log_level, host_stalls, stall_bound, rt, capture_path,
-           capture_max) -> None:
+           bringup_timeout, include_bringup, control, control_token, control_token_file, log_json, log_level,
+           host_stalls, stall_bound, rt, capture_path, capture_max) -> None:
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held.
 
     CONFIG is a TOML file or the name of a shipped example (quickstart, ml2-mixed-2ms, …)."""
@@ -152,6 +158,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, repo
         clock=clock,
         seed=seed,
         control=parse_control(control),
+        control_token=endpoint_token(parse_control(control), control_token, control_token_file),
         capture=open_capture_or_exit("up", capture_path, capture_max, background=clock != "virtual"),
     )
     from ..aio.run.supervisor import WorkerError
@@ -174,7 +181,8 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, repo
 @_with_common
 @_with_stalls
 def master_cmd(config_path, endpoints, seed, duration, report, asserts, status, bringup_timeout, include_bringup,
-               control, log_json, log_level, host_stalls, stall_bound, rt, capture_path, capture_max) -> None:
+               control, control_token, control_token_file, log_json, log_level, host_stalls, stall_bound, rt,
+               capture_path, capture_max) -> None:
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
     config, path = load_checked(config_path)
@@ -205,6 +213,7 @@ def master_cmd(config_path, endpoints, seed, duration, report, asserts, status, 
         realtime=rt,
         seed=seed,
         control=parse_control(control),
+        control_token=endpoint_token(parse_control(control), control_token, control_token_file),
         capture=open_capture_or_exit("master", capture_path, capture_max),
     )
     try:

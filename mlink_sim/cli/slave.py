@@ -14,12 +14,14 @@ import click
 from .._log import get_logger
 from ..aio.timing import realtime
 from ..aio.timing.heap import settle_heap
+from ..aio.slave.allow import AllowList
 from ..aio.slave.server import HostedStation, SlaveServer
 from ..aio.slave.stations import StationSpec, build_station, spec_for
 from ..aio.transport.udp import BindError, loop_name, new_event_loop, stop_on_signals
 from ..config import ConfigError, load_config, parse_address, parse_duration_ns, parse_endpoint
 from ..config.units import parse_arrival_poll
 from ..wire import Link
+from .control_token import control_token_options, endpoint_token
 from .capture_opts import capture_options, open_capture_or_exit
 from .inputs import InputError, check_stations
 from .logs import configure_logging
@@ -88,6 +90,18 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
     return 128 + caught[0]
 
 
+def _allow_list(rules: tuple[str, ...]) -> AllowList | None:
+    """``--allow-master``: the sources that may change a station; without it, any (said on stderr, once)."""
+    if not rules:
+        click.echo("mlink-sim slave: no --allow-master: any source may CONNECT to a free or released station "
+                   "(docs/cards.md, \"Who may change a station\")", err=True)
+        return None
+    try:
+        return AllowList(rules)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--allow-master") from None
+
+
 def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
     out = {}
     for text in values:
@@ -118,6 +132,10 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
 @click.option("--state-dir", type=click.Path(file_okay=False), help="Directory of the EEPROM images (CONFIG_MOD 1).")
 @click.option("--control", default="127.0.0.1:0", show_default=True,
               help="HOST:PORT of the JSON stats endpoint ('off' to disable).")
+@click.option("--allow-master", "allow_master", multiple=True, metavar="ADDR",
+              help="Take commands that change a station (CONNECT included) only from this source: HOST, HOST:PORT "
+                   "or a CIDR network; repeatable. Others get read-only NOP answers (docs/cards.md). Default: any.")
+@control_token_options
 @click.option("--log-json", is_flag=True, help="Log JSON lines on stderr.")
 @click.option("--log-level", default="info", type=click.Choice(["debug", "info", "warning", "error"]))
 @click.option("--ready-json", is_flag=True, help="Print the ready line as JSON (for supervisors).")
@@ -140,7 +158,7 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
                    "highest, which the master of `mlink-sim up` takes).")
 @capture_options
 def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_path, only, endpoints, state_dir,
-              control, log_json, log_level, ready_json, host_stalls, stall_bound, shared_port, arrival_poll, rt,
+              control, allow_master, control_token, control_token_file, log_json, log_level, ready_json, host_stalls, stall_bound, shared_port, arrival_poll, rt,
               cpus_text, capture_path, capture_max) -> None:
     """Serve one station over UDP until SIGINT/SIGTERM (or several stations of a --config)."""
     configure_logging(json=log_json, level=log_level)
@@ -188,9 +206,12 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
         click.echo(f"mlink-sim slave: {exc}", err=True)
         sys.exit(2)
     control_addr = None if control == "off" else parse_endpoint(control)
+    token = endpoint_token(control_addr, control_token, control_token_file)
+    allow = _allow_list(allow_master)
     capture = open_capture_or_exit("slave", capture_path, capture_max)
     server = SlaveServer(stations, state_dir=state, control=control_addr, absorb_ns=absorb_ns, capture=capture,
-                         shared=shared_port, arrival_poll=poll)
+                         shared=shared_port, arrival_poll=poll, allow=allow,
+                         control_token=token)
     loop = new_event_loop()
     try:
         code = loop.run_until_complete(_serve(server, ready_json, log_json, rt, cpus))
