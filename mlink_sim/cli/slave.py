@@ -21,8 +21,8 @@ from ..aio.transport.udp import BindError, loop_name, new_event_loop, stop_on_si
 from ..config import ConfigError, load_config, parse_address, parse_duration_ns, parse_endpoint
 from ..config.units import parse_arrival_poll
 from ..wire import Link
-from .control_token import control_token_options, endpoint_token
 from .capture_opts import capture_options, open_capture_or_exit
+from .control_token import control_token_options, endpoint_token
 from .inputs import InputError, check_stations
 from .logs import configure_logging
 

@@ -160,12 +160,14 @@ class AllowList:
     def screen(self, batch: list[tuple[bytes, Any]]) -> tuple[list[tuple[bytes, Any]], list[tuple[bytes, Any]]]:
         """*batch* split into the datagrams of allowed sources and the others, each in arrival order."""
         known = self._known
-        for i, item in enumerate(batch):
+        i = 0
+        for item in batch:
             ok = known.get(item[1])
             if ok is None:
                 ok = self.allows(item[1])
             if not ok:
                 break
+            i += 1
         else:
             return batch, []  # the common case: the master's commands only, the batch as it is
         allowed, others = batch[:i], [batch[i]]
