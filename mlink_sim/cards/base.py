@@ -339,17 +339,16 @@ class Station(abc.ABC):
         non-owner's is (:meth:`_status_reply`); any other command, CONNECT included, is counted in
         ``foreign_source`` and dropped. Never raises."""
         try:
-            try:
-                frame = decode(datagram, kind=Kind.COMMAND)
-            except WireError as exc:
-                self.counters.drop(exc.reason.name)
-                return None
+            frame = decode(datagram, kind=Kind.COMMAND)
             if not self._addressed(frame):
                 return None
             if _is_status_query(frame.message):
                 self.counters.status_queries += 1
                 return self._status_reply(frame)
             self._foreign(source)
+            return None
+        except WireError as exc:
+            self.counters.drop(exc.reason.name)
             return None
         except Exception:  # noqa: BLE001 - the station must keep answering its master
             self._internal_error("receive_untrusted")

@@ -97,9 +97,11 @@ def _allow_list(rules: tuple[str, ...]) -> AllowList | None:
                    "(docs/cards.md, \"Who may change a station\")", err=True)
         return None
     try:
-        return AllowList(rules)
+        allow = AllowList(rules)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--allow-master") from None
+    log.info("allow_master", rules=allow.rules)
+    return allow
 
 
 def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:

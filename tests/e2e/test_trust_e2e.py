@@ -127,6 +127,24 @@ def test_a_cycle_number_ten_to_the_twelve_ahead_adds_one_failure(card: str, slav
         master.close()
 
 
+def test_up_tells_every_worker_its_master_s_address(tmp_path: Path) -> None:
+    """``mlink-sim up``: each slave worker takes commands only from its link's master (``--allow-master``), and the
+    masters bring every station up through it."""
+    run_dir = tmp_path / "run"
+    report = tmp_path / "report.json"
+    r = run_cli("up", "quickstart", "--duration", "1s", "--no-status", "--workers", "station", "--run-dir",
+                str(run_dir), "--report", str(report), timeout=120)
+    assert r.returncode in (0, 1), r.stderr  # the timeline is cut short; bring-up is what counts here
+    logs = sorted(run_dir.glob("worker-*.log"))
+    assert len(logs) == 3
+    for path in logs:
+        text = path.read_text()
+        assert "allow_master" in text and "127.0.0.1:" in text and "foreign_source_ignored" not in text
+        assert "no --allow-master" not in text
+    doc = json.loads(report.read_text())
+    assert "bring-up" not in " ".join(doc.get("problems", []))
+
+
 def _ask(port: int, request: dict, timeout: float = 0.5) -> dict | None:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.settimeout(timeout)
