@@ -100,10 +100,12 @@ class ReceptionMonitor:
         if delta == 0:
             return None
         before = self.consecutive
-        if delta >= _HALF or delta > (now - self.last_rx) // self.tcycle_ns + self.cycles_per_comm:
+        step = self.cycles_per_comm
+        # one communication cycle on is always allowed: the steady state costs no division
+        if delta > step and (delta >= _HALF or delta > (now - self.last_rx) // self.tcycle_ns + step):
             self._good(cycle, now)
             return 1, before, 1, True
-        elapsed = max(1, (delta + self.cycles_per_comm // 2) // self.cycles_per_comm)
+        elapsed = max(1, (delta + step // 2) // step)
         missed = max(0, elapsed - 1 - self.accounted)
         self._good(cycle, now)
         return missed, before, elapsed, False
