@@ -10,6 +10,8 @@ from typing import Any
 
 import click
 
+from .inputs import InputError
+
 __all__ = ["control_token_options", "control_token", "endpoint_token"]
 
 
@@ -26,20 +28,20 @@ def control_token_options(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 def control_token(token: str | None, token_file: str | None) -> str | None:
     """The token from ``--control-token`` or ``--control-token-file`` (None: neither); a usage error (exit 2, one
-    line) for both, an unreadable file or an empty token."""
+    line: :class:`~mlink_sim.cli.inputs.InputError`) for both, an unreadable file or an empty token."""
     if token is not None and token_file is not None:
-        raise click.UsageError("give --control-token or --control-token-file, not both")
+        raise InputError("give --control-token or --control-token-file, not both")
     if token_file is not None:
         try:
             lines = Path(token_file).read_text(encoding="utf-8").splitlines()
         except (OSError, UnicodeDecodeError) as exc:
-            raise click.BadParameter(f"cannot read {token_file}: {getattr(exc, 'strerror', None) or exc}",
-                                     param_hint="--control-token-file") from None
+            raise InputError(f"--control-token-file: cannot read {token_file}: "
+                             f"{getattr(exc, 'strerror', None) or exc}") from None
         token = lines[0].strip() if lines else ""
         if not token:
-            raise click.BadParameter(f"{token_file} holds no token", param_hint="--control-token-file")
+            raise InputError(f"--control-token-file: {token_file} holds no token")
     if token is not None and not token.strip():
-        raise click.BadParameter("an empty token", param_hint="--control-token")
+        raise InputError("--control-token: an empty token")
     return token
 
 
@@ -50,6 +52,6 @@ def endpoint_token(control: tuple[str, int] | None, token: str | None, token_fil
 
     value = control_token(token, token_file)
     if control is not None and value is None and not is_loopback(control[0]):
-        raise click.UsageError(f"--control {control[0]}:{control[1]} is reachable from other hosts: give "
-                               "--control-token or --control-token-file (or bind 127.0.0.1)")
+        raise InputError(f"--control {control[0]}:{control[1]} is reachable from other hosts: give "
+                         "--control-token or --control-token-file (or bind 127.0.0.1)")
     return value

@@ -66,6 +66,9 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
     loop = asyncio.get_running_loop()
     stop, caught = stop_on_signals(loop)
     await server.start()
+    if server.allow is None:
+        print("mlink-sim slave: no --allow-master: any source may CONNECT to a free or released station "
+              "(docs/cards.md, \"Who may change a station\")", file=sys.stderr, flush=True)
     settle_heap()  # before the first command arrives: no full collection of the start-up heap mid-cycle
     info = server.ready_info()
     if rt:  # docs/timing.md, "Real-time scheduling": below the master's clock, off its CPU
@@ -91,15 +94,13 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
 
 
 def _allow_list(rules: tuple[str, ...]) -> AllowList | None:
-    """``--allow-master``: the sources that may change a station; without it, any (said on stderr, once)."""
+    """``--allow-master``: the sources that may change a station; without it, any (:func:`_serve` says so)."""
     if not rules:
-        click.echo("mlink-sim slave: no --allow-master: any source may CONNECT to a free or released station "
-                   "(docs/cards.md, \"Who may change a station\")", err=True)
         return None
     try:
         allow = AllowList(rules)
     except ValueError as exc:
-        raise click.BadParameter(str(exc), param_hint="--allow-master") from None
+        raise InputError(f"--allow-master {exc}") from None
     log.info("allow_master", rules=allow.rules)
     return allow
 
@@ -177,6 +178,12 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
         poll = parse_arrival_poll(arrival_poll)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--arrival-poll") from None
+    try:
+        control_addr = None if control == "off" else parse_endpoint(control)
+    except ValueError as exc:
+        raise InputError(f"--control {exc}") from None
+    token = endpoint_token(control_addr, control_token, control_token_file)
+    allow = _allow_list(allow_master)
     if cpus_text is not None and not rt:
         raise click.UsageError("--cpus places a worker that asks for --realtime; add --realtime")
     try:
@@ -207,9 +214,6 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
     except ValueError as exc:  # ParamError, bad address/endpoint, bad frame size for the card, bad EEPROM image
         click.echo(f"mlink-sim slave: {exc}", err=True)
         sys.exit(2)
-    control_addr = None if control == "off" else parse_endpoint(control)
-    token = endpoint_token(control_addr, control_token, control_token_file)
-    allow = _allow_list(allow_master)
     capture = open_capture_or_exit("slave", capture_path, capture_max)
     server = SlaveServer(stations, state_dir=state, control=control_addr, absorb_ns=absorb_ns, capture=capture,
                          shared=shared_port, arrival_poll=poll, allow=allow,
