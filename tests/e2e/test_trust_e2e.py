@@ -95,6 +95,22 @@ def test_a_flood_and_a_stranger_s_connect_after_the_loss_never_bind_a_station_th
         stranger.close()
 
 
+def test_a_host_name_in_the_allow_list_lets_its_master_connect(slave, tmp_path: Path) -> None:
+    """``--allow-master localhost:PORT``: the name is resolved in a worker thread once the slave listens; the
+    master's CONNECT binds the station, another socket's does not."""
+    master = UdpMaster(0, "si-t3")
+    stranger = UdpMaster(0, "si-t3")
+    try:
+        proc = slave("--card", "si-t3", "--station", "0x21", "--allow-master", f"localhost:{master.source[1]}")
+        master.addr = stranger.addr = ("127.0.0.1", proc.port)
+        assert stranger.send(stranger.m.Connect(0x21, 0x80, 1), timeout=0.5) is None
+        assert any(master.connect() is not None for _ in range(3))
+        assert snapshot(proc.ready["control"])["connected_source"] == master.source
+    finally:
+        master.close()
+        stranger.close()
+
+
 def test_a_slave_without_allow_master_says_it_accepts_any_master(slave) -> None:
     proc = slave("--card", "si-t3", "--station", "0x21")
     proc.stop()

@@ -215,6 +215,8 @@ class SlaveServer:
             task.cancel()
         if self._control is not None:
             self._control.close()
+        if self._resolving is not None:  # a name being resolved in a worker thread: its answer lands on this loop
+            await asyncio.wait([self._resolving], timeout=2.0)
         if self._writer is not None:
             self._write_wakeup.set()
             await self._writer
@@ -374,7 +376,10 @@ class SlaveServer:
             if not f.cancelled() and f.exception() is not None:
                 log.warning("allow_master_unresolved", error=str(f.exception()))
             elif allow.unresolved != self._unresolved:
-                log.warning("allow_master_unresolved", names=allow.unresolved)
+                if allow.unresolved:
+                    log.warning("allow_master_unresolved", names=allow.unresolved)
+                else:
+                    log.info("allow_master_resolved", rules=allow.rules)
             self._unresolved = list(allow.unresolved)
 
         fut.add_done_callback(done)
