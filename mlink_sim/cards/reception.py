@@ -11,12 +11,20 @@ counts.
 A failure is one communication cycle (transmission cycle × COM_TIM, SI-ET3 CONNECT) without a valid command
 for this station. Two detectors feed the same count, so nothing is counted twice:
 
-* **gap** – the envelope cycle number of a command advances by more than one communication cycle;
+* **gap** – the envelope cycle number of a command advances by more than one communication cycle, by at most as
+  many transmission cycles as the time since the last valid command allows (elapsed // transmission cycle, plus
+  the one communication cycle of the command itself);
 * **silence** – no valid command for longer than one communication cycle plus a tolerance (default
   ``max(cycle, 2 ms)``, ``CardOptions.silence_tolerance_ns``), then one more failure per further
   cycle. Failures found by silence (or by a bad FCS) are subtracted from the next gap.
 
 A valid command ends a run of consecutive failures.
+
+A cycle number the elapsed time does not allow (further ahead than the bound, or behind: a u32 that wrapped or a
+master that renumbered) is a **discontinuity**: one reception failure, not the jump (the tables above count
+commands that were due and not received; a number no cycle of the master's clock can have reached counts none of
+them), and the monitor resynchronises on it. So no count grows faster than commands arrive and cycles pass,
+whatever the numbers a peer sends.
 """
 
 from __future__ import annotations
@@ -43,13 +51,14 @@ class FailureKind(enum.Enum):
 class ReceptionMonitor:
     """Counts missed communication cycles while active (phases 2 and 3)."""
 
-    __slots__ = ("active", "comm_cycle_ns", "cycles_per_comm", "tolerance_ns", "last_cycle", "last_rx",
+    __slots__ = ("active", "comm_cycle_ns", "cycles_per_comm", "tcycle_ns", "tolerance_ns", "last_cycle", "last_rx",
                  "accounted", "consecutive", "_deadline")
 
     def __init__(self) -> None:
         self.active = False
         self.comm_cycle_ns = 2_000_000
         self.cycles_per_comm = 1
+        self.tcycle_ns = 2_000_000  #: the transmission cycle: the time one step of the cycle number takes
         self.tolerance_ns = DEFAULT_MIN_TOLERANCE_NS
         self.last_cycle = 0
         self.last_rx = 0
@@ -63,6 +72,7 @@ class ReceptionMonitor:
         self.active = True
         self.comm_cycle_ns = max(1, comm_cycle_ns)
         self.cycles_per_comm = max(1, cycles_per_comm)
+        self.tcycle_ns = max(1, self.comm_cycle_ns // self.cycles_per_comm)
         self.tolerance_ns = (max(self.comm_cycle_ns, DEFAULT_MIN_TOLERANCE_NS)
                              if tolerance_ns is None else max(0, tolerance_ns))
         self._good(cycle, now)
@@ -78,21 +88,27 @@ class ReceptionMonitor:
         self.consecutive = 0
         self._deadline = now + self.comm_cycle_ns + self.tolerance_ns
 
-    def on_command(self, cycle: int, now: int) -> tuple[int, int, int] | None:
-        """A valid command with envelope *cycle*: ``(new failures, consecutive failures before them,
-        communication cycles elapsed)``, or None for a duplicate (the same cycle number again).
-        The run of consecutive failures ends with this command."""
+    def on_command(self, cycle: int, now: int) -> tuple[int, int, int, bool] | None:
+        """A valid command with envelope *cycle* at *now*: ``(new failures, consecutive failures before them,
+        communication cycles elapsed, discontinuity)``, or None for a duplicate (the same cycle number again).
+        The run of consecutive failures ends with this command.
+
+        The gap counted is bounded by the time since the last valid command: at most ``(now - last_rx) //
+        tcycle_ns + cycles_per_comm`` transmission cycles (the command's own communication cycle included). A
+        jump beyond that bound, or backwards, is a discontinuity: one failure (the module docstring)."""
         delta = (cycle - self.last_cycle) & _MASK
         if delta == 0:
             return None
-        if delta >= _HALF:  # the master's numbering went backwards (restart): resynchronise, no verdict
-            elapsed, missed = 1, 0
-        else:
-            elapsed = max(1, (delta + self.cycles_per_comm // 2) // self.cycles_per_comm)
-            missed = max(0, elapsed - 1 - self.accounted)
         before = self.consecutive
+        step = self.cycles_per_comm
+        # one communication cycle on is always allowed: the steady state costs no division
+        if delta > step and (delta >= _HALF or delta > (now - self.last_rx) // self.tcycle_ns + step):
+            self._good(cycle, now)
+            return 1, before, 1, True
+        elapsed = max(1, (delta + step // 2) // step)
+        missed = max(0, elapsed - 1 - self.accounted)
         self._good(cycle, now)
-        return missed, before, elapsed
+        return missed, before, elapsed, False
 
     def on_lost(self) -> int:
         """One failure found elsewhere (a bad FCS), not to be counted again by the next gap; returns the

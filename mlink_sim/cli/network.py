@@ -15,6 +15,7 @@ from .capture_opts import capture_options, open_capture_or_exit
 from .inputs import InputError, assertions, check_stations, load_checked, report_path
 from .logs import configure_logging
 from .params import Duration, station_name
+from .control_token import endpoint_token
 from .proxy import parse_control
 from .slave import _parse_endpoints
 
@@ -93,6 +94,11 @@ _common = [
                  help="Answer control requests here while running: impair, heal, faults, fault, recovery "
                       "('mlink-sim control'; "
                       "docs/faults.md). Port 0: any free port, printed on stderr."),
+    click.option("--control-token", "control_token", metavar="TOKEN",
+                 help="The token every control request carries; required to bind --control to an address other "
+                      "than loopback."),
+    click.option("--control-token-file", "control_token_file", metavar="FILE", type=click.Path(dir_okay=False),
+                 help="Read the control token from FILE (its first line)."),
     click.option("--log-json", is_flag=True, help="Log JSON lines on stderr."),
     click.option("--log-level", default="warning", show_default=True,
                  type=click.Choice(["debug", "info", "warning", "error"])),
@@ -155,8 +161,8 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
 @_with_common
 @_with_stalls
 def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, timeline, report, asserts, status,
-           bringup_timeout, include_bringup, control, log_json, log_level, host_stalls, stall_bound, rt, capture_path,
-           capture_max) -> None:
+           bringup_timeout, include_bringup, control, control_token, control_token_file, log_json, log_level,
+           host_stalls, stall_bound, rt, capture_path, capture_max) -> None:
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held.
 
     CONFIG is a TOML file or the name of a shipped example ('mlink-sim examples' lists them)."""
@@ -185,6 +191,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, time
         clock=clock,
         seed=seed,
         control=parse_control(control),
+        control_token=endpoint_token(parse_control(control), control_token, control_token_file),
         capture=open_capture_or_exit("up", capture_path, capture_max, background=clock != "virtual"),
     )
     from ..aio.run.supervisor import WorkerError
@@ -206,8 +213,9 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, time
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the impairments' draws (docs/faults.md).")
 @_with_common
 @_with_stalls
-def master_cmd(config_path, endpoints, seed, duration, timeline, report, asserts, status, bringup_timeout, include_bringup,
-               control, log_json, log_level, host_stalls, stall_bound, rt, capture_path, capture_max) -> None:
+def master_cmd(config_path, endpoints, seed, duration, timeline, report, asserts, status, bringup_timeout,
+               include_bringup, control, control_token, control_token_file, log_json, log_level, host_stalls,
+               stall_bound, rt, capture_path, capture_max) -> None:
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
     config, path = load_checked(config_path)
@@ -238,6 +246,7 @@ def master_cmd(config_path, endpoints, seed, duration, timeline, report, asserts
         realtime=rt,
         seed=seed,
         control=parse_control(control),
+        control_token=endpoint_token(parse_control(control), control_token, control_token_file),
         capture=open_capture_or_exit("master", capture_path, capture_max),
     )
     try:

@@ -14,6 +14,8 @@ import click
 from ..aio.transport.udp import new_event_loop, stop_on_signals
 from ..config import parse_endpoint
 from .capture_opts import capture_options, open_capture_or_exit
+from .control_token import control_token as resolve_token
+from .control_token import control_token_options, endpoint_token
 from .logs import configure_logging
 from .params import Seconds
 
@@ -57,12 +59,13 @@ def _impairment(text: str | None) -> Any:
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random draw.")
 @click.option("--control", default="127.0.0.1:0", show_default=True, metavar="HOST:PORT",
               help="The control endpoint (impair/heal while it runs: 'mlink-sim control'; 'off').")
+@control_token_options
 @click.option("--log-json", is_flag=True, help="Log JSON lines on stderr.")
 @click.option("--log-level", default="warning", show_default=True,
               type=click.Choice(["debug", "info", "warning", "error"]))
 @capture_options
-def proxy_cmd(listens, targets, impair_text, seed, control, log_json, log_level, capture_path,
-              capture_max) -> None:
+def proxy_cmd(listens, targets, impair_text, seed, control, control_token, control_token_file, log_json, log_level,
+              capture_path, capture_max) -> None:
     """Forward datagrams between any master and any slaves through the impairment layer, until SIGINT/SIGTERM.
 
     The master sends to --listen; each datagram goes to the paired --to, and the answers come back to the master.
@@ -74,10 +77,11 @@ def proxy_cmd(listens, targets, impair_text, seed, control, log_json, log_level,
     links = [(_endpoint(a, "--listen"), _endpoint(b, "--to")) for a, b in zip(listens, targets)]
     spec = _impairment(impair_text)
     control_addr = parse_control(control)
+    token = endpoint_token(control_addr, control_token, control_token_file)
     capture = open_capture_or_exit("proxy", capture_path, capture_max)
     loop = new_event_loop()
     try:
-        code = loop.run_until_complete(_serve(links, spec, seed, control_addr, capture))
+        code = loop.run_until_complete(_serve(links, spec, seed, control_addr, capture, token))
     except OSError as exc:
         click.echo(f"mlink-sim proxy: cannot listen or resolve: {exc.strerror or exc}", err=True)
         code = 2
@@ -89,7 +93,7 @@ def proxy_cmd(listens, targets, impair_text, seed, control, log_json, log_level,
 
 
 async def _serve(links: list[Any], spec: Any, seed: int, control_addr: tuple[str, int] | None,
-                 capture: Any) -> int:
+                 capture: Any, token: str | None = None) -> int:
     from ..aio.run.control import ControlServer, impairment_ops
     from ..aio.tools.proxy import ImpairingProxy
     from ..impair import ImpairmentLayer
@@ -98,7 +102,7 @@ async def _serve(links: list[Any], spec: Any, seed: int, control_addr: tuple[str
     loop = asyncio.get_running_loop()
     stop, caught = stop_on_signals(loop)
     proxy = ImpairingProxy(links, ImpairmentLayer(seed=seed), capture=capture)
-    server = ControlServer(impairment_ops(proxy))
+    server = ControlServer(impairment_ops(proxy), token=token)
     try:
         await proxy.start()
         if spec is not None:
@@ -137,7 +141,9 @@ CONTROL_OPS = {
 @click.argument("spec", metavar="[SPEC|HANDLE]", required=False)
 @click.option("--timeout", default="3s", show_default=True, type=Seconds(60.0),
               help="How long to wait for the answer (the request is sent up to three times).")
-def control_cmd(address: str, op: str, station: str | None, spec: str | None, timeout: float) -> None:
+@control_token_options
+def control_cmd(address: str, op: str, station: str | None, spec: str | None, timeout: float,
+                control_token: str | None, control_token_file: str | None) -> None:
     """Send the request OP to the control endpoint at HOST:PORT and print the answer (JSON). Each endpoint
     answers its own operations:
 
@@ -171,6 +177,7 @@ def control_cmd(address: str, op: str, station: str | None, spec: str | None, ti
     from ..impair import ImpairError, parse_impair_text, target_station
 
     host, port = _endpoint(address, "HOST:PORT")
+    token = resolve_token(control_token, control_token_file)
     fields: dict[str, Any] = {}
     try:
         if op in ("impair", "heal", "fault", "recovery") and station is not None:
@@ -213,11 +220,13 @@ def control_cmd(address: str, op: str, station: str | None, spec: str | None, ti
         raise click.UsageError(str(exc)) from None
     reply = None
     for _ in range(_ATTEMPTS):  # UDP: a request can go unanswered; each operation can be repeated safely
-        reply = asyncio.run(query_control(host, port, op, timeout=timeout / _ATTEMPTS, **fields))
+        reply = asyncio.run(query_control(host, port, op, timeout=timeout / _ATTEMPTS, token=token,
+                                           **fields))
         if reply is not None:
             break
     if reply is None:
-        click.echo(f"mlink-sim control: no answer from {address} within {timeout:g} s", err=True)
+        click.echo(f"mlink-sim control: no answer from {address} within {timeout:g} s (an endpoint with a token "
+                   "answers only requests that carry it: --control-token)", err=True)
         sys.exit(1)
     click.echo(json.dumps(reply, indent=2))
     if not reply.get("ok"):

@@ -14,6 +14,7 @@ import click
 from .._log import get_logger
 from ..aio.timing import realtime
 from ..aio.timing.heap import settle_heap
+from ..aio.slave.allow import AllowList
 from ..aio.slave.server import HostedStation, SlaveServer
 from ..aio.slave.stations import StationSpec, build_station, spec_for
 from ..aio.transport.udp import BindError, loop_name, new_event_loop, stop_on_signals
@@ -21,6 +22,7 @@ from ..config import ConfigError, load_config, parse_address, parse_duration_ns,
 from ..config.units import parse_arrival_poll
 from ..wire import Link
 from .capture_opts import capture_options, open_capture_or_exit
+from .control_token import control_token_options, endpoint_token
 from .inputs import InputError, check_stations
 from .params import ADDR, CARD, CARDS, LINK, Duration, station_name
 from .logs import configure_logging
@@ -66,6 +68,9 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
     loop = asyncio.get_running_loop()
     stop, caught = stop_on_signals(loop)
     await server.start()
+    if server.allow is None:
+        print("mlink-sim slave: no --allow-master: any source may CONNECT to a free or released station "
+              "(docs/cards.md, \"Who may change a station\")", file=sys.stderr, flush=True)
     settle_heap()  # before the first command arrives: no full collection of the start-up heap mid-cycle
     info = server.ready_info()
     if rt:  # docs/timing.md, "Real-time scheduling": below the master's clock, off its CPU
@@ -92,6 +97,18 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
              host_stalls=server.stalls.totals("self"))  # this process's own (metrics/stalls.py)
     await server.close()
     return 128 + caught[0]
+
+
+def _allow_list(rules: tuple[str, ...]) -> AllowList | None:
+    """``--allow-master``: the sources that may change a station; without it, any (:func:`_serve` says so)."""
+    if not rules:
+        return None
+    try:
+        allow = AllowList(rules)
+    except ValueError as exc:
+        raise InputError(f"--allow-master {exc}") from None
+    log.info("allow_master", rules=allow.rules)
+    return allow
 
 
 def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
@@ -125,6 +142,10 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
 @click.option("--state-dir", type=click.Path(file_okay=False), help="Directory of the EEPROM images (CONFIG_MOD 1).")
 @click.option("--control", default="127.0.0.1:0", show_default=True, metavar="HOST:PORT",
               help="The control endpoint: stats, cpu, plant, release ('mlink-sim control'); 'off' to disable.")
+@click.option("--allow-master", "allow_master", multiple=True, metavar="ADDR",
+              help="Take commands that change a station (CONNECT included) only from this source: HOST, HOST:PORT "
+                   "or a CIDR network; repeatable. Others get read-only NOP answers (docs/cards.md). Default: any.")
+@control_token_options
 @click.option("--log-json", is_flag=True, help="Log JSON lines on stderr.")
 @click.option("--log-level", default="info", type=click.Choice(["debug", "info", "warning", "error"]))
 @click.option("--ready-json", is_flag=True, help="Print the ready line as JSON (for supervisors).")
@@ -152,7 +173,7 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
                    "highest, which the master of `mlink-sim up` takes).")
 @capture_options
 def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_path, only, endpoints, state_dir,
-              control, log_json, log_level, ready_json, host_stalls, stall_bound, shared_port, arrival_poll, rt,
+              control, allow_master, control_token, control_token_file, log_json, log_level, ready_json, host_stalls, stall_bound, shared_port, arrival_poll, rt,
               cpus_text, capture_path, capture_max) -> None:
     """Serve one station over UDP until SIGINT/SIGTERM (or several stations of a --config)."""
     configure_logging(json=log_json, level=log_level)
@@ -169,6 +190,12 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
         poll = parse_arrival_poll(arrival_poll)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--arrival-poll") from None
+    try:
+        control_addr = None if control == "off" else parse_endpoint(control)
+    except ValueError as exc:
+        raise InputError(f"--control {exc}") from None
+    token = endpoint_token(control_addr, control_token, control_token_file)
+    allow = _allow_list(allow_master)
     if cpus_text is not None and not rt:
         raise click.UsageError("--cpus places a worker that asks for --realtime; add --realtime")
     try:
@@ -202,10 +229,10 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
     except ValueError as exc:  # ParamError, bad address/endpoint, bad frame size for the card, bad EEPROM image
         click.echo(f"mlink-sim slave: {exc}", err=True)
         sys.exit(2)
-    control_addr = None if control == "off" else parse_endpoint(control)
     capture = open_capture_or_exit("slave", capture_path, capture_max)
     server = SlaveServer(stations, state_dir=state, control=control_addr, absorb_ns=absorb_ns, capture=capture,
-                         shared=shared_port, arrival_poll=poll)
+                         shared=shared_port, arrival_poll=poll, allow=allow,
+                         control_token=token)
     loop = new_event_loop()
     try:
         code = loop.run_until_complete(_serve(server, ready_json, log_json, rt, cpus,

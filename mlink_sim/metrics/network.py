@@ -34,7 +34,7 @@ from .stalls import StallLog
 __all__ = ["StationMetrics", "NetworkMetrics", "SLAVE_COUNTERS", "INJECTED_KINDS", "station_key"]
 
 #: Counters a slave keeps and reports in its snapshot, cumulative since the slave process started.
-SLAVE_COUNTERS: tuple[str, ...] = ("reception_failures", "wdt_errors", "dropped")
+SLAVE_COUNTERS: tuple[str, ...] = ("reception_failures", "wdt_errors", "dropped", "foreign_source")
 _MASTER_COUNTERS: tuple[str, ...] = ("sent", "answered", "late", "missing")
 
 

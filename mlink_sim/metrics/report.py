@@ -73,6 +73,8 @@ REPORT_SCHEMA: dict[str, Any] = {
         "reception_failures": {**_COUNT, "description": "reception failures counted by the slaves"},
         "wdt_errors": {**_COUNT, "description": "watchdog (WDT) errors counted by the slaves"},
         "dropped": {**_COUNT, "description": "datagrams dropped by the slaves (bad frames)"},
+        "foreign_source": {**_COUNT, "description": "commands the slaves ignored: not from the station's master "
+                                                    "(or from a source --allow-master does not name)"},
         "cpu": {"$ref": "#/$defs/cpu"},
         "station": {
             "type": "object",
@@ -168,6 +170,7 @@ REPORT_SCHEMA: dict[str, Any] = {
                 "sent": {**_COUNT}, "answered": {**_COUNT}, "late": {**_COUNT}, "missing": {**_COUNT},
                 "alarms": {**_COUNT, "description": "alarms and warnings the station raised, as the master saw them"},
                 "reception_failures": {**_COUNT}, "wdt_errors": {**_COUNT}, "dropped": {**_COUNT},
+                "foreign_source": {**_COUNT},
                 "recovery": {"$ref": "#/$defs/histogram",
                              "description": "recovery times: a fault's end to phase 3 with no alarm (docs/faults.md)"},
                 "injected": {"$ref": "#/$defs/injected"},

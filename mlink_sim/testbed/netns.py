@@ -10,7 +10,8 @@
       ───────┴──────────── <prefix>br (bridge) ──────────┴──────────   the bridge; no host address
 
 Addresses come from 198.18.0.0/15 (RFC 2544 benchmarking, never routed): the master .1, stations .2 on in
-config order. Then: every slave started with ``ip netns exec`` and waited for (its ready line), a NOP from the
+config order. Then: every slave started with ``ip netns exec`` (``--allow-master`` the master's address: no other
+namespace changes a station) and waited for (its ready line), a NOP from the
 master's namespace to every station, the master with the config's timeline and a report; its exit code is the
 testbed's. Everything with the prefix is removed afterwards – on success, failure, Ctrl-C or SIGTERM – and before
 starting (leftovers of the same prefix, and of ``mls-<pid>`` runs whose process is gone).
@@ -114,7 +115,7 @@ class Plan:
         assert node.address is not None
         return [ip, "netns", "exec", node.netns, python, "-m", "mlink_sim", "slave", "--config", config_path,
                 "--only", f"0x{node.address:02X}", "--endpoint", self.endpoint(node), "--ready-json",
-                *self.slave_flags]  # fmt: skip
+                "--allow-master", self.master.ip, *self.slave_flags]  # fmt: skip
 
     def reach_argv(self, python: str = sys.executable, ip: str = "ip") -> list[str]:
         targets = [f"{self.endpoint(n)}/{n.link_name}/{n.frame_size}" for n in self.stations]

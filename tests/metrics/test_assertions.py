@@ -124,7 +124,7 @@ def test_stations_known_before_the_run():
          "(did you mean 'p99'?)"),
         ("latency.p99 < 1ms",
          "expected a field of the report (cycles, missed, missed_rate, rtt, lateness, sent, answered, late, "
-         "missing, reception_failures, wdt_errors, dropped, cpu, station, host) at column 1, got 'latency' "
+         "missing, reception_failures, wdt_errors, dropped, foreign_source, cpu, station, host) at column 1, got 'latency' "
          "(did you mean 'lateness'?)"),
         ("rtt < 5ms",
          "expected '.' and a field of 'rtt' (count, min, p50, p90, p99, p99_9, max, mean) at column 4, got '<' "
@@ -141,10 +141,10 @@ def test_stations_known_before_the_run():
         ("station[0x21 .late == 0", "expected ']' after the station address '0x21' at column 14, got '.'"),
         ("station[0x100].late == 0", "expected a station address from 0x00 to 0xff at column 9, got '0x100'"),
         ("station[0x21] < 1", "expected '.' and a field of 'station[0x21]' (rtt, sent, answered, late, missing, "
-                              "alarms, reception_failures, wdt_errors, dropped, recovery, injected, unrecovered) at column 14, got '<' "
+                              "alarms, reception_failures, wdt_errors, dropped, foreign_source, recovery, injected, unrecovered) at column 14, got '<' "
                               "('station[0x21]' is a group of fields, not a value)"),
         ("meta.duration_s > 1", "expected a field of the report (cycles, missed, missed_rate, rtt, lateness, sent, "
-                                "answered, late, missing, reception_failures, wdt_errors, dropped, cpu, station, host) "
+                                "answered, late, missing, reception_failures, wdt_errors, dropped, foreign_source, cpu, station, host) "
                                 "at column 1, got 'meta'"),
         ("cpu.by_process < 5", "expected a field of 'cpu' (master, slaves) at column 5, got 'by_process'"),
         ("rtt.p99 <", "expected a number after '<' at column 10, got the end of the expression"),

@@ -121,6 +121,7 @@ def test_station_service_listens_on_all_addresses_and_is_probed():
         assert cmd[:5] == ["slave", "--config", CONFIG_IN_CONTAINER, "--only", f"0x{st.address:02X}"]
         assert cmd[cmd.index("--endpoint") + 1] == f"0x{st.address:02X}=0.0.0.0:47001"
         assert cmd[cmd.index("--host-stalls") + 1] == "absorb"  # the master is ours: docs/timing.md
+        assert cmd[cmd.index("--allow-master") + 1] == "master"  # only the master's container changes a station
         probe = _probe_in(svc["healthcheck"]["test"])
         assert probe == probe_argv(st, 47001)
         assert probe[:2] == ["mlink-health", "127.0.0.1:47001"]

@@ -100,7 +100,7 @@ def test_plan_commands():
     slave = plan.slave_argv(plan.stations[0], "/c.toml", python="py")
     assert slave[:4] == ["ip", "netns", "exec", "mls-42-s21"]
     assert slave[4:] == ["py", "-m", "mlink_sim", "slave", "--config", "/c.toml", "--only", "0x21",
-                         "--endpoint", "0x21=198.18.0.2:40000", "--ready-json",
+                         "--endpoint", "0x21=198.18.0.2:40000", "--ready-json", "--allow-master", "198.18.0.1",
                          "--host-stalls", "absorb", "--stall-bound", "100000000ns", "--arrival-poll", "auto"]  # fmt: skip
     master = plan.master_argv("/c.toml", report="/r.json", duration="5s", asserts=("missed == 0",), python="py")
     assert master[:4] == ["ip", "netns", "exec", "mls-42-m"]
@@ -121,6 +121,7 @@ def test_master_and_slave_commands_parse_with_the_cli():
     params = slave_cmd.make_context("slave", slave[slave.index("slave") + 1 :]).params
     assert params["only"] == "0x21" and params["ready_json"] is True
     assert params["host_stalls"] == "absorb"  # the network's policy reaches every slave (docs/timing.md)
+    assert params["allow_master"] == ("198.18.0.1",)  # only the master's namespace changes a station
     master = plan.master_argv("/c.toml", report="/r.json", duration="5s", bringup_timeout="10s")
     params = master_cmd.make_context("master", master[master.index("master") + 1 :]).params
     assert params["status"] is False and len(params["endpoints"]) == 2

@@ -10,6 +10,10 @@ object per UDP datagram each way, the same shape as a slave's stats endpoint (ai
     ← {"ok": true, "faults": [...], "injected": {"0x21": {"drops": 12}}}
     ← {"ok": false, "error": "loss: a probability is between 0 and 1 …"}
 
+A request carries the endpoint's token (``"token": "…"``) when it has one: without it, or with another, it is counted
+and not answered (:mod:`mlink_sim.aio.slave.token`; an endpoint bound to anything but a loopback address must have
+one).
+
 The operations are a table (:func:`impairment_ops`); another kind of fault adds its own entries. A client:
 :func:`query_control` (``mlink-sim control``; the network run asks the slave workers' stats endpoints with it too).
 
@@ -25,6 +29,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..._log import get_logger
+from ..slave.token import ControlToken
 from ..transport.udp import DatagramEndpoint, open_endpoint
 
 __all__ = ["ControlServer", "Op", "impairment_ops", "query_control"]
@@ -61,10 +66,12 @@ def impairment_ops(target: Any) -> dict[str, Op]:
 
 
 class ControlServer:
-    """Answers control requests with the operations of *ops* (plus ``ping``)."""
+    """Answers control requests with the operations of *ops* (plus ``ping``); with *token*, only those that carry it
+    (:class:`~mlink_sim.aio.slave.token.ControlToken`)."""
 
-    def __init__(self, ops: dict[str, Op]) -> None:
+    def __init__(self, ops: dict[str, Op], token: str | None = None) -> None:
         self.ops = dict(ops)
+        self.token = ControlToken(token)
         self._endpoint: DatagramEndpoint | None = None
 
     async def start(self, host: str, port: int) -> tuple[str, int]:
@@ -81,12 +88,16 @@ class ControlServer:
             self._endpoint.close()
             self._endpoint = None
 
-    def handle(self, data: bytes) -> dict[str, Any]:
-        """The reply to one request (never raises)."""
+    def handle(self, data: bytes) -> dict[str, Any] | None:
+        """The reply to one request (never raises); None for a request without the token (not answered)."""
         try:
             request = json.loads(data)
         except (ValueError, UnicodeDecodeError):
             request = None
+        if not self.token.admits(request):
+            if self.token.refused == 1 or self.token.refused & (self.token.refused - 1) == 0:
+                log.warning("control_refused", reason="no token or a wrong one", refused=self.token.refused)
+            return None
         if not isinstance(request, dict) or not isinstance(request.get("op"), str):
             return {"ok": False, "error": "expected a JSON object with 'op' (one of: "
                                           f"{', '.join(sorted([*self.ops, 'ping']))})"}
@@ -100,21 +111,27 @@ class ControlServer:
             reply = fn(request)
         except (ValueError, TypeError, KeyError) as exc:
             return {"ok": False, "error": str(exc)}
-        log.info("control", op=op, request={k: v for k, v in request.items() if k != "op"})
+        log.info("control", op=op, request={k: v for k, v in request.items() if k not in ("op", "token")})
         return {"ok": True, **reply}
 
     def _on_datagram(self, data: bytes, addr: Any) -> None:
-        payload = json.dumps(self.handle(data), separators=(",", ":")).encode()
+        reply = self.handle(data)
+        if reply is None:
+            return
+        payload = json.dumps(reply, separators=(",", ":")).encode()
         if len(payload) > _MAX_REPLY:
             payload = json.dumps({"ok": False, "error": "reply too large for one datagram"}).encode()
         if self._endpoint is not None:
             self._endpoint.sendto(payload, addr)
 
 
-async def query_control(host: str, port: int, op: str = "stats", timeout: float = 1.0,
+async def query_control(host: str, port: int, op: str = "stats", timeout: float = 1.0, token: str | None = None,
                         **fields: Any) -> dict[str, Any] | None:
     """Ask a control endpoint (a slave process's stats endpoint, a run's or a proxy's ``--control``) the operation
-    *op* (*fields* go into the request): its JSON reply, or None when it does not answer in time."""
+    *op* (*fields* go into the request, and *token* where the endpoint has one): its JSON reply, or None when it
+    does not answer in time (an endpoint answers no request without its token)."""
+    if token is not None:
+        fields["token"] = token
     loop = asyncio.get_running_loop()
     fut: asyncio.Future[bytes] = loop.create_future()
 

@@ -64,6 +64,8 @@ class RunOptions:
     capture: Any = None  #: a started CaptureWriter recording every datagram of the masters (``--capture``)
     #: ``--control HOST:PORT``: answer control requests (impair, heal, faults) while running (aio/run/control.py)
     control: tuple[str, int] | None = None
+    #: ``--control-token``: the token every control request must carry (None: none; aio/slave/token.py)
+    control_token: str | None = None
 
 
 @dataclasses.dataclass
@@ -193,7 +195,7 @@ async def _open(run: _Run, session_cls: type[NetworkSession], endpoints: dict[in
         _notice(opts, "realtime", "realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items())
                 + " (--no-realtime: none of it)")
     if opts.control is not None:
-        run.control = ControlServer({**impairment_ops(session), **fault_ops(session)})
+        run.control = ControlServer({**impairment_ops(session), **fault_ops(session)}, token=opts.control_token)
         host, port = await run.control.start(*opts.control)
         _notice(opts, "control", f"control: {host}:{port} (mlink-sim control {host}:{port} "
                                  "impair|heal|faults|fault|recovery)")

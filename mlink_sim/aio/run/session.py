@@ -16,6 +16,7 @@ run directory; real-time scheduling where asked.
 from __future__ import annotations
 
 import asyncio
+import socket
 import tempfile
 import time
 from collections.abc import Sequence
@@ -246,6 +247,8 @@ class NetworkSession:
         self.cpus = rt_cpu_plan() if realtime else None
         self.realtime_granted: dict[str, str] = {}  #: process -> what it was granted
         self._restart_tasks: set[asyncio.Task[Any]] = set()
+        #: each link's master socket address, held from before the workers start until its master binds it
+        self._held: dict[Link, socket.socket] = {}
         self._stopping = False
         self._closed = False
         self.seed = seed
@@ -301,10 +304,11 @@ class NetworkSession:
     async def _start_workers(self) -> dict[int, tuple[str, int]]:
         run_dir = self.run_dir = self.run_dir or Path(tempfile.mkdtemp(prefix="mlink-sim-run-"))
         groups = plan_workers([st.address for st in self.config.station], self._n_workers)
+        self._hold_master_addresses()
         self.worker_list = [
             Worker(WorkerSpec(i, self.config_path, addrs, run_dir, self._state_dir,
                               extra_args=self.config.network.slave_flags() + self._realtime_flags()
-                              + (["--shared-port"] if len(addrs) > 1 else [])),
+                              + self._allow_flags(addrs) + (["--shared-port"] if len(addrs) > 1 else [])),
                    on_exit=self._on_worker_exit)
             for i, addrs in enumerate(groups)
         ]
@@ -320,6 +324,36 @@ class NetworkSession:
             st["address"]: (_local_target(st["host"]), st["port"])
             for w in self.worker_list for st in (w.ready or {}).get("stations", [])
         }
+
+    def _station_host(self, address: int) -> str:
+        """The address station *address* listens on as the master reaches it (a wildcard: loopback)."""
+        return _local_target(self.config.station_by_address(address).host_port(self.config.network.host)[0])
+
+    def _hold_master_addresses(self) -> None:
+        """Bind each link's master socket address before the workers start, so that each worker is told where its
+        master sends from (:meth:`_allow_flags`); the master takes it over when it starts (:meth:`_start_masters`)."""
+        local = bind_address_for([(self._station_host(st.address), 0) for st in self.config.station])
+        for st in self.config.station:
+            if st.link is not None and st.link not in self._held:
+                sock = self._held[st.link] = socket.socket(socket.AF_INET6 if ":" in local[0] else socket.AF_INET,
+                                                           socket.SOCK_DGRAM)
+                sock.bind(local)
+
+    def _allow_flags(self, addresses: list[int]) -> list[str]:
+        """``--allow-master HOST:PORT`` for a worker hosting *addresses*: each station takes commands only from its
+        link's master (docs/cards.md, "Who may change a station"). A datagram to an address of this host comes
+        from that same address."""
+        out: list[str] = []
+        for address in addresses:
+            st = self.config.station_by_address(address)
+            held = self._held.get(st.link) if st.link is not None else None
+            if held is None:
+                continue
+            host, port = self._station_host(address), held.getsockname()[1]
+            rule = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+            if rule not in out:
+                out += ["--allow-master", rule]
+        return out
 
     def _realtime_flags(self) -> list[str]:
         """``mlink-sim slave``'s flags for this session's real-time requests: none without ``--realtime``, else
@@ -373,7 +407,11 @@ class NetworkSession:
                                              on_stall=self.metrics.stall_recorder("master"))
         for link, plan in plans.items():
             eps = {sp.address: resolved[sp.address] for sp in plan.stations}
-            master = await Master.start(plan, eps, metrics=self.metrics, local=local, clock=clock,
+            held = self._held.pop(link, None)
+            where = local if held is None else (local[0], held.getsockname()[1])  # what the workers were told
+            if held is not None:
+                held.close()
+            master = await Master.start(plan, eps, metrics=self.metrics, local=where, clock=clock,
                                         catch_up_ns=catch_up, capture=self.capture)
             master.record_lateness = not self.masters
             self.masters[link] = master
@@ -428,6 +466,9 @@ class NetworkSession:
             return
         self._closed = True
         self._stopping = True
+        for held in self._held.values():
+            held.close()
+        self._held.clear()
         await self.close_masters()
         for task in list(self._restart_tasks):
             task.cancel()

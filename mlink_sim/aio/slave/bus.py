@@ -109,6 +109,15 @@ class Port:
         if self.station.eeprom_pending:
             self.on_eeprom(self.hosted)
 
+    def serve_untrusted(self, data: bytes, addr: Any, now: int, out: Batch) -> None:
+        """A datagram from a source the allow list does not name (:mod:`mlink_sim.aio.slave.allow`): the card's
+        ``receive_untrusted`` (a status query answered read-only, anything else counted and dropped)."""
+        self.pred = None
+        response = self.station.receive_untrusted(data, addr, now)
+        if response is not None:
+            out.append((response, addr))
+            self.responses += 1
+
     def settle(self, data: bytes, addr: Any, answer: bytes, now: int) -> None:
         """The card takes *data*, which *answer* was sent to ahead (:meth:`Bus.settle`)."""
         station = self.station
@@ -195,6 +204,18 @@ class Bus:
         if runs:
             return _newest_first(out, runs)
         return out
+
+    def serve_untrusted(self, batch: Batch, out: Batch) -> None:
+        """The datagrams of one read from sources the allow list does not name, each to the station its address
+        byte names (:meth:`Port.serve_untrusted`); the answers appended to *out*."""
+        now = self.clock()
+        ports = self.ports
+        for data, addr in batch:
+            port = ports.get(data[3] if len(data) > 3 else -1)
+            if port is None:
+                self.unaddressed += 1
+            else:
+                port.serve_untrusted(data, addr, now, out)
 
     def _serve_backlog(self, port: Port, items: Batch, now: int, out: Batch) -> bool:
         """A station's commands of one read (at most *keep*), in order: as many as its prediction answers ahead

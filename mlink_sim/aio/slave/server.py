@@ -35,7 +35,9 @@ from ..._log import get_logger
 from ...jsonable import to_jsonable
 from ...metrics.stalls import WORKER_STALL_NS, StallLog
 from ...faults.plant import PlantFaults
+from .allow import AllowList
 from .bus import Bus, Port, due
+from .token import ControlToken
 from .faults import handle_plant_request
 from .state import atomic_write, eeprom_path, remove_stale_temps
 from ..transport.tapped import tap
@@ -99,6 +101,8 @@ class SlaveServer:
         shared: bool = False,
         arrival_poll: tuple[int, int | None] | None = None,
         batched: bool = True,
+        allow: AllowList | None = None,
+        control_token: str | None = None,
     ) -> None:
         """*capture*: a :class:`~mlink_sim.capture.CaptureWriter`: every station socket is tapped, and each
         station's phase changes (seen by the 1 ms tick) become notes.
@@ -114,6 +118,13 @@ class SlaveServer:
         due (:class:`~mlink_sim.aio.timing.arrival.ArrivalPoll`). The sockets of a worker hosting several stations each
         on its own port are not: their polls would hold each other up.
 
+        *allow*: the sources that may change a station (:mod:`mlink_sim.aio.slave.allow`; None: any). Each read is
+        screened once (:meth:`AllowList.screen <mlink_sim.aio.slave.allow.AllowList.screen>`, one look-up per
+        datagram); the others' datagrams go to the cards' ``receive_untrusted``. Host names are resolved in a worker
+        thread at the start and again, once a second at most, while one is unresolved or an unknown source shows.
+
+        *control_token*: the token every control request must carry (:mod:`mlink_sim.aio.slave.token`; None: none).
+
         *batched*: the batched calls (``sendmmsg``/``recvmmsg``, UDP segmentation offload) where the kernel has them;
         False keeps the per-datagram calls on every socket (the tests compare both paths that way)."""
         self.stations = stations
@@ -127,6 +138,11 @@ class SlaveServer:
         self._keep_behind = max(_KEEP_BEHIND, absorb_ns // _MIN_CYCLE_NS + 2)
         self.stalls = StallLog("absorb" if absorb_ns else "strict", absorb_ns)
         self.batched = batched
+        self.allow = allow
+        self.control_token = ControlToken(control_token)
+        self._resolving: asyncio.Future[None] | None = None
+        self._resolved_at = 0.0
+        self._unresolved: list[str] = []  #: the names last logged as unresolved
         self._tick_due = 0
         self.state_dir = Path(state_dir) if state_dir else None
         self._control_addr = control
@@ -180,6 +196,7 @@ class SlaveServer:
             await self.close()
             raise
         self._writer = loop.create_task(self._write_loop())
+        self._resolve_allow()
         self._tick_due = time.monotonic_ns() + _POLL_INTERVAL_NS
         self._tick = loop.call_later(_POLL_INTERVAL_S, self._on_tick)
         self._started_wall = time.monotonic()
@@ -198,6 +215,8 @@ class SlaveServer:
             task.cancel()
         if self._control is not None:
             self._control.close()
+        if self._resolving is not None:  # a name being resolved in a worker thread: its answer lands on this loop
+            await asyncio.wait([self._resolving], timeout=2.0)
         if self._writer is not None:
             self._write_wakeup.set()
             await self._writer
@@ -251,11 +270,19 @@ class SlaveServer:
     def _receiver(self, hs: HostedStation) -> Callable[[list[tuple[bytes, Any]]], None]:
         """The batch handler of one station's own socket: the answers go back on it (one ``sendto``, or a burst
         after a backlog)."""
-        serve = self._port(hs).serve
+        port = self._port(hs)
+        serve, allow = port.serve, self.allow
 
         def on_batch(batch: list[tuple[bytes, Any]]) -> None:
             out: list[tuple[bytes, Any]] = []
-            serve(batch, out)
+            if allow is not None:
+                batch, others = allow.screen(batch)
+                if others:
+                    now = time.monotonic_ns()
+                    for data, addr in others:
+                        port.serve_untrusted(data, addr, now, out)
+            if batch:
+                serve(batch, out)
             endpoint = hs.endpoint
             if endpoint is not None and out:
                 if len(out) == 1:  # the common case: one command, one answer
@@ -281,13 +308,18 @@ class SlaveServer:
         their predictions answered (:meth:`Bus.settle <mlink_sim.aio.slave.bus.Bus.settle>`)."""
         bus = Bus([self._port(hs) for hs in group], time.monotonic_ns)
         self._buses.append(bus)
-        serve, settle = bus.serve, bus.settle
+        serve, settle, allow = bus.serve, bus.settle, self.allow
         first = group[0]  # its endpoint is the group's (set once the socket is bound)
 
         pause = yield_after_send()  # the master reads its answers before the settle (realtime.yield_after_send)
 
         def on_batch(batch: list[tuple[bytes, Any]]) -> None:
-            out = serve(batch)
+            others: list[tuple[bytes, Any]] = []
+            if allow is not None:
+                batch, others = allow.screen(batch)
+            out = serve(batch) if batch else []
+            if others:
+                bus.serve_untrusted(others, out)
             ep = first.endpoint
             try:
                 if out and ep is not None:
@@ -323,9 +355,34 @@ class SlaveServer:
             self._collect_eeprom(hs)
         if self._capture is not None:
             self._note_phases(now)
+        if self.allow is not None and self.allow.stale:
+            self._resolve_allow()
         if not self._closing:
             self._tick_due = time.monotonic_ns() + _POLL_INTERVAL_NS
             self._tick = asyncio.get_running_loop().call_later(_POLL_INTERVAL_S, self._on_tick)
+
+    def _resolve_allow(self) -> None:
+        """Resolve the allow list's host names in a worker thread (one at a time, once a second at most)."""
+        allow = self.allow
+        if allow is None or not allow.stale or self._resolving is not None or self._closing:
+            return
+        if time.monotonic() - self._resolved_at < 1.0 and self._resolved_at:
+            return
+        self._resolved_at = time.monotonic()
+        fut = self._resolving = asyncio.get_running_loop().run_in_executor(None, allow.resolve)
+
+        def done(f: asyncio.Future[None]) -> None:
+            self._resolving = None
+            if not f.cancelled() and f.exception() is not None:
+                log.warning("allow_master_unresolved", error=str(f.exception()))
+            elif allow.unresolved != self._unresolved:
+                if allow.unresolved:
+                    log.warning("allow_master_unresolved", names=allow.unresolved)
+                else:
+                    log.info("allow_master_resolved", rules=allow.rules)
+            self._unresolved = list(allow.unresolved)
+
+        fut.add_done_callback(done)
 
     def _note_phases(self, now: int) -> None:
         for hs in self.stations:
@@ -383,7 +440,7 @@ class SlaveServer:
         return {**self._stats_head(since), "stations": dict(map(self._station_stats, self.stations))}
 
     def _stats_head(self, since: int) -> dict[str, Any]:
-        return {**self.cpu(), "unaddressed": self.unaddressed,
+        return {**self.cpu(), "unaddressed": self.unaddressed, "control_refused": self.control_token.refused,
                 "stalls": self.stalls.events("self", last=_STALLS_REPORTED, since=since),
                 "stall_totals": self.stalls.totals("self", since)}
 
@@ -425,7 +482,12 @@ class SlaveServer:
             request = json.loads(data)
             op = request.get("op") if isinstance(request, dict) else None
         except (ValueError, UnicodeDecodeError):
-            op = None
+            request, op = None, None
+        if not self.control_token.admits(request):
+            n = self.control_token.refused
+            if n & (n - 1) == 0:
+                log.warning("control_refused", reason="no token or a wrong one", refused=n)
+            return
         if op == "stats":
             since = request.get("since", 0)
             task = asyncio.get_running_loop().create_task(self._reply_stats(

@@ -386,3 +386,18 @@ def test_a_backlog_after_a_poll_is_answered_ahead_after_each_cards_first_command
     for st, ref in zip(cards.values(), reference.values()):
         assert st.counters.as_dict() == ref.counters.as_dict()
         assert st.snapshot().drive == ref.snapshot().drive
+
+
+def test_untrusted_datagrams_reach_the_station_their_byte_names_read_only() -> None:
+    """``Bus.serve_untrusted`` (a source ``--allow-master`` does not name): a NOP is answered by the station its
+    address byte names, CONNECT binds nothing and is counted in foreign_source, a datagram for no station is
+    counted in ``unaddressed``."""
+    ports = [_port(0x21), _port(0x22)]
+    bus = Bus(ports)
+    out: list[tuple[bytes, Any]] = []
+    bus.serve_untrusted([(_nop(0x22, 5), OTHER), (_command(0x21, 6, ml2.Connect(0x21, 0, 1)), OTHER),
+                         (_nop(0x30, 7), OTHER)], out)
+    assert _answered(out) == [(0x22, 5, OTHER)]
+    assert ports[0].station.phase == 1 and ports[0].station.counters.foreign_source == 1
+    assert ports[1].station.counters.status_queries == 1 and ports[1].responses == 1
+    assert bus.unaddressed == 1
