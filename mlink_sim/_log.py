@@ -58,6 +58,17 @@ def get_logger(name: str, **initial: Any) -> Any:
     return _Logger(name, dict(initial))
 
 
+class _Stderr:
+    """The process's standard error as it is at each write, not as it was when logging was configured: a test
+    runner or an application that swaps ``sys.stderr`` later (and closes the old stream) still gets every line."""
+
+    def write(self, text: str) -> int:
+        return sys.stderr.write(text)
+
+    def flush(self) -> None:
+        sys.stderr.flush()
+
+
 def configure_logging(*, json: bool = False, level: str = "info") -> None:
     """Configure structlog once per process: key=value lines (or JSON) on stderr; stdout is kept for results and
     ready lines. Only the entry points call it (the ``mlink-sim`` commands, the pytest plugin's host process, the
@@ -74,6 +85,6 @@ def configure_logging(*, json: bool = False, level: str = "info") -> None:
             renderer,
         ],
         wrapper_class=structlog.make_filtering_bound_logger(getattr(logging, level.upper(), logging.INFO)),
-        logger_factory=structlog.PrintLoggerFactory(file=sys.stderr),
+        logger_factory=structlog.PrintLoggerFactory(file=_Stderr()),  # type: ignore[arg-type]
         cache_logger_on_first_use=True,
     )

@@ -64,7 +64,7 @@ def test_defaults_follow_card_and_link() -> None:
 @pytest.mark.parametrize(
     "extra, message",
     [
-        ('[[station]]\naddress = 0x21\ncard = "si-t3"\n', "station[1].address: 0x21 is already used by station[0]"),
+        ('[[station]]\naddress = 0x21\ncard = "si-t3"\n', "station[1].address: 21H is already used by station[0]"),
         ('[[station]]\naddress = 0x22\ncard = "si-t4"\n', "station[1].card"),
         ('[[station]]\naddress = 0x20\ncard = "si-t3"\n', "outside si-t3's range 21H–3EH"),
         ('[[station]]\naddress = 0x22\ncard = "si-t3"\nframe_size = 64\n', "station[1].frame_size"),
@@ -72,7 +72,7 @@ def test_defaults_follow_card_and_link() -> None:
         ('[[station]]\naddress = 0x22\ncard = "si-t3"\nparams = { "C1-01" = 99999 }\n', "station[1].params: C1-01"),
         ('[[station]]\naddress = 0x22\ncard = "si-t3"\nbogus = 1\n', "station[1].bogus: unknown field"),
         ('[[timeline]]\nat = "1s"\ndo = "run"\n', "needs speed_hz"),
-        ('[[timeline]]\nat = "1s"\nstation = 0x30\nexpect = "running"\n', "timeline[0].station: 0x30 is not"),
+        ('[[timeline]]\nat = "1s"\nstation = 0x30\nexpect = "running"\n', "timeline[0].station: 30H is not"),
         ('[[timeline]]\nat = "soon"\nexpect = "running"\n', "timeline[0].at"),
     ],
 )
