@@ -4,7 +4,6 @@ kill -9 (docs/cards.md, "Who may change a station" and "EEPROM")."""
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import socket
@@ -14,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from .conftest import run_cli
-from .udp_master import ACCEL, ACCEL_DEFAULT, UdpMaster, snapshot, write_config
+from .udp_master import ACCEL, ACCEL_DEFAULT, UdpMaster, params_saved, snapshot, write_config
 
 pytestmark = pytest.mark.e2e
 
@@ -65,11 +64,6 @@ def _drained(ctl: int, quiet: float = 0.3, timeout: float = 30.0) -> None:
     raise AssertionError("the slave is still working through the flood")
 
 
-def _params_saved(state: Path) -> dict:
-    files = list(state.glob("*.eeprom.json"))
-    return json.loads(files[0].read_bytes())["params"] if files else {}
-
-
 @pytest.mark.parametrize("card", CARDS)
 def test_flood_then_foreign_writes_and_a_probe_change_nothing_and_the_master_gets_its_station_back(
         card: str, slave, tmp_path: Path) -> None:
@@ -96,7 +90,7 @@ def test_flood_then_foreign_writes_and_a_probe_change_nothing_and_the_master_get
             assert answer is not None and answer.message.substatus & 0x03  # SUBWARNG: not executed
         assert flooder.send(flooder.m.Disconnect()) is not None
         snap = snapshot(ctl)
-        assert snap["connected_source"] is None and snap["phase"] == 2 and _params_saved(state) == {}
+        assert snap["connected_source"] is None and snap["phase"] == 2 and params_saved(state) == {}
         assert run_cli("probe", f"127.0.0.1:{port}", "--station", "0x21", "--timeout", "3").returncode == 0
         assert snapshot(ctl)["connected_source"] is None  # the probe bound nothing
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from .conftest import MLINK, run_cli
-from .udp_master import ACCEL, ACCEL_DEFAULT, UdpMaster, snapshot, write_config
+from .udp_master import ACCEL, ACCEL_DEFAULT, UdpMaster, params_saved, snapshot, write_config
 
 pytestmark = pytest.mark.e2e
 
@@ -44,11 +44,6 @@ def _flood(port: int, stranger: UdpMaster, sockets: int = 4) -> None:
             s.close()
 
 
-def _params_saved(state: Path) -> dict:
-    files = list(state.glob("*.eeprom.json"))
-    return json.loads(files[0].read_bytes())["params"] if files else {}
-
-
 @pytest.mark.parametrize("card", CARDS)
 def test_a_flood_and_a_stranger_s_connect_after_the_loss_never_bind_a_station_that_knows_its_master(
         card: str, slave, tmp_path: Path) -> None:
@@ -77,7 +72,7 @@ def test_a_flood_and_a_stranger_s_connect_after_the_loss_never_bind_a_station_th
         assert stranger.send(stranger.m.Config(1), timeout=0.5) is None
         assert stranger.send(stranger.m.Nop(), timeout=2.0) is not None  # a status query: read-only, as ever
         snap = snapshot(ctl)
-        assert snap["connected_source"] is None and _params_saved(state) == {}
+        assert snap["connected_source"] is None and params_saved(state) == {}
         assert snap["counters"]["foreign_source"] >= 3
         assert run_cli("probe", f"127.0.0.1:{port}", "--station", "0x21", "--timeout", "3").returncode == 0
 
@@ -89,7 +84,7 @@ def test_a_flood_and_a_stranger_s_connect_after_the_loss_never_bind_a_station_th
         for _ in range(10):
             answer = master.run()
             assert answer is not None and not master.refused(answer)
-        assert _params_saved(state) == {}
+        assert params_saved(state) == {}
     finally:
         master.close()
         stranger.close()

@@ -38,6 +38,12 @@ options = {{ silence_tolerance_ns = {silence_tolerance_ms * MS} }}
     return path
 
 
+def params_saved(state: Path) -> dict:
+    """The parameters a slave wrote to its EEPROM image in *state* (empty where it wrote none)."""
+    files = list(state.glob("*.eeprom.json"))
+    return json.loads(files[0].read_bytes())["params"] if files else {}
+
+
 def word(value: int) -> bytes:
     return value.to_bytes(2, "little").ljust(8, b"\0")
 
