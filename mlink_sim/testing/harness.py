@@ -33,7 +33,8 @@ from typing import Any
 from ..aio.run.scenario import CheckResult, StationControls, speed_scale
 from ..aio.run.supervisor import parse_workers
 from ..config import Config, load_config, resolve_config_path
-from ..master.types import RequestTimeout, StationAlarmError, StationState, StationView
+from ..master.types import (ParamRequestError, ParamValue, RequestTimeout, StationAlarmError, StationState,
+                            StationView)
 from .faults import FaultMethods
 from .metrics import ReportChecks
 from .wait import poll_until
@@ -57,6 +58,8 @@ def _decode(value: Any) -> Any:
     if isinstance(value, dict):
         if set(value) == {"bytes"}:
             return bytes.fromhex(value["bytes"])
+        if set(value) == {"param"}:
+            return ParamValue(**value["param"])
         return SimpleNamespace(**{k: _decode(v) for k, v in value.items()})
     if isinstance(value, list):
         return [_decode(v) for v in value]
@@ -67,6 +70,8 @@ def _raise(error: dict[str, Any]) -> None:
     kind, message = error.get("type"), error.get("message", "")
     if kind == "StationAlarmError":
         raise StationAlarmError(error.get("station", 0), error.get("code", 0), error.get("name", ""), message)
+    if kind == "ParamRequestError":
+        raise ParamRequestError(error.get("station", 0), error.get("name", ""), error.get("allowed", ""), message)
     if kind == "RequestTimeout":
         exc = RequestTimeout(error.get("station", 0), error.get("command", "?"), error.get("attempts", 0),
                              error.get("busy", 0))
@@ -256,12 +261,17 @@ class RunningNetwork(StationControls, ReportChecks, FaultMethods):
         return reply.get("result")
 
     # ------------------------------------------------------------------ the master API, blocking
-    def prm_rd(self, station: int, register: int, size: int = 2, *, timeout: float = 10.0) -> int | bytes:
-        """PRM_RD: an unsigned int for ``size=2``, else the bytes; raises the station's alarm
-        (:class:`~mlink_sim.master.StationAlarmError`: ``.code`` 0x94 A.94, ``.name`` …)."""
+    def prm_rd(self, station: int, register: int | str, size: int = 2, *,
+               timeout: float = 10.0) -> int | bytes | ParamValue:
+        """PRM_RD of a parameter by name (``"C1-01"``: a :class:`~mlink_sim.master.ParamValue` in its unit) or by
+        register (an unsigned int for ``size=2``, else the bytes); raises
+        :class:`~mlink_sim.master.ParamRequestError` for a name, value or register the station's table refuses,
+        and the station's alarm (:class:`~mlink_sim.master.StationAlarmError`: ``.code`` 0x94 A.94, ``.name`` …)."""
         return _decode(self._rpc("prm_rd", station, register, size, rpc_timeout=timeout + 5))
 
-    def prm_wr(self, station: int, register: int, value: int, size: int = 2, *, timeout: float = 10.0) -> None:
+    def prm_wr(self, station: int, register: int | str, value: int | float | str, size: int = 2, *,
+               timeout: float = 10.0) -> None:
+        """PRM_WR by name in engineering units (``prm_wr(0x21, "C1-01", 5.0)``) or by register with the raw int."""
         self._rpc("prm_wr", station, register, value, size, rpc_timeout=timeout + 5)
 
     def send_config(self, station: int, mode: int = 0, *, timeout: float = 10.0) -> None:

@@ -38,6 +38,7 @@ from ..aio.transport.udp import new_event_loop
 from ..config import ConfigError, load_config
 from ..faults import fault_from_fields
 from ..jsonable import to_jsonable
+from ..master.types import ParamValue
 from .faults import episode_dict
 
 log = get_logger("mlink_sim.testing.host")
@@ -46,7 +47,11 @@ _REQUESTS = frozenset({"prm_rd", "prm_wr", "config", "id_rd", "alm_rd", "alm_clr
 
 
 def encode_value(value: Any) -> Any:
-    """A result as JSON: bytes as ``{"bytes": hex}``, dataclasses and mappings as objects."""
+    """A result as JSON: bytes as ``{"bytes": hex}``, a parameter read by name as ``{"param": {…}}``, dataclasses
+    and mappings as objects."""
+    if isinstance(value, ParamValue):
+        return {"param": {"name": value.name, "value": float(value), "unit": value.unit, "raw": value.raw,
+                          "register": value.register, "text": value.text}}
     if isinstance(value, (bytes, bytearray)):
         return {"bytes": bytes(value).hex()}
     return to_jsonable(value)
@@ -54,7 +59,7 @@ def encode_value(value: Any) -> Any:
 
 def encode_error(exc: BaseException) -> dict[str, Any]:
     out: dict[str, Any] = {"type": type(exc).__name__, "message": str(exc)}
-    for name in ("station", "code", "name", "command", "attempts", "busy"):
+    for name in ("station", "code", "name", "command", "attempts", "busy", "allowed"):
         value = getattr(exc, name, None)
         if isinstance(value, (int, str)):
             out[name] = value

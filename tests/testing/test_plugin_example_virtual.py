@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from mlink_sim.master import StationAlarmError
+from mlink_sim.master import ParamRequestError, ParamValue, StationAlarmError
 
 C1_01 = 0x0200  # SI-T3 Tables 8/9: C1-01 acceleration time 1 at register 0200H (0.1 s)
 
@@ -24,6 +24,13 @@ def test_quickstart_on_virtual_time(mlink_network):
     with pytest.raises(StationAlarmError) as err:
         net.prm_rd(0x21, 0x7FFF)  # no such register: A.94 (SI-T3 Table 23)
     assert err.value.code == 0x94
+
+    accel = net.prm_rd(0x21, "C1-01")  # by name: the value in its unit (SI-T3 Tables 8/9, 0.1 s)
+    assert isinstance(accel, ParamValue) and accel == 2.0 and accel.unit == "s" and accel.raw == 20
+    assert accel.register == C1_01
+    with pytest.raises(ParamRequestError) as bad:
+        net.prm_wr(0x21, "C1-01", 7000.0)  # beyond C1-01's range: refused before anything is sent
+    assert bad.value.station == 0x21 and bad.value.name == "C1-01"
 
     m = net.metrics
     assert m.report["meta"]["clock"] == "virtual"
