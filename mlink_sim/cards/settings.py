@@ -18,12 +18,12 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
-from mlink_sim.params import ParamError, ParamTable, for_card
+from mlink_sim.params import ParamError, ParamTable, card_label, for_card
 
 __all__ = ["CardOptions", "CardSettings", "settings_for", "CARD_NAMES", "param_table"]
 
 #: Registry keys (``mlink_sim.cards.registry.CARDS``) and their labels in the manuals.
-CARD_NAMES: Mapping[str, str] = MappingProxyType({"si-t3": "SI-T3", "si-et3": "SI-ET3", "si-t-v7": "SI-T/V7"})
+CARD_NAMES: Mapping[str, str] = MappingProxyType({card: card_label(card) for card in ("si-t3", "si-et3", "si-t-v7")})
 
 
 @dataclass(frozen=True)

@@ -9,23 +9,15 @@ number keeps the raw API: PRM_RD returns the unsigned word, PRM_WR writes the in
 
 from __future__ import annotations
 
-from ..params import Param, ParamError, ParamTable, for_card
+from ..params import Param, ParamError, ParamTable, card_label, for_card
 from ..wire import Link
 from .plan import StationPlan
 from .types import ParamRequestError, ParamValue
 
-__all__ = ["card_label", "table_for", "read_target", "write_target", "value_of", "SIZES"]
+__all__ = ["table_for", "read_target", "write_target", "value_of", "SIZES"]
 
 #: PRM_RD / PRM_WR SIZE: 2, 4, 6 or 8 bytes (SI-T3 Tables 8/9, SI-ET3 "PRM_RD" / "PRM_WR").
 SIZES = (2, 4, 6, 8)
-
-
-_CARD_LABELS = {"sit3": "SI-T3", "siet3": "SI-ET3", "sitv7": "SI-T/V7"}
-
-
-def card_label(card: str) -> str:
-    """A card as its manual names it: "si-t-v7" -> "SI-T/V7"; a name it does not know as it is."""
-    return _CARD_LABELS.get("".join(ch for ch in card.lower() if ch.isalnum()), card)
 
 
 def _where(plan: StationPlan) -> str:

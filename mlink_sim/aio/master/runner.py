@@ -26,6 +26,7 @@ from typing import Any, Protocol, TypeVar
 
 from ..._log import get_logger
 from ...master import named
+from ...params import card_label
 from ...master import (
     AlarmCleared,
     AlarmRaised,
@@ -202,7 +203,7 @@ class Master:
         now = self._now()
         for sp in self.core.plan.stations:
             if sp.card:
-                note(now, card_note(sp.address, named.card_label(sp.card), f"({sp.link.label}, {sp.data_size}-byte)"))
+                note(now, card_note(sp.address, card_label(sp.card), f"({sp.link.label}, {sp.data_size}-byte)"))
 
     @property
     def local_address(self) -> tuple[str, int]:

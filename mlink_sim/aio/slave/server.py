@@ -32,6 +32,7 @@ from typing import Any
 
 
 from ..._log import get_logger
+from ...capture.text import card_note
 from ...jsonable import to_jsonable
 from ...metrics.stalls import WORKER_STALL_NS, StallLog
 from ...faults.plant import PlantFaults
@@ -195,6 +196,7 @@ class SlaveServer:
         except OSError:
             await self.close()
             raise
+        self._note_cards()
         self._writer = loop.create_task(self._write_loop())
         self._resolve_allow()
         self._tick_due = time.monotonic_ns() + _POLL_INTERVAL_NS
@@ -383,6 +385,16 @@ class SlaveServer:
             self._unresolved = list(allow.unresolved)
 
         fut.add_done_callback(done)
+
+    def _note_cards(self) -> None:
+        """Tell a capture which card each station is (``station 21H: card SI-T3 (MECHATROLINK-II, 32-byte)``), as the
+        master does: ``mlink-sim decode`` and the dissector name a MECHATROLINK-II station's parameters by it."""
+        if self._capture is None:
+            return
+        now = time.monotonic_ns()
+        for hs in self.stations:
+            st = hs.station
+            self._capture.note(now, card_note(st.address, st.label, f"({st.link.label}, {st.data_size}-byte)"))
 
     def _note_phases(self, now: int) -> None:
         for hs in self.stations:
