@@ -25,7 +25,8 @@ MANAGED = frozenset({Cmd.CONNECT, Cmd.SYNC_SET})
 def build(st: Slave, body: Any, sub: bool | None, deadline_ns: int) -> Request:
     """A request for *body* to station *st* (see :meth:`MasterCore.request`); raises TypeError / ValueError for a
     body that is not a command of the station's generation, a sub-command where the plan has none, or a field
-    that does not fit its layout (encoded once here, so that the cycle never meets a body it cannot send)."""
+    that does not fit its layout (encoded here once, as a check, so that the cycle never meets a body it cannot
+    send; the cycle encodes the frame itself when it sends it)."""
     codec, plan = st.codec, st.plan
     if sub is None:  # V7 §7.1 "PRM_RD can be used only in a sub-command": 32-byte SI-T/V7 PRM_RD/PRM_WR
         sub = (plan.is_v7 and plan.subcmd and type(body) in codec.sub_slot.by_class

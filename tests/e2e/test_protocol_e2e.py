@@ -13,20 +13,11 @@ from pathlib import Path
 import pytest
 
 from .conftest import run_cli
-from .udp_master import ACCEL, ACCEL_DEFAULT, UdpMaster, params_saved, snapshot, write_config
+from .udp_master import ACCEL, ACCEL_DEFAULT, UdpMaster, params_saved, snapshot, wait_for, write_config
 
 pytestmark = pytest.mark.e2e
 
 CARDS = ["si-t3", "si-t-v7", "si-et3"]
-
-
-def _wait(predicate, timeout: float = 5.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return False
 
 
 def _flood(port: int, master: UdpMaster, seconds: float = 0.5, sockets: int = 4) -> int:
@@ -79,7 +70,7 @@ def test_flood_then_foreign_writes_and_a_probe_change_nothing_and_the_master_get
         assert master.connect() is not None and master.run() is not None
         assert snapshot(ctl)["connected_source"] == master.source
         _flood(port, flooder)
-        assert _wait(lambda: snapshot(ctl)["connected_source"] is None), "the station never lost its master"
+        assert wait_for(lambda: snapshot(ctl)["connected_source"] is None), "the station never lost its master"
         _drained(ctl)
         reg = ACCEL[card]
         flooder.cycle += 100

@@ -6,27 +6,17 @@ from __future__ import annotations
 
 import json
 import socket
-import time
 from pathlib import Path
 
 import pytest
 
 from .conftest import MLINK, run_cli
-from .udp_master import ACCEL, ACCEL_DEFAULT, UdpMaster, params_saved, snapshot, write_config
+from .udp_master import ACCEL, ACCEL_DEFAULT, UdpMaster, params_saved, snapshot, wait_for, write_config
 
 pytestmark = pytest.mark.e2e
 
 CARDS = ["si-t3", "si-t-v7", "si-et3"]
 FLOOD = 20_000  #: datagrams of the flood, from a few local sockets
-
-
-def _wait(predicate, timeout: float = 10.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return False
 
 
 def _flood(port: int, stranger: UdpMaster, sockets: int = 4) -> None:
@@ -62,7 +52,8 @@ def test_a_flood_and_a_stranger_s_connect_after_the_loss_never_bind_a_station_th
         assert master.connect() is not None and master.run() is not None
         assert snapshot(ctl)["connected_source"] == master.source
         _flood(port, stranger)
-        assert _wait(lambda: snapshot(ctl)["connected_source"] is None), "the station never lost its master"
+        assert wait_for(lambda: snapshot(ctl)["connected_source"] is None, timeout=10.0), \
+            "the station never lost its master"
         stranger.cycle += 100
         connect = stranger.m.Connect(0x30, 0x80, 1, 0x20) if card == "si-et3" else stranger.m.Connect(0x21, 0x80, 1)
         assert stranger.send(connect, timeout=0.5) is None

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import socket
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +38,16 @@ params = {{ {params} }}
 options = {{ silence_tolerance_ns = {silence_tolerance_ms * MS} }}
 """)
     return path
+
+
+def wait_for(predicate: Callable[[], Any], timeout: float = 5.0) -> bool:
+    """Poll *predicate* every 20 ms until it is true (True) or *timeout* seconds pass (False)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return False
 
 
 def params_saved(state: Path) -> dict:
