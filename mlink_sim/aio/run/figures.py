@@ -112,7 +112,7 @@ class StationFigures:
     """One station's figures: the constants worked out once (names, the drive's frequency units and poles, what
     each SEL_MON code carries on its card), :meth:`of` the figures of one view."""
 
-    __slots__ = ("address", "key", "name", "card", "link", "_settings", "_hz_step", "_poles", "_monitors",
+    __slots__ = ("address", "key", "name", "card", "link", "settings", "_poles", "_monitors",
                  "_ml3", "_colors")
 
     def __init__(self, st: Any) -> None:
@@ -122,8 +122,8 @@ class StationFigures:
         self.name = f"{st.address:02X}H"
         self.card: str = st.card
         self.link: Link = st.link
-        self._settings = drive_settings(st)
-        self._poles = self._settings.pole_pairs
+        self.settings = drive_settings(st)  #: the drive's settings as the config's parameters make them
+        self._poles = self.settings.pole_pairs
         table = SEL_MON_TABLES.get(card_label(st.card), ("",) * 16)
         self._monitors = tuple(_MONITOR_FIGURE.get(name) for name in table)  #: SEL_MON code -> figure or None
         self._ml3 = st.link is Link.ML3  # the SI-ET3's link, and only its
@@ -132,7 +132,7 @@ class StationFigures:
 
     def _hz(self, raw: int) -> float:
         raw = _signed(raw)
-        hz = ref_to_hz(self._settings, abs(raw))
+        hz = ref_to_hz(self.settings, abs(raw))
         return round(-hz if raw < 0 else hz, 2)
 
     def of(self, view: Any, sel_mon: int = 0x41, now_ns: int | None = None,
