@@ -177,6 +177,10 @@ def test_network_and_report(network: Network) -> None:
     report = network.ask("report", timeout=10)["report"]
     assert report["meta"]["network"] == "quickstart" and set(report["station"]) == {"0x21", "0x22", "0x23"}
     assert report["rtt"]["count"] > 0
+    stop = run_cli("control", network.address, "stop", "21H")  # the same requests from mlink-sim control
+    assert stop.returncode == 0 and json.loads(stop.stdout)["station"]["address"] == "0x21", stop.stderr
+    assert json.loads(run_cli("control", network.address, "network").stdout)["name"] == "quickstart"
+    assert run_cli("control", network.address, "stop").returncode == 2
 
 
 def test_a_standalone_slaves_status(slave) -> None:
