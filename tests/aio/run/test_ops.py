@@ -76,3 +76,33 @@ def test_the_report_so_far_and_parameters_by_name():
         with pytest.raises(OpError) as err:
             _ask(net, table["param"], station="0x23", name="C1-01", value=-1)
         assert err.value.kind == "out_of_range"
+
+
+def test_a_drive_fault_is_the_alarm_and_alarm_clear_clears_it():
+    """A locked rotor trips oC (07H: SI-T3 Table 26; on the SI-ET3 read with ALM_RD, Tables 16/17); the SI-ET3's R/E
+    lights red (Table 4), the SI-T3's ERR stays off (Table 3: communication errors only); ALM_CLR (SI-T3 Table 15)
+    clears it once the fault has gone, and the events say so."""
+    from mlink_sim.faults import fault_from_fields
+
+    with VirtualNetwork("quickstart", seed=2) as net:
+        ops, table = _ops(net)
+        for station in ("0x21", "0x23"):
+            _ask(net, table["run"], station=station, direction="forward", speed_hz=40.0)
+        net.advance(3.0)
+        for address in (0x21, 0x23):
+            net.call(net.session.net.fault(address, fault_from_fields("lock-rotor", {"for": "0.5s"})))
+        net.advance(2.0)
+        tripped = {s["address"]: s for s in _ask(net, table["status"])["stations"]}
+        assert tripped["0x21"]["alarm"] == tripped["0x23"]["alarm"] == {"code": "07H", "name": "OC"}
+        assert tripped["0x21"]["leds"]["ERR"] == "off" and tripped["0x23"]["led_colors"]["R/E"] == "red"
+        for station in ("0x21", "0x23"):
+            _ask(net, table["stop"], station=station)
+        net.advance(1.0)
+        for station in ("0x21", "0x23"):
+            assert _ask(net, table["alarm-clear"], station=station)["station"]["alarm"] is None
+        net.advance(0.1)
+        status = _ask(net, table["status"])
+    assert all(s["alarm"] is None for s in status["stations"])
+    alarms = [(e["station"], e.get("cleared", False)) for e in status["events"] if e["kind"] == "alarm"]
+    assert alarms == [("0x21", False), ("0x23", False), ("0x21", True), ("0x23", True)]
+    assert [e["describe"] for e in status["events"] if e["kind"] == "action"][-2:] == ["alarm clear (ALM_CLR)"] * 2
