@@ -146,6 +146,8 @@ def test_alarm_clear_is_answered_once_the_station_did_it(network: Network) -> No
     ("run", {"station": "0x21", "direction": "sideways", "speed_hz": 5.0}, "bad_request"),
     ("run", {"station": "0x21", "direction": "forward", "speed_hz": "fast"}, "bad_request"),
     ("stop", {"station": "0x40"}, "unknown_station"),
+    ("fault", {"station": "0x40", "fault": "silence,for=1s"}, "unknown_station"),
+    ("fault", {"station": "0x21", "fault": "silence,for=forever"}, "bad_request"),
     ("stop", {}, "bad_request"),
     ("param", {"station": "0x21"}, "bad_request"),
     ("param", {"station": "0x21", "name": "C1-01", "value": [1]}, "bad_request"),

@@ -27,6 +27,7 @@ import asyncio
 from collections.abc import Sequence
 from typing import Any
 
+from ..._log import get_logger
 from ...master.named import read_target
 from ...master.types import MasterError, ParamRequestError, RequestTimeout, StationAlarmError
 from ...units import format_ns, parse_address
@@ -37,6 +38,8 @@ from .scenario import SpeedScale
 from .session import build_report
 
 __all__ = ["RunOps", "SNAPSHOT_EVERY_S", "STATIONS_PER_STEP"]
+
+log = get_logger("mlink_sim.control")
 
 SNAPSHOT_EVERY_S = 1.0  #: the slaves' snapshots (DC bus, the cards' LEDs) are refreshed this often at most
 #: a status of more stations is built this many at a time, the loop free in between: 62 stations' figures take
@@ -147,6 +150,8 @@ class RunOps:
         async def refresh() -> None:
             try:
                 await self.session.refresh_slave_stats()
+            except Exception as exc:  # noqa: BLE001 - the figures go without the snapshots this time
+                log.warning("slave_stats_unread", error=repr(exc))
             finally:
                 self._refreshing = None
 
