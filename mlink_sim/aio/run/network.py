@@ -245,7 +245,7 @@ async def _report(run: _Run, session: NetworkSession, scenario: Scenario) -> dic
     await session.close_masters()
     scenario.results[:] = scenario.results_naming_stalls(session.metrics.stalls)
     for c in scenario.results:
-        session.metrics.record_check(c.at_s, c.what, c.ok, c.detail, c.cause)
+        session.metrics.record_check(c.at_s, c.what, c.ok, c.detail, c.cause, station=c.station)
     interrupted = run.caught[0].name if run.caught else None
     return await session.report(assertions=run.opts.assertions, slave_stats=False, extra_meta={
         "interrupted": interrupted, "not_run": [s.describe for s in scenario.not_run()]})
