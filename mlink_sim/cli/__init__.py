@@ -29,6 +29,7 @@ SHORT_HELP = {
     "control": "Send a request to a running network, proxy or slave (impair, fault, stats …).",
     "wireshark": "Install or locate the Wireshark dissector of mlink-sim's datagrams.",
     "compose": "Write a docker-compose testbed: one container per station and a master.",
+    "report": "Write the HTML report of a finished run from its JSON report and trace.",
 }
 
 _EPILOG = """\b
@@ -65,11 +66,12 @@ def _register_optional() -> None:
     from .probe import probe_cmd
     from .proxy import control_cmd, proxy_cmd
     from .replay import replay_cmd
+    from .report import report_cmd
     from .slave import slave_cmd
     from .wireshark import wireshark_cmd
 
     for cmd in (slave_cmd, up_cmd, master_cmd, probe_cmd, validate_cmd, replay_cmd, wireshark_cmd, proxy_cmd,
-                control_cmd, examples_cmd):
+                control_cmd, examples_cmd, report_cmd):
         _add(cmd)
     try:
         from .compose import compose_cmd
