@@ -1,0 +1,212 @@
+"""The trace of a running network (``--trace FILE.csv``, ``--trace-interval``): a sampler in the master's process.
+
+Every *interval* of the run's clock (the wall clock, or simulated time with ``--clock virtual``) it writes one
+``sample`` row per station: the station figures (:mod:`mlink_sim.aio.run.figures`, the one definition the status
+and the web page share), flattened into the trace's columns (:data:`mlink_sim.metrics.trace.TRACE_COLUMNS`). Beside
+them it writes an ``action`` row for each thing done or seen: a timeline step, a control request that acts, an
+impairment's start and end, a fault's start and end and the station's recovery (from the masters' fault stages),
+each check as it is judged. ``t_s`` counts from the timeline's 0 s (the end of bring-up), as the checks' ``at``.
+
+Per sample and station: the figures' dict (the views, the monitors, the slave's last snapshot), a tuple of its
+values and one list append; everything that can be is done once (the column getters, each station's constants in
+``StationFigures``). Costlier parts run less often: the RTT percentiles are refreshed for a few stations once a
+second (``RttPercentiles``), the slaves' snapshots (DC bus, motor speed where the monitors do not carry them, the
+LEDs) every :data:`SNAPSHOT_EVERY_S` from the slave workers of ``mlink-sim up`` (read from the card cores at each
+sample on the virtual clock, where that is a read in this process). Rows go through the writer's bounded buffer,
+flushed about once a second and at the end (:class:`~mlink_sim.metrics.trace.TraceWriter`): memory stays bounded
+however long the run.
+
+Touches: the trace file (through the writer); reads the session's views, metrics, snapshots and fault stages.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+from collections.abc import Callable
+from operator import itemgetter
+from typing import Any
+
+from ..._log import get_logger
+from ...metrics.trace import TraceWriter
+from .figures import NetworkFigures, station_key
+
+__all__ = ["TraceSampler", "DEFAULT_INTERVAL_NS", "SNAPSHOT_EVERY_S", "ACTING_OPS"]
+
+log = get_logger("mlink_sim.trace")
+
+#: ``--trace-interval``'s default.
+DEFAULT_INTERVAL_NS = 10_000_000
+#: How often the slave workers' snapshots are asked for on the wall clock (``{"op": "stats"}``, paced by the worker).
+SNAPSHOT_EVERY_S = 0.2
+#: The rows are flushed, the RTT figures and the fault episodes looked at, about this often (the run's clock).
+FLUSH_EVERY_S = 1.0
+#: Control operations that change the run: each request is an ``action`` row (``control``); the others only read.
+ACTING_OPS = frozenset({"impair", "heal", "fault", "run", "stop", "alarm-clear", "param"})
+
+_HEAD = itemgetter("address", "name", "card", "link", "phase", "connected")
+_TAIL = itemgetter("running", "direction", "reference_hz", "output_hz", "output_current_a", "dc_bus_v",
+                   "motor_speed_rpm", "rtt_p50_us", "rtt_p99_us", "missed", "late")
+
+
+def _row(t: float, fig: dict[str, Any]) -> tuple[Any, ...]:
+    """One ``sample`` row of the station figures *fig* at *t* (the columns of ``metrics.trace.FIGURE_COLUMNS``)."""
+    alarm = fig["alarm"]
+    leds = fig["leds"]
+    return (t, "sample", *_HEAD(fig), "" if alarm is None else alarm["code"] or "",
+            "" if alarm is None else alarm["name"], "|".join(fig["warnings"]),
+            " ".join(f"{k}={v}" for k, v in leds.items()) if leds else "", *_TAIL(fig), "", "")
+
+
+class TraceSampler:
+    """Samples *session*'s stations into *writer* every *interval_ns* from :meth:`start` until :meth:`close`."""
+
+    def __init__(self, session: Any, writer: TraceWriter, interval_ns: int = DEFAULT_INTERVAL_NS) -> None:
+        self.session = session
+        self.writer = writer
+        self.interval_s = interval_ns / 1e9
+        self.figures = NetworkFigures(session.config)  # once: each station's constants (~1 ms a station)
+        self._addresses = list(self.figures.by_address)
+        self._t0 = 0.0
+        self._tasks: list[asyncio.Task[Any]] = []
+        self._settled: set[tuple[int, str]] = set()  # (id(episode), event) already written
+        #: the card cores are in this process (virtual clock): their snapshots are read at each sample
+        workers = session.net.workers
+        self._local = bool(workers) and all(hasattr(w, "activity") for w in workers.values())
+        self._remote = bool(workers) and not self._local  #: slave workers of ``mlink-sim up``
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self, t0: float) -> None:
+        """Sample from now on; *t0* is the loop time of the timeline's 0 s."""
+        self._t0 = t0
+        loop = asyncio.get_running_loop()
+        self._tasks.append(loop.create_task(self._sample_loop()))
+        if self._remote:
+            self._tasks.append(loop.create_task(self._snapshot_loop()))
+        self.session.fault_hooks.append(self._on_impairment)
+
+    async def close(self) -> None:
+        """Stop sampling, write the fault episodes settled so far and close the file."""
+        for task in self._tasks:
+            task.cancel()
+        await asyncio.gather(*self._tasks, return_exceptions=True)
+        self._tasks.clear()
+        if self._on_impairment in self.session.fault_hooks:
+            self.session.fault_hooks.remove(self._on_impairment)
+        self._episodes()
+        self.writer.close()
+        if self.writer.error:
+            self.session.problems.append(f"trace: {self.writer.error}")
+
+    def now_s(self) -> float:
+        """Now on the trace's time axis (s from the timeline's 0 s)."""
+        return asyncio.get_running_loop().time() - self._t0
+
+    # ------------------------------------------------------------------ actions
+    def action(self, event: str, detail: str = "", station: int | None = None) -> None:
+        """An ``action`` row now (*station* None: the whole network)."""
+        self.writer.action(self.now_s(), event, detail, "" if station is None else station_key(station))
+
+    def on_step(self, step: Any) -> None:
+        """A timeline action began (``Scenario.on_action``)."""
+        self.action("step", step.describe, None if step.station == "all" else step.station)
+
+    def on_check(self, result: Any) -> None:
+        """A check was judged (``Scenario.on_check``): at its own time, which may lie before now (a waiting check)."""
+        self.writer.action(result.at_s, "check", f"{'ok' if result.ok else 'FAIL'} {result.what}: {result.detail}",
+                           station_key(result.station))
+
+    def recording(self, ops: dict[str, Callable[[dict[str, Any]], dict[str, Any]]]
+                  ) -> dict[str, Callable[[dict[str, Any]], dict[str, Any]]]:
+        """The control endpoint's *ops*, those of :data:`ACTING_OPS` writing a ``control`` row when they succeed
+        (``param`` only when it writes a value)."""
+        def wrap(name: str, op: Callable[[dict[str, Any]], dict[str, Any]]) -> Callable[[dict[str, Any]], Any]:
+            def recorded(request: dict[str, Any]) -> Any:
+                reply = op(request)
+                if name != "param" or "value" in request:
+                    fields = {k: v for k, v in request.items() if k not in ("op", "token", "id")}
+                    self.action("control", f"{name} {json.dumps(fields, separators=(',', ':'))}",
+                                _station_of(request.get("station")))
+                return reply
+            return recorded
+
+        return {name: wrap(name, op) if name in ACTING_OPS else op for name, op in ops.items()}
+
+    def _on_impairment(self, event: str, station: int | None, group: str, describe: str) -> None:
+        self.action(f"impair-{event}", describe or group, station)
+
+    def _episodes(self) -> None:
+        """``fault`` / ``fault-end`` / ``recovered`` / ``unrecovered`` rows of the masters' fault episodes, each
+        once, at its own time."""
+        t0 = self._t0
+        for master in self.session.masters.values():
+            stage = master.faults
+            if stage is None:
+                continue
+            for ep in stage.log.episodes:
+                key = station_key(ep.station)
+                for event, ns, detail in (
+                        ("fault", ep.start_ns, ep.what), ("fault-end", ep.end_ns, ep.what),
+                        ("recovered", ep.recovered_ns,
+                         f"{ep.what}: healthy {(ep.recovery_ns or 0) / 1e6:.1f} ms after its end"),
+                        ("unrecovered", 0 if ep.gave_up else None, f"{ep.what}: not healthy again")):
+                    mark = (id(ep), event)
+                    if ns is None or mark in self._settled:
+                        continue
+                    self._settled.add(mark)
+                    at = (ep.end_ns or ep.start_ns) / 1e9 - t0 if event == "unrecovered" else ns / 1e9 - t0
+                    self.writer.action(at, event, detail, key)
+
+    # ------------------------------------------------------------------ sampling
+    async def _sample_loop(self) -> None:
+        loop = asyncio.get_running_loop()
+        session, figures, writer = self.session, self.figures, self.writer
+        net, metrics, addresses, station = session.net, session.metrics, self._addresses, figures.station
+        interval, t0 = self.interval_s, self._t0
+        snapshots = session.slave_snapshots
+        per_flush = max(1, round(FLUSH_EVERY_S / interval))
+        k = 0
+        figures.rtt.step(metrics)
+        while True:
+            if self._local:
+                await session.refresh_slave_stats()  # the card cores of this process: a read, no I/O
+            t = round(loop.time() - t0, 6)
+            try:
+                writer.add_many([_row(t, station(a, net, snapshots)) for a in addresses])
+            except Exception as exc:  # noqa: BLE001 - a figure that cannot be read ends the trace, not the run
+                session.problems.append(f"trace: sampling stopped at {t:g} s: {exc}")
+                log.warning("trace_stopped", error=str(exc))
+                return
+            k += 1
+            if k % per_flush == 0:
+                figures.rtt.step(metrics)
+                self._episodes()
+                writer.flush()
+            # the next instant on the schedule t0 + k·interval; instants the loop was too late for are skipped
+            due = t0 + k * interval
+            now = loop.time()
+            if now > due + interval:
+                k = math.floor((now - t0) / interval) + 1
+                due = t0 + k * interval
+            await asyncio.sleep(max(due - loop.time(), 0.0))
+
+    async def _snapshot_loop(self) -> None:
+        """The slave workers' snapshots, refreshed every :data:`SNAPSHOT_EVERY_S` (one query at a time)."""
+        while True:
+            try:
+                await self.session.refresh_slave_stats()
+            except OSError as exc:
+                log.info("trace_snapshot_failed", error=str(exc))
+            await asyncio.sleep(SNAPSHOT_EVERY_S)
+
+
+def _station_of(value: Any) -> int | None:
+    from ...units import parse_address
+
+    if value in (None, "all"):
+        return None
+    try:
+        return parse_address(value)
+    except (ValueError, TypeError):
+        return None
