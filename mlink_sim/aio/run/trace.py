@@ -12,7 +12,8 @@ values and one list append; everything that can be is done once (the column gett
 ``StationFigures``). Costlier parts run less often: the RTT percentiles are refreshed for a few stations once a
 second (``RttPercentiles``), the slaves' snapshots (DC bus, motor speed where the monitors do not carry them, the
 LEDs) every :data:`SNAPSHOT_EVERY_S` from the slave workers of ``mlink-sim up`` (read from the card cores at each
-sample on the virtual clock, where that is a read in this process). Rows go through the writer's bounded buffer,
+sample on the virtual clock, where that is a read in this process). The stations are sampled :data:`SLICE` at a
+time, the loop free between two slices. Rows go through the writer's bounded buffer,
 flushed about once a second and at the end (:class:`~mlink_sim.metrics.trace.TraceWriter`): memory stays bounded
 however long the run.
 
@@ -39,9 +40,11 @@ log = get_logger("mlink_sim.trace")
 #: ``--trace-interval``'s default.
 DEFAULT_INTERVAL_NS = 10_000_000
 #: How often the slave workers' snapshots are asked for on the wall clock (``{"op": "stats"}``, paced by the worker).
-SNAPSHOT_EVERY_S = 0.2
+SNAPSHOT_EVERY_S = 0.5
 #: The rows are flushed, the RTT figures and the fault episodes looked at, about this often (the run's clock).
 FLUSH_EVERY_S = 1.0
+#: Stations sampled in one go before the loop is let go (about 0.2 ms of figures).
+SLICE = 8
 #: Control operations that change the run: each request is an ``action`` row (``control``); the others only read.
 ACTING_OPS = frozenset({"impair", "heal", "fault", "run", "stop", "alarm-clear", "param"})
 
@@ -71,6 +74,9 @@ class TraceSampler:
         self._t0 = 0.0
         self._tasks: list[asyncio.Task[Any]] = []
         self._settled: set[tuple[int, str]] = set()  # (id(episode), event) already written
+        self._snapshots: dict[int, dict[str, Any]] = {}  # the card cores' figures (virtual clock)
+        self._impairments: dict[tuple[int | None, str], str] = {}  # (station, group) -> its description
+        self._last_impairment: tuple[Any, ...] = ()
         #: the card cores are in this process (virtual clock): their snapshots are read at each sample
         workers = session.net.workers
         self._local = bool(workers) and all(hasattr(w, "activity") for w in workers.values())
@@ -134,7 +140,17 @@ class TraceSampler:
         return {name: wrap(name, op) if name in ACTING_OPS else op for name, op in ops.items()}
 
     def _on_impairment(self, event: str, station: int | None, group: str, describe: str) -> None:
-        self.action(f"impair-{event}", describe or group, station)
+        """An impairment began or ended on *station*'s path: one row, though the layer calls once per direction."""
+        now = self.now_s()
+        key = (station, group)
+        if event == "start":
+            self._impairments[key] = describe or group
+        seen = (event, station, group, now)
+        if seen == self._last_impairment:
+            return
+        self._last_impairment = seen
+        self.writer.action(now, f"impair-{event}", self._impairments.get(key, group),
+                           "" if station is None else station_key(station))
 
     def _episodes(self) -> None:
         """``fault`` / ``fault-end`` / ``recovered`` / ``unrecovered`` rows of the masters' fault episodes, each
@@ -160,22 +176,30 @@ class TraceSampler:
 
     # ------------------------------------------------------------------ sampling
     async def _sample_loop(self) -> None:
+        """Sample every station each interval, :data:`SLICE` stations at a time with the loop free between two
+        slices (each row carries its slice's own time), so that a network of 62 stations never holds the cycle for
+        the whole ~1.6 ms its figures take (pure-Python cores, the 2-vCPU VM of docs/performance.md)."""
         loop = asyncio.get_running_loop()
         session, figures, writer = self.session, self.figures, self.writer
-        net, metrics, addresses, station = session.net, session.metrics, self._addresses, figures.station
+        net, metrics, station = session.net, session.metrics, figures.station
+        slices = [self._addresses[i:i + SLICE] for i in range(0, len(self._addresses), SLICE)]
         interval, t0 = self.interval_s, self._t0
-        snapshots = session.slave_snapshots
+        fabric = getattr(session, "fabric", None) if self._local else None
+        snapshots = self._snapshots if fabric is not None else session.slave_snapshots
         per_flush = max(1, round(FLUSH_EVERY_S / interval))
         k = 0
         figures.rtt.step(metrics)
         while True:
-            if self._local:
-                await session.refresh_slave_stats()  # the card cores of this process: a read, no I/O
-            t = round(loop.time() - t0, 6)
             try:
-                writer.add_many([_row(t, station(a, net, snapshots)) for a in addresses])
+                for i, part in enumerate(slices):
+                    if i:
+                        await asyncio.sleep(0)
+                    if fabric is not None:
+                        self._read_cores(fabric, part)
+                    t = round(loop.time() - t0, 6)
+                    writer.add_many([_row(t, station(a, net, snapshots)) for a in part])
             except Exception as exc:  # noqa: BLE001 - a figure that cannot be read ends the trace, not the run
-                session.problems.append(f"trace: sampling stopped at {t:g} s: {exc}")
+                session.problems.append(f"trace: sampling stopped at {loop.time() - t0:g} s: {exc}")
                 log.warning("trace_stopped", error=str(exc))
                 return
             k += 1
@@ -190,6 +214,22 @@ class TraceSampler:
                 k = math.floor((now - t0) / interval) + 1
                 due = t0 + k * interval
             await asyncio.sleep(max(due - loop.time(), 0.0))
+
+    def _read_cores(self, fabric: Any, addresses: list[int]) -> None:
+        """The virtual clock's card cores, read in this process: what the figures take from a slave's snapshot
+        (the drive's reference, DC bus, motor speed and fault, the LEDs, the warnings), without turning the whole
+        snapshot into JSON as a worker's ``stats`` does."""
+        out = self._snapshots
+        for address in addresses:
+            core = fabric.station(address)
+            if core is None:  # a killed station, until it powers up again
+                out.pop(address, None)
+                continue
+            snap = core.snapshot()
+            d = snap.drive
+            out[address] = {"drive": {"reference_hz": d.reference_hz, "dc_bus_v": d.dc_bus_v,
+                                      "motor_rpm": d.motor_rpm, "fault": d.fault},
+                            "leds": snap.leds, "led_colors": snap.led_colors, "warnings": list(snap.warnings)}
 
     async def _snapshot_loop(self) -> None:
         """The slave workers' snapshots, refreshed every :data:`SNAPSHOT_EVERY_S` (one query at a time)."""
