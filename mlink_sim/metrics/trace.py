@@ -32,9 +32,10 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import IO, Any
 
 __all__ = ["TRACE_COLUMNS", "FIGURE_COLUMNS", "PLOT_COLUMNS", "ACTION_EVENTS", "MAX_ACTIONS", "TraceWriter",
-           "Trace", "TraceError", "read_trace"]
+           "Trace", "StationTrace", "TraceError", "read_trace"]
 
-#: A station's figures in a ``sample`` row, in order (the contract's station figures, flattened; docs/report.md).
+#: A station's figures in a ``sample`` row, in order: the station figures of ``aio/run/figures.py`` flattened (the
+#: alarm as code and name; without the LED colours), docs/report.md.
 FIGURE_COLUMNS: tuple[str, ...] = (
     "address", "name", "card", "link", "phase", "connected", "alarm_code", "alarm_name", "warnings", "leds",
     "running", "direction", "reference_hz", "output_hz", "output_current_a", "dc_bus_v", "motor_speed_rpm",
