@@ -25,8 +25,10 @@ from ..._log import get_logger
 from ...config import Config, TimelineStep, format_ns
 from ...metrics import write_report
 from .control import ControlServer, impairment_ops
+from .events import RunLog
 from .expectations import timeline_warnings
 from .faults import fault_ops
+from .ops import RunOps
 from .scenario import CheckResult, Scenario, speed_scales
 from .session import EndpointError, NetworkSession, build_plans
 from .status import LiveStatus, StatusInfo, SummaryWriter, WorstP99, render_lines
@@ -135,6 +137,8 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
         await _bring_up(run, session, stopper)
         assert session.net is not None
         scenario = Scenario(config, session.net, scales)
+        if run.ops is not None:
+            run.ops.scenario = scenario
         capture = opts.capture
         if capture is not None:  # the timeline's actions (runs, writes, injected faults) as capture comments
             scenario.note = lambda text: capture.note(int(run.loop.time() * 1e9), text)
@@ -161,6 +165,7 @@ class _Run:
     caught: list[signal.Signals] = dataclasses.field(default_factory=list)  #: the signal that ended the run
     status: LiveStatus | None = None
     control: ControlServer | None = None
+    ops: RunOps | None = None  #: the control endpoint's operations on the network (``--control``)
     session: NetworkSession | None = None
     sampler: TraceSampler | None = None  #: the trace (--trace, --report-html)
     trace_file: Path | None = None  #: where it is written: --trace's file, or a temporary one for --report-html
@@ -209,11 +214,16 @@ async def _open(run: _Run, session_cls: type[NetworkSession], endpoints: dict[in
     if opts.trace_path is not None or opts.report_html is not None:
         run.sampler = _open_trace(run, session)
     if opts.control is not None:
-        ops = {**impairment_ops(session), **fault_ops(session)}
+        masters = list(session.masters.values())
+        log = RunLog(masters[0].now_ns)
+        for master in masters:
+            log.watch(master)
+        run.ops = RunOps(session, log, opts.assertions, in_thread=opts.clock != "virtual")
+        ops = run.ops.ops({**impairment_ops(session), **fault_ops(session)})
         run.control = ControlServer(run.sampler.recording(ops) if run.sampler else ops, token=opts.control_token)
         host, port = await run.control.start(*opts.control)
-        _notice(opts, "control", f"control: {host}:{port} (mlink-sim control {host}:{port} "
-                                 "impair|heal|faults|fault|recovery)")
+        _notice(opts, "control", f"control: {host}:{port} (mlink-sim status {host}:{port}; mlink-sim param get|set "
+                                 f"{host}:{port} …; mlink-sim control {host}:{port} OP)")
     return session
 
 
@@ -239,6 +249,8 @@ async def _timeline(run: _Run, session: NetworkSession, scenario: Scenario, stop
     if run.sampler is not None:
         run.sampler.start(t0)
         scenario.on_action, scenario.on_check = run.sampler.on_step, run.sampler.on_check
+    if run.ops is not None:
+        run.ops.log.start()
     tasks = [loop.create_task(scenario.run(t0, _sleep_until))]
     frame = _framer(config, session, scenario, t0, length)
     if status is not None:

@@ -23,6 +23,7 @@ Touches: the trace file (through the writer); reads the session's views, metrics
 from __future__ import annotations
 
 import asyncio
+import inspect
 import json
 import math
 from collections.abc import Callable
@@ -123,18 +124,28 @@ class TraceSampler:
         self.writer.action(result.at_s, "check", f"{'ok' if result.ok else 'FAIL'} {result.what}: {result.detail}",
                            station_key(result.station))
 
-    def recording(self, ops: dict[str, Callable[[dict[str, Any]], dict[str, Any]]]
-                  ) -> dict[str, Callable[[dict[str, Any]], dict[str, Any]]]:
+    def recording(self, ops: dict[str, Callable[[dict[str, Any]], Any]]) -> dict[str, Callable[[dict[str, Any]], Any]]:
         """The control endpoint's *ops*, those of :data:`ACTING_OPS` writing a ``control`` row when they succeed
-        (``param`` only when it writes a value)."""
-        def wrap(name: str, op: Callable[[dict[str, Any]], dict[str, Any]]) -> Callable[[dict[str, Any]], Any]:
-            def recorded(request: dict[str, Any]) -> Any:
-                reply = op(request)
+        (``param`` only when it writes a value); an operation answered later writes it once it is answered."""
+        def wrap(name: str, op: Callable[[dict[str, Any]], Any]) -> Callable[[dict[str, Any]], Any]:
+            def note(request: dict[str, Any]) -> None:
                 if name != "param" or "value" in request:
                     fields = {k: v for k, v in request.items() if k not in ("op", "token", "id")}
                     self.action("control", f"{name} {json.dumps(fields, separators=(',', ':'))}",
                                 _station_of(request.get("station")))
-                return reply
+
+            def recorded(request: dict[str, Any]) -> Any:
+                reply = op(request)
+                if not inspect.isawaitable(reply):
+                    note(request)
+                    return reply
+
+                async def answered() -> Any:  # an operation answered later (through the master): once it has
+                    out = await reply
+                    note(request)
+                    return out
+
+                return answered()
             return recorded
 
         return {name: wrap(name, op) if name in ACTING_OPS else op for name, op in ops.items()}
