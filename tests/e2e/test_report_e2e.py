@@ -166,7 +166,7 @@ def test_report_html_alone_records_a_temporary_trace_for_its_plots(tmp_path: Pat
 def test_a_real_clock_run_traces_control_requests_and_its_report_opens_offline(tmp_path: Path) -> None:
     cfg, trace, html, report = tmp_path / "line.toml", tmp_path / "t.csv", tmp_path / "r.html", tmp_path / "r.json"
     cfg.write_text(LINE)
-    up = subprocess.Popen([*MLINK, "up", str(cfg), "--no-status", "--duration", "3s", "--trace", str(trace),
+    up = subprocess.Popen([*MLINK, "up", str(cfg), "--no-status", "--duration", "6s", "--trace", str(trace),
                            "--report-html", str(html), "--report", str(report), "--control", "127.0.0.1:0"],
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert up.stderr is not None
@@ -180,18 +180,23 @@ def test_a_real_clock_run_traces_control_requests_and_its_report_opens_offline(t
     time.sleep(1.0)
     r = run_cli("control", control, "impair", "0x23", "delay=100us,for=300ms", "--timeout", "6")
     assert r.returncode == 0, r.stdout + r.stderr
+    r = run_cli("param", "set", control, "0x21", "C1-02=1.5")  # answered later, through the master
+    assert r.returncode == 0, r.stdout + r.stderr
+    r = run_cli("param", "get", control, "0x21", "C1-02")  # reads only: no row
+    assert r.returncode == 0, r.stdout + r.stderr
     out, err = up.communicate(timeout=90)
     assert_held(subprocess.CompletedProcess(up.args, up.returncode, out, err))
     header, by, actions = _samples(trace)
     assert tuple(header) == TRACE_COLUMNS and set(by) == {"0x21", "0x23"}
     for rows in by.values():  # every 10 ms on the wall clock, give or take the loop's lateness
-        assert 200 <= len(rows) <= 302
+        assert 400 <= len(rows) <= 602
         assert [float(x["output_hz"]) for x in rows if 1.0 <= float(x["t_s"]) <= 1.3] != []
         assert all(float(x["output_hz"]) == 30.0 for x in rows if 1.0 <= float(x["t_s"]) <= 1.3)
     events = {(a["event"], a["address"]) for a in actions}
     assert {("control", "0x23"), ("impair-start", "0x23"), ("impair-end", "0x23")} <= events
-    control_row = next(a for a in actions if a["event"] == "control")
-    assert control_row["detail"].startswith("impair ") and "delay=100us,for=300ms" in control_row["detail"]
+    impair, param = (a for a in actions if a["event"] == "control")
+    assert impair["detail"].startswith("impair ") and "delay=100us,for=300ms" in impair["detail"]
+    assert param["address"] == "0x21" and param["detail"].startswith("param ") and '"value":1.5' in param["detail"]
     _check_page(html.read_text(), json.loads(report.read_text()), stations=2)
 
 

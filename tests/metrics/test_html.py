@@ -114,3 +114,17 @@ def test_a_chart_without_values_says_so_and_ticks_cover_the_range() -> None:
     assert "no data" in line_chart("empty", [Series("x", [0.0, 1.0], [None, None])], y_label="Hz")
     assert nice_ticks(0, 31.5) == [0, 10, 20, 30, 40]
     assert nice_ticks(-3, 2) == [-3, -2, -1, 0, 1, 2]
+
+
+def test_host_stalls_are_plotted_by_process_and_listed() -> None:
+    report = _report([])
+    report["host"]["stall"].update(count=2, max=12_000_000, cycles=7, absorbed=6, lost=1)
+    report["host"]["stalls"] = [
+        {"process": "master", "at": 1_500_000_000, "duration": 12_000_000, "cycles": 6, "absorbed": True},
+        {"process": "worker:0", "at": 2_000_000_000, "duration": 4_000_000, "cycles": 1, "absorbed": False}]
+    text = render_html(report)
+    page = Page(text)
+    body = " ".join(page.text)
+    assert "2 stall(s), longest 12ms, 7 cycle(s) delayed: 6 run late, 1 lost" in body
+    assert page.tags.count("svg") == 2 and page.tags.count("circle") == 2  # the RTT histogram; the stalls
+    assert "worker:0" in body and "1.500 s" in body
