@@ -23,7 +23,7 @@ from ..units import format_ns
 from .svg import Mark, Series, Span, bar_chart, line_chart
 from .trace import Trace
 
-__all__ = ["render_html", "write_html", "verdict_of", "check_moments"]
+__all__ = ["render_html", "write_html", "verdict_of", "check_moments", "tail_folded"]
 
 _CSS = """
 body{font:14px/1.45 system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:0 auto;max-width:1100px;
@@ -176,11 +176,33 @@ def _assertions(report: Mapping[str, Any]) -> str:
     return "<h2>Assertions</h2>" + _table(("", "bound", "result"), rows)
 
 
+def tail_folded(bins: Sequence[Sequence[int]], keep: float = 0.999, room: int = 4) -> tuple[list[list[int]], str]:
+    """*bins* for the plot: when the bins past the one that holds *keep* of the values are more than *room*, they
+    are one last bar (a few outliers would squeeze the body of the histogram into a corner); and a sentence saying
+    so."""
+    total = sum(b[2] for b in bins)
+    running = 0
+    cumulative = []
+    for b in bins:
+        running += b[2]
+        cumulative.append(running)
+    i = next((k for k, c in enumerate(cumulative) if c >= keep * total), len(bins) - 1)
+    if len(bins) - 1 - i <= room:
+        return [list(b) for b in bins], ""
+    cut = i + 1 + room // 2
+    tail = bins[cut:]
+    n = sum(b[2] for b in tail)
+    return ([*(list(b) for b in bins[:cut]), [tail[0][0], tail[-1][1], n]],
+            f"The last bar holds the {n} round trip(s) from {format_ns(tail[0][0])} to {format_ns(tail[-1][1])}.")
+
+
 def _rtt(report: Mapping[str, Any]) -> str:
     rtt = report.get("rtt", {})
-    bins = rtt.get("bins") or []
+    bins, folded = tail_folded(rtt.get("bins") or [])
     chart = bar_chart(f"Round trips, all stations ({rtt.get('count', 0)})", bins, x_label="round trip",
                       label_of=format_ns)
+    if folded:
+        chart += f'<p class="muted">{_e(folded)}</p>'
     if not bins and rtt.get("count"):
         chart = '<p class="muted">This report has no histogram bins (written by an older version).</p>'
     rows = []

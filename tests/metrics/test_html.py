@@ -8,7 +8,7 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 from mlink_sim.metrics import NetworkMetrics
-from mlink_sim.metrics.html import check_moments, render_html, verdict_of
+from mlink_sim.metrics.html import check_moments, render_html, tail_folded, verdict_of
 from mlink_sim.metrics.svg import Series, line_chart, nice_ticks
 from mlink_sim.metrics.trace import FIGURE_COLUMNS, TraceWriter, read_trace
 
@@ -128,3 +128,12 @@ def test_host_stalls_are_plotted_by_process_and_listed() -> None:
     assert "2 stall(s), longest 12ms, 7 cycle(s) delayed: 6 run late, 1 lost" in body
     assert page.tags.count("svg") == 2 and page.tags.count("circle") == 2  # the RTT histogram; the stalls
     assert "worker:0" in body and "1.500 s" in body
+
+
+def test_a_few_outliers_are_one_last_bar_of_the_rtt_plot() -> None:
+    bins = [[100, 119, 500], [119, 141, 400], [141, 168, 99], *([lo, lo + 1, 0] for lo in range(200, 210)),
+            [300, 356, 1]]
+    shown, note = tail_folded(bins)
+    assert len(shown) == 6 and shown[-1] == [202, 356, 1] and sum(b[2] for b in shown) == 1000
+    assert note == "The last bar holds the 1 round trip(s) from 202ns to 356ns."
+    assert tail_folded(bins[:5]) == (bins[:5], "")  # nothing far out: every bin
