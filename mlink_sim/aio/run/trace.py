@@ -72,7 +72,8 @@ class TraceSampler:
         self.interval_s = interval_ns / 1e9
         self.figures = NetworkFigures(session.config)  # once: each station's constants (~1 ms a station)
         self._addresses = list(self.figures.by_address)
-        self._t0 = 0.0
+        self._t0: float | None = None  # the loop time of the timeline's 0 s, once it is known (start)
+        self._early: list[tuple[float, str, str, str]] = []  # actions before it: (loop time, event, detail, address)
         self._tasks: list[asyncio.Task[Any]] = []
         self._settled: set[tuple[int, str]] = set()  # (id(episode), event) already written
         self._snapshots: dict[int, dict[str, Any]] = {}  # the card cores' figures (virtual clock)
@@ -82,16 +83,20 @@ class TraceSampler:
         workers = session.net.workers
         self._local = bool(workers) and all(hasattr(w, "activity") for w in workers.values())
         self._remote = bool(workers) and not self._local  #: slave workers of ``mlink-sim up``
+        session.fault_hooks.append(self._on_impairment)
 
     # ------------------------------------------------------------------ life cycle
     def start(self, t0: float) -> None:
-        """Sample from now on; *t0* is the loop time of the timeline's 0 s."""
+        """Sample from now on; *t0* is the loop time of the timeline's 0 s. The actions taken before it (control
+        requests, faults during bring-up) are written now, at negative times."""
         self._t0 = t0
+        for at, event, detail, address in self._early:
+            self.writer.action(at - t0, event, detail, address)
+        self._early.clear()
         loop = asyncio.get_running_loop()
-        self._tasks.append(loop.create_task(self._sample_loop()))
+        self._tasks.append(loop.create_task(self._sample_loop(t0)))
         if self._remote:
             self._tasks.append(loop.create_task(self._snapshot_loop()))
-        self.session.fault_hooks.append(self._on_impairment)
 
     async def close(self) -> None:
         """Stop sampling, write the fault episodes settled so far and close the file."""
@@ -101,19 +106,21 @@ class TraceSampler:
         self._tasks.clear()
         if self._on_impairment in self.session.fault_hooks:
             self.session.fault_hooks.remove(self._on_impairment)
-        self._episodes()
+        if self._t0 is not None:
+            self._episodes(self._t0)
         self.writer.close()
         if self.writer.error:
             self.session.problems.append(f"trace: {self.writer.error}")
 
-    def now_s(self) -> float:
-        """Now on the trace's time axis (s from the timeline's 0 s)."""
-        return asyncio.get_running_loop().time() - self._t0
-
     # ------------------------------------------------------------------ actions
     def action(self, event: str, detail: str = "", station: int | None = None) -> None:
-        """An ``action`` row now (*station* None: the whole network)."""
-        self.writer.action(self.now_s(), event, detail, "" if station is None else station_key(station))
+        """An ``action`` row now (*station* None: the whole network); before :meth:`start`, kept until then."""
+        address = "" if station is None else station_key(station)
+        now = asyncio.get_running_loop().time()
+        if self._t0 is None:
+            self._early.append((now, event, detail, address))
+        else:
+            self.writer.action(now - self._t0, event, detail, address)
 
     def on_step(self, step: Any) -> None:
         """A timeline action began (``Scenario.on_action``)."""
@@ -152,21 +159,18 @@ class TraceSampler:
 
     def _on_impairment(self, event: str, station: int | None, group: str, describe: str) -> None:
         """An impairment began or ended on *station*'s path: one row, though the layer calls once per direction."""
-        now = self.now_s()
         key = (station, group)
         if event == "start":
             self._impairments[key] = describe or group
-        seen = (event, station, group, now)
+        seen = (event, station, group, asyncio.get_running_loop().time())
         if seen == self._last_impairment:
             return
         self._last_impairment = seen
-        self.writer.action(now, f"impair-{event}", self._impairments.get(key, group),
-                           "" if station is None else station_key(station))
+        self.action(f"impair-{event}", self._impairments.get(key, group), station)
 
-    def _episodes(self) -> None:
+    def _episodes(self, t0: float) -> None:
         """``fault`` / ``fault-end`` / ``recovered`` / ``unrecovered`` rows of the masters' fault episodes, each
-        once, at its own time."""
-        t0 = self._t0
+        once, at its own time (*t0*: the loop time of the timeline's 0 s)."""
         for master in self.session.masters.values():
             stage = master.faults
             if stage is None:
@@ -186,7 +190,7 @@ class TraceSampler:
                     self.writer.action(at, event, detail, key)
 
     # ------------------------------------------------------------------ sampling
-    async def _sample_loop(self) -> None:
+    async def _sample_loop(self, t0: float) -> None:
         """Sample every station each interval, :data:`SLICE` stations at a time with the loop free between two
         slices (each row carries its slice's own time), so that a network of 62 stations never holds the cycle for
         the whole ~1.6 ms its figures take (pure-Python cores, the 2-vCPU VM of docs/performance.md)."""
@@ -194,7 +198,7 @@ class TraceSampler:
         session, figures, writer = self.session, self.figures, self.writer
         net, metrics, station = session.net, session.metrics, figures.station
         slices = [self._addresses[i:i + SLICE] for i in range(0, len(self._addresses), SLICE)]
-        interval, t0 = self.interval_s, self._t0
+        interval = self.interval_s
         fabric = getattr(session, "fabric", None) if self._local else None
         snapshots = self._snapshots if fabric is not None else session.slave_snapshots
         per_flush = max(1, round(FLUSH_EVERY_S / interval))
@@ -216,7 +220,7 @@ class TraceSampler:
             k += 1
             if k % per_flush == 0:
                 figures.rtt.step(metrics)
-                self._episodes()
+                self._episodes(t0)
                 writer.flush()
             # the next instant on the schedule t0 + k·interval; instants the loop was too late for are skipped
             due = t0 + k * interval
