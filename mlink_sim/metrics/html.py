@@ -164,7 +164,7 @@ def _checks(report: Mapping[str, Any], trace: Trace | None) -> str:
         why = _e(c.get("detail", "")) + (f"<br><i>{_e(c['cause'])}</i>" if c.get("cause") else "")
         rows.append((ok, when, _e(c.get("what")), why, *figures))
     return ("<h2>Checks</h2>" + note + _table(("", "at", "check", "seen (and why)", *(h for _, h in _AT_CHECK)),
-                                               rows, numeric=range(7, 10)))
+                                               rows, numeric=range(7, 11)))
 
 
 def _assertions(report: Mapping[str, Any]) -> str:
