@@ -116,10 +116,10 @@ def _e(value: Any) -> str:
 
 def _table(head: Sequence[str], rows: Sequence[Sequence[str]], numeric: Sequence[int] = ()) -> str:
     """A table of already-escaped cells; columns *numeric* right-aligned."""
-    th = "".join(f"<th>{h}</th>" for h in head)
+    th = "".join(f"<th>{h}</th>" for h in head) if any(head) else ""
     trs = "".join("<tr>" + "".join(f'<td class="n">{c}</td>' if i in numeric else f"<td>{c}</td>"
                                    for i, c in enumerate(row)) + "</tr>" for row in rows)
-    return f'<div class="scroll"><table><tr>{th}</tr>{trs}</table></div>'
+    return f'<div class="scroll"><table>{f"<tr>{th}</tr>" if th else ""}{trs}</table></div>'
 
 
 def _ns(value: Any) -> str:
