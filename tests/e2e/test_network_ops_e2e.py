@@ -110,13 +110,15 @@ def test_status_prints_every_station_and_json_the_reply(network: Network) -> Non
 
 def test_status_watch_shows_it_again_until_interrupted(network: Network) -> None:
     proc = subprocess.Popen([*MLINK, "status", network.address, "--watch", "0.3s", "--json"], stdout=subprocess.PIPE,
-                            text=True)
-    time.sleep(2.5)
-    proc.terminate()
-    out, _ = proc.communicate(timeout=10)
-    replies = [json.loads(line) for line in out.splitlines()]
-    assert len(replies) >= 3 and all(r["ok"] for r in replies)
-    assert replies[-1]["elapsed_s"] > replies[0]["elapsed_s"]
+                            text=True, bufsize=1)
+    assert proc.stdout is not None
+    try:
+        replies = [json.loads(proc.stdout.readline()) for _ in range(3)]  # one line per reply, as they come
+    finally:
+        proc.terminate()
+        proc.communicate(timeout=10)
+    assert all(r["ok"] for r in replies) and replies[0]["elapsed_s"] < replies[1]["elapsed_s"] < replies[2]["elapsed_s"]
+    assert proc.returncode == 143
 
 
 def test_run_and_stop_steer_the_drive_and_the_figures_follow(network: Network) -> None:
@@ -175,6 +177,10 @@ def test_network_and_report(network: Network) -> None:
     report = network.ask("report", timeout=10)["report"]
     assert report["meta"]["network"] == "quickstart" and set(report["station"]) == {"0x21", "0x22", "0x23"}
     assert report["rtt"]["count"] > 0
+    stop = run_cli("control", network.address, "stop", "21H")  # the same requests from mlink-sim control
+    assert stop.returncode == 0 and json.loads(stop.stdout)["station"]["address"] == "0x21", stop.stderr
+    assert json.loads(run_cli("control", network.address, "network").stdout)["name"] == "quickstart"
+    assert run_cli("control", network.address, "stop").returncode == 2
 
 
 def test_a_standalone_slaves_status(slave) -> None:
