@@ -31,6 +31,7 @@ SHORT_HELP = {
     "status": "Print the status of a running network or slave (phase, Hz, current, LEDs, alarms); --watch.",
     "wireshark": "Install or locate the Wireshark dissector of mlink-sim's datagrams.",
     "compose": "Write a docker-compose testbed: one container per station and a master.",
+    "report": "Write the HTML report of a finished run from its JSON report and trace.",
 }
 
 _EPILOG = """\b
@@ -68,11 +69,12 @@ def _register_optional() -> None:
     from .proxy import control_cmd, proxy_cmd
     from .remote import param_cmd, status_cmd
     from .replay import replay_cmd
+    from .report import report_cmd
     from .slave import slave_cmd
     from .wireshark import wireshark_cmd
 
     for cmd in (slave_cmd, up_cmd, master_cmd, probe_cmd, validate_cmd, replay_cmd, wireshark_cmd, proxy_cmd,
-                control_cmd, param_cmd, status_cmd, examples_cmd):
+                control_cmd, param_cmd, status_cmd, examples_cmd, report_cmd):
         _add(cmd)
     try:
         from .compose import compose_cmd

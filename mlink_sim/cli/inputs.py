@@ -33,19 +33,19 @@ def load_checked(text: str) -> tuple[Config, Path]:
         raise InputError(str(exc)) from None
 
 
-def report_path(text: str | None) -> Path | None:
-    """``--report``: a file in a folder that exists and can be written, so the run does not end in an error
-    after its whole length."""
+def report_path(text: str | None, flag: str = "--report", example: str = "report.json") -> Path | None:
+    """``--report`` (or another output file *flag*: ``--trace``, ``--report-html``, ``--html``): a file in a
+    folder that exists and can be written, so the run does not end in an error after its whole length."""
     if text is None:
         return None
     p = Path(text)
     folder = p.parent
     if not folder.is_dir():
-        raise InputError(f"--report {text}: folder {str(folder)!r} does not exist; create it or write elsewhere")
+        raise InputError(f"{flag} {text}: folder {str(folder)!r} does not exist; create it or write elsewhere")
     if p.is_dir():
-        raise InputError(f"--report {text}: is a folder, expected a file name such as {p / 'report.json'}")
+        raise InputError(f"{flag} {text}: is a folder, expected a file name such as {p / example}")
     if not os.access(folder, os.W_OK | os.X_OK):
-        raise InputError(f"--report {text}: folder {str(folder)!r} is not writable")
+        raise InputError(f"{flag} {text}: folder {str(folder)!r} is not writable")
     return p
 
 

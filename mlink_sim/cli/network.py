@@ -48,6 +48,22 @@ def _duration(text: str | None, flag: str) -> int | None:
         raise InputError(f"{flag} {text!r}: {exc}") from None
 
 
+#: ``--trace-interval``'s bounds: at least a millisecond (the finest transmission cycle a trace follows is 1 ms), at
+#: most a minute.
+TRACE_INTERVAL_NS = (1_000_000, 60_000_000_000)
+
+
+def _trace_options(report_html: str | None, trace: str | None, interval: str) -> dict[str, Any]:
+    """``RunOptions``' ``report_html``, ``trace_path`` and ``trace_interval_ns``, checked before the run."""
+    ns = parse_duration_ns(interval, default_unit="ms")  # Duration("ms") checked the text
+    lo, hi = TRACE_INTERVAL_NS
+    if not lo <= ns <= hi:
+        raise InputError(f"--trace-interval {interval!r}: expected a duration from {format_ns(lo)} to "
+                         f"{format_ns(hi)}, e.g. 10ms")
+    return {"report_html": report_path(report_html, "--report-html", "report.html"),
+            "trace_path": report_path(trace, "--trace", "trace.csv"), "trace_interval_ns": ns}
+
+
 def _run(coro_factory: Any, clock: str = "real") -> int:
     if clock == "virtual":
         from ..aio.virtual.vclock import VirtualEventLoop
@@ -82,6 +98,15 @@ _common = [
                  help="Run the config's timeline; --no-timeline: bring the network up and run it (cyclic NOPs, no "
                       "checks) until Ctrl-C or --duration."),
     click.option("--report", "report", type=click.Path(dir_okay=False), help="Write the JSON report here."),
+    click.option("--report-html", "report_html", type=click.Path(dir_okay=False), metavar="FILE",
+                 help="Write the HTML report here: one self-contained file with the verdict, the checks, plots "
+                      "(docs/report.md)."),
+    click.option("--trace", "trace", type=click.Path(dir_okay=False), metavar="FILE.csv",
+                 help="Record each station's figures (Hz, current, DC bus, phase, alarm …) and the actions taken "
+                      "as CSV (docs/report.md)."),
+    click.option("--trace-interval", "trace_interval", default="10ms", show_default=True, type=Duration("ms"),
+                 help="How often --trace samples the stations (on the run's clock: simulated time with --clock "
+                      "virtual)."),
     click.option("--assert", "asserts", multiple=True, metavar="EXPR",
                  help="Check a bound at the end, e.g. 'rtt.p99 < 500us' (repeatable; docs/report.md)."),
     click.option("--status/--no-status", default=True, show_default=True,
@@ -160,9 +185,9 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random draw: impairments (docs/faults.md), the virtual clock's jitter.")
 @_with_common
 @_with_stalls
-def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, timeline, report, asserts, status,
-           bringup_timeout, include_bringup, control, control_token, control_token_file, log_json, log_level,
-           host_stalls, stall_bound, rt, capture_path, capture_max) -> None:
+def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, timeline, report, report_html, trace,
+           trace_interval, asserts, status, bringup_timeout, include_bringup, control, control_token,
+           control_token_file, log_json, log_level, host_stalls, stall_bound, rt, capture_path, capture_max) -> None:
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held.
 
     CONFIG is a TOML file or the name of a shipped example ('mlink-sim examples' lists them)."""
@@ -179,6 +204,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, time
         config_path=path,
         duration_ns=_duration(duration, "--duration"),
         report_path=report_path(report),
+        **_trace_options(report_html, trace, trace_interval),
         assertions=assertions(asserts, [st.address for st in config.station]),
         status=status,
         include_bringup=include_bringup,
@@ -213,9 +239,9 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, time
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the impairments' draws (docs/faults.md).")
 @_with_common
 @_with_stalls
-def master_cmd(config_path, endpoints, seed, duration, timeline, report, asserts, status, bringup_timeout,
-               include_bringup, control, control_token, control_token_file, log_json, log_level, host_stalls,
-               stall_bound, rt, capture_path, capture_max) -> None:
+def master_cmd(config_path, endpoints, seed, duration, timeline, report, report_html, trace, trace_interval, asserts,
+               status, bringup_timeout, include_bringup, control, control_token, control_token_file, log_json,
+               log_level, host_stalls, stall_bound, rt, capture_path, capture_max) -> None:
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
     config, path = load_checked(config_path)
@@ -238,6 +264,7 @@ def master_cmd(config_path, endpoints, seed, duration, timeline, report, asserts
         config_path=path,
         duration_ns=_duration(duration, "--duration"),
         report_path=report_path(report),
+        **_trace_options(report_html, trace, trace_interval),
         assertions=assertions(asserts, [st.address for st in config.station]),
         status=status,
         include_bringup=include_bringup,

@@ -31,6 +31,7 @@ is never lost; ``max`` then reads 10 s).
 
 from __future__ import annotations
 
+import math
 from array import array
 from collections.abc import Iterable
 
@@ -38,7 +39,7 @@ from hdrh.histogram import HdrHistogram
 
 from ..units import format_ns
 
-__all__ = ["LatencyHistogram", "LOWEST_NS", "HIGHEST_NS", "SIGNIFICANT_DIGITS", "SUMMARY_KEYS"]
+__all__ = ["LatencyHistogram", "LOWEST_NS", "HIGHEST_NS", "SIGNIFICANT_DIGITS", "SUMMARY_KEYS", "BINS_PER_OCTAVE"]
 
 LOWEST_NS = 1
 HIGHEST_NS = 10_000_000_000          # 10 s
@@ -47,6 +48,9 @@ SIGNIFICANT_DIGITS = 3
 #: Keys of :meth:`LatencyHistogram.summary`, in report order. All values are ns except ``count``.
 SUMMARY_KEYS: tuple[str, ...] = ("count", "min", "p50", "p90", "p99", "p99_9", "max", "mean")
 _PERCENTILES = {"p50": 50.0, "p90": 90.0, "p99": 99.0, "p99_9": 99.9}
+#: :meth:`LatencyHistogram.bins`: bins a factor 2^(1/4) (19 %) wide, so 50 µs .. 5 ms takes 27 bins.
+BINS_PER_OCTAVE = 4
+_FIRST_BIN = 3 * BINS_PER_OCTAVE  # its upper edge is 8 ns: from there on the rounded edges differ
 
 
 def _new_hdr() -> HdrHistogram:
@@ -84,6 +88,11 @@ def _index(ns: int) -> int:
 
 
 assert _index(HIGHEST_NS) < _COUNTS_LEN  # the largest value recorded has its page
+
+
+def _edge(k: int) -> int:
+    """The upper edge of bin *k* of :meth:`LatencyHistogram.bins`, in ns."""
+    return round(2 ** (k / BINS_PER_OCTAVE))
 
 
 def _median_of_index(index: int) -> int:
@@ -218,6 +227,26 @@ class LatencyHistogram:
         weighted = sum(c * _median_of_index(i) for i, c in nonzero)
         out["mean"] = round(weighted / total)
         return out
+
+    def bins(self) -> list[list[int]]:
+        """The histogram a person can look at: ``[[lower_ns, upper_ns, count], …]``, contiguous from the bin of the
+        smallest value to that of the largest (empty bins between them included), each bin a factor
+        2^(1/:data:`BINS_PER_OCTAVE`) wide: the edges are ``round(2 ** (k / 4))`` ns, so bins of two histograms line
+        up; the first bin, ``(0, 8]`` ns, holds everything below (where rounded edges would repeat). A value counts in the bin whose range ``(lower, upper]`` holds its HDR bucket's midpoint; ``[]`` when
+        empty."""
+        counts: dict[int, int] = {}
+        for i, c in self._nonzero():
+            mid = _median_of_index(i)
+            k = max(math.ceil(math.log2(mid) * BINS_PER_OCTAVE), _FIRST_BIN) if mid > 1 else _FIRST_BIN
+            while _edge(k) < mid:  # the float log may land one bin low at an edge
+                k += 1
+            while k > _FIRST_BIN and _edge(k - 1) >= mid:
+                k -= 1
+            counts[k] = counts.get(k, 0) + c
+        if not counts:
+            return []
+        return [[_edge(k - 1) if k > _FIRST_BIN else 0, _edge(k), counts.get(k, 0)]
+                for k in range(min(counts), max(counts) + 1)]
 
     # ------------------------------------------------------------------ combining and transport
     def merge(self, other: LatencyHistogram) -> None:

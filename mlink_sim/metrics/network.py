@@ -352,11 +352,14 @@ class NetworkMetrics:
             st[1] += st[3]
         st[2], st[3] = seconds, wall
 
-    def record_check(self, at: float, what: str, ok: bool, detail: str | None = None, cause: str | None = None
-                     ) -> None:
+    def record_check(self, at: float, what: str, ok: bool, detail: str | None = None, cause: str | None = None,
+                     station: int | None = None) -> None:
         """A timeline check's outcome, ``at`` seconds into the run; *cause*: what the drive was doing when a check
-        of it failed (docs/report.md, ``checks[].cause``)."""
+        of it failed (docs/report.md, ``checks[].cause``); *station*: the station it judged (``"0x21"`` in the
+        report, so the HTML report finds the station's figures at that moment in the trace)."""
         entry: dict[str, Any] = {"at": round(float(at), 6), "what": what, "ok": bool(ok)}
+        if station is not None:
+            entry["station"] = station_key(station)
         if detail:
             entry["detail"] = detail
         if cause:
@@ -404,6 +407,7 @@ class NetworkMetrics:
             return out
 
         cycles = self.cycles
+        rtt = self.rtt
         meta_out = dict(meta)
         meta_out.setdefault("cycle_ns", self.cycle_ns)
         meta_out.setdefault("stations", len(self.stations))
@@ -413,7 +417,7 @@ class NetworkMetrics:
             "cycles": cycles,
             "missed": self.missed,
             "missed_rate": self.missed / cycles if cycles else 0.0,
-            "rtt": hist(self.rtt),
+            "rtt": {**hist(rtt), "bins": rtt.bins()},
             "lateness": hist(self.lateness),
             **{name: total(name) for name in _MASTER_COUNTERS},
             **{name: total(name) for name in SLAVE_COUNTERS},

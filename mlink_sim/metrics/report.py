@@ -158,6 +158,10 @@ REPORT_SCHEMA: dict[str, Any] = {
                 "min": {**_TIME}, "p50": {**_TIME}, "p90": {**_TIME}, "p99": {**_TIME},
                 "p99_9": {**_TIME}, "max": {**_TIME}, "mean": {**_TIME},
                 "hdr": {"type": "string", "description": "HDR V2 compressed base64 histogram (optional)"},
+                "bins": {"type": "array", "description": "the histogram to look at (top-level rtt): [lower, upper, "
+                         "count] per bin, values in (lower, upper] ns, bins 2^(1/4) wide, contiguous",
+                         "items": {"type": "array", "prefixItems": [_TIME, _TIME, _COUNT], "minItems": 3,
+                                   "maxItems": 3}},
             },
         },
         "station": {
@@ -207,6 +211,8 @@ REPORT_SCHEMA: dict[str, Any] = {
                 "at": {"type": "number", "description": "seconds since the start of the run"},
                 "what": {"type": "string"},
                 "ok": {"type": "boolean"},
+                "station": {"type": "string", "pattern": "^0x[0-9a-f]{2}$",
+                            "description": "the station the check judged (the HTML report shows its figures then)"},
                 "detail": {"type": "string"},
                 "cause": {"type": "string", "description": "a failed check of the drive: what the drive model was "
                           "doing at that moment and why (docs/configuration.md, 'When a check fails')"},

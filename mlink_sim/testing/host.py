@@ -167,7 +167,7 @@ class Host:
         await self.session.refresh_slave_stats()
         await self.session.close_masters()
         for c in self.scenario.results if self.scenario else []:
-            self.session.metrics.record_check(c.at_s, c.what, c.ok, c.detail, c.cause)
+            self.session.metrics.record_check(c.at_s, c.what, c.ok, c.detail, c.cause, station=c.station)
         return await self.session.report(slave_stats=False)
 
 

@@ -205,3 +205,21 @@ def test_a_page_of_counts_gives_the_collector_nothing_to_traverse() -> None:
     assert len(pages) >= 4
     assert all(len(gc.get_referents(page)) <= 1 for page in pages)  # at most its type
     assert h.copy() == h and LatencyHistogram.merged([h, h]).count == 10
+
+
+def test_bins_count_every_value_in_contiguous_quarter_octave_bins():
+    h = LatencyHistogram()
+    values = [50_000 + 37 * k for k in range(5000)] + [4_900_000] + [3]
+    for v in values:
+        h.record(v)
+    bins = h.bins()
+    assert sum(c for _, _, c in bins) == len(values)
+    assert bins[0][:2] == [0, 8] and bins[0][2] == 1  # 3 ns: the first bin, (0, 8]
+    assert all(a[1] == b[0] for a, b in zip(bins, bins[1:]))  # contiguous, empty bins between included
+    assert all(round(hi / lo, 2) in (1.18, 1.19, 1.2) for lo, hi, _ in bins[1:] if lo >= 1000)  # 2^(1/4) wide
+    top = next(b for b in bins if b[0] < 4_900_000 <= b[1])
+    assert top[2] == 1 and bins[-1] is top
+    other = LatencyHistogram()
+    other.record(60_000)
+    assert other.bins()[0][:2] in [b[:2] for b in bins]  # the edges of two histograms line up
+    assert LatencyHistogram().bins() == []

@@ -269,7 +269,7 @@ class VirtualNetwork(StationControls):
                 self._scenario[1].cancel()
             self.call(session.close_masters())
             for c in self._scenario[0].results if self._scenario else []:
-                session.metrics.record_check(c.at_s, c.what, c.ok, c.detail)
+                session.metrics.record_check(c.at_s, c.what, c.ok, c.detail, station=c.station)
             self.final_report = build_report(*self.call(session.snapshot()))
             self.call(session.close())
         finally:

@@ -14,6 +14,7 @@ import dataclasses
 import os
 import signal
 import sys
+import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -32,6 +33,7 @@ from .scenario import CheckResult, Scenario, speed_scales
 from .session import EndpointError, NetworkSession, build_plans
 from .status import LiveStatus, StatusInfo, SummaryWriter, WorstP99, render_lines
 from .supervisor import resolve_workers
+from .trace import DEFAULT_INTERVAL_NS, TraceSampler
 from .virtual_session import VirtualSession
 
 __all__ = ["RunOptions", "RunOutcome", "Verdict", "SIGNAL_EXIT", "EndpointError", "run_up", "run_network",
@@ -68,6 +70,11 @@ class RunOptions:
     control: tuple[str, int] | None = None
     #: ``--control-token``: the token every control request must carry (None: none; aio/slave/token.py)
     control_token: str | None = None
+    #: ``--trace FILE.csv``: each station's figures every ``trace_interval_ns`` and the actions (aio/run/trace.py)
+    trace_path: Path | None = None
+    trace_interval_ns: int = DEFAULT_INTERVAL_NS
+    #: ``--report-html FILE``: the HTML report (metrics/html.py); without ``trace_path`` from a temporary trace
+    report_html: Path | None = None
 
 
 @dataclasses.dataclass
@@ -139,6 +146,9 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
             await _timeline(run, session, scenario, stopper, length)
         stopper.cancel()
         report = await _report(run, session, scenario)
+    except BaseException:
+        _drop_temporary_trace(run)
+        raise
     finally:
         await _close(run)
     return _verdict(run, report, scenario, session.problems, cut)
@@ -157,6 +167,8 @@ class _Run:
     control: ControlServer | None = None
     ops: RunOps | None = None  #: the control endpoint's operations on the network (``--control``)
     session: NetworkSession | None = None
+    sampler: TraceSampler | None = None  #: the trace (--trace, --report-html)
+    trace_file: Path | None = None  #: where it is written: --trace's file, or a temporary one for --report-html
 
     def catch_signals(self) -> None:
         """SIGINT / SIGTERM set :attr:`stop` (the first one is kept for the exit status); :func:`_close` removes
@@ -199,14 +211,16 @@ async def _open(run: _Run, session_cls: type[NetworkSession], endpoints: dict[in
     if session.realtime_granted:
         _notice(opts, "realtime", "realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items())
                 + " (--no-realtime: none of it)")
+    if opts.trace_path is not None or opts.report_html is not None:
+        run.sampler = _open_trace(run, session)
     if opts.control is not None:
         masters = list(session.masters.values())
         log = RunLog(masters[0].now_ns)
         for master in masters:
             log.watch(master)
         run.ops = RunOps(session, log, opts.assertions, in_thread=opts.clock != "virtual")
-        run.control = ControlServer(run.ops.ops({**impairment_ops(session), **fault_ops(session)}),
-                                    token=opts.control_token)
+        ops = run.ops.ops({**impairment_ops(session), **fault_ops(session)})
+        run.control = ControlServer(run.sampler.recording(ops) if run.sampler else ops, token=opts.control_token)
         host, port = await run.control.start(*opts.control)
         _notice(opts, "control", f"control: {host}:{port} (mlink-sim status {host}:{port}; mlink-sim param get|set "
                                  f"{host}:{port} …; mlink-sim control {host}:{port} OP)")
@@ -232,6 +246,9 @@ async def _timeline(run: _Run, session: NetworkSession, scenario: Scenario, stop
     if not opts.include_bringup:
         session.reset_metrics()  # the report is about the running network, not five processes starting
     t0 = loop.time()
+    if run.sampler is not None:
+        run.sampler.start(t0)
+        scenario.on_action, scenario.on_check = run.sampler.on_step, run.sampler.on_check
     if run.ops is not None:
         run.ops.log.start()
     tasks = [loop.create_task(scenario.run(t0, _sleep_until))]
@@ -253,15 +270,20 @@ async def _timeline(run: _Run, session: NetworkSession, scenario: Scenario, stop
 
 
 async def _report(run: _Run, session: NetworkSession, scenario: Scenario) -> dict[str, Any]:
-    """The slaves' last figures, DISCONNECT (while the slaves still run), the timeline's checks, the report."""
+    """The trace's last rows, the slaves' last figures, DISCONNECT (while the slaves still run), the timeline's
+    checks, the report."""
+    if run.sampler is not None:
+        await run.sampler.close()
     await session.refresh_slave_stats()
     await session.close_masters()
     scenario.results[:] = scenario.results_naming_stalls(session.metrics.stalls)
     for c in scenario.results:
-        session.metrics.record_check(c.at_s, c.what, c.ok, c.detail, c.cause)
+        session.metrics.record_check(c.at_s, c.what, c.ok, c.detail, c.cause, station=c.station)
     interrupted = run.caught[0].name if run.caught else None
+    trace = {} if run.opts.trace_path is None else {"trace": str(run.opts.trace_path),
+                                                     "trace_interval_ns": run.opts.trace_interval_ns}
     return await session.report(assertions=run.opts.assertions, slave_stats=False, extra_meta={
-        "interrupted": interrupted, "not_run": [s.describe for s in scenario.not_run()]})
+        "interrupted": interrupted, "not_run": [s.describe for s in scenario.not_run()], **trace})
 
 
 async def _close(run: _Run) -> None:
@@ -269,6 +291,8 @@ async def _close(run: _Run) -> None:
     (its workers), the capture, the signal handlers."""
     if run.control is not None:
         run.control.close()
+    if run.sampler is not None:
+        await run.sampler.close()
     if run.status is not None:
         run.status.stop()
     if run.session is not None:
@@ -287,9 +311,62 @@ def _verdict(run: _Run, report: dict[str, Any], scenario: Scenario, problems: li
     """Write the report, judge the run (:class:`Verdict`), print the summary."""
     if run.opts.report_path is not None:
         write_report(run.opts.report_path, report)
+    html_failed = _write_html(run, report)
     verdict = Verdict.of(scenario, report, problems, run.caught[0] if run.caught else None, cut)
     _print_summary(run.config, report, scenario, verdict, problems, run.opts)
-    return RunOutcome(verdict.exit_code, report, scenario.results, problems)
+    return RunOutcome(verdict.exit_code or int(html_failed), report, scenario.results, problems)
+
+
+def _open_trace(run: _Run, session: NetworkSession) -> TraceSampler | None:
+    """The trace's sampler, writing to ``--trace``'s file or, for ``--report-html`` alone, a temporary one (removed
+    once the page is written); None, with a notice, when the file cannot be opened."""
+    from ...metrics.trace import TraceWriter
+
+    opts = run.opts
+    path = opts.trace_path
+    if path is None:
+        fd, name = tempfile.mkstemp(prefix="mlink-sim-trace-", suffix=".csv")
+        os.close(fd)
+        path = Path(name)
+    run.trace_file = path
+    try:
+        writer = TraceWriter(path)
+    except OSError as exc:
+        _notice(opts, "trace_failed", f"mlink-sim: trace {path}: {exc.strerror or exc}; the run goes on without it")
+        session.problems.append(f"trace {path}: {exc.strerror or exc}")
+        return None
+    return TraceSampler(session, writer, opts.trace_interval_ns)
+
+
+def _write_html(run: _Run, report: dict[str, Any]) -> bool:
+    """``--report-html``: the page, with the run's trace read back (a temporary trace is removed after); True when
+    it could not be written (said on stderr; the run then fails)."""
+    from ...metrics.html import check_moments, write_html
+    from ...metrics.trace import TraceError, read_trace
+
+    opts, path = run.opts, run.opts.report_html
+    if path is None:
+        return False
+    trace = None
+    try:
+        if run.trace_file is not None and run.sampler is not None:
+            try:
+                trace = read_trace(run.trace_file, moments=check_moments(report))
+            except TraceError as exc:
+                _notice(opts, "trace_unreadable", f"mlink-sim: {exc}; the HTML report has no traces")
+        write_html(path, report, trace)
+    except OSError as exc:
+        _notice(opts, "report_html_failed", f"mlink-sim: --report-html {path}: {exc.strerror or exc}")
+        return True
+    finally:
+        _drop_temporary_trace(run)
+    return False
+
+
+def _drop_temporary_trace(run: _Run) -> None:
+    """Remove the temporary trace of ``--report-html`` without ``--trace``."""
+    if run.opts.trace_path is None and run.trace_file is not None:
+        run.trace_file.unlink(missing_ok=True)
 
 
 def _notice(opts: RunOptions, event: str, text: str) -> None:
@@ -422,4 +499,6 @@ def _print_summary(config: Config, report: dict[str, Any], scenario: Scenario, v
         print(f"virtual clock (seed {meta.get('seed')}): {wall['simulated_s']:.1f} s simulated in "
               f"{wall['elapsed_s']:.2f} s wall, {wall['speedup'] or 0:g}x real time", file=out)
     line = verdict.line(opts.duration_ns)
-    print(line + (f"; report: {opts.report_path}" if opts.report_path else ""), file=out, flush=True)
+    files = [f"{what}: {path}" for what, path in (("report", opts.report_path), ("trace", opts.trace_path),
+                                                  ("HTML report", opts.report_html)) if path is not None]
+    print("; ".join([line, *files]), file=out, flush=True)

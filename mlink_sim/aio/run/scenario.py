@@ -189,6 +189,9 @@ class Scenario:
         self._t0: float | None = None  # the loop time of "0 s", once run() began
         #: called with each action step's description as it begins (a capture's comments: ``--capture``)
         self.note: Callable[[str], None] | None = None
+        #: called with each action step as it begins, and with each check's result as it is judged (the trace)
+        self.on_action: Callable[[TimelineStep], None] | None = None
+        self.on_check: Callable[[CheckResult], None] | None = None
         self._waiting: set[asyncio.Task[None]] = set()  # checks that wait (recovered, refused), explanations
         self._values: dict[int, dict[str, int]] = {}  # values_of(), read when first needed
 
@@ -224,7 +227,7 @@ class Scenario:
             else:
                 for address in self._targets(step):
                     result = self.check(step, address)
-                    self.results.append(result)
+                    self._judged(result)
                     if not result.ok and step.expect in DRIVE_CHECKS:
                         self._spawn(self._explain(result, address))
         if self._waiting:
@@ -268,6 +271,8 @@ class Scenario:
         log.info("timeline_action", step=step.describe)
         if self.note is not None:
             self.note(f"timeline: {step.describe}")
+        if self.on_action is not None:
+            self.on_action(step)
         if step.do in _NETWORK_FAULTS:  # one fault on the path of every station, not one per station
             coros = [self._act_network(step)]
         else:
@@ -328,7 +333,12 @@ class Scenario:
             ok, detail = False, f"could not check: {exc}"
         result = CheckResult(step.at / 1e9, address, _label(step, address), ok, detail)
         log.info("timeline_check", what=result.what, ok=ok, detail=detail)
+        self._judged(result)
+
+    def _judged(self, result: CheckResult) -> None:
         self.results.append(result)
+        if self.on_check is not None:
+            self.on_check(result)
 
     def check(self, step: TimelineStep, address: int) -> CheckResult:
         view = self.net.view(address)

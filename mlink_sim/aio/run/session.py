@@ -19,7 +19,7 @@ import asyncio
 import socket
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Self
@@ -254,6 +254,9 @@ class NetworkSession:
         self._stopping = False
         self._closed = False
         self.seed = seed
+        #: called with (event "start"/"end", station or None, group, its description) as an impairment begins or
+        #: ends (the trace's action rows)
+        self.fault_hooks: list[Callable[[str, int | None, str, str], None]] = []
         #: network impairments between the masters and the stations (docs/faults.md); seeded by *seed*
         self.impairments = ImpairmentLayer(seed=seed, listener=self._on_fault)
 
@@ -284,6 +287,12 @@ class NetworkSession:
         log.info("fault_" + event, station=who, fault=group)
         if self.capture is not None:
             self.capture.note(now, f"{group} {'started' if event == 'start' else 'ended'}: {who}")
+        if self.fault_hooks:
+            describe = next((f["describe"] for f in self.impairments.faults()
+                             if f["group"] == group and f["station"] == ("all" if station is None else station)),
+                            "") if event == "start" else ""
+            for hook in self.fault_hooks:
+                hook(event, station, group, describe)
 
     # ------------------------------------------------------------------ life cycle
     @classmethod
