@@ -133,7 +133,7 @@ class RunOps:
         not_run = [s.describe for s in scenario.not_run()] if scenario is not None else []
         metrics, meta = await self.session.snapshot(extra_meta={"interrupted": None, "not_run": not_run})
         for c in scenario.results if scenario is not None else ():
-            metrics.record_check(c.at_s, c.what, c.ok, c.detail, c.cause)
+            metrics.record_check(c.at_s, c.what, c.ok, c.detail, c.cause, station=c.station)
         if not self.in_thread:
             return {"report": build_report(metrics, meta, self.assertions)}
         loop = asyncio.get_running_loop()
