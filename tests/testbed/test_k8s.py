@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 from mlink_sim.cli.compose import compose_cmd
 from mlink_sim.config import load_config
-from mlink_sim.testbed.k8s import HOSTNAME_KEY, k8s_manifests
+from mlink_sim.testbed.k8s import HOSTNAME_KEY, k8s_manifests, object_prefix
 
 from .test_stack import QUICKSTART, TWO_NODES, two_nodes
 
@@ -147,3 +147,14 @@ def test_cli_unwritable_directory_exits_2(tmp_path):
     blocker.write_text("x")
     r = CliRunner().invoke(compose_cmd, [str(QUICKSTART), "--k8s", "-o", str(blocker / "k8s")])
     assert r.exit_code == 2 and "cannot write" in r.output and "Traceback" not in r.output
+
+
+def test_object_names_follow_rfc_1123_whatever_the_network_is_called(validate):
+    assert object_prefix("Line 2_Press") == "line-2-press"
+    assert object_prefix("___") == "mlink"
+    assert len(object_prefix("x" * 100)) == 40
+    config = two_nodes().model_copy(update={"network": two_nodes().network.model_copy(update={"name": "My_Line"})})
+    manifests = k8s_manifests(config, TWO_NODES)
+    assert manifests["20-master.yaml"]["metadata"]["name"] == "my-line-master"
+    for manifest in manifests.values():
+        validate(manifest)
