@@ -3,7 +3,7 @@
 
 A leaf: it imports only the standard library, so that every package that reads such a value (the config, the
 network impairments, the faults, the metrics' assertions and reports, the command line) takes it from here and
-none of them has to import another for it.
+none of them has to import another for it. CPU lists (``"0,2"``: ``--cpus``, a station's ``cpus``) too.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
-__all__ = ["UNITS_NS", "parse_duration_ns", "format_ns", "parse_address"]
+__all__ = ["UNITS_NS", "parse_duration_ns", "format_ns", "parse_address", "parse_cpus", "format_cpus"]
 
 UNITS_NS = {"ns": 1, "us": 1_000, "µs": 1_000, "ms": 1_000_000, "s": 1_000_000_000, "min": 60_000_000_000}
 _DURATION = re.compile(r"^\s*([0-9]+(?:\.[0-9]*)?|\.[0-9]+)\s*(ns|us|µs|ms|s|min)\s*$")
@@ -63,3 +63,19 @@ def parse_address(value: Any) -> int:
     if not 0 <= address <= 0xFF:
         raise ValueError(f"station address {address:#x} does not fit in one byte")
     return address
+
+
+def parse_cpus(text: str) -> set[int]:
+    """``"0,2"`` → ``{0, 2}``; ``ValueError`` for anything else (an empty list, a negative or non-numeric CPU)."""
+    try:
+        cpus = {int(part) for part in text.split(",")}
+    except ValueError:
+        raise ValueError(f"expected CPU numbers separated by commas (e.g. 0,2), got {text!r}") from None
+    if any(c < 0 for c in cpus):
+        raise ValueError(f"CPU numbers are 0 or above, got {text!r}")
+    return cpus
+
+
+def format_cpus(cpus: set[int]) -> str:
+    """``{0, 2}`` → ``"0,2"``: the form :func:`parse_cpus` reads."""
+    return ",".join(map(str, sorted(cpus)))

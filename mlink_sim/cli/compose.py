@@ -1,9 +1,13 @@
-"""``mlink-sim compose CONFIG [-o compose.yaml]`` – write a docker-compose testbed for the network in CONFIG."""
+"""``mlink-sim compose CONFIG [-o compose.yaml]`` – write a docker-compose testbed for the network in CONFIG;
+``--stack`` a Docker Swarm stack, ``--k8s -o DIR`` Kubernetes manifests (docs/testbeds.md)."""
 
 from __future__ import annotations
 
+import re
 import shlex
 import sys
+from collections.abc import Mapping
+from typing import NoReturn
 
 import click
 
@@ -11,37 +15,38 @@ from .._files import write_atomically
 from ..config import ConfigError, load_config, resolve_config_path
 from .params import Duration
 from ..testbed.compose import DEFAULT_IMAGE, DEFAULT_REPORT_DIR, DEFAULT_STATION_PORT, render_compose
+from ..testbed.k8s import write_k8s
+from ..testbed.stack import DEFAULT_RTPRIO, render_stack
 
 __all__ = ["compose_cmd"]
 
 
-def _command_line(config_path: str, output: str | None, image: str, report_dir: str, port: int,
-                  duration: str | None, asserts: tuple[str, ...], start_interval: bool,
-                  realtime_budget: int | None) -> str:
-    """The command as a user would retype it (only non-default options), for the file's header."""
+def _command_line(config_path: str, output: str | None, options: Mapping[str, object]) -> str:
+    """The command as a user would retype it (only the options given), for the file's header."""
     args = ["mlink-sim", "compose", config_path]
     if output is not None:
         args += ["-o", output]
-    if image != DEFAULT_IMAGE:
-        args += ["--image", image]
-    if report_dir != DEFAULT_REPORT_DIR:
-        args += ["--report-dir", report_dir]
-    if port != DEFAULT_STATION_PORT:
-        args += ["--port", str(port)]
-    if duration is not None:
-        args += ["--duration", duration]
-    for expr in asserts:
-        args += ["--assert", expr]
-    if start_interval:
-        args.append("--start-interval")
-    if realtime_budget is not None:
-        args += ["--realtime-master", str(realtime_budget)]
+    for flag, value in options.items():
+        if value is None or value is False or value == ():
+            continue
+        if value is True:
+            args.append(flag)
+        elif isinstance(value, tuple):
+            for item in value:
+                args += [flag, str(item)]
+        else:
+            args += [flag, str(value)]
     return shlex.join(args)
+
+
+def _fail(message: str) -> NoReturn:
+    click.echo(f"mlink-sim compose: {message}", err=True)
+    sys.exit(2)
 
 
 @click.command("compose")
 @click.argument("config_path", metavar="CONFIG")
-@click.option("-o", "--output", help="Write the compose file here (atomically) instead of stdout.")
+@click.option("-o", "--output", help="Write the file here (atomically) instead of stdout; with --k8s: the directory.")
 @click.option("--image", default=DEFAULT_IMAGE, show_default=True, help="Image of every service.")
 @click.option("--report-dir", default=DEFAULT_REPORT_DIR, show_default=True,
               help="Directory of the report inside the master container (the 'reports' volume).")
@@ -57,35 +62,86 @@ def _command_line(config_path: str, output: str | None, image: str, report_dir: 
               help="Let the master's container use SCHED_FIFO: root in the container with SYS_NICE and IPC_LOCK, and "
                    "BUDGET_US µs per second of real-time budget (cpu_rt_runtime; 0 = none, for hosts without RT "
                    "group scheduling). The engine must grant it (docs/testbeds.md).")
+@click.option("--stack", is_flag=True,
+              help="Write a Docker Swarm stack instead (docker stack deploy): one service per slave worker on the "
+                   "hosts' network, placed by node label ([deploy], a station's node), the master as a service.")
+@click.option("--k8s", "k8s_dir", is_flag=True,
+              help="Write Kubernetes manifests into the directory -o DIR instead: a Deployment per slave worker, the "
+                   "master as a Job, hostNetwork, Guaranteed QoS with whole CPUs, the same placement.")
+@click.option("--rtprio", type=click.IntRange(0, 99), default=DEFAULT_RTPRIO, show_default=True,
+              help="With --stack: the services' rtprio ulimit (0: none, for an engine that cannot raise it).")
+@click.option("--no-master", "no_master", is_flag=True,
+              help="With --stack: no master service; the file's header gives the `mlink-sim master` command to run "
+                   "outside the swarm.")
+@click.option("--project", help="With --stack/--k8s: the name of the swarm config or the Kubernetes objects' prefix "
+                                "(default: from the network's name).")
 def compose_cmd(config_path: str, output: str | None, image: str, report_dir: str, port: int,
                 duration: str | None, asserts: tuple[str, ...], start_interval: bool,
-                realtime_budget: int | None) -> None:
+                realtime_budget: int | None, stack: bool, k8s_dir: bool, rtprio: int, no_master: bool,
+                project: str | None) -> None:
     """Write a docker-compose file for the network in CONFIG: one container per slave station, a master that
-    starts once every station answers its healthcheck, the config mounted read-only, the report on a volume."""
+    starts once every station answers its healthcheck, the config mounted read-only, the report on a volume.
+    --stack writes a Docker Swarm stack and --k8s Kubernetes manifests for one machine or several."""
+    if stack and k8s_dir:
+        _fail("--stack and --k8s: choose one")
+    for flag, given, needs in (("--start-interval", start_interval, not (stack or k8s_dir)),
+                               ("--realtime-master", realtime_budget is not None, not (stack or k8s_dir)),
+                               ("--rtprio", rtprio != DEFAULT_RTPRIO, stack), ("--no-master", no_master, stack),
+                               ("--project", project is not None, stack or k8s_dir)):
+        if given and not needs:
+            _fail(f"{flag} does not apply here (see mlink-sim compose --help)")
+    if k8s_dir and output in (None, "-"):
+        _fail("--k8s writes one file per object: give the directory with -o DIR")
+    if project is not None and not re.fullmatch(r"[a-z0-9]([a-z0-9-]{0,40}[a-z0-9])?", project):
+        _fail(f"--project {project!r}: lower-case letters, digits and '-', at most 42 characters")
     try:
         config = load_config(config_path)
     except ConfigError as exc:
-        click.echo(f"mlink-sim compose: {exc}", err=True)
-        sys.exit(2)
+        _fail(str(exc))
     config_path = str(resolve_config_path(config_path))  # a shipped example's name: the file it names
     if not report_dir.startswith("/"):
         raise click.BadParameter("must be an absolute path inside the container, e.g. /reports",
                                  param_hint="--report-dir")
-    text = render_compose(
-        config, config_path, output,
-        command=_command_line(config_path, output, image, report_dir, port, duration, asserts, start_interval,
-                              realtime_budget),
-        image=image, station_port=port, report_dir=report_dir, duration=duration, asserts=asserts,
-        start_interval=start_interval, realtime_budget_us=realtime_budget,
-    )  # fmt: skip
+    options = {"--image": None if image == DEFAULT_IMAGE else image,
+               "--report-dir": None if report_dir == DEFAULT_REPORT_DIR else report_dir,
+               "--port": None if port == DEFAULT_STATION_PORT else port, "--duration": duration,
+               "--assert": asserts, "--start-interval": start_interval, "--realtime-master": realtime_budget,
+               "--stack": stack, "--k8s": k8s_dir, "--rtprio": None if rtprio == DEFAULT_RTPRIO else rtprio,
+               "--no-master": no_master, "--project": project}  # fmt: skip
+    command = _command_line(config_path, output, options)
+    try:
+        if k8s_dir:
+            assert output is not None
+            written = write_k8s(config, config_path, output, command=command, project=project, image=image,
+                                station_port=port, duration=duration, asserts=asserts)
+            click.echo(f"wrote {len(written)} manifest(s) into {output} (kubectl apply -f {shlex.quote(output)})",
+                       err=True)
+            return
+        if stack:
+            text = render_stack(config, config_path, output, command=command, project=project, image=image,
+                                station_port=port, report_dir=report_dir, duration=duration, asserts=asserts,
+                                rtprio=rtprio, master_service=not no_master)
+        else:
+            text = render_compose(
+                config, config_path, output, command=command, image=image, station_port=port,
+                report_dir=report_dir, duration=duration, asserts=asserts, start_interval=start_interval,
+                realtime_budget_us=realtime_budget,
+            )  # fmt: skip
+    except ValueError as exc:  # e.g. the stations' ports beyond 65535
+        _fail(str(exc))
+    except OSError as exc:
+        _fail(f"cannot write {output}: {exc.strerror or exc}")
     if output is None or output == "-":
         click.echo(text, nl=False)
         return
     try:
         write_atomically(output, text, mode=0o644)
     except OSError as exc:
-        click.echo(f"mlink-sim compose: cannot write {output}: {exc.strerror or exc}", err=True)
-        sys.exit(2)
+        _fail(f"cannot write {output}: {exc.strerror or exc}")
+    if stack:
+        click.echo(f"wrote {output}: a swarm stack (docker stack deploy --resolve-image never -c "
+                   f"{shlex.quote(output)} NAME)", err=True)
+        return
     click.echo(f"wrote {output}: {len(config.station)} station service(s) + master "
                f"(docker compose -f {shlex.quote(output)} up --abort-on-container-exit --exit-code-from master)",
                err=True)

@@ -14,7 +14,7 @@ from ..config import Config, format_ns, parse_duration_ns
 from .capture_opts import capture_options, open_capture_or_exit
 from .inputs import InputError, assertions, check_stations, load_checked, report_path
 from .logs import configure_logging
-from .params import Duration, station_name
+from .params import CPUS, Duration, station_name
 from .control_token import endpoint_token
 from .proxy import parse_control
 from .slave import _parse_endpoints
@@ -138,7 +138,12 @@ def _with_common(fn: Any) -> Any:
 
 def _with_stalls(fn: Any) -> Any:
     """``--host-stalls`` / ``--stall-bound``: override the config's ``[network]`` policy (docs/timing.md);
-    ``--realtime``."""
+    ``--realtime``, ``--cpus``."""
+    fn = click.option("--cpus", type=CPUS, default=None,
+                      help="The CPUs to run on, e.g. 0,1 (sched_setaffinity), with or without --realtime: the "
+                           "master's clock on the highest, up's slave workers on the others (one CPU: all on it); "
+                           "stderr says what was granted. Default: the kernel's choice, or with --realtime the "
+                           "same plan of the CPUs this process may use, where the CPU wake-up latency is held.")(fn)
     fn = click.option("--realtime/--no-realtime", "rt", default=True, show_default=True,
                       help="SCHED_FIFO, locked memory, the master's clock on a CPU of its own, where permitted; "
                            "stderr says what was granted (docs/timing.md).")(fn)
@@ -187,7 +192,8 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
 @_with_stalls
 def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, timeline, report, report_html, trace,
            trace_interval, asserts, status, bringup_timeout, include_bringup, control, control_token,
-           control_token_file, log_json, log_level, host_stalls, stall_bound, rt, capture_path, capture_max) -> None:
+           control_token_file, log_json, log_level, host_stalls, stall_bound, rt, cpus, capture_path,
+           capture_max) -> None:
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held.
 
     CONFIG is a TOML file or the name of a shipped example ('mlink-sim examples' lists them)."""
@@ -214,6 +220,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, time
         state_dir=Path(state_dir) if state_dir else None,
         run_dir=Path(run_dir) if run_dir else None,
         realtime=rt,
+        cpus=cpus,
         clock=clock,
         seed=seed,
         control=parse_control(control),
@@ -241,7 +248,7 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, time
 @_with_stalls
 def master_cmd(config_path, endpoints, seed, duration, timeline, report, report_html, trace, trace_interval, asserts,
                status, bringup_timeout, include_bringup, control, control_token, control_token_file, log_json,
-               log_level, host_stalls, stall_bound, rt, capture_path, capture_max) -> None:
+               log_level, host_stalls, stall_bound, rt, cpus, capture_path, capture_max) -> None:
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
     config, path = load_checked(config_path)
@@ -271,6 +278,7 @@ def master_cmd(config_path, endpoints, seed, duration, timeline, report, report_
         log_json=log_json,
         bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
         realtime=rt,
+        cpus=cpus,
         seed=seed,
         control=parse_control(control),
         control_token=endpoint_token(parse_control(control), control_token, control_token_file),

@@ -5,7 +5,8 @@
 - ``DURATION`` a time with its unit, ``250us``, ``2ms``, ``30s`` (a bare number is seconds);
 - ``ML1|ML2|ML3`` a link, as the config's ``link`` field spells it, in any case;
 - ``CARD`` an option card, ``si-t3``, ``si-et3`` or ``si-t-v7`` as the config's ``card`` field spells it, in any
-  case.
+  case;
+- ``LIST`` a list of CPUs, ``0,2`` (``--cpus``).
 
 Output names a station the manuals' way, :func:`station_name` (``21H``)."""
 
@@ -15,9 +16,9 @@ from typing import Any
 
 import click
 
-from ..units import parse_address, parse_duration_ns
+from ..units import parse_address, parse_cpus, parse_duration_ns
 
-__all__ = ["ADDR", "LINK", "CARD", "Address", "Duration", "Seconds", "station_name", "CARDS", "LINKS"]
+__all__ = ["ADDR", "LINK", "CARD", "Address", "Duration", "Seconds", "CpuList", "CPUS", "station_name", "CARDS", "LINKS"]
 
 CARDS = ("si-t3", "si-et3", "si-t-v7")
 LINKS = ("ML1", "ML2", "ML3")
@@ -89,6 +90,23 @@ class Seconds(click.ParamType):
         return seconds
 
 
+class CpuList(click.ParamType):
+    """``LIST``: ``0,2`` -> ``{0, 2}`` (``--cpus``)."""
+
+    name = "LIST"
+
+    def get_metavar(self, param: Any, ctx: Any = None) -> str:
+        return "LIST"
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> set[int]:
+        if isinstance(value, set):
+            return value
+        try:
+            return parse_cpus(value)
+        except ValueError as exc:
+            self.fail(str(exc), param, ctx)
+
+
 class _Spelled(click.Choice):
     """A choice shown as the config spells it (click lower-cases the choices of a case-insensitive one)."""
 
@@ -98,6 +116,8 @@ class _Spelled(click.Choice):
 
 #: ``ADDR`` options and arguments
 ADDR = Address()
+#: ``--cpus`` options
+CPUS = CpuList()
 #: ``--link``: the config's spelling, any case; the value is ``ML1``, ``ML2`` or ``ML3``
 LINK = _Spelled(LINKS, case_sensitive=False)
 #: ``--card``: the config's spelling, any case; the value is lower case

@@ -74,10 +74,14 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
     settle_heap()  # before the first command arrives: no full collection of the start-up heap mid-cycle
     info = server.ready_info()
     if rt:  # docs/timing.md, "Real-time scheduling": below the master's clock, off its CPU
-        info["realtime"] = realtime.apply(realtime.WORKER_PRIORITY, cpus if cpus else realtime.cpu_plan()[1])
+        info["realtime"] = realtime.apply(realtime.WORKER_PRIORITY, cpus or realtime.cpu_plan()[1],
+                                          placed=cpus is not None)
         if not ready_json:
             print(f"mlink-sim slave: realtime: {info['realtime']} (--no-realtime: none of it)", file=sys.stderr,
                   flush=True)
+    elif cpus is not None:  # --cpus alone: placed, ordinary scheduling
+        info["cpus"] = realtime.pin(cpus)
+        print(f"mlink-sim slave: cpus: {info['cpus']}", file=sys.stderr, flush=True)
     if ready_json:
         print(json.dumps(info), flush=True)
     else:
@@ -169,8 +173,9 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
                    "default: a slave started alone does not know where its master runs, and a fixed real-time "
                    "priority could preempt a master on the same machine (up turns it on for its own workers).")
 @click.option("--cpus", "cpus_text", default=None, metavar="LIST",
-              help="With --realtime: the CPUs to run on, e.g. 0,2 (default: those this process may use but the "
-                   "highest, which the master of `mlink-sim up` takes).")
+              help="The CPUs to run on, e.g. 0,2 (sched_setaffinity), with or without --realtime; stderr says "
+                   "what was granted. Default: the kernel's choice; with --realtime, those this process may use "
+                   "but the highest (the master of `mlink-sim up` takes it) where the CPU wake-up latency is held.")
 @capture_options
 def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_path, only, endpoints, state_dir,
               control, allow_master, control_token, control_token_file, log_json, log_level, ready_json, host_stalls, stall_bound, shared_port, arrival_poll, rt,
@@ -196,8 +201,6 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
         raise InputError(f"--control {exc}") from None
     token = endpoint_token(control_addr, control_token, control_token_file)
     allow = _allow_list(allow_master)
-    if cpus_text is not None and not rt:
-        raise click.UsageError("--cpus places a worker that asks for --realtime; add --realtime")
     try:
         cpus = realtime.parse_cpus(cpus_text) if cpus_text is not None else None
     except ValueError as exc:

@@ -19,6 +19,7 @@ from ..impair.spec import Impairment, parse_probability
 from ..units import format_ns, parse_address, parse_duration_ns
 from ..wire.codes import CmdAlm, CommAlm, Link, M2Alarm
 from ..wire.drive_codes import SiT3DriveAlarm, SiT3DriveWarning, V7InverterAlarm, V7InverterWarning
+from .deploy import CpuList, DeployConfig, NodeName, check_deploy
 from .faults import FAULT_FIELDS, check_fault_step, check_fault_targets, fault_end_ns
 from .units import parse_arrival_poll
 
@@ -199,6 +200,8 @@ class StationConfig(BaseModel):
         "which takes PRM_RD/PRM_WR only as sub-commands (V7 §7.1), off otherwise",
     )
     endpoint: str | None = Field(None, description="HOST:PORT the slave listens on (port 0: chosen at start)")
+    node: NodeName | None = Field(None, description="compose --stack/--k8s: the node label value of its node")
+    cpus: CpuList | None = Field(None, description="compose --stack/--k8s: the CPUs its process pins itself to")
     params: dict[str, float | int | str] = Field(
         default_factory=dict, description="parameters in engineering units, e.g. {'C1-01' = 5.0, 'b1-02' = 3}"
     )
@@ -422,6 +425,7 @@ class Config(BaseModel):
     network: NetworkConfig
     station: list[StationConfig] = Field(min_length=1, description="the slave stations")
     timeline: list[TimelineStep] = Field(default_factory=list, description="timed actions and checks")
+    deploy: DeployConfig = Field(default_factory=DeployConfig, description="placement on a cluster (compose --stack/--k8s)")
 
     @model_validator(mode="after")
     def _consistency(self) -> Config:
@@ -466,6 +470,7 @@ class Config(BaseModel):
                 raise ValueError(f"timeline[{i}].station: {step.station:02X}H is not a station of this network")
             targets = self.station if step.station == "all" else [self.station[seen[step.station]]]
             check_fault_targets(step, targets, f"timeline[{i}]")
+        check_deploy(self)
         return self
 
     def station_by_address(self, address: int) -> StationConfig:

@@ -213,9 +213,17 @@ def _realtime_master(budget_us: int) -> dict[str, Any]:
     return extra
 
 
+class _PlainDumper(yaml.SafeDumper):
+    """YAML without anchors and aliases: a value used twice (a pod's labels) is written out twice."""
+
+    def ignore_aliases(self, data: Any) -> bool:
+        return True
+
+
 def to_yaml(document: dict[str, Any], header: str = "") -> str:
     """YAML in the document's own key order; *header* lines become ``#`` comments."""
-    body = yaml.safe_dump(document, sort_keys=False, default_flow_style=False, width=4096, allow_unicode=True)
+    body = yaml.dump(document, Dumper=_PlainDumper, sort_keys=False, default_flow_style=False, width=4096,
+                     allow_unicode=True)
     lines = [f"# {line}".rstrip() for line in header.splitlines()]
     return ("\n".join(lines) + "\n" if lines else "") + body
 

@@ -1,4 +1,4 @@
-"""scripts/docker-base, docker-build, docker-testbed: usage errors and a missing engine are one line and exit 2,
+"""scripts/docker-base, docker-build, docker-testbed, swarm-testbed: usage errors and a missing engine are one line and exit 2,
 before anything is built or started (the runs themselves need a Docker engine: .ci/run does them)."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-SCRIPTS = {name: ROOT / "scripts" / name for name in ("docker-base", "docker-build", "docker-testbed")}
+SCRIPTS = {name: ROOT / "scripts" / name for name in ("docker-base", "docker-build", "docker-testbed", "swarm-testbed")}
 
 
 @pytest.fixture
@@ -43,6 +43,10 @@ def test_help_exits_0(name):
         ("docker-testbed", ["configs/quickstart.toml", "--bogus"], "unknown option: --bogus"),
         ("docker-testbed", ["configs/quickstart.toml", "--timeout", "10m"], "whole seconds"),
         ("docker-testbed", ["no/such.toml"], "cannot read no/such.toml"),
+        ("swarm-testbed", [], "missing CONFIG"),
+        ("swarm-testbed", ["configs/quickstart.toml", "--bogus"], "unknown option: --bogus"),
+        ("swarm-testbed", ["configs/quickstart.toml", "--port", "high"], "whole numbers"),
+        ("swarm-testbed", ["no/such.toml"], "cannot read no/such.toml"),
         ("docker-build", ["--bogus"], "unknown option: --bogus"),
         ("docker-base", ["--bogus"], "unknown option: --bogus"),
     ],
@@ -55,8 +59,18 @@ def test_usage_errors_exit_2_with_one_line(name, args, message):
 
 
 @pytest.mark.parametrize(("name", "args"), [("docker-testbed", ["configs/quickstart.toml"]), ("docker-build", []),
-                                            ("docker-base", [])])  # fmt: skip
+                                            ("docker-base", []), ("swarm-testbed", ["configs/quickstart.toml"])])  # fmt: skip
 def test_without_an_engine_exit_2_and_say_so(no_engine, name, args):
     result = _run(name, *args, env=no_engine)
     assert result.returncode == 2, result.stderr
     assert "no Docker engine answers" in result.stderr
+
+
+def test_swarm_testbed_refuses_a_config_placed_on_other_nodes(tmp_path):
+    """One machine: a config whose stations or master name a node is for a real swarm (docs/testbeds.md)."""
+    placed = tmp_path / "placed.toml"
+    placed.write_text((ROOT / "configs" / "quickstart.toml").read_text(encoding="utf-8")
+                      + '\n[deploy]\nmaster = { node = "plc" }\n', encoding="utf-8")
+    result = _run("swarm-testbed", str(placed))
+    assert result.returncode == 2, result.stderr
+    assert "places its processes on node(s) plc" in result.stderr and len(result.stderr.strip().splitlines()) == 1

@@ -65,6 +65,9 @@ class RunOptions:
     clock: str = "real"
     seed: int = 0  #: every random draw: the impairments' (docs/faults.md), the virtual network model's jitter
     realtime: bool = False  #: SCHED_FIFO, locked memory, the clock on a CPU of its own, where permitted (CLI: on)
+    #: ``--cpus``: the CPUs of the network (the master on the highest, the workers on the rest), placed with or
+    #: without *realtime*; None: the kernel's choice, or the real-time plan
+    cpus: set[int] | None = None
     capture: Any = None  #: a started CaptureWriter recording every datagram of the masters (``--capture``)
     #: ``--control HOST:PORT``: answer control requests (impair, heal, faults) while running (aio/run/control.py)
     control: tuple[str, int] | None = None
@@ -207,10 +210,11 @@ async def _open(run: _Run, session_cls: type[NetworkSession], endpoints: dict[in
     session = run.session = await session_cls.open(
         run.config, opts.config_path, endpoints=endpoints, workers=workers, state_dir=opts.state_dir,
         run_dir=opts.run_dir, restart_slaves=opts.restart_slaves, realtime=opts.realtime, capture=opts.capture,
-        seed=opts.seed)
+        seed=opts.seed, cpus=opts.cpus)
     if session.realtime_granted:
-        _notice(opts, "realtime", "realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items())
-                + " (--no-realtime: none of it)")
+        granted = "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items())
+        _notice(opts, "realtime", f"realtime: {granted} (--no-realtime: none of it)" if opts.realtime
+                else f"cpus: {granted}")
     if opts.trace_path is not None or opts.report_html is not None:
         run.sampler = _open_trace(run, session)
     if opts.control is not None:

@@ -31,7 +31,7 @@ from ...metrics.stalls import StallLog
 from ...wire import Link
 from ..master.runner import Master
 from ..timing.heap import settle_heap
-from ..timing.realtime import MASTER_PRIORITY, apply
+from ..timing.realtime import MASTER_PRIORITY, apply, pin
 from ..timing.realtime import cpu_plan as rt_cpu_plan
 from ..timing.realtime import format_cpus as rt_format_cpus
 from ..timing.ticker import CycleTimer
@@ -216,7 +216,7 @@ class NetworkSession:
     def __init__(self, config: Config, config_path: Path, *, workers: int | None = None,
                  state_dir: Path | None = None, run_dir: Path | None = None, restart_slaves: bool = True,
                  problems: list[str] | None = None, realtime: bool = False, capture: Any = None,
-                 seed: int = 0) -> None:
+                 seed: int = 0, cpus: set[int] | None = None) -> None:
         from ...impair import ImpairmentLayer
         from ...metrics import NetworkMetrics
 
@@ -244,9 +244,10 @@ class NetworkSession:
         self.run_dir = run_dir
         self._restart = restart_slaves
         self.realtime = realtime  #: SCHED_FIFO / mlockall / CPUs where permitted (aio/timing/realtime.py)
-        #: (master CPUs, worker CPUs), planned once, before the master takes its CPU: a worker restarted later
-        #: would otherwise inherit the master's one CPU and plan itself onto it.
-        self.cpus = rt_cpu_plan() if realtime else None
+        #: (master CPUs, worker CPUs), planned once, before the master takes its CPU, of the CPUs the user chose
+        #: (``--cpus``, placed with or without real time) or, with *realtime*, of those this process may use
+        self.cpus = rt_cpu_plan(cpus) if realtime or cpus else None
+        self._placed = cpus or None  #: the CPUs the user chose: all of them the master's when it runs alone
         self.realtime_granted: dict[str, str] = {}  #: process -> what it was granted
         self._restart_tasks: set[asyncio.Task[Any]] = set()
         #: each link's master socket address, held from before the workers start until its master binds it
@@ -329,8 +330,8 @@ class NetworkSession:
         if errors:
             raise errors[0]
         for w in self.worker_list:
-            if w.ready and "realtime" in w.ready:
-                self.realtime_granted[f"worker:{w.spec.index}"] = w.ready["realtime"]
+            if w.ready and ("realtime" in w.ready or "cpus" in w.ready):
+                self.realtime_granted[f"worker:{w.spec.index}"] = w.ready.get("realtime") or w.ready["cpus"]
         return {
             st["address"]: (_local_target(st["host"]), st["port"])
             for w in self.worker_list for st in (w.ready or {}).get("stations", [])
@@ -367,9 +368,11 @@ class NetworkSession:
         return out
 
     def _realtime_flags(self) -> list[str]:
-        """``mlink-sim slave``'s flags for this session's real-time requests: none without ``--realtime``, else
-        ``--realtime --cpus LIST`` (the workers' CPUs of :attr:`cpus`)."""
-        return [] if self.cpus is None else ["--realtime", "--cpus", rt_format_cpus(self.cpus[1])]
+        """``mlink-sim slave``'s flags for this session's real-time requests and CPUs: ``--realtime`` (a worker
+        then plans its CPUs as this session did, from the CPUs it is started with: :func:`unplace_child`), and
+        ``--cpus LIST`` (the workers' CPUs of :attr:`cpus`) when the user chose the CPUs."""
+        return ((["--realtime"] if self.realtime else [])
+                + (["--cpus", rt_format_cpus(self.cpus[1])] if self._placed and self.cpus else []))
 
     def _on_worker_exit(self, worker: Worker, code: int) -> None:
         names = ",".join(f"{a:02X}H" for a in worker.spec.addresses)
@@ -408,7 +411,9 @@ class NetworkSession:
 
         host_info()  # its first call reads the interpreter binary (~17 ms): not in the middle of a run
         if self.cpus is not None:
-            self.realtime_granted["master"] = apply(MASTER_PRIORITY, self.cpus[0])
+            mine = self._placed if self._placed and not self.worker_list else self.cpus[0]
+            self.realtime_granted["master"] = (apply(MASTER_PRIORITY, mine, placed=bool(self._placed))
+                                               if self.realtime else pin(mine))
         settle_heap()  # before the clock starts: no full collection of the start-up heap mid-cycle
         clock = None
         catch_up = self.config.network.absorb_ns

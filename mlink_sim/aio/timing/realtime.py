@@ -19,7 +19,8 @@ Four requests, each granted or refused on its own and reported in one line:
   and the worker it wakes on one CPU (docs/performance.md).
   The plan is made from the CPUs the process had before it first placed itself (:func:`allowed_cpus`): a session
   opened after the master took its CPU would otherwise put its workers on that same CPU, under the master's
-  higher priority.
+  higher priority. CPUs the user chose (``--cpus``) are taken with or without the rest (:func:`pin`): a swarm
+  service or a process started by hand has no cpuset of its own, so it places itself.
 
 Besides, under ordinary scheduling too: :func:`yield_after_send`, the one ``os.sched_yield`` a process makes right
 after it sent what wakes another process.
@@ -38,8 +39,10 @@ import os
 import struct
 from collections.abc import Callable
 
+from ...units import format_cpus, parse_cpus
+
 __all__ = ["yield_after_send", "MASTER_PRIORITY", "WORKER_PRIORITY", "PM_QOS_PATH", "allowed_cpus", "cpu_plan", "format_cpus",
-           "parse_cpus", "apply", "withdraw", "unplace_child", "hold_wakeup_latency", "wakeup_latency_held",
+           "parse_cpus", "apply", "pin", "withdraw", "unplace_child", "hold_wakeup_latency", "wakeup_latency_held",
            "wakeup_latency_limit", "release_wakeup_latency"]
 
 #: SCHED_FIFO priorities (1–99): the clock above the workers, both below the kernel's own threads (50 is the
@@ -93,28 +96,12 @@ def allowed_cpus() -> set[int]:
     return set(_allowed) if _allowed is not None else os.sched_getaffinity(0)
 
 
-def format_cpus(cpus: set[int]) -> str:
-    """``{0, 2}`` → ``"0,2"``: the form of ``mlink-sim slave --cpus`` (:func:`parse_cpus`)."""
-    return ",".join(map(str, sorted(cpus)))
-
-
-def parse_cpus(text: str) -> set[int]:
-    """``"0,2"`` → ``{0, 2}``; ``ValueError`` for anything else (an empty list, a negative or non-numeric CPU)."""
-    try:
-        cpus = {int(part) for part in text.split(",")}
-    except ValueError:
-        raise ValueError(f"expected CPU numbers separated by commas (e.g. 0,2), got {text!r}") from None
-    if any(c < 0 for c in cpus):
-        raise ValueError(f"CPU numbers are 0 or above, got {text!r}")
-    return cpus
-
-
-def apply(priority: int, cpus: set[int] | None = None) -> str:
-    """Ask for SCHED_FIFO *priority*, locked memory, a CPU wake-up latency of 0 µs and, if that is held, the
-    *cpus*; return what was granted, e.g. ``"SCHED_FIFO 40, memory locked, CPU wake-up latency 0 µs, CPU 1"``,
-    ``"SCHED_FIFO refused (Operation not permitted), …"`` or ``"…, CPU wake-up latency refused (Permission
-    denied), CPUs left to the kernel (no wake-up latency held)"`` (see the module docstring)."""
-    global _allowed
+def apply(priority: int, cpus: set[int] | None = None, *, placed: bool = False) -> str:
+    """Ask for SCHED_FIFO *priority*, locked memory, a CPU wake-up latency of 0 µs and, if that is held or the
+    user chose them (*placed*, ``--cpus``), the *cpus*; return what was granted, e.g. ``"SCHED_FIFO 40, memory
+    locked, CPU wake-up latency 0 µs, CPU 1"``, ``"SCHED_FIFO refused (Operation not permitted), …"`` or ``"…, CPU
+    wake-up latency refused (Permission denied), CPUs left to the kernel (no wake-up latency held)"`` (see the
+    module docstring)."""
     parts = []
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
@@ -123,17 +110,31 @@ def apply(priority: int, cpus: set[int] | None = None) -> str:
         parts.append(f"SCHED_FIFO refused ({_why(exc)})")
     parts.append(_lock_memory())
     parts.append(hold_wakeup_latency())
-    if cpus and not wakeup_latency_held():
+    if cpus and not placed and not wakeup_latency_held():
         parts.append(_UNPLACED)
     elif cpus:
-        try:
-            if _allowed is None:
-                _allowed = os.sched_getaffinity(0)
-            os.sched_setaffinity(0, cpus)
-            parts.append(f"CPU {','.join(map(str, sorted(cpus)))}")
-        except (OSError, AttributeError) as exc:
-            parts.append(f"CPU affinity refused ({_why(exc)})")
+        parts.append(pin(cpus))
     return ", ".join(parts)
+
+
+def pin(cpus: set[int]) -> str:
+    """Run this process on *cpus* only (``sched_setaffinity``; ``--cpus`` with or without ``--realtime``), those
+    of them it may use (:func:`allowed_cpus`: a container's cpuset, ``taskset``); what was granted, e.g. ``"CPU
+    0,1"``, ``"CPU 1 (CPU 7 refused: not among those allowed, 0,1)"`` or ``"CPU affinity refused (CPU 7 not
+    among those allowed, 0,1)"``. Nothing raises."""
+    global _allowed
+    allowed = allowed_cpus()
+    granted, refused = cpus & allowed, cpus - allowed
+    if not granted:
+        return f"CPU affinity refused (CPU {format_cpus(refused)} not among those allowed, {format_cpus(allowed)})"
+    try:
+        if _allowed is None:
+            _allowed = os.sched_getaffinity(0)
+        os.sched_setaffinity(0, granted)
+    except (OSError, AttributeError) as exc:
+        return f"CPU affinity refused ({_why(exc)})"
+    note = f" (CPU {format_cpus(refused)} refused: not among those allowed, {format_cpus(allowed)})" if refused else ""
+    return f"CPU {format_cpus(granted)}{note}"
 
 
 def withdraw() -> None:

@@ -30,9 +30,9 @@ def test_cpu_lists_read_and_write_as_the_slave_cpus_flag_takes_them():
 
 
 def test_a_session_plans_the_cpus_once_so_a_restarted_worker_keeps_off_the_masters(monkeypatch, tmp_path):
-    """The session plans (master CPUs, worker CPUs) when it is made, before its master takes its CPU, and every
-    worker it starts (a restart included) is told its CPUs: one started after the master was pinned would
-    otherwise plan itself from the master's single CPU, onto it."""
+    """The session plans (master CPUs, worker CPUs) when it is made, before its master takes its CPU. A worker it
+    starts (a restart included) is started on the CPUs the session had (``unplace_child``) and plans the same;
+    CPUs the user chose (``--cpus``) are passed on, with or without real time."""
     from mlink_sim.aio.run import session as session_mod
     from mlink_sim.config import load_config
 
@@ -42,8 +42,36 @@ def test_a_session_plans_the_cpus_once_so_a_restarted_worker_keeps_off_the_maste
     s = session_mod.NetworkSession(load_config(path), path, realtime=True)
     assert s.cpus == ({1}, {0})
     affinity = {1}  # the master pinned itself: what a worker started now would inherit
-    assert s._realtime_flags() == ["--realtime", "--cpus", "0"]
+    assert s._realtime_flags() == ["--realtime"]
     assert session_mod.NetworkSession(load_config(path), path)._realtime_flags() == []
+    chosen = session_mod.NetworkSession(load_config(path), path, cpus={0, 1, 2})
+    assert chosen.cpus == ({2}, {0, 1}) and chosen._realtime_flags() == ["--cpus", "0,1"]
+    chosen = session_mod.NetworkSession(load_config(path), path, realtime=True, cpus={3})
+    assert chosen.cpus == ({3}, {3}) and chosen._realtime_flags() == ["--realtime", "--cpus", "3"]
+
+
+def test_pin_takes_the_allowed_cpus_and_names_the_refused_ones(monkeypatch):
+    """``--cpus`` places a process with ``sched_setaffinity`` on the CPUs it may use; a CPU outside that set (a
+    container's cpuset, ``taskset``) is named in the one line that says what was granted, never raised."""
+    placed: list[set[int]] = []
+    monkeypatch.setattr(realtime, "_allowed", None)
+    monkeypatch.setattr(realtime.os, "sched_getaffinity", lambda pid: {0, 1})
+    monkeypatch.setattr(realtime.os, "sched_setaffinity", lambda _pid, cpus: placed.append(set(cpus)))
+    assert realtime.pin({1}) == "CPU 1" and placed == [{1}]
+    assert realtime.pin({0, 7}) == "CPU 0 (CPU 7 refused: not among those allowed, 0,1)" and placed[-1] == {0}
+    assert realtime.pin({7, 8}) == "CPU affinity refused (CPU 7,8 not among those allowed, 0,1)"
+    assert len(placed) == 2
+
+
+def test_chosen_cpus_are_placed_under_realtime_without_the_wakeup_latency(monkeypatch, tmp_path):
+    placed: list[set[int]] = []
+    monkeypatch.setattr(realtime, "_allowed", None)
+    monkeypatch.setattr(os, "sched_setscheduler", lambda *_a: None)
+    monkeypatch.setattr(realtime.os, "sched_getaffinity", lambda pid: {0, 1})
+    monkeypatch.setattr(os, "sched_setaffinity", lambda _pid, cpus: placed.append(set(cpus)))
+    monkeypatch.setattr(realtime, "PM_QOS_PATH", str(tmp_path / "no-such-device"))
+    text = realtime.apply(realtime.WORKER_PRIORITY, {0}, placed=True)
+    assert placed == [{0}] and text.endswith("CPU wake-up latency refused (No such file or directory), CPU 0")
 
 
 def _apply_held(monkeypatch, tmp_path, priority: int, cpus: set[int]) -> str:
