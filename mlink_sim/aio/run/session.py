@@ -255,8 +255,7 @@ class NetworkSession:
         self._stopping = False
         self._closed = False
         self.seed = seed
-        #: called with (event "start"/"end", station or None, group, its description) as an impairment begins or
-        #: ends (the trace's action rows)
+        #: called with (event "start"/"end", station or None, group, description) as an impairment begins or ends
         self.fault_hooks: list[Callable[[str, int | None, str, str], None]] = []
         #: network impairments between the masters and the stations (docs/faults.md); seeded by *seed*
         self.impairments = ImpairmentLayer(seed=seed, listener=self._on_fault)
@@ -510,8 +509,7 @@ class NetworkSession:
 
     # ------------------------------------------------------------------ figures
     async def refresh_slave_stats(self) -> None:
-        """Pull the slaves' counters (reception failures, WDT errors …) and CPU time into :attr:`metrics`, and
-        each station's snapshot into :attr:`slave_snapshots`."""
+        """The slaves' counters and CPU time into :attr:`metrics`, their stations' snapshots into :attr:`slave_snapshots`."""
         stats: dict[str, Any] = {}
 
         async def one(w: Worker) -> None:
@@ -528,10 +526,10 @@ class NetworkSession:
         for name, reply in stats.items():
             self.metrics.record_cpu(name, reply.get("cpu_s", 0.0), reply.get("wall_s", wall) or wall)
             for key, snap in reply.get("stations", {}).items():
-                if isinstance(snap, dict):
-                    self.slave_snapshots[int(key, 16)] = snap
-                counters = snap.get("counters") if isinstance(snap, dict) else None
-                if isinstance(counters, dict):
+                if not isinstance(snap, dict):
+                    continue
+                self.slave_snapshots[int(key, 16)] = snap
+                if isinstance(counters := snap.get("counters"), dict):
                     self.metrics.record_slave_counters(int(key, 16), _flatten_counters(counters))
 
     def reset_metrics(self) -> None:
