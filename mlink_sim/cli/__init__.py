@@ -29,6 +29,7 @@ SHORT_HELP = {
     "control": "Send a request to a running network, proxy or slave (impair, fault, stats …).",
     "wireshark": "Install or locate the Wireshark dissector of mlink-sim's datagrams.",
     "compose": "Write a docker-compose testbed: one container per station and a master.",
+    "web": "Serve the live page and HTTP API of a network running with --control.",
 }
 
 _EPILOG = """\b
@@ -66,10 +67,11 @@ def _register_optional() -> None:
     from .proxy import control_cmd, proxy_cmd
     from .replay import replay_cmd
     from .slave import slave_cmd
+    from .web import web_cmd
     from .wireshark import wireshark_cmd
 
     for cmd in (slave_cmd, up_cmd, master_cmd, probe_cmd, validate_cmd, replay_cmd, wireshark_cmd, proxy_cmd,
-                control_cmd, examples_cmd):
+                control_cmd, examples_cmd, web_cmd):
         _add(cmd)
     try:
         from .compose import compose_cmd

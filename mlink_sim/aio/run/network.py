@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import os
+import secrets
 import signal
 import sys
 from collections.abc import Callable, Sequence
@@ -31,6 +32,7 @@ from .session import EndpointError, NetworkSession, build_plans
 from .status import LiveStatus, StatusInfo, SummaryWriter, WorstP99, render_lines
 from .supervisor import resolve_workers
 from .virtual_session import VirtualSession
+from .webproc import WebProcess
 
 __all__ = ["RunOptions", "RunOutcome", "Verdict", "SIGNAL_EXIT", "EndpointError", "run_up", "run_network",
            "build_plans", "cut_by_duration"]
@@ -66,6 +68,11 @@ class RunOptions:
     control: tuple[str, int] | None = None
     #: ``--control-token``: the token every control request must carry (None: none; aio/slave/token.py)
     control_token: str | None = None
+    #: ``--web [HOST:]PORT``: serve the page and the HTTP API here, in a process of its own (aio/run/webproc.py);
+    #: without ``--control`` the run opens a control endpoint on 127.0.0.1 for it, with a token of its own
+    web: tuple[str, int] | None = None
+    #: ``--web-token``: the token every API request must carry (None: none)
+    web_token: str | None = None
 
 
 @dataclasses.dataclass
@@ -152,6 +159,7 @@ class _Run:
     status: LiveStatus | None = None
     control: ControlServer | None = None
     session: NetworkSession | None = None
+    web: WebProcess | None = None
 
     def catch_signals(self) -> None:
         """SIGINT / SIGTERM set :attr:`stop` (the first one is kept for the exit status); :func:`_close` removes
@@ -199,7 +207,24 @@ async def _open(run: _Run, session_cls: type[NetworkSession], endpoints: dict[in
         host, port = await run.control.start(*opts.control)
         _notice(opts, "control", f"control: {host}:{port} (mlink-sim control {host}:{port} "
                                  "impair|heal|faults|fault|recovery)")
+    if opts.web is not None:
+        await _open_web(run, session)
     return session
+
+
+async def _open_web(run: _Run, session: NetworkSession) -> None:
+    """``--web``: the web server's process against the control endpoint (one on 127.0.0.1 with a token of its own
+    when the run has no ``--control``)."""
+    opts = run.opts
+    token = opts.control_token
+    if run.control is None:
+        token = secrets.token_urlsafe(16)
+        run.control = ControlServer({**impairment_ops(session), **fault_ops(session)}, token=token)
+        await run.control.start("127.0.0.1", 0)
+    assert opts.web is not None and run.control.address is not None
+    run.web = WebProcess(opts.web, opts.web_token, log_json=opts.log_json)
+    url = await run.web.start(run.control.address, token)
+    _notice(opts, "web", f"web: {url}" + (" (#token=TOKEN after the address: docs/web.md)" if opts.web_token else ""))
 
 
 async def _bring_up(run: _Run, session: NetworkSession, stopper: asyncio.Task[Any]) -> None:
@@ -254,6 +279,8 @@ async def _report(run: _Run, session: NetworkSession, scenario: Scenario) -> dic
 async def _close(run: _Run) -> None:
     """Release what the run holds, whatever happened before: the control endpoint, the live status, the session
     (its workers), the capture, the signal handlers."""
+    if run.web is not None:
+        await run.web.stop()
     if run.control is not None:
         run.control.close()
     if run.status is not None:
