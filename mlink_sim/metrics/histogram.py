@@ -176,6 +176,10 @@ class LatencyHistogram:
         """Value at percentile ``p`` (0..100) in ns, as ``HdrHistogram.get_value_at_percentile``; 0 when empty."""
         return self._percentiles(self._nonzero(), (p,))[0]
 
+    def percentiles(self, ps: tuple[float, ...]) -> list[int]:
+        """The values at each percentile of *ps* in ns (as :meth:`percentile`), from one scan of the buckets."""
+        return self._percentiles(self._nonzero(), ps)
+
     @staticmethod
     def _percentiles(nonzero: list[tuple[int, int]], ps: tuple[float, ...]) -> list[int]:
         """HdrHistogram's percentile rule over the non-zero buckets: the first bucket whose cumulative count

@@ -122,6 +122,13 @@ class StallLog:
                         "absorbed": a} for p, (at, d, c, a) in sorted(listed, key=lambda pe: pe[1][0])],
         }
 
+    def overview(self) -> dict[str, int]:
+        """Every process's stalls since the origin in a few numbers: ``count``, ``max`` and ``total`` (ns) (the
+        control endpoint's ``status``; cheap: no sorting, no report)."""
+        origin = self.origin_ns
+        durations = [d for evs in self._events.values() for at, (d, _, _) in evs.items() if at >= origin]
+        return {"count": len(durations), "max": max(durations, default=0), "total": sum(durations)}
+
     def brief(self) -> str:
         """For the live status: ``"0"``, or the count and the longest since the origin, ``"3 (max 23.9ms)"``."""
         origin = self.origin_ns

@@ -194,6 +194,20 @@ class Master:
                        tcycle_ns=plan.tcycle_ns, strategy=self._timer.strategy)
         return self
 
+    def watch(self, fn: Callable[[int, Any], None]) -> None:
+        """Call *fn(now_ns, event)* for each event a capture notes (state changes, alarms raised and cleared,
+        recoveries, held and resumed runs), beside the capture's own note; *event* may also be a capture's text."""
+        note = self._note
+        if note is None:
+            self._note = fn
+            return
+
+        def both(now: int, ev: Any) -> None:
+            note(now, ev)
+            fn(now, ev)
+
+        self._note = both
+
     def note_cards(self) -> None:
         """Tell a capture which card each station is (``station 21H: card SI-T3 (MECHATROLINK-II, 32-byte)``):
         ``mlink-sim decode`` names the parameters of a MECHATROLINK-II station by it. Nothing without a capture."""

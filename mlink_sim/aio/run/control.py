@@ -8,13 +8,22 @@ object per UDP datagram each way, the same shape as a slave's stats endpoint (ai
     ← {"ok": true, "ended": 2}
     → {"op": "faults"}
     ← {"ok": true, "faults": [...], "injected": {"0x21": {"drops": 12}}}
-    ← {"ok": false, "error": "loss: a probability is between 0 and 1 …"}
+    ← {"ok": false, "error": "loss: a probability is between 0 and 1 …", "kind": "bad_request"}
+
+An error reply's ``kind`` says what went wrong (:data:`ERROR_KINDS`: ``bad_request``, ``unknown_station``,
+``unknown_param``, ``out_of_range``, ``refused``, ``unavailable``). An operation may answer later (a coroutine: a
+parameter read through the master); the endpoint keeps answering others meanwhile, and one still unanswered after
+:data:`ASYNC_LIMIT_S` gets an ``unavailable`` error. A request carrying an ``"id"`` seen among the last
+:data:`REMEMBERED` is answered with the first reply (waiting for it if needed) without acting again: a client repeats
+a request whose reply UDP lost. A reply larger than one datagram is sent in parts (``{"ok": true, "part": 0,
+"parts": 3, "data": "<base64 of a piece of the JSON>"}``), which :func:`query_control` puts together.
 
 A request carries the endpoint's token (``"token": "…"``) when it has one: without it, or with another, it is counted
 and not answered (:mod:`mlink_sim.aio.slave.token`; an endpoint bound to anything but a loopback address must have
 one).
 
-The operations are a table (:func:`impairment_ops`); another kind of fault adds its own entries. A client:
+The operations are a table (:func:`impairment_ops`); another kind of fault adds its own entries
+(:mod:`mlink_sim.aio.run.faults`, :mod:`mlink_sim.aio.run.ops`). A client:
 :func:`query_control` (``mlink-sim control``; the network run asks the slave workers' stats endpoints with it too).
 
 Touches: one UDP socket of its own (the endpoint, or the client's); the operations act on the run through the table
@@ -24,21 +33,46 @@ they are given.
 from __future__ import annotations
 
 import asyncio
+import base64
+import inspect
 import json
-from collections.abc import Callable
+from collections import OrderedDict
+from collections.abc import Awaitable, Callable
 from typing import Any
 
 from ..._log import get_logger
 from ..slave.token import ControlToken
 from ..transport.udp import DatagramEndpoint, open_endpoint
 
-__all__ = ["ControlServer", "Op", "impairment_ops", "query_control"]
+__all__ = ["ControlServer", "Op", "OpError", "ERROR_KINDS", "ASYNC_LIMIT_S", "REMEMBERED", "impairment_ops",
+           "query_control"]
 
 log = get_logger("mlink_sim.control")
 
-#: An operation: the request (a dict) -> the reply's fields (``ok`` is added); ValueError -> an error reply.
-Op = Callable[[dict[str, Any]], dict[str, Any]]
+#: An operation: the request (a dict) -> the reply's fields (``ok`` is added), or an awaitable of them;
+#: :class:`OpError` (or ValueError, TypeError, KeyError: ``bad_request``) -> an error reply.
+Op = Callable[[dict[str, Any]], "dict[str, Any] | Awaitable[dict[str, Any]]"]
+#: The kinds of an error reply, in the order of the HTTP statuses a web server maps them to (400, 404, 404, 422,
+#: 409, 409).
+ERROR_KINDS = ("bad_request", "unknown_station", "unknown_param", "out_of_range", "refused", "unavailable")
+ASYNC_LIMIT_S = 10.0  #: an operation that answers later gets this long
+REMEMBERED = 64  #: request ids remembered (their replies), for requests UDP made a client repeat
 _MAX_REPLY = 60_000
+_PART = 44_000  #: bytes of the JSON reply per part: 58,668 in base64, a part stays one datagram
+
+
+class OpError(ValueError):
+    """An operation's refusal: one line and its :data:`ERROR_KINDS` entry."""
+
+    def __init__(self, kind: str, message: str) -> None:
+        assert kind in ERROR_KINDS, kind
+        super().__init__(message)
+        self.kind = kind
+
+
+def _error(exc: BaseException) -> dict[str, Any]:
+    return {"ok": False, "error": str(exc) or type(exc).__name__,
+            "kind": exc.kind if isinstance(exc, OpError) else "bad_request"}
 
 
 def impairment_ops(target: Any) -> dict[str, Op]:
@@ -48,7 +82,7 @@ def impairment_ops(target: Any) -> dict[str, Op]:
     from ...metrics.network import station_key
 
     def impair(request: dict[str, Any]) -> dict[str, Any]:
-        fields = {k: v for k, v in request.items() if k not in ("op", "station", "impair")}
+        fields = {k: v for k, v in request.items() if k not in ("op", "station", "impair", "id")}
         spec = as_impairment(request.get("impair"), fields)
         target.impair(target_station(request.get("station", "all")), spec)
         return {"impairment": spec.as_fields(), "describe": spec.describe()}
@@ -73,6 +107,9 @@ class ControlServer:
         self.ops = dict(ops)
         self.token = ControlToken(token)
         self._endpoint: DatagramEndpoint | None = None
+        #: request id -> its reply, or the future of a reply still to come (the last REMEMBERED ids)
+        self._replies: OrderedDict[Any, dict[str, Any] | asyncio.Future[dict[str, Any]]] = OrderedDict()
+        self._tasks: set[asyncio.Task[Any]] = set()
 
     async def start(self, host: str, port: int) -> tuple[str, int]:
         """Listen on *host*:*port* (0: any free port); returns where."""
@@ -87,9 +124,13 @@ class ControlServer:
         if self._endpoint is not None:
             self._endpoint.close()
             self._endpoint = None
+        for task in list(self._tasks):
+            task.cancel()
 
-    def handle(self, data: bytes) -> dict[str, Any] | None:
-        """The reply to one request (never raises); None for a request without the token (not answered)."""
+    def handle(self, data: bytes) -> dict[str, Any] | asyncio.Future[dict[str, Any]] | None:
+        """The reply to one request (never raises): a dict, a future of one (an operation that answers later,
+        within :data:`ASYNC_LIMIT_S`), or None for a request without the token (not answered). A request with an
+        ``"id"`` already seen gets that request's reply, and does not act again."""
         try:
             request = json.loads(data)
         except (ValueError, UnicodeDecodeError):
@@ -99,51 +140,128 @@ class ControlServer:
                 log.warning("control_refused", reason="no token or a wrong one", refused=self.token.refused)
             return None
         if not isinstance(request, dict) or not isinstance(request.get("op"), str):
-            return {"ok": False, "error": "expected a JSON object with 'op' (one of: "
-                                          f"{', '.join(sorted([*self.ops, 'ping']))})"}
+            return {"ok": False, "kind": "bad_request", "error": "expected a JSON object with 'op' (one of: "
+                                                                 f"{', '.join(sorted([*self.ops, 'ping']))})"}
+        rid = request.get("id")
+        if isinstance(rid, (str, int)) and not isinstance(rid, bool):
+            known = self._replies.get(rid)
+            if known is not None:
+                return known
+            reply = self._act(request)
+            self._replies[rid] = reply
+            while len(self._replies) > REMEMBERED:
+                self._replies.popitem(last=False)
+            return reply
+        return self._act(request)
+
+    def _act(self, request: dict[str, Any]) -> dict[str, Any] | asyncio.Future[dict[str, Any]]:
         op = request["op"]
         if op == "ping":
             return {"ok": True}
         fn = self.ops.get(op)
         if fn is None:
-            return {"ok": False, "error": f"unknown op {op!r} (known: {', '.join(sorted([*self.ops, 'ping']))})"}
+            return {"ok": False, "kind": "bad_request",
+                    "error": f"unknown op {op!r} (known: {', '.join(sorted([*self.ops, 'ping']))})"}
         try:
             reply = fn(request)
         except (ValueError, TypeError, KeyError) as exc:
-            return {"ok": False, "error": str(exc)}
+            return _error(exc)
         log.info("control", op=op, request={k: v for k, v in request.items() if k not in ("op", "token")})
-        return {"ok": True, **reply}
+        if not inspect.isawaitable(reply):
+            return {"ok": True, **reply}
+        return self._later(op, reply)
+
+    def _later(self, op: str, pending: Awaitable[dict[str, Any]]) -> asyncio.Future[dict[str, Any]]:
+        """The future reply of an operation that answers later (bounded by :data:`ASYNC_LIMIT_S`)."""
+        loop = asyncio.get_running_loop()
+        fut: asyncio.Future[dict[str, Any]] = loop.create_future()
+
+        async def finish() -> None:
+            try:
+                reply: dict[str, Any] = {"ok": True, **await asyncio.wait_for(pending, ASYNC_LIMIT_S)}
+            except TimeoutError:
+                reply = {"ok": False, "kind": "unavailable",
+                         "error": f"{op}: no answer within {ASYNC_LIMIT_S:g} s"}
+            except (ValueError, TypeError, KeyError) as exc:
+                reply = _error(exc)
+            except Exception as exc:  # noqa: BLE001 - the endpoint answers, whatever the operation met
+                log.warning("control_failed", op=op, error=repr(exc))
+                reply = {"ok": False, "kind": "unavailable", "error": f"{op}: {exc}"}
+            if not fut.done():
+                fut.set_result(reply)
+
+        task = loop.create_task(finish())
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+        return fut
 
     def _on_datagram(self, data: bytes, addr: Any) -> None:
         reply = self.handle(data)
         if reply is None:
             return
-        payload = json.dumps(reply, separators=(",", ":")).encode()
-        if len(payload) > _MAX_REPLY:
-            payload = json.dumps({"ok": False, "error": "reply too large for one datagram"}).encode()
-        if self._endpoint is not None:
+        if isinstance(reply, dict):
+            self._send(reply, addr)
+            return
+
+        def done(fut: asyncio.Future[dict[str, Any]]) -> None:
+            if not fut.cancelled():
+                self._send(fut.result(), addr)
+
+        reply.add_done_callback(done)
+
+    def _send(self, reply: dict[str, Any], addr: Any) -> None:
+        if self._endpoint is None:
+            return
+        for payload in encode_reply(reply):
             self._endpoint.sendto(payload, addr)
+
+
+def encode_reply(reply: dict[str, Any]) -> list[bytes]:
+    """*reply* as the datagrams that carry it: one, or the parts of a larger one (the JSON in pieces of
+    :data:`_PART` bytes, base64, ``part``/``parts`` numbered)."""
+    payload = json.dumps(reply, separators=(",", ":")).encode()
+    if len(payload) <= _MAX_REPLY:
+        return [payload]
+    pieces = [payload[i:i + _PART] for i in range(0, len(payload), _PART)]
+    return [json.dumps({"ok": True, "part": i, "parts": len(pieces), "data": base64.b64encode(piece).decode()},
+                       separators=(",", ":")).encode() for i, piece in enumerate(pieces)]
 
 
 async def query_control(host: str, port: int, op: str = "stats", timeout: float = 1.0, token: str | None = None,
                         **fields: Any) -> dict[str, Any] | None:
     """Ask a control endpoint (a slave process's stats endpoint, a run's or a proxy's ``--control``) the operation
-    *op* (*fields* go into the request, and *token* where the endpoint has one): its JSON reply, or None when it
-    does not answer in time (an endpoint answers no request without its token)."""
+    *op* (*fields* go into the request, and *token* where the endpoint has one): its JSON reply (put together from
+    its parts where it came in several), or None when it does not answer in time (an endpoint answers no request
+    without its token)."""
     if token is not None:
         fields["token"] = token
     loop = asyncio.get_running_loop()
     fut: asyncio.Future[bytes] = loop.create_future()
+    parts: dict[int, bytes] = {}
 
     def on_datagram(data: bytes, addr: Any) -> None:
-        if not fut.done():
+        if fut.done():
+            return
+        try:
+            head = json.loads(data) if data[:1] == b"{" and b'"parts"' in data[:80] else None
+        except ValueError:
+            head = None
+        if not isinstance(head, dict) or not isinstance(head.get("parts"), int):
             fut.set_result(data)
+            return
+        try:
+            parts[int(head["part"])] = base64.b64decode(head["data"])
+        except (KeyError, TypeError, ValueError):
+            return
+        if len(parts) == head["parts"]:
+            fut.set_result(b"".join(parts[i] for i in sorted(parts)))
 
     ep = await open_endpoint(on_datagram, "::" if ":" in host else "0.0.0.0", 0)
     try:
         ep.sendto(json.dumps({"op": op, **fields}).encode(), (host, port))
         data = await asyncio.wait_for(fut, timeout)
-        return json.loads(data)
+        reply = json.loads(data)
+        return reply if isinstance(reply, dict) else None
     except (TimeoutError, ValueError):
         return None
     finally:

@@ -112,12 +112,10 @@ def fault_ops(session: Any) -> dict[str, Any]:
     """The control endpoint's operations for station, master and drive faults (aio/run/control.py, docs/faults.md):
 
     * ``{"op": "fault", "station": "0x21", "fault": "silence,for=200ms"}`` (or the fields: ``"do": "silence",
-      "for": "200ms"``; ``"station": "all"`` for every station) → ``{"ok": true, "faults": [...]}``; a request
-      carrying an ``"id"`` already seen is answered again without injecting twice (UDP repeats);
+      "for": "200ms"``; ``"station": "all"`` for every station) → ``{"ok": true, "faults": [...]}`` (a request
+      repeated with the same ``"id"`` does not inject twice: :class:`~mlink_sim.aio.run.control.ControlServer`);
     * ``{"op": "recovery"}`` → every station's latest fault episode (its end, its recovery time)."""
     from ...metrics.network import station_key
-
-    seen: dict[Any, dict[str, Any]] = {}
 
     def stations(value: Any) -> list[int]:
         if value in (None, "all"):
@@ -130,9 +128,6 @@ def fault_ops(session: Any) -> dict[str, Any]:
         return [address]
 
     def fault(request: dict[str, Any]) -> dict[str, Any]:
-        rid = request.get("id")
-        if rid is not None and rid in seen:
-            return seen[rid]
         fields = {k: v for k, v in request.items() if k not in ("op", "station", "fault", "id")}
         action = fields.pop("do", None)
         if isinstance(request.get("fault"), str):
@@ -144,12 +139,7 @@ def fault_ops(session: Any) -> dict[str, Any]:
             task = loop.create_task(session.net.fault(address, spec))
             session.net.fault_control._tasks.add(task)
             task.add_done_callback(_fault_done(session.net.fault_control, address))
-        reply = {"fault": spec.as_fields(), "describe": spec.describe}
-        if rid is not None:
-            seen[rid] = reply
-            if len(seen) > 64:
-                seen.pop(next(iter(seen)))
-        return reply
+        return {"fault": spec.as_fields(), "describe": spec.describe}
 
     def recovery(request: dict[str, Any]) -> dict[str, Any]:
         control = session.net.fault_control

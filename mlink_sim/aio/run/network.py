@@ -25,8 +25,10 @@ from ..._log import get_logger
 from ...config import Config, TimelineStep, format_ns
 from ...metrics import write_report
 from .control import ControlServer, impairment_ops
+from .events import RunLog
 from .expectations import timeline_warnings
 from .faults import fault_ops
+from .ops import RunOps
 from .scenario import CheckResult, Scenario, speed_scales
 from .session import EndpointError, NetworkSession, build_plans
 from .status import LiveStatus, StatusInfo, SummaryWriter, WorstP99, render_lines
@@ -135,6 +137,8 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
         await _bring_up(run, session, stopper)
         assert session.net is not None
         scenario = Scenario(config, session.net, scales)
+        if run.ops is not None:
+            run.ops.scenario = scenario
         capture = opts.capture
         if capture is not None:  # the timeline's actions (runs, writes, injected faults) as capture comments
             scenario.note = lambda text: capture.note(int(run.loop.time() * 1e9), text)
@@ -158,6 +162,7 @@ class _Run:
     caught: list[signal.Signals] = dataclasses.field(default_factory=list)  #: the signal that ended the run
     status: LiveStatus | None = None
     control: ControlServer | None = None
+    ops: RunOps | None = None  #: the control endpoint's operations on the network (``--control``)
     session: NetworkSession | None = None
     web: WebProcess | None = None
 
@@ -202,29 +207,25 @@ async def _open(run: _Run, session_cls: type[NetworkSession], endpoints: dict[in
     if session.realtime_granted:
         _notice(opts, "realtime", "realtime: " + "; ".join(f"{p} {g}" for p, g in session.realtime_granted.items())
                 + " (--no-realtime: none of it)")
-    if opts.control is not None:
-        run.control = ControlServer({**impairment_ops(session), **fault_ops(session)}, token=opts.control_token)
-        host, port = await run.control.start(*opts.control)
-        _notice(opts, "control", f"control: {host}:{port} (mlink-sim control {host}:{port} "
-                                 "impair|heal|faults|fault|recovery)")
-    if opts.web is not None:
-        await _open_web(run, session)
+    if opts.control is not None or opts.web is not None:
+        # --web without --control: an endpoint on loopback for the web server only, with a token of its own
+        token = opts.control_token if opts.control is not None else secrets.token_urlsafe(16)
+        masters = list(session.masters.values())
+        log = RunLog(masters[0].now_ns)
+        for master in masters:
+            log.watch(master)
+        run.ops = RunOps(session, log, opts.assertions, in_thread=opts.clock != "virtual")
+        run.control = ControlServer(run.ops.ops({**impairment_ops(session), **fault_ops(session)}), token=token)
+        host, port = await run.control.start(*(opts.control or ("127.0.0.1", 0)))
+        if opts.control is not None:
+            _notice(opts, "control", f"control: {host}:{port} (mlink-sim status {host}:{port}; mlink-sim param "
+                                     f"get|set {host}:{port} …; mlink-sim control {host}:{port} OP)")
+        if opts.web is not None:
+            run.web = WebProcess(opts.web, opts.web_token, log_json=opts.log_json)
+            url = await run.web.start((host, port), token)
+            _notice(opts, "web", f"web: {url}" + (" (the page: this address with #token=TOKEN; docs/web.md)"
+                                                   if opts.web_token else ""))
     return session
-
-
-async def _open_web(run: _Run, session: NetworkSession) -> None:
-    """``--web``: the web server's process against the control endpoint (one on 127.0.0.1 with a token of its own
-    when the run has no ``--control``)."""
-    opts = run.opts
-    token = opts.control_token
-    if run.control is None:
-        token = secrets.token_urlsafe(16)
-        run.control = ControlServer({**impairment_ops(session), **fault_ops(session)}, token=token)
-        await run.control.start("127.0.0.1", 0)
-    assert opts.web is not None and run.control.address is not None
-    run.web = WebProcess(opts.web, opts.web_token, log_json=opts.log_json)
-    url = await run.web.start(run.control.address, token)
-    _notice(opts, "web", f"web: {url}" + (" (#token=TOKEN after the address: docs/web.md)" if opts.web_token else ""))
 
 
 async def _bring_up(run: _Run, session: NetworkSession, stopper: asyncio.Task[Any]) -> None:
@@ -246,6 +247,8 @@ async def _timeline(run: _Run, session: NetworkSession, scenario: Scenario, stop
     if not opts.include_bringup:
         session.reset_metrics()  # the report is about the running network, not five processes starting
     t0 = loop.time()
+    if run.ops is not None:
+        run.ops.log.start()
     tasks = [loop.create_task(scenario.run(t0, _sleep_until))]
     frame = _framer(config, session, scenario, t0, length)
     if status is not None:

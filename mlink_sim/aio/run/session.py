@@ -221,6 +221,8 @@ class NetworkSession:
         from ...metrics import NetworkMetrics
 
         self.capture = capture  #: a CaptureWriter recording every master socket (``--capture``), or None
+        #: each hosted station's latest snapshot (its slave's stats entry, by address), as last refreshed
+        self.slave_snapshots: dict[int, dict[str, Any]] = {}
         self.config = config
         self.config_path = Path(config_path)
         self.metrics = NetworkMetrics(config.network.transmission_cycle)
@@ -494,7 +496,8 @@ class NetworkSession:
 
     # ------------------------------------------------------------------ figures
     async def refresh_slave_stats(self) -> None:
-        """Pull the slaves' counters (reception failures, WDT errors …) and CPU time into :attr:`metrics`."""
+        """Pull the slaves' counters (reception failures, WDT errors …) and CPU time into :attr:`metrics`, and
+        each station's snapshot into :attr:`slave_snapshots`."""
         stats: dict[str, Any] = {}
 
         async def one(w: Worker) -> None:
@@ -511,6 +514,8 @@ class NetworkSession:
         for name, reply in stats.items():
             self.metrics.record_cpu(name, reply.get("cpu_s", 0.0), reply.get("wall_s", wall) or wall)
             for key, snap in reply.get("stations", {}).items():
+                if isinstance(snap, dict):
+                    self.slave_snapshots[int(key, 16)] = snap
                 counters = snap.get("counters") if isinstance(snap, dict) else None
                 if isinstance(counters, dict):
                     self.metrics.record_slave_counters(int(key, 16), _flatten_counters(counters))

@@ -22,7 +22,8 @@ from dataclasses import dataclass
 from typing import Any, TextIO
 
 from ...config import Config, format_ns
-from ...wire import InvCmdStat, Link, M2Status
+from ...wire import Link
+from .figures import run_direction
 
 __all__ = ["StatusInfo", "STATUS_FIELDS", "COLUMNS", "LEGEND", "WorstP99", "LiveStatus", "render_lines", "station_cells",
            "station_line", "fit", "SummaryWriter"]
@@ -78,6 +79,8 @@ class WorstP99:
         return max(values) if values else None
 
 
+_RUN_STATE = {"forward": "FWD", "reverse": "REV", None: "stop"}
+
 #: The headings of the station lines, over their columns (:func:`station_cells`).
 COLUMNS = ("ADDR", "CARD", "LINK", "PHASE", "RUN", "OUTPUT", "RTT", "STATE")
 
@@ -93,14 +96,7 @@ NARROW = 100
 def station_cells(st: Any, view: Any, hz: float) -> tuple[str, ...]:
     """One station's :data:`COLUMNS`: ``("21H", "si-t3", "ML2", "P3", "FWD", "30.00 Hz", "0.21 ms", "ok")``."""
     link: Link = st.link
-    status = view.status
-    if link is Link.ML3:
-        fwd, rev = status & InvCmdStat.FORWARD, status & InvCmdStat.REVERSE
-    else:
-        run = status & M2Status.RUNX
-        rev = run and status & M2Status.REV
-        fwd = run and not rev
-    run_state = "FWD" if fwd else "REV" if rev else "stop"
+    run_state = _RUN_STATE[run_direction(link, view.status)]
     if view.fault or view.alarm or view.comm_alm or view.cmd_alm:
         alarm = view.alarm_name or (f"COMM_ALM {view.comm_alm:X}H" if view.comm_alm else "alarm")
     elif view.warning:

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from ...config import Config
+from ...jsonable import to_jsonable
 from ...master import MasterCore, NetworkPlan
 from ...faults import FaultStage
 from ...faults.plant import PlantFaults
@@ -205,10 +206,11 @@ class VirtualSession(NetworkSession):
 
     # ------------------------------------------------------------------ figures
     async def refresh_slave_stats(self) -> None:
-        """The stations' counters, read from the card cores in this process."""
+        """The stations' counters and snapshots, read from the card cores in this process."""
         for address, node in self.fabric.nodes.items():
             if node.station is not None:
                 self.metrics.record_slave_counters(address, _flatten_counters(node.station.counters.as_dict()))
+                self.slave_snapshots[address] = to_jsonable(node.station.snapshot())
 
     def _clock_s(self) -> float:
         return self.clock.now / 1e9
