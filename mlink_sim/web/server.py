@@ -29,6 +29,7 @@ from typing import Any
 from aiohttp import web
 
 from .._log import get_logger
+from ..aio.run.control import ASYNC_LIMIT_S
 from ..aio.slave.token import is_loopback
 from .api import ApiError, Control, param_name, station_arg
 from .feed import Feed, Message
@@ -41,8 +42,9 @@ STATIC = Path(__file__).parent / "static"
 _OPENAPI = Path(__file__).parent / "openapi.yaml"
 #: an event stream's comment line when nothing else was sent for this long (keeps proxies from closing it)
 _KEEPALIVE_S = 15.0
-#: how long an operation through the master (a parameter's PRM_RD / PRM_WR, CONFIG) may take to answer
-_PARAM_TIMEOUT_S = 5.0
+#: how long an operation through the master (PRM_RD / PRM_WR, CONFIG, ALM_CLR) may take to answer: beyond the
+#: control endpoint's own limit for it, which answers ``unavailable`` first
+_MASTER_TIMEOUT_S = ASYNC_LIMIT_S + 1.0
 
 CONTROL = web.AppKey("control", Control)
 FEED = web.AppKey("feed", Feed)
@@ -179,7 +181,8 @@ def _simple(op: str) -> Handler:
     async def handler(request: web.Request) -> web.StreamResponse:
         station = _station(request)
         await _body(request)
-        return _json(await request.app[CONTROL].ask(op, station=station))
+        timeout = _MASTER_TIMEOUT_S if op == "alarm-clear" else 2.0
+        return _json(await request.app[CONTROL].ask(op, timeout=timeout, station=station))
 
     handler.__name__ = f"_{op.replace('-', '_')}"
     return handler
@@ -187,7 +190,7 @@ def _simple(op: str) -> Handler:
 
 async def _param_get(request: web.Request) -> web.StreamResponse:
     station, name = _station(request), param_name(request.match_info["name"])
-    return _json(await request.app[CONTROL].ask("param", timeout=_PARAM_TIMEOUT_S, station=station, name=name))
+    return _json(await request.app[CONTROL].ask("param", timeout=_MASTER_TIMEOUT_S, station=station, name=name))
 
 
 async def _param_put(request: web.Request) -> web.StreamResponse:
@@ -202,7 +205,7 @@ async def _param_put(request: web.Request) -> web.StreamResponse:
     fields: dict[str, Any] = {"station": station, "name": name, "value": value}
     if eeprom:
         fields["eeprom"] = True
-    return _json(await request.app[CONTROL].ask("param", timeout=_PARAM_TIMEOUT_S, **fields))
+    return _json(await request.app[CONTROL].ask("param", timeout=_MASTER_TIMEOUT_S, **fields))
 
 
 def _spec(op: str) -> Handler:

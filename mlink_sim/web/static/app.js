@@ -281,12 +281,29 @@ function describeStalls(stalls) {
   return longest === undefined ? String(count) : `${count} (longest ${Number(longest).toFixed(1)} ms)`;
 }
 
+function stationName(key) {
+  const st = key ? state.stations.get(key) : null;
+  return st ? st.info.name : (key || "");
+}
+
+// one line per event kind (mlink_sim/aio/run/events.py); anything else: its fields
 function describeEvent(e) {
-  const who = e.name || e.station || "";
-  const text = e.describe || e.text || e.message || e.detail;
-  if (text) return [who, text].filter(Boolean).join(" ");
-  const rest = Object.entries(e).filter(([k]) => !["seq", "at_s", "kind"].includes(k));
-  return rest.map(([k, v]) => `${k} ${typeof v === "object" ? JSON.stringify(v) : v}`).join(", ");
+  const who = stationName(e.station);
+  switch (e.kind) {
+    case "phase":
+      return e.state === "recovered" ? `${who} recovered (${e.reason}, after ${fmt(e.after_s * 1000, 1)} ms)`
+        : `${who} ${e.was} → ${e.state}` + (e.phase !== undefined ? ` (P${e.phase})` : "");
+    case "alarm":
+      return e.cleared ? `${who} alarm cleared` : `${who} ${e.name}${e.code ? " (" + e.code + ")" : ""}`;
+    case "check":
+      return `${e.ok ? "held" : "FAILED"}: ${e.what}${e.detail ? " — " + e.detail : ""}`;
+    default: {
+      if (e.describe) return [who, e.describe].filter(Boolean).join(" ");
+      const rest = Object.entries(e).filter(([k]) => !["seq", "at_s", "kind", "station"].includes(k));
+      return [who, rest.map(([k, v]) => `${k} ${typeof v === "object" ? JSON.stringify(v) : v}`).join(", ")]
+        .filter(Boolean).join(" ");
+    }
+  }
 }
 
 function showEvent(e) {
