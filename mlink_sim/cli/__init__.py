@@ -27,6 +27,8 @@ SHORT_HELP = {
     "replay": "Send a capture's master frames to live slaves and compare their answers.",
     "proxy": "Forward datagrams between a master and slaves through loss, delay and corruption.",
     "control": "Send a request to a running network, proxy or slave (impair, fault, stats …).",
+    "param": "Read or write a drive parameter of a running network's station by name (get, set).",
+    "status": "Print the status of a running network or slave (phase, Hz, current, LEDs, alarms); --watch.",
     "wireshark": "Install or locate the Wireshark dissector of mlink-sim's datagrams.",
     "compose": "Write a docker-compose testbed: one container per station and a master.",
     "web": "Serve the live page and HTTP API of a network running with --control.",
@@ -65,13 +67,14 @@ def _register_optional() -> None:
     from .network import master_cmd, up_cmd, validate_cmd
     from .probe import probe_cmd
     from .proxy import control_cmd, proxy_cmd
+    from .remote import param_cmd, status_cmd
     from .replay import replay_cmd
     from .slave import slave_cmd
     from .web import web_cmd
     from .wireshark import wireshark_cmd
 
     for cmd in (slave_cmd, up_cmd, master_cmd, probe_cmd, validate_cmd, replay_cmd, wireshark_cmd, proxy_cmd,
-                control_cmd, examples_cmd, web_cmd):
+                control_cmd, param_cmd, status_cmd, examples_cmd, web_cmd):
         _add(cmd)
     try:
         from .compose import compose_cmd

@@ -130,6 +130,8 @@ async def _serve(links: list[Any], spec: Any, seed: int, control_addr: tuple[str
 CONTROL_OPS = {
     "impair": "up/master --control, proxy", "heal": "up/master --control, proxy",
     "faults": "up/master --control, proxy", "fault": "up/master --control", "recovery": "up/master --control",
+    "network": "up/master --control", "status": "up/master --control", "report": "up/master --control",
+    "stop": "up/master --control", "alarm-clear": "up/master --control",
     "stats": "slave", "cpu": "slave", "plant": "slave", "release": "slave", "ping": "all",
 }
 
@@ -154,6 +156,12 @@ def control_cmd(address: str, op: str, station: str | None, spec: str | None, ti
       faults                 the impairments in force and what they injected
       fault ADDR|all SPEC    a station, master or drive fault, e.g. fault 21H 'silence,for=200ms'
       recovery [ADDR|all]    each station's latest fault episode and its recovery time
+      network                the stations and the timeline
+      status                 every station's figures and the latest events (mlink-sim status prints them)
+      report                 the report as --report would write it now
+      stop ADDR              take the run command away
+      alarm-clear ADDR       ALM_CLR: clear the station's alarms and faults
+    (parameters: mlink-sim param get|set; docs/control.md)
     \b
     an impairing proxy, mlink-sim proxy --control HOST:PORT: impair, heal, faults (as above)
     \b
@@ -183,6 +191,12 @@ def control_cmd(address: str, op: str, station: str | None, spec: str | None, ti
         if op in ("impair", "heal", "fault", "recovery") and station is not None:
             target_station(station)
             fields["station"] = station
+        if op in ("stop", "alarm-clear"):
+            if station is None:
+                raise click.UsageError(f"{op} needs ADDR, e.g. {op} 21H")
+            parse_address(station)
+            fields["station"] = station
+            fields["id"] = secrets.token_hex(8)  # a repeated request acts once
         if op in ("plant", "release"):
             if station is None or spec is None:
                 what = "SPEC, e.g. plant 21H 'load,torque=5'" if op == "plant" else "HANDLE, e.g. release 21H 1"
@@ -214,7 +228,7 @@ def control_cmd(address: str, op: str, station: str | None, spec: str | None, ti
             fields["impair"] = spec
         elif op not in ("plant", "release") and spec is not None:
             raise click.UsageError(f"{op} takes no SPEC")
-        if op in ("faults", "stats", "cpu", "ping") and station is not None:
+        if op in ("faults", "stats", "cpu", "ping", "network", "status", "report") and station is not None:
             raise click.UsageError(f"{op} takes no station")
     except (ImpairError, FaultError, ValueError) as exc:
         raise click.UsageError(str(exc)) from None

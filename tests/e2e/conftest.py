@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -20,6 +21,20 @@ MLINK = [sys.executable, "-m", "mlink_sim"]
 
 def run_cli(*args: str, timeout: float = 60.0, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run([*MLINK, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd)
+
+
+def lines_until(stream, pattern: str, timeout: float = 20.0) -> tuple[list[str], re.Match[str]]:
+    """Read *stream* line by line until one matches *pattern* (a process's notice: "control: 127.0.0.1:PORT")."""
+    seen, end = [], time.monotonic() + timeout
+    while time.monotonic() < end:
+        line = stream.readline()
+        if not line:
+            break
+        seen.append(line)
+        m = re.search(pattern, line)
+        if m:
+            return seen, m
+    raise AssertionError(f"no {pattern!r} in {seen!r}")
 
 
 def assert_held(r: subprocess.CompletedProcess[str]) -> None:

@@ -4,7 +4,6 @@ controlled while it runs; ``up --control``; the shipped example; bad input is ex
 from __future__ import annotations
 
 import json
-import re
 import signal
 import subprocess
 import time
@@ -12,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import MLINK, assert_held, run_cli
+from .conftest import MLINK, assert_held, lines_until, run_cli
 
 pytestmark = pytest.mark.e2e
 
@@ -25,19 +24,6 @@ transmission_cycle = "2ms"
 address = 0x21
 card = "si-t3"
 """
-
-
-def _lines_until(stream, pattern: str, timeout: float = 20.0) -> tuple[list[str], re.Match[str]]:
-    seen, end = [], time.monotonic() + timeout
-    while time.monotonic() < end:
-        line = stream.readline()
-        if not line:
-            break
-        seen.append(line)
-        m = re.search(pattern, line)
-        if m:
-            return seen, m
-    raise AssertionError(f"no {pattern!r} in {seen!r}")
 
 
 def _stop(proc: subprocess.Popen[str]) -> tuple[int, str]:
@@ -55,9 +41,9 @@ def test_proxy_between_a_master_and_a_slave_impaired_while_it_runs(tmp_path: Pat
                               "--seed", "3", "--capture", str(capture)], stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True)
     try:
-        _, m = _lines_until(proxy.stdout, r"127\.0\.0\.1:(\d+) -> ")
+        _, m = lines_until(proxy.stdout, r"127\.0\.0\.1:(\d+) -> ")
         port = int(m.group(1))
-        _, m = _lines_until(proxy.stdout, r"control: 127\.0\.0\.1:(\d+)")
+        _, m = lines_until(proxy.stdout, r"control: 127\.0\.0\.1:(\d+)")
         control = f"127.0.0.1:{m.group(1)}"
         master = subprocess.Popen([*MLINK, "master", str(cfg), "--no-status", "--duration", "3s",
                                    "--endpoint", f"0x21=127.0.0.1:{port}", "--report", str(tmp_path / "r.json")],
@@ -84,7 +70,7 @@ def test_up_control_impairs_a_running_network(tmp_path: Path) -> None:
     up = subprocess.Popen([*MLINK, "up", str(cfg), "--no-status", "--duration", "3s", "--control", "127.0.0.1:0",
                            "--assert", "station[0x21].injected.delays > 0"],
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    _, m = _lines_until(up.stderr, r"control: (127\.0\.0\.1:\d+)")
+    _, m = lines_until(up.stderr, r"control: (127\.0\.0\.1:\d+)")
     time.sleep(0.5)
     r = run_cli("control", m.group(1), "impair", "all", "delay=100us,for=0.5s", "--timeout", "6")
     assert r.returncode == 0, r.stdout + r.stderr

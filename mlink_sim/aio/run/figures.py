@@ -40,7 +40,8 @@ from ...params import card_label
 from ...wire import CmdAlm, CommAlm, InvCmdStat, Link, M2Alarm, M2Status
 from .scenario import drive_settings
 
-__all__ = ["FIGURE_FIELDS", "StationFigures", "NetworkFigures", "RttPercentiles", "run_direction", "station_key"]
+__all__ = ["FIGURE_FIELDS", "StationFigures", "NetworkFigures", "RttPercentiles", "run_direction", "station_key",
+           "snapshot_figures"]
 
 #: The keys of one station's figures, in order (docs/control.md, "Station figures").
 FIGURE_FIELDS = ("address", "name", "card", "link", "phase", "connected", "alarm", "warnings", "leds", "led_colors",
@@ -248,3 +249,47 @@ class NetworkFigures:
         if metrics is not None:
             self.rtt.step(metrics)
         return [self.station(a, net, snapshots) for a in self.by_address]
+
+
+def _rounded(value: Any, digits: int) -> float | None:
+    return round(float(value), digits) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+
+
+def snapshot_figures(snap: Mapping[str, Any]) -> dict[str, Any]:
+    """The figures of a standalone slave's station from its snapshot alone (its stats entry: the card's view, not
+    a master's), keyed as :data:`FIGURE_FIELDS`: the drive's own figures, the LEDs the card lights; no RTT, no
+    missed or late answers (null: only a master counts them). The alarm: ML-II ALARM E0H and above, ML-III COMM_ALM
+    or CMD_ALM 8H and above (SI-T3 Table 23, SI-ET3 "COMM_ALM" / "CMD_ALM"), else the drive's fault."""
+    address = int(snap.get("address", 0))
+    link = str(snap.get("link", ""))
+    code, cmd_alm = int(snap.get("alarm_code") or 0), int(snap.get("cmd_alm") or 0)
+    name = snap.get("alarm_name")
+    drive = snap.get("drive") if isinstance(snap.get("drive"), Mapping) else {}
+    assert isinstance(drive, Mapping)
+    warnings = [w for w in snap.get("warnings") or () if isinstance(w, str)]
+    alarm: dict[str, Any] | None = None
+    if link == "ML3":
+        for label, table, value in (("COMM_ALM", CommAlm, code), ("CMD_ALM", CmdAlm, cmd_alm)):
+            if value >= 8 and alarm is None:
+                alarm = {"code": f"{label} {value:X}H", "name": _code_name(table, value)}
+    elif code >= 0xE0:
+        alarm = {"code": f"{code:02X}H", "name": name or f"{code:02X}H"}
+    elif code and (name or f"{code:02X}H") not in warnings:
+        warnings.append(name or f"{code:02X}H")
+    if alarm is None and isinstance(drive.get("fault"), str):
+        alarm = {"code": None, "name": drive["fault"]}
+    running = bool(drive.get("running"))
+    phase = int(snap.get("phase") or 0)
+    leds = snap.get("leds")
+    colors = snap.get("led_colors")
+    return {
+        "address": station_key(address), "name": f"{address:02X}H", "card": snap.get("card"), "link": link,
+        "phase": phase, "connected": snap.get("connected_source") is not None, "alarm": alarm, "warnings": warnings,
+        "leds": dict(leds) if isinstance(leds, Mapping) else {},
+        "led_colors": dict(colors) if isinstance(colors, Mapping) else {},
+        "running": running, "direction": ("reverse" if drive.get("reverse") else "forward") if running else None,
+        "reference_hz": _rounded(drive.get("reference_hz"), 2), "output_hz": _rounded(drive.get("output_hz"), 2),
+        "output_current_a": _rounded(drive.get("output_current_a"), 1), "dc_bus_v": _rounded(drive.get("dc_bus_v"), 1),
+        "motor_speed_rpm": _rounded(drive.get("motor_rpm"), 1), "rtt_p50_us": None, "rtt_p99_us": None,
+        "missed": None, "late": None,
+    }

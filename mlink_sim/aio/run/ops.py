@@ -82,13 +82,25 @@ class RunOps:
                 "timeline": [{"at_s": step.at / 1e9, "describe": step.describe}
                              for step in sorted(config.timeline, key=lambda s: s.at)]}
 
-    def status(self, request: dict[str, Any]) -> dict[str, Any]:
+    def status(self, request: dict[str, Any]) -> Any:
+        """The figures of every station, the network's elapsed time, step and host stalls, and the events after
+        ``since``. The slaves' snapshots are refreshed in the background (the first status waits for them)."""
         since = request.get("since", 0)
         if isinstance(since, bool) or not isinstance(since, int) or since < 0:
             raise OpError("bad_request", f"since: expected an event number (0, 1, …), got {since!r}")
+        refreshing = self._refresh_snapshots()
+        if refreshing is not None and not self.session.slave_snapshots and self.session.worker_list:
+
+            async def first() -> dict[str, Any]:
+                await asyncio.shield(refreshing)
+                return self._status(since)
+
+            return first()
+        return self._status(since)
+
+    def _status(self, since: int) -> dict[str, Any]:
         session, scenario = self.session, self.scenario
         self.log.poll(scenario)
-        self._refresh_snapshots()
         events, seq = self.log.since(since)
         stalls = session.metrics.stalls
         step = scenario.current if scenario is not None else None
@@ -111,11 +123,12 @@ class RunOps:
         loop = asyncio.get_running_loop()
         return {"report": await loop.run_in_executor(None, build_report, metrics, meta, self.assertions)}
 
-    def _refresh_snapshots(self) -> None:
-        """Ask the slaves for their snapshots in the background, at most once every :attr:`snapshot_every_s`."""
+    def _refresh_snapshots(self) -> asyncio.Task[None] | None:
+        """Ask the slaves for their snapshots in the background, at most once every :attr:`snapshot_every_s`;
+        the refresh under way, if any."""
         loop = asyncio.get_running_loop()
         if self._refreshing is not None or loop.time() - self._refreshed < self.snapshot_every_s:
-            return
+            return self._refreshing
         self._refreshed = loop.time()
 
         async def refresh() -> None:
@@ -125,6 +138,7 @@ class RunOps:
                 self._refreshing = None
 
         self._refreshing = loop.create_task(refresh())
+        return self._refreshing
 
     # -- steering -----------------------------------------------------------------------------------------------
 

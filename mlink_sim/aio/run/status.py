@@ -26,7 +26,7 @@ from ...wire import Link
 from .figures import run_direction
 
 __all__ = ["StatusInfo", "STATUS_FIELDS", "COLUMNS", "LEGEND", "WorstP99", "LiveStatus", "render_lines", "station_cells",
-           "station_line", "fit", "SummaryWriter"]
+           "station_line", "fit", "aligned", "SummaryWriter"]
 
 
 @dataclass(frozen=True)
@@ -114,10 +114,13 @@ def station_line(st: Any, view: Any, hz: float) -> str:
 
 
 def _table(rows: list[tuple[str, ...]], gap: int) -> list[str]:
-    """*rows* (the headings first) as aligned columns *gap* spaces apart; figures right-aligned, the last column
-    (free text) not padded."""
+    return aligned(rows, gap, {COLUMNS.index("OUTPUT"), COLUMNS.index("RTT")})
+
+
+def aligned(rows: list[tuple[str, ...]], gap: int, right: set[int]) -> list[str]:
+    """*rows* (the headings first) as aligned columns *gap* spaces apart; the columns *right* (figures)
+    right-aligned, the last column (free text) not padded."""
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    right = {COLUMNS.index("OUTPUT"), COLUMNS.index("RTT")}
     out = []
     for r in rows:
         cells = [c.rjust(w) if i in right else c.ljust(w) for i, (c, w) in enumerate(zip(r[:-1], widths))]
