@@ -65,6 +65,8 @@ const fmt = (v, digits = 1) => (v === null || v === undefined ? "–" : Number(v
 function setText(el, text) { if (el.textContent !== text) el.textContent = text; }
 
 // ---- plots
+const compact = (u, vals) => vals.map((v) => (v === null ? "" : Math.abs(v) >= 10000 ? `${v / 1000}k` : String(v)));
+
 function plotOptions(el, series, axes) {
   return {
     width: Math.max(200, el.clientWidth || 300), height: 130,
@@ -72,7 +74,8 @@ function plotOptions(el, series, axes) {
     legend: { live: false },
     scales: { x: { time: false } },
     series: [{ label: "t s" }, ...series],
-    axes: [{ size: 28, values: (u, vals) => vals.map((v) => v.toFixed(0)) }, ...axes],
+    axes: [{ size: 28, values: (u, vals) => vals.map((v) => v.toFixed(0)) },
+      ...axes.map((a) => ({ values: compact, ...a }))],
   };
 }
 
