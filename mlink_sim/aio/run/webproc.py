@@ -56,9 +56,10 @@ class WebProcess:
         return [sys.executable, "-m", "mlink_sim", "web", "--control", where(*control), "--listen",
                 where(*self.listen), "--ready-json", "--tokens-stdin", *(["--log-json"] if self.log_json else [])]
 
-    async def start(self, control: tuple[str, int], control_token: str | None, timeout: float = 15.0) -> str:
+    async def start(self, control: tuple[str, int], control_token: str | None, timeout: float = 60.0) -> str:
         """Start the server against the control endpoint at *control*; its URL once it listens. WebError: it did
-        not start."""
+        not start. *timeout* is generous: at nice 10 beside a busy network (62 stations on two CPUs) the server
+        gets a small share of a CPU, and its start (importing aiohttp) takes seconds of it."""
         self.proc = await asyncio.create_subprocess_exec(
             *self.argv(control), stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE, stderr=None,
             preexec_fn=_setup, env={**os.environ, "PYTHONUNBUFFERED": "1"})
