@@ -15,11 +15,12 @@ import click
 from ..aio.slave.token import is_loopback
 from ..aio.transport.udp import new_event_loop, stop_on_signals
 from ..config import parse_endpoint
-from .control_token import control_token, control_token_options
+from .control_token import control_token as resolve_token
+from .control_token import control_token_options
 from .inputs import InputError
 from .logs import configure_logging
 
-__all__ = ["web_cmd", "web_options", "web_choice", "parse_listen", "DEFAULT_LISTEN"]
+__all__ = ["web_cmd", "web_options", "web_choice", "required_token", "parse_listen", "DEFAULT_LISTEN"]
 
 DEFAULT_LISTEN = "127.0.0.1:8080"
 
@@ -53,18 +54,24 @@ def web_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     return fn
 
 
-def web_choice(web: str | None, token: str | None, token_file: str | None,
-               flag: str = "--web") -> tuple[tuple[str, int] | None, str | None]:
-    """Where the web server listens (None: no server) and its token; usage errors for a token without a server and
-    for an address other than loopback without a token."""
-    listen = None if web is None else parse_listen(web, flag)
-    value = control_token(token, token_file, "--web-token")
-    if listen is None and value is not None and flag == "--web":
+def web_choice(web: str | None, token: str | None,
+               token_file: str | None) -> tuple[tuple[str, int] | None, str | None]:
+    """``--web``, ``--web-token``, ``--web-token-file`` of ``up`` / ``master``: where the web server listens (None:
+    no server) and its token; usage errors for a token without a server and for an address other than loopback
+    without a token."""
+    listen = None if web is None else parse_listen(web, "--web")
+    value = resolve_token(token, token_file, "--web-token")
+    if listen is None and value is not None:
         raise InputError("--web-token is the token of the page's server: give --web [HOST:]PORT too")
-    if listen is not None and value is None and not is_loopback(listen[0]):
+    return listen, required_token(listen, value, "--web")
+
+
+def required_token(listen: tuple[str, int] | None, token: str | None, flag: str) -> str | None:
+    """*token*; a usage error when there is none and the server listens on an address other than loopback."""
+    if listen is not None and token is None and not is_loopback(listen[0]):
         raise InputError(f"{flag} {listen[0]}:{listen[1]} is reachable from other hosts: give --web-token or "
                          "--web-token-file (or bind 127.0.0.1)")
-    return listen, value
+    return token
 
 
 def _url(host: str, port: int) -> str:
@@ -74,8 +81,8 @@ def _url(host: str, port: int) -> str:
 @click.command("web")
 @click.option("--control", "control", required=True, metavar="HOST:PORT",
               help="The control endpoint of the network (mlink-sim up/master --control HOST:PORT).")
-@click.option("--listen", default=DEFAULT_LISTEN, show_default=True, metavar="[HOST:]PORT",
-              help="Where the page and the API are served (port 0: any free port).")
+@click.option("--listen", default=DEFAULT_LISTEN, show_default=True, metavar="HOST:PORT",
+              help="Where the page and the API are served (a PORT alone: on 127.0.0.1; port 0: any free port).")
 @control_token_options
 @click.option("--web-token", "web_token", metavar="TOKEN",
               help="The token every API request carries (Authorization: Bearer TOKEN; the page: "
@@ -96,8 +103,6 @@ def web_cmd(control, listen, control_token, control_token_file, web_token, web_t
 
     The server reads the network only through its control endpoint: one status query at most ten times a second,
     whatever the number of pages open."""
-    from .control_token import control_token as resolve_token
-
     configure_logging(json=log_json, level=log_level)
     try:
         where = parse_endpoint(control)
@@ -110,10 +115,10 @@ def web_cmd(control, listen, control_token, control_token_file, web_token, web_t
         except ValueError:
             raise InputError("--tokens-stdin: expected one JSON line") from None
         ctoken, wtoken = given.get("control_token"), given.get("web_token")
-        web_choice(f"{listen_at[0]}:{listen_at[1]}", wtoken, None, "--listen")
     else:
         ctoken = resolve_token(control_token, control_token_file)
-        _, wtoken = web_choice(f"{listen_at[0]}:{listen_at[1]}", web_token, web_token_file, "--listen")
+        wtoken = resolve_token(web_token, web_token_file, "--web-token")
+    required_token(listen_at, wtoken, "--listen")
     loop = new_event_loop()
     try:
         code = loop.run_until_complete(_serve(where, listen_at, ctoken, wtoken, ready_json))
