@@ -92,10 +92,10 @@ _common = [
     click.option("--include-bringup", is_flag=True,
                  help="Count bring-up in the report and --assert figures (default: from the end of bring-up)."),
     click.option("--control", "control", metavar="HOST:PORT",
-                 help="Answer control requests here while running: impair, heal, faults, fault, recovery "
-                      "('mlink-sim control'; "
-                      "docs/faults.md; 'mlink-sim web' serves a page for it). Port 0: any free port, printed on "
-                      "stderr."),
+                 help="Answer control requests here while running: status, report, run, stop, alarm-clear, param "
+                      "('mlink-sim status', 'mlink-sim param'; docs/control.md), impair, heal, faults, fault, "
+                      "recovery ('mlink-sim control'; docs/faults.md); 'mlink-sim web' serves a page for it (docs/web.md). Port 0: any "
+                      "free port, printed on stderr."),
     click.option("--control-token", "control_token", metavar="TOKEN",
                  help="The token every control request carries; required to bind --control to an address other "
                       "than loopback."),

@@ -44,7 +44,7 @@ from ..._log import get_logger
 from ..slave.token import ControlToken
 from ..transport.udp import DatagramEndpoint, open_endpoint
 
-__all__ = ["ControlServer", "Op", "OpError", "ERROR_KINDS", "ASYNC_LIMIT_S", "REMEMBERED", "impairment_ops",
+__all__ = ["ControlServer", "Op", "OpError", "ERROR_KINDS", "ASYNC_LIMIT_S", "REMEMBERED", "QUIET", "impairment_ops",
            "query_control"]
 
 log = get_logger("mlink_sim.control")
@@ -57,6 +57,7 @@ Op = Callable[[dict[str, Any]], "dict[str, Any] | Awaitable[dict[str, Any]]"]
 ERROR_KINDS = ("bad_request", "unknown_station", "unknown_param", "out_of_range", "refused", "unavailable")
 ASYNC_LIMIT_S = 10.0  #: an operation that answers later gets this long
 REMEMBERED = 64  #: request ids remembered (their replies), for requests UDP made a client repeat
+QUIET = ("status", "network", "report", "faults", "recovery")  #: operations that only read: not logged
 _MAX_REPLY = 60_000
 _PART = 44_000  #: bytes of the JSON reply per part: 58,668 in base64, a part stays one datagram
 
@@ -103,8 +104,9 @@ class ControlServer:
     """Answers control requests with the operations of *ops* (plus ``ping``); with *token*, only those that carry it
     (:class:`~mlink_sim.aio.slave.token.ControlToken`)."""
 
-    def __init__(self, ops: dict[str, Op], token: str | None = None) -> None:
+    def __init__(self, ops: dict[str, Op], token: str | None = None, quiet: tuple[str, ...] = QUIET) -> None:
         self.ops = dict(ops)
+        self.quiet = frozenset(quiet)  #: operations not logged (read-only ones a page asks many times a second)
         self.token = ControlToken(token)
         self._endpoint: DatagramEndpoint | None = None
         #: request id -> its reply, or the future of a reply still to come (the last REMEMBERED ids)
@@ -168,7 +170,8 @@ class ControlServer:
             reply = fn(request)
         except (ValueError, TypeError, KeyError) as exc:
             return _error(exc)
-        log.info("control", op=op, request={k: v for k, v in request.items() if k not in ("op", "token")})
+        if op not in self.quiet:
+            log.info("control", op=op, request={k: v for k, v in request.items() if k not in ("op", "token")})
         if not inspect.isawaitable(reply):
             return {"ok": True, **reply}
         return self._later(op, reply)

@@ -1,5 +1,5 @@
 """What happens during a run, as numbered events in a bounded ring: the control endpoint's ``status`` hands out the
-ones after the number a client saw last (docs/control.md, "status").
+ones after the number a client saw last (docs/control.md, "Events").
 
 Kinds: ``phase`` (a station's state changed, as the master sees it), ``alarm`` (an alarm or warning code appeared in
 a station's responses, or went), ``step`` (a timeline step began), ``check`` (a timeline check's result), ``action``

@@ -21,7 +21,7 @@ from ..._log import get_logger
 from ...faults import Episode, FaultError, FaultSpec, fault_from_fields
 from ...faults.spec import PLANT_FAULTS
 from ..slave.faults import PlantError
-from .control import query_control
+from .control import OpError, query_control
 
 __all__ = ["FaultControl", "fault_ops", "parse_fault_text"]
 
@@ -124,7 +124,7 @@ def fault_ops(session: Any) -> dict[str, Any]:
 
         address = parse_address(value)
         if address not in session.net.by_station:
-            raise ValueError(f"station: {address:02X}H is not a station of this network")
+            raise OpError("unknown_station", f"station: {address:02X}H is not a station of this network")
         return [address]
 
     def fault(request: dict[str, Any]) -> dict[str, Any]:

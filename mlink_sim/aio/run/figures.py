@@ -16,12 +16,14 @@ Where each figure comes from (:class:`StationFigures`):
   magnitude: the run command gives the direction), ``motor_speed_rpm`` (U1-05, signed, o1-03 units through the
   motor's pole pairs), ``dc_bus_v`` (U1-07 / U-05);
 * the slave's own snapshot where the run hosts the slaves (``mlink-sim up``: the workers' ``stats``, the virtual
-  clock's card cores): the figures the monitors do not carry (with the default SEL_MON: ``dc_bus_v``; on an SI-T/V7,
-  which has no motor-speed monitor, ``motor_speed_rpm``), and the LEDs as the card itself lights them; else null;
-* the LEDs without a snapshot: the card's LED table read from what the master sees (SI-T3 Table 3, SI-ET3 Table 4,
-  SI-T/V7 §3.3 "LED Indicators"): RUN / R/E lit while the station answers, ERR lit for a communication alarm, R/E red
-  for an alarm or a command error, CON lit while connected, TX / RX / LK1 lit while datagrams flow
-  (:data:`~mlink_sim.cards.base.LED_WINDOW_NS`, as the card counts them); LK2 unlit (one simulated port);
+  clock's card cores; up to a second old): the figures the monitors do not carry (with the default SEL_MON:
+  ``dc_bus_v``; on an SI-T/V7, which has no motor-speed monitor, ``motor_speed_rpm``), the names of the warnings the
+  response flags, and the LEDs of a station the master does not reach (an address error blinks ERR); else null;
+* the LEDs of a station that answers: the card's LED table read from what the master sees (SI-T3 Table 3, SI-ET3
+  Table 4, SI-T/V7 §3.3 "LED Indicators"), as fresh as the latest response: RUN / R/E lit while the station answers,
+  ERR lit for a communication alarm, R/E red for an alarm or a command error, CON lit while connected, TX / RX / LK1
+  lit while datagrams flow (:data:`~mlink_sim.cards.base.LED_WINDOW_NS`, as the card counts them); LK2 unlit (one
+  simulated port);
 * the run's RTT histogram (:class:`RttPercentiles`): ``rtt_p50_us``, ``rtt_p99_us``, a few stations refreshed per call.
 
 Touches: nothing; reads the views, the metrics and the snapshots it is given.
@@ -164,11 +166,9 @@ class StationFigures:
             for figure, key in _SNAPSHOT_FIGURE.items():
                 if monitors[figure] is None and isinstance(drive.get(key), (int, float)):
                     monitors[figure] = round(float(drive[key]), 2)
-            extra = snapshot.get("warnings") if snapshot else None
+            extra = snapshot.get("warnings") if snapshot and view.warning else None  # what the warning is
             if isinstance(extra, list):
                 warnings += [w for w in extra if isinstance(w, str) and w not in warnings]
-            if alarm is None and isinstance(drive.get("fault"), str):
-                alarm = {"code": None, "name": drive["fault"]}
         leds, colors = self._leds(view, now_ns, alarm is not None, snapshot)
         p50, p99 = rtt
         return {
@@ -185,8 +185,8 @@ class StationFigures:
     def _alarms(self, view: Any) -> tuple[dict[str, Any] | None, list[str]]:
         """The alarm (``{"code": "E6H", "name": "COMM_ERROR"}``) and the warnings' names. ML-I/II: the ALARM byte
         (SI-T3 Tables 23/25/26), a warning while STATUS.WARNG is set without STATUS.ALM; ML-III: COMM_ALM 8H–CH and
-        CMD_ALM 8H–CH are alarms, 1H–3H warnings (SI-ET3 "COMM_ALM", "CMD_ALM"); a drive fault without a code
-        (CMD_STAT.D_ALM) is ``{"code": null, "name": "D_ALM"}``."""
+        CMD_ALM 8H–CH are alarms, 1H–3H warnings (SI-ET3 "COMM_ALM", "CMD_ALM"); a drive fault (CMD_STAT.D_ALM) has
+        the code the master read with ALM_RD (SI-ET3 Tables 16/17), ``{"code": null, "name": "D_ALM"}`` until then."""
         warnings: list[str] = []
         alarm: dict[str, Any] | None = None
         if not self._ml3:
@@ -204,17 +204,18 @@ class StationFigures:
                 alarm = {"code": f"{label} {code:X}H", "name": _code_name(table, code)}
             elif code < 8:
                 warnings.append(_code_name(table, code))
-        if alarm is None and view.fault:
-            alarm = {"code": None, "name": "D_ALM"}
+        if alarm is None and view.fault:  # the drive's fault code as the master read it (ALM_RD), once it has
+            alarm = ({"code": f"{view.alarm:02X}H", "name": view.alarm_name or f"{view.alarm:02X}H"} if view.alarm
+                     else {"code": None, "name": "D_ALM"})
         if view.warning:
             warnings.append("D_WAR")
         return alarm, warnings
 
     def _leds(self, view: Any, now_ns: int | None, alarm: bool,
               snapshot: Mapping[str, Any] | None) -> tuple[dict[str, str], dict[str, str]]:
-        if snapshot and isinstance(snapshot.get("leds"), Mapping):
-            return dict(snapshot["leds"]), dict(snapshot.get("led_colors") or self._colors)
         answering = view.state is not StationState.OFFLINE and view.responses > 0
+        if not answering and snapshot and isinstance(snapshot.get("leds"), Mapping):
+            return dict(snapshot["leds"]), dict(snapshot.get("led_colors") or self._colors)
         last = view.last_response_ns
         flowing = answering and (now_ns is None or (last is not None and now_ns - last <= LED_WINDOW_NS))
         lit = "on" if flowing else "off"

@@ -82,15 +82,15 @@ def test_the_si_t_v7_has_no_motor_speed_monitor_the_slave_snapshot_fills_it_in(r
 
 def test_the_leds_follow_the_cards_tables(running):
     """SI-T3 Table 3 / SI-T/V7 §3.3: RUN on, ERR off, TX/RX lit while data flows; SI-ET3 Table 4: R/E green, CON
-    lit with a connection, LK1 lit while frames arrive, LK2 unlit (one port). The slave's own LEDs agree."""
-    plain, slaves = running["plain"], running["slaves"]
+    lit with a connection, LK1 lit while frames arrive, LK2 unlit (one port). The cards' own LEDs agree."""
+    plain = running["plain"]
     for key in ("0x21", "0x22"):
         assert plain[key]["leds"] == {"RUN": "on", "ERR": "off", "TX": "on", "RX": "on"}
     assert plain["0x23"]["leds"] == {"R/E": "on", "CON": "on", "LK1": "on", "LK2": "off"}
     assert plain["0x23"]["led_colors"]["R/E"] == "green"
-    for key in plain:
-        assert slaves[key]["leds"] == plain[key]["leds"]
-        assert slaves[key]["led_colors"] == plain[key]["led_colors"]
+    for address, snap in running["snapshots"].items():
+        key = f"0x{address:02x}"
+        assert snap["leds"] == plain[key]["leds"] and snap["led_colors"] == plain[key]["led_colors"]
 
 
 def _figures_of(running, address, **changes):
@@ -123,6 +123,15 @@ def test_an_offline_station_has_its_leds_out_and_no_output(running):
     row = _figures_of(running, 0x23, state=StationState.OFFLINE, phase=0)
     assert row["leds"] == {"R/E": "off", "CON": "off", "LK1": "off", "LK2": "off"}
     assert not row["connected"] and row["output_hz"] is None and row["reference_hz"] is None
+
+
+def test_a_station_the_master_does_not_reach_shows_the_cards_own_leds(running):
+    """SI-T/V7 §3.3: a station address setting error blinks ERR; the master never hears from such a station, its
+    slave's snapshot says what the card shows."""
+    view = dataclasses.replace(running["views"][0x22], state=StationState.OFFLINE, phase=0)
+    snapshot = {**running["snapshots"][0x22], "leds": {"RUN": "off", "ERR": "blink", "TX": "off", "RX": "on"}}
+    row = running["figures"].by_address[0x22].of(view, snapshot=snapshot)
+    assert row["leds"] == {"RUN": "off", "ERR": "blink", "TX": "off", "RX": "on"}
 
 
 def test_the_direction_of_a_status_word():
