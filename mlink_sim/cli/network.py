@@ -94,8 +94,8 @@ _common = [
     click.option("--control", "control", metavar="HOST:PORT",
                  help="Answer control requests here while running: status, report, run, stop, alarm-clear, param "
                       "('mlink-sim status', 'mlink-sim param'; docs/control.md), impair, heal, faults, fault, "
-                      "recovery ('mlink-sim control'; docs/faults.md); 'mlink-sim web' serves a page for it (docs/web.md). Port 0: any "
-                      "free port, printed on stderr."),
+                      "recovery ('mlink-sim control'; docs/faults.md); 'mlink-sim web' serves a page for it "
+                      "(docs/web.md). Port 0: any free port, printed on stderr."),
     click.option("--control-token", "control_token", metavar="TOKEN",
                  help="The token every control request carries; required to bind --control to an address other "
                       "than loopback."),
