@@ -16,7 +16,6 @@ from ..aio.slave.token import is_loopback
 from ..aio.transport.udp import new_event_loop, stop_on_signals
 from ..config import parse_endpoint
 from .control_token import control_token as resolve_token
-from .control_token import control_token_options
 from .inputs import InputError
 from .logs import configure_logging
 
@@ -83,7 +82,10 @@ def _url(host: str, port: int) -> str:
               help="The control endpoint of the network (mlink-sim up/master --control HOST:PORT).")
 @click.option("--listen", default=DEFAULT_LISTEN, show_default=True, metavar="HOST:PORT",
               help="Where the page and the API are served (a PORT alone: on 127.0.0.1; port 0: any free port).")
-@control_token_options
+@click.option("--control-token", "control_token", metavar="TOKEN",
+              help="The control endpoint's token (the network's --control-token), if it has one.")
+@click.option("--control-token-file", "control_token_file", metavar="FILE", type=click.Path(dir_okay=False),
+              help="Read the control endpoint's token from FILE (its first line).")
 @click.option("--web-token", "web_token", metavar="TOKEN",
               help="The token every API request carries (Authorization: Bearer TOKEN; the page: "
                    "http://HOST:PORT/#token=TOKEN); required to --listen on an address other than loopback.")
