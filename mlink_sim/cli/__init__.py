@@ -32,6 +32,7 @@ SHORT_HELP = {
     "wireshark": "Install or locate the Wireshark dissector of mlink-sim's datagrams.",
     "compose": "Write a docker-compose testbed: one container per station and a master.",
     "report": "Write the HTML report of a finished run from its JSON report and trace.",
+    "web": "Serve the live page and HTTP API of a network running with --control.",
 }
 
 _EPILOG = """\b
@@ -71,10 +72,11 @@ def _register_optional() -> None:
     from .replay import replay_cmd
     from .report import report_cmd
     from .slave import slave_cmd
+    from .web import web_cmd
     from .wireshark import wireshark_cmd
 
     for cmd in (slave_cmd, up_cmd, master_cmd, probe_cmd, validate_cmd, replay_cmd, wireshark_cmd, proxy_cmd,
-                control_cmd, param_cmd, status_cmd, examples_cmd, report_cmd):
+                control_cmd, param_cmd, status_cmd, examples_cmd, report_cmd, web_cmd):
         _add(cmd)
     try:
         from .compose import compose_cmd

@@ -26,22 +26,23 @@ def control_token_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     return fn
 
 
-def control_token(token: str | None, token_file: str | None) -> str | None:
+def control_token(token: str | None, token_file: str | None, flag: str = "--control-token") -> str | None:
     """The token from ``--control-token`` or ``--control-token-file`` (None: neither); a usage error (exit 2, one
-    line: :class:`~mlink_sim.cli.inputs.InputError`) for both, an unreadable file or an empty token."""
+    line: :class:`~mlink_sim.cli.inputs.InputError`) for both, an unreadable file or an empty token. *flag*: the
+    option's name in the messages (``--web-token``: the same rules)."""
     if token is not None and token_file is not None:
-        raise InputError("give --control-token or --control-token-file, not both")
+        raise InputError(f"give {flag} or {flag}-file, not both")
     if token_file is not None:
         try:
             lines = Path(token_file).read_text(encoding="utf-8").splitlines()
         except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(f"--control-token-file: cannot read {token_file}: "
+            raise InputError(f"{flag}-file: cannot read {token_file}: "
                              f"{getattr(exc, 'strerror', None) or exc}") from None
         token = lines[0].strip() if lines else ""
         if not token:
-            raise InputError(f"--control-token-file: {token_file} holds no token")
+            raise InputError(f"{flag}-file: {token_file} holds no token")
     if token is not None and not token.strip():
-        raise InputError("--control-token: an empty token")
+        raise InputError(f"{flag}: an empty token")
     return token
 
 

@@ -18,6 +18,7 @@ from .params import CPUS, Duration, station_name
 from .control_token import endpoint_token
 from .proxy import parse_control
 from .slave import _parse_endpoints
+from .web import web_choice, web_options
 
 __all__ = ["up_cmd", "master_cmd", "validate_cmd"]
 
@@ -118,7 +119,8 @@ _common = [
     click.option("--control", "control", metavar="HOST:PORT",
                  help="Answer control requests here while running: status, report, run, stop, alarm-clear, param "
                       "('mlink-sim status', 'mlink-sim param'; docs/control.md), impair, heal, faults, fault, "
-                      "recovery ('mlink-sim control'; docs/faults.md). Port 0: any free port, printed on stderr."),
+                      "recovery ('mlink-sim control'; docs/faults.md); 'mlink-sim web' serves a page for it "
+                      "(docs/web.md). Port 0: any free port, printed on stderr."),
     click.option("--control-token", "control_token", metavar="TOKEN",
                  help="The token every control request carries; required to bind --control to an address other "
                       "than loopback."),
@@ -133,7 +135,7 @@ _common = [
 def _with_common(fn: Any) -> Any:
     for option in reversed(_common):
         fn = option(fn)
-    return capture_options(fn)
+    return web_options(capture_options(fn))
 
 
 def _with_stalls(fn: Any) -> Any:
@@ -193,7 +195,7 @@ def _stalls(config: Config, policy: str | None, bound: str | None) -> Config:
 def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, timeline, report, report_html, trace,
            trace_interval, asserts, status, bringup_timeout, include_bringup, control, control_token,
            control_token_file, log_json, log_level, host_stalls, stall_bound, rt, cpus, capture_path,
-           capture_max) -> None:
+           capture_max, web, web_token, web_token_file) -> None:
     """Bring the network in CONFIG up: slaves as processes, the master, the timeline; exit 0 if every check held.
 
     CONFIG is a TOML file or the name of a shipped example ('mlink-sim examples' lists them)."""
@@ -203,6 +205,10 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, time
     if clock == "virtual" and not timeline and duration is None:
         raise InputError("--clock virtual --no-timeline runs until --duration (simulated time has no Ctrl-C); "
                          "add --duration, e.g. --duration 10s")
+    web_at, web_secret = web_choice(web, web_token, web_token_file)
+    if clock == "virtual" and web_at is not None:
+        raise InputError("--web shows a network on the wall clock; --clock virtual runs faster than a page can "
+                         "follow (drop one of them)")
     if clock == "virtual" and (workers != "auto" or run_dir):
         click.echo("note: --clock virtual runs every station in this process: --workers and --run-dir are not used",
                    err=True)
@@ -226,6 +232,8 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, time
         control=parse_control(control),
         control_token=endpoint_token(parse_control(control), control_token, control_token_file),
         capture=open_capture_or_exit("up", capture_path, capture_max, background=clock != "virtual"),
+        web=web_at,
+        web_token=web_secret,
     )
     from ..aio.run.supervisor import WorkerError
 
@@ -248,11 +256,13 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, time
 @_with_stalls
 def master_cmd(config_path, endpoints, seed, duration, timeline, report, report_html, trace, trace_interval, asserts,
                status, bringup_timeout, include_bringup, control, control_token, control_token_file, log_json,
-               log_level, host_stalls, stall_bound, rt, cpus, capture_path, capture_max) -> None:
+               log_level, host_stalls, stall_bound, rt, cpus, capture_path, capture_max, web, web_token,
+               web_token_file) -> None:
     """Run only the master of CONFIG against slaves started elsewhere (containers, other hosts)."""
     configure_logging(json=log_json, level=log_level)
     config, path = load_checked(config_path)
     config = _without_timeline(_stalls(config, host_stalls, stall_bound), timeline)
+    web_at, web_secret = web_choice(web, web_token, web_token_file)
     overrides = _parse_endpoints(endpoints)
     check_stations("--endpoint", overrides, config, str(path))
     resolved: dict[int, tuple[str, int]] = {}
@@ -283,12 +293,19 @@ def master_cmd(config_path, endpoints, seed, duration, timeline, report, report_
         control=parse_control(control),
         control_token=endpoint_token(parse_control(control), control_token, control_token_file),
         capture=open_capture_or_exit("master", capture_path, capture_max),
+        web=web_at,
+        web_token=web_secret,
     )
+    from ..aio.run.webproc import WebError
+
     try:
         sys.exit(_run(lambda: run_network(config, resolved, opts)))
     except EndpointError as exc:
         click.echo(f"mlink-sim master: {exc}", err=True)
         sys.exit(2)
+    except WebError as exc:
+        click.echo(f"mlink-sim master: {exc}", err=True)
+        sys.exit(1)
 
 
 @click.command("validate")

@@ -44,8 +44,19 @@ def test_docs_are_flat_with_an_index() -> None:
     index = (REPO / "docs" / "README.md").read_text(encoding="utf-8")
     unlisted = [d.name for d in DOCS if d.name != "README.md" and f"]({d.name})" not in index]
     assert not unlisted, f"pages the index does not list: {unlisted}"
-    folders = [p.name for p in (REPO / "docs").iterdir() if p.is_dir()]
-    assert not folders, f"docs/ is flat (one page per topic): {folders}"
+    folders = [p.name for p in (REPO / "docs").iterdir() if p.is_dir() and p.name != "images"]
+    assert not folders, f"docs/ is flat (one page per topic; pictures in docs/images/): {folders}"
+
+
+def test_docs_images_are_pngs_a_page_shows() -> None:
+    images = REPO / "docs" / "images"
+    if not images.is_dir():
+        return
+    pages = "".join(d.read_text(encoding="utf-8") for d in DOCS)
+    files = sorted(p.name for p in images.iterdir())
+    assert all(name.endswith(".png") for name in files), f"docs/images/ holds PNGs only: {files}"
+    unshown = [name for name in files if f"](images/{name})" not in pages]
+    assert not unshown, f"pictures no page shows: {unshown}"
 
 
 def test_results_are_named_by_date_and_commit() -> None:

@@ -141,6 +141,8 @@ class ControlServer:
             if self.token.refused == 1 or self.token.refused & (self.token.refused - 1) == 0:
                 log.warning("control_refused", reason="no token or a wrong one", refused=self.token.refused)
             return None
+        if isinstance(request, dict):
+            request.pop("token", None)  # admitted: the operations see their own fields only
         if not isinstance(request, dict) or not isinstance(request.get("op"), str):
             return {"ok": False, "kind": "bad_request", "error": "expected a JSON object with 'op' (one of: "
                                                                  f"{', '.join(sorted([*self.ops, 'ping']))})"}

@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import os
+import secrets
 import signal
 import sys
 import tempfile
@@ -35,6 +36,7 @@ from .status import LiveStatus, StatusInfo, SummaryWriter, WorstP99, render_line
 from .supervisor import resolve_workers
 from .trace import DEFAULT_INTERVAL_NS, TraceSampler
 from .virtual_session import VirtualSession
+from .webproc import WebProcess
 
 __all__ = ["RunOptions", "RunOutcome", "Verdict", "SIGNAL_EXIT", "EndpointError", "run_up", "run_network",
            "build_plans", "cut_by_duration"]
@@ -78,6 +80,11 @@ class RunOptions:
     trace_interval_ns: int = DEFAULT_INTERVAL_NS
     #: ``--report-html FILE``: the HTML report (metrics/html.py); without ``trace_path`` from a temporary trace
     report_html: Path | None = None
+    #: ``--web [HOST:]PORT``: serve the page and the HTTP API here, in a process of its own (aio/run/webproc.py);
+    #: without ``--control`` the run opens a control endpoint on 127.0.0.1 for it, with a token of its own
+    web: tuple[str, int] | None = None
+    #: ``--web-token``: the token every API request must carry (None: none)
+    web_token: str | None = None
 
 
 @dataclasses.dataclass
@@ -172,6 +179,7 @@ class _Run:
     session: NetworkSession | None = None
     sampler: TraceSampler | None = None  #: the trace (--trace, --report-html)
     trace_file: Path | None = None  #: where it is written: --trace's file, or a temporary one for --report-html
+    web: WebProcess | None = None
 
     def catch_signals(self) -> None:
         """SIGINT / SIGTERM set :attr:`stop` (the first one is kept for the exit status); :func:`_close` removes
@@ -217,17 +225,25 @@ async def _open(run: _Run, session_cls: type[NetworkSession], endpoints: dict[in
                 else f"cpus: {granted}")
     if opts.trace_path is not None or opts.report_html is not None:
         run.sampler = _open_trace(run, session)
-    if opts.control is not None:
+    if opts.control is not None or opts.web is not None:
+        # --web without --control: an endpoint on loopback for the web server only, with a token of its own
+        token = opts.control_token if opts.control is not None else secrets.token_urlsafe(16)
         masters = list(session.masters.values())
         log = RunLog(masters[0].now_ns)
         for master in masters:
             log.watch(master)
         run.ops = RunOps(session, log, opts.assertions, in_thread=opts.clock != "virtual")
         ops = run.ops.ops({**impairment_ops(session), **fault_ops(session)})
-        run.control = ControlServer(run.sampler.recording(ops) if run.sampler else ops, token=opts.control_token)
-        host, port = await run.control.start(*opts.control)
-        _notice(opts, "control", f"control: {host}:{port} (mlink-sim status {host}:{port}; mlink-sim param get|set "
-                                 f"{host}:{port} …; mlink-sim control {host}:{port} OP)")
+        run.control = ControlServer(run.sampler.recording(ops) if run.sampler else ops, token=token)
+        host, port = await run.control.start(*(opts.control or ("127.0.0.1", 0)))
+        if opts.control is not None:
+            _notice(opts, "control", f"control: {host}:{port} (mlink-sim status {host}:{port}; mlink-sim param "
+                                     f"get|set {host}:{port} …; mlink-sim control {host}:{port} OP)")
+        if opts.web is not None:
+            run.web = WebProcess(opts.web, opts.web_token, log_json=opts.log_json)
+            url = await run.web.start((host, port), token)
+            _notice(opts, "web", f"web: {url}" + (" (the page: this address with #token=TOKEN; docs/web.md)"
+                                                   if opts.web_token else ""))
     return session
 
 
@@ -293,6 +309,8 @@ async def _report(run: _Run, session: NetworkSession, scenario: Scenario) -> dic
 async def _close(run: _Run) -> None:
     """Release what the run holds, whatever happened before: the control endpoint, the live status, the session
     (its workers), the capture, the signal handlers."""
+    if run.web is not None:
+        await run.web.stop()
     if run.control is not None:
         run.control.close()
     if run.sampler is not None:

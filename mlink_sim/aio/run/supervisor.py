@@ -26,7 +26,7 @@ from typing import Any
 from ..._log import get_logger
 from ..timing.realtime import unplace_child
 
-__all__ = ["WorkerSpec", "Worker", "WorkerError", "die_with_parent", "plan_workers", "parse_workers",
+__all__ = ["WorkerSpec", "Worker", "WorkerError", "child_setup", "die_with_parent", "plan_workers", "parse_workers",
            "resolve_workers"]
 
 log = get_logger("mlink_sim.supervisor")
@@ -34,7 +34,9 @@ log = get_logger("mlink_sim.supervisor")
 _PR_SET_PDEATHSIG = 1
 
 
-def _child_setup() -> None:  # runs in the child between fork and exec
+def child_setup() -> None:
+    """A child process's ``preexec_fn`` (it runs between fork and exec): a process group of its own, the death of
+    its parent, ordinary scheduling (the workers, the web server of ``up --web``)."""
     # A process group of its own: the terminal's Ctrl-C reaches `up` only, which DISCONNECTs the stations first
     # and then stops the workers. (uvloop's subprocess has no process_group argument.)
     os.setpgid(0, 0)
@@ -174,7 +176,7 @@ class Worker:
                 stdin=asyncio.subprocess.DEVNULL,
                 stdout=asyncio.subprocess.PIPE,
                 stderr=logf,
-                preexec_fn=_child_setup,
+                preexec_fn=child_setup,
                 env={**os.environ, "PYTHONUNBUFFERED": "1"},
             )
         finally:

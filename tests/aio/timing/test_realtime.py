@@ -241,7 +241,7 @@ def test_a_worker_process_is_unplaced_before_it_starts(monkeypatch):
     monkeypatch.setattr(supervisor.os, "setpgid", lambda *_a: done.append("group"))
     monkeypatch.setattr(supervisor, "die_with_parent", lambda: done.append("dies with parent"))
     monkeypatch.setattr(supervisor, "unplace_child", lambda: done.append("unplaced"))
-    supervisor._child_setup()
+    supervisor.child_setup()
     assert done == ["group", "dies with parent", "unplaced"]
 
 
