@@ -44,14 +44,14 @@ from ..._log import get_logger
 from ..slave.token import ControlToken
 from ..transport.udp import DatagramEndpoint, open_endpoint
 
-__all__ = ["ControlServer", "Op", "OpError", "ERROR_KINDS", "ASYNC_LIMIT_S", "REMEMBERED", "QUIET", "impairment_ops",
+__all__ = ["ControlServer", "Encoded", "Op", "OpError", "ERROR_KINDS", "ASYNC_LIMIT_S", "REMEMBERED", "QUIET", "impairment_ops",
            "query_control"]
 
 log = get_logger("mlink_sim.control")
 
 #: An operation: the request (a dict) -> the reply's fields (``ok`` is added), or an awaitable of them;
 #: :class:`OpError` (or ValueError, TypeError, KeyError: ``bad_request``) -> an error reply.
-Op = Callable[[dict[str, Any]], "dict[str, Any] | Awaitable[dict[str, Any]]"]
+Op = Callable[[dict[str, Any]], "Reply | Awaitable[Reply]"]
 #: The kinds of an error reply, in the order of the HTTP statuses a web server maps them to (400, 404, 404, 422,
 #: 409, 409).
 ERROR_KINDS = ("bad_request", "unknown_station", "unknown_param", "out_of_range", "refused", "unavailable")
@@ -60,6 +60,25 @@ REMEMBERED = 64  #: request ids remembered (their replies), for requests UDP mad
 QUIET = ("status", "network", "report", "faults", "recovery")  #: operations that only read: not logged
 _MAX_REPLY = 60_000
 _PART = 44_000  #: bytes of the JSON reply per part: 58,668 in base64, a part stays one datagram
+
+
+class Encoded:
+    """A reply its operation encoded itself: the JSON text of the whole reply, ``"ok"`` included. An operation
+    whose reply is large encodes it a part at a time with the loop free in between (a 62-station ``status``:
+    :mod:`.ops`), where one ``json.dumps`` of the whole would hold the cycle for a quarter of a millisecond."""
+
+    __slots__ = ("text",)
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+    def decode(self) -> dict[str, Any]:
+        reply: dict[str, Any] = json.loads(self.text)
+        return reply
+
+
+#: A reply as the endpoint sends it: its fields, or the text an operation encoded itself
+Reply = dict[str, Any] | Encoded
 
 
 class OpError(ValueError):
@@ -110,7 +129,7 @@ class ControlServer:
         self.token = ControlToken(token)
         self._endpoint: DatagramEndpoint | None = None
         #: request id -> its reply, or the future of a reply still to come (the last REMEMBERED ids)
-        self._replies: OrderedDict[Any, dict[str, Any] | asyncio.Future[dict[str, Any]]] = OrderedDict()
+        self._replies: OrderedDict[Any, Reply | asyncio.Future[Reply]] = OrderedDict()
         self._tasks: set[asyncio.Task[Any]] = set()
 
     async def start(self, host: str, port: int) -> tuple[str, int]:
@@ -129,7 +148,7 @@ class ControlServer:
         for task in list(self._tasks):
             task.cancel()
 
-    def handle(self, data: bytes) -> dict[str, Any] | asyncio.Future[dict[str, Any]] | None:
+    def handle(self, data: bytes) -> Reply | asyncio.Future[Reply] | None:
         """The reply to one request (never raises): a dict, a future of one (an operation that answers later,
         within :data:`ASYNC_LIMIT_S`), or None for a request without the token (not answered). A request with an
         ``"id"`` already seen gets that request's reply, and does not act again."""
@@ -158,7 +177,7 @@ class ControlServer:
             return reply
         return self._act(request)
 
-    def _act(self, request: dict[str, Any]) -> dict[str, Any] | asyncio.Future[dict[str, Any]]:
+    def _act(self, request: dict[str, Any]) -> Reply | asyncio.Future[Reply]:
         op = request["op"]
         if op == "ping":
             return {"ok": True}
@@ -172,18 +191,21 @@ class ControlServer:
             return _error(exc)
         if op not in self.quiet:
             log.info("control", op=op, request={k: v for k, v in request.items() if k not in ("op", "token")})
+        if isinstance(reply, Encoded):
+            return reply
         if not inspect.isawaitable(reply):
             return {"ok": True, **reply}
         return self._later(op, reply)
 
-    def _later(self, op: str, pending: Awaitable[dict[str, Any]]) -> asyncio.Future[dict[str, Any]]:
+    def _later(self, op: str, pending: Awaitable[Reply]) -> asyncio.Future[Reply]:
         """The future reply of an operation that answers later (bounded by :data:`ASYNC_LIMIT_S`)."""
         loop = asyncio.get_running_loop()
-        fut: asyncio.Future[dict[str, Any]] = loop.create_future()
+        fut: asyncio.Future[Reply] = loop.create_future()
 
         async def finish() -> None:
             try:
-                reply: dict[str, Any] = {"ok": True, **await asyncio.wait_for(pending, ASYNC_LIMIT_S)}
+                result = await asyncio.wait_for(pending, ASYNC_LIMIT_S)
+                reply: Reply = result if isinstance(result, Encoded) else {"ok": True, **result}
             except TimeoutError:
                 reply = {"ok": False, "kind": "unavailable",
                          "error": f"{op}: no answer within {ASYNC_LIMIT_S:g} s"}
@@ -204,27 +226,27 @@ class ControlServer:
         reply = self.handle(data)
         if reply is None:
             return
-        if isinstance(reply, dict):
+        if isinstance(reply, (dict, Encoded)):
             self._send(reply, addr)
             return
 
-        def done(fut: asyncio.Future[dict[str, Any]]) -> None:
+        def done(fut: asyncio.Future[Reply]) -> None:
             if not fut.cancelled():
                 self._send(fut.result(), addr)
 
         reply.add_done_callback(done)
 
-    def _send(self, reply: dict[str, Any], addr: Any) -> None:
+    def _send(self, reply: Reply, addr: Any) -> None:
         if self._endpoint is None:
             return
         for payload in encode_reply(reply):
             self._endpoint.sendto(payload, addr)
 
 
-def encode_reply(reply: dict[str, Any]) -> list[bytes]:
+def encode_reply(reply: Reply) -> list[bytes]:
     """*reply* as the datagrams that carry it: one, or the parts of a larger one (the JSON in pieces of
     :data:`_PART` bytes, base64, ``part``/``parts`` numbered)."""
-    payload = json.dumps(reply, separators=(",", ":")).encode()
+    payload = (reply.text if isinstance(reply, Encoded) else json.dumps(reply, separators=(",", ":"))).encode()
     if len(payload) <= _MAX_REPLY:
         return [payload]
     pieces = [payload[i:i + _PART] for i in range(0, len(payload), _PART)]

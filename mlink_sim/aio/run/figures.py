@@ -50,8 +50,13 @@ FIGURE_FIELDS = ("address", "name", "card", "link", "phase", "connected", "alarm
                  "running", "direction", "reference_hz", "output_hz", "output_current_a", "dc_bus_v",
                  "motor_speed_rpm", "rtt_p50_us", "rtt_p99_us", "missed", "late")
 
-_CONNECTED = frozenset({StationState.PHASE2, StationState.SYNCING, StationState.PHASE3, StationState.ALARM})
-_COMM_ALARMS = frozenset({M2Alarm.WDT_ERROR, M2Alarm.COMM_ERROR})  #: SI-T3 Table 20 "LED (ERR) ON"
+# Plain ints and a tuple of members: the figures are read many times a second, and an enum's ``&`` and hash run
+# in Python.
+_CONNECTED = (StationState.PHASE2, StationState.SYNCING, StationState.PHASE3, StationState.ALARM)
+_COMM_ALARMS = frozenset({int(M2Alarm.WDT_ERROR), int(M2Alarm.COMM_ERROR)})  #: SI-T3 Table 20 "LED (ERR) ON"
+_FORWARD, _REVERSE = int(InvCmdStat.FORWARD), int(InvCmdStat.REVERSE)
+_SEL_MON1, _SEL_MON2 = int(InvCmdStat.SEL_MON1), int(InvCmdStat.SEL_MON2)
+_RUNX, _REV = int(M2Status.RUNX), int(M2Status.REV)
 #: What a SEL_MON selection carries, by monitor name (drive/monitors.py): the figure it fills.
 _MONITOR_FIGURE = {"U1-01": "reference_hz", "U-01": "reference_hz", "U1-05": "motor_speed_rpm",
                    "U1-07": "dc_bus_v", "U-05": "dc_bus_v"}
@@ -68,10 +73,10 @@ def run_direction(link: Link, status: int) -> str | None:
     """``"forward"``, ``"reverse"`` or None (stopped) from a response's status: ML-III INVCMD_STAT FORWARD/REVERSE
     (SI-ET3 "INVCMD_STAT"), ML-I/II STATUS RUNX with REV (SI-T3 / SI-T/V7 "STATUS Field")."""
     if link is Link.ML3:
-        return "forward" if status & InvCmdStat.FORWARD else "reverse" if status & InvCmdStat.REVERSE else None
-    if not status & M2Status.RUNX:
+        return "forward" if status & _FORWARD else "reverse" if status & _REVERSE else None
+    if not status & _RUNX:
         return None
-    return "reverse" if status & M2Status.REV else "forward"
+    return "reverse" if status & _REV else "forward"
 
 
 def _signed(raw: int) -> int:
@@ -150,8 +155,8 @@ class StationFigures:
         monitors: dict[str, float | None] = {"reference_hz": None, "motor_speed_rpm": None, "dc_bus_v": None}
         answering = view.state is not StationState.OFFLINE and view.responses > 0
         if answering:
-            for code, raw, enabled in ((sel_mon & 0xF, view.mon1, InvCmdStat.SEL_MON1),
-                                       (sel_mon >> 4 & 0xF, view.mon2, InvCmdStat.SEL_MON2)):
+            for code, raw, enabled in ((sel_mon & 0xF, view.mon1, _SEL_MON1),
+                                       (sel_mon >> 4 & 0xF, view.mon2, _SEL_MON2)):
                 figure = self._monitors[code]
                 if figure is None or (self._ml3 and not status & enabled):
                     continue

@@ -7,7 +7,7 @@ import asyncio
 import json
 from typing import Any
 
-from mlink_sim.aio.run.control import ControlServer, OpError, encode_reply, query_control
+from mlink_sim.aio.run.control import ControlServer, Encoded, OpError, encode_reply, query_control
 
 
 def _serve(ops: dict[str, Any], scenario: Any) -> Any:
@@ -40,6 +40,23 @@ def test_an_operation_answering_later_does_not_hold_up_the_others():
         assert await pending == {"ok": True, "value": 5}
 
     _serve({"slow": slow}, scenario)
+
+
+def test_a_reply_its_operation_encoded_itself_is_sent_as_it_is_now_or_later():
+    text = '{"ok":true,"stations":[{"address":"0x21"}],"seq":3}'
+
+    def later(request: dict[str, Any]) -> Any:
+        async def encoded() -> Encoded:
+            await asyncio.sleep(0)
+            return Encoded(text)
+        return encoded()
+
+    async def scenario(port: int) -> None:
+        assert await query_control("127.0.0.1", port, "now", timeout=2) == json.loads(text)
+        assert await query_control("127.0.0.1", port, "later", timeout=2) == json.loads(text)
+
+    _serve({"now": lambda request: Encoded(text), "later": later}, scenario)
+    assert encode_reply(Encoded(text)) == [text.encode()]
 
 
 def test_a_repeated_request_id_acts_once_and_gets_the_same_answer():

@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from mlink_sim.aio.run.control import OpError
+from mlink_sim.aio.run.control import Encoded, OpError
 from mlink_sim.aio.run.embed import VirtualNetwork
 from mlink_sim.aio.run.events import RunLog
 from mlink_sim.aio.run.ops import STATIONS_PER_STEP, RunOps
@@ -32,7 +32,8 @@ def _ask(net: VirtualNetwork, op: Any, **request: Any) -> dict[str, Any]:
     """*op*'s reply to *request*, asked in the network's loop (as the endpoint asks it)."""
     async def go() -> dict[str, Any]:
         reply = op(request)
-        return await reply if inspect.isawaitable(reply) else reply
+        reply = await reply if inspect.isawaitable(reply) else reply
+        return reply.decode() if isinstance(reply, Encoded) else reply
 
     return net.call(go())
 
