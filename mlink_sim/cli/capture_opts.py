@@ -8,6 +8,8 @@ from typing import Any
 
 import click
 
+from .params import Parsed
+
 __all__ = ["capture_options", "parse_size", "open_capture_or_exit"]
 
 _UNITS = {"": 1, "b": 1, "k": 10**3, "kb": 10**3, "m": 10**6, "mb": 10**6, "g": 10**9, "gb": 10**9,
@@ -26,20 +28,9 @@ def parse_size(text: str) -> int:
     return value
 
 
-class _Size(click.ParamType):
-    name = "size"
-
-    def convert(self, value: Any, param: Any, ctx: Any) -> int:
-        if isinstance(value, int):
-            return value
-        try:
-            return parse_size(value)
-        except ValueError as exc:
-            self.fail(str(exc), param, ctx)
-
-
 def capture_options(fn: Any) -> Any:
-    fn = click.option("--capture-max", "capture_max", type=_Size(), default="100MB", show_default=True,
+    fn = click.option("--capture-max", "capture_max", type=Parsed("SIZE", parse_size, int), default="100MB",
+                      show_default=True,
                       help="The capture stops growing at this size (the rest is counted, not written).")(fn)
     return click.option("--capture", "capture_path", type=click.Path(dir_okay=False, path_type=Path),
                         help="Record every datagram sent and received to this pcapng file (Wireshark: "

@@ -12,13 +12,14 @@ Output names a station the manuals' way, :func:`station_name` (``21H``)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import click
 
 from ..units import parse_address, parse_cpus, parse_duration_ns
 
-__all__ = ["ADDR", "LINK", "CARD", "Address", "Duration", "Seconds", "CpuList", "CPUS", "station_name", "CARDS", "LINKS"]
+__all__ = ["ADDR", "LINK", "CARD", "Parsed", "Duration", "Seconds", "CPUS", "station_name", "CARDS", "LINKS"]
 
 CARDS = ("si-t3", "si-et3", "si-t-v7")
 LINKS = ("ML1", "ML2", "ML3")
@@ -29,17 +30,23 @@ def station_name(address: int) -> str:
     return f"{address:02X}H"
 
 
-class Address(click.ParamType):
-    """``ADDR``: ``21H``, ``0x21`` or ``33`` -> the address as an int."""
+class Parsed(click.ParamType):
+    """An option value read by *parse* (its ValueError is the one-line usage error), shown as *name*; a value of
+    *kind* already (a default) is taken as it is. ``ADDR`` and ``LIST`` are two of them."""
 
-    name = "ADDR"
+    def __init__(self, name: str, parse: Callable[[Any], Any], kind: type | tuple[type, ...] = ()) -> None:
+        self.name = name
+        self.parse = parse
+        self.kind = kind
 
     def get_metavar(self, param: Any, ctx: Any = None) -> str:
-        return "ADDR"
+        return self.name
 
-    def convert(self, value: Any, param: Any, ctx: Any) -> int:
+    def convert(self, value: Any, param: Any, ctx: Any) -> Any:
+        if self.kind and isinstance(value, self.kind):
+            return value
         try:
-            return parse_address(value)
+            return self.parse(value)
         except ValueError as exc:
             self.fail(str(exc), param, ctx)
 
@@ -90,23 +97,6 @@ class Seconds(click.ParamType):
         return seconds
 
 
-class CpuList(click.ParamType):
-    """``LIST``: ``0,2`` -> ``{0, 2}`` (``--cpus``)."""
-
-    name = "LIST"
-
-    def get_metavar(self, param: Any, ctx: Any = None) -> str:
-        return "LIST"
-
-    def convert(self, value: Any, param: Any, ctx: Any) -> set[int]:
-        if isinstance(value, set):
-            return value
-        try:
-            return parse_cpus(value)
-        except ValueError as exc:
-            self.fail(str(exc), param, ctx)
-
-
 class _Spelled(click.Choice):
     """A choice shown as the config spells it (click lower-cases the choices of a case-insensitive one)."""
 
@@ -114,10 +104,10 @@ class _Spelled(click.Choice):
         return f"[{'|'.join(map(str, self.choices))}]"
 
 
-#: ``ADDR`` options and arguments
-ADDR = Address()
-#: ``--cpus`` options
-CPUS = CpuList()
+#: ``ADDR`` options and arguments: ``21H``, ``0x21`` or ``33`` -> the address as an int
+ADDR = Parsed("ADDR", parse_address)
+#: ``--cpus`` options: ``0,2`` -> ``{0, 2}``
+CPUS = Parsed("LIST", parse_cpus, set)
 #: ``--link``: the config's spelling, any case; the value is ``ML1``, ``ML2`` or ``ML3``
 LINK = _Spelled(LINKS, case_sensitive=False)
 #: ``--card``: the config's spelling, any case; the value is lower case
