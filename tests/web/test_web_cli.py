@@ -1,5 +1,6 @@
 """``mlink-sim web`` against a network running with ``--control`` (as in a container or on another machine), the
-token that any address other than loopback requires, and the web server's process ending with the run."""
+token that any address other than loopback requires, the web server's process ending with the run, and ``master
+--web`` for a master whose slave runs elsewhere."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import urllib.request
 
 import pytest
 
-from .webnet import MLINK, Http, check_response, stations, up_with_control, up_with_web, wait_for, web_server
+from .webnet import MLINK, Http, Proc, check_response, stations, up_with_control, up_with_web, wait_for, web_server
 
 pytestmark = pytest.mark.e2e
 
@@ -79,3 +80,38 @@ def test_the_web_server_of_up_ends_with_the_run() -> None:
     net.stop()
     with pytest.raises(urllib.error.URLError):
         urllib.request.urlopen(url, timeout=5)
+
+
+ONE_STATION = """
+[network]
+name = "one"
+transmission_cycle = "2ms"
+
+[[station]]
+address = 0x21
+card = "si-t3"
+link = "ML2"
+"""
+
+
+def test_master_web_serves_a_master_whose_slave_runs_elsewhere(tmp_path) -> None:
+    config = tmp_path / "one.toml"
+    config.write_text(ONE_STATION)
+    slave = Proc("slave", "--card", "si-t3", "--station", "21H", "--listen", "127.0.0.1:0",
+                 "--allow-master", "127.0.0.1")
+    try:
+        port = slave.wait_line(re.compile(r"0x21@127\.0\.0\.1:(\d+)")).group(1)  # its log's "ready" line
+        master = Proc("master", str(config), "--endpoint", f"0x21=127.0.0.1:{port}", "--no-timeline",
+                      "--duration", "600s", "--no-status", "--no-realtime", "--web", "127.0.0.1:0")
+        try:
+            url = master.wait_line(re.compile(r"^web: (http://\S+)")).group(1)
+            http = Http(url)
+            rows = wait_for(lambda: [s for s in stations(http) if s["phase"] == 3], 30, "phase 3")
+            assert [s["name"] for s in rows] == ["21H"]
+            status, body = http.get("api/stations/21H/params/C1-01")
+            check_response("/api/stations/{address}/params/{name}", "GET", status, body)
+            assert status == 200 and body["param"]["unit"] == "s"  # read through the master from the slave
+        finally:
+            master.stop()
+    finally:
+        slave.stop()
