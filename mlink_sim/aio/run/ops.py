@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -148,7 +149,8 @@ class RunOps:
         """Ask the slaves for their snapshots in the background, at most once every :attr:`snapshot_every_s`;
         the refresh under way, if any."""
         loop = asyncio.get_running_loop()
-        if self._refreshing is not None or loop.time() - self._refreshed < self.snapshot_every_s:
+        if (self._refreshing is not None or loop.time() - self._refreshed < self.snapshot_every_s
+                or time.monotonic() - self.session.snapshots_at < self.snapshot_every_s):  # a trace took them
             return self._refreshing
         self._refreshed = loop.time()
 

@@ -221,8 +221,8 @@ class NetworkSession:
         from ...metrics import NetworkMetrics
 
         self.capture = capture  #: a CaptureWriter recording every master socket (``--capture``), or None
-        #: each hosted station's latest snapshot (its slave's stats entry, by address), as last refreshed
-        self.slave_snapshots: dict[int, dict[str, Any]] = {}
+        self.slave_snapshots: dict[int, dict[str, Any]] = {}  #: each station's slave stats entry, by address
+        self.snapshots_at = float("-inf")  #: when :meth:`refresh_slave_stats` last took them (time.monotonic)
         self.config = config
         self.config_path = Path(config_path)
         self.metrics = NetworkMetrics(config.network.transmission_cycle)
@@ -511,7 +511,6 @@ class NetworkSession:
     async def refresh_slave_stats(self) -> None:
         """The slaves' counters and CPU time into :attr:`metrics`, their stations' snapshots into :attr:`slave_snapshots`."""
         stats: dict[str, Any] = {}
-
         async def one(w: Worker) -> None:
             if w.alive and w.control_port:
                 reply = await query_control("127.0.0.1", w.control_port, "stats", timeout=1.0,
@@ -522,7 +521,8 @@ class NetworkSession:
                     self.metrics.stalls.set_totals(f"worker:{w.spec.index}", reply.get("stall_totals", {}))
 
         await asyncio.gather(*(one(w) for w in self.worker_list))
-        wall = time.monotonic() - self._wall0
+        self.snapshots_at = time.monotonic()
+        wall = self.snapshots_at - self._wall0
         for name, reply in stats.items():
             self.metrics.record_cpu(name, reply.get("cpu_s", 0.0), reply.get("wall_s", wall) or wall)
             for key, snap in reply.get("stations", {}).items():

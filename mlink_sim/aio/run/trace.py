@@ -26,6 +26,7 @@ import asyncio
 import inspect
 import json
 import math
+import time
 from collections.abc import Callable
 from operator import itemgetter
 from typing import Any
@@ -250,7 +251,8 @@ class TraceSampler:
         """The slave workers' snapshots, refreshed every :data:`SNAPSHOT_EVERY_S` (one query at a time)."""
         while True:
             try:
-                await self.session.refresh_slave_stats()
+                if time.monotonic() - self.session.snapshots_at >= SNAPSHOT_EVERY_S:  # not taken for a page meanwhile
+                    await self.session.refresh_slave_stats()
             except OSError as exc:
                 log.info("trace_snapshot_failed", error=str(exc))
             await asyncio.sleep(SNAPSHOT_EVERY_S)
