@@ -82,7 +82,7 @@ from typing import Any, TypeVar
 from mlink_sim.aio.timing import realtime
 from mlink_sim.aio.transport import mmsg
 from mlink_sim.aio.run.session import NetworkSession
-from mlink_sim.aio.run.control import query_control
+from mlink_sim.aio.control.endpoint import query_control
 from mlink_sim.aio.transport.udp import new_event_loop
 from mlink_sim.cli.logs import configure_logging
 from mlink_sim.config import format_ns, load_config, parse_duration_ns

@@ -36,9 +36,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mlink_sim.aio.run.control import ControlServer
-from mlink_sim.aio.run.events import RunLog
-from mlink_sim.aio.run.ops import RunOps
+from mlink_sim.aio.control.endpoint import ControlServer
+from mlink_sim.aio.control.events import RunLog
+from mlink_sim.aio.control.network import NetworkOps
 from mlink_sim.aio.run.session import NetworkSession
 from mlink_sim.aio.run.supervisor import die_with_parent, resolve_workers
 from mlink_sim.aio.run.webproc import WebProcess
@@ -128,7 +128,7 @@ async def _network(path: Path, duration_s: float, rt: bool) -> tuple[dict[str, A
         log = RunLog(masters[0].now_ns)
         for master in masters:
             log.watch(master)
-        server = ControlServer(RunOps(session, log).ops(), token="bench")
+        server = ControlServer(NetworkOps(session, log).handlers(), "network", token="bench")
         where = await server.start("127.0.0.1", 0)
         url = await web.start(where, "bench")
         not_up = await session.bring_up(timeout=30.0)

@@ -29,7 +29,7 @@ from pathlib import Path
 
 from mlink_sim.aio.timing import realtime
 from mlink_sim.aio.run.session import NetworkSession
-from mlink_sim.aio.run.control import query_control
+from mlink_sim.aio.control.endpoint import query_control
 from mlink_sim.config import load_config, parse_duration_ns
 
 from benchmarks.bench import Interrupted, measuring, watching_rtt, write_config

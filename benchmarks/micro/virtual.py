@@ -63,7 +63,7 @@ def floor(path: Path, seconds: float) -> tuple[float, float]:
     """CPU seconds of the cores alone for *seconds* of the config's cyclic traffic after bring-up, every drive
     running at 30 Hz (its ramp included): master core -> card core -> master core in a plain loop. Returns
     (total, the card cores' share with their drives: ``receive`` and ``poll``, timed with ``process_time``)."""
-    from mlink_sim.aio.run.scenario import speed_scales
+    from mlink_sim.scenario import speed_scales
     from mlink_sim.aio.run.session import build_plans
     from mlink_sim.aio.slave.stations import build_station, spec_for
     from mlink_sim.master import MasterCore

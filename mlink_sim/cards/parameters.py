@@ -4,19 +4,22 @@
 The values live in the station's :class:`~mlink_sim.cards.paramstore.ParamStore` (written values wait there
 until CONFIG applies them, except on the SI-T/V7, whose PRM_WR takes effect at once: ``Station.prm_immediate``);
 applied values reconfigure the drive model; CONFIG_MOD = 1 also marks the EEPROM image dirty
-(:class:`~mlink_sim.cards.eeprom.EepromWriteBack`).
+(:class:`~mlink_sim.cards.eeprom.EepromWriteBack`). :func:`keypad_read` / :func:`keypad_write`: a parameter by name as the
+drive's keypad reads and sets it (a standalone slave's ``get-param`` / ``set-param``, docs/control.md).
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from mlink_sim.params import Param, ParamError
+
 from .results import Err
 
 if TYPE_CHECKING:
     from .base import Station
 
-__all__ = ["read_params", "write_params", "config", "reconfigure"]
+__all__ = ["read_params", "write_params", "config", "reconfigure", "keypad_read", "keypad_write"]
 
 
 def read_params(station: Station, no: int, size: int) -> tuple[bytes, Err]:
@@ -56,3 +59,35 @@ def reconfigure(station: Station, now: int) -> None:
         station.drive.reconfigure(station.store.active, now)
     except (KeyError, ValueError) as exc:
         station._log.warning("drive_reconfigure_failed", reason=str(exc))
+
+
+def keypad_read(station: Station, name: str) -> tuple[Param, int]:
+    """A parameter or monitor by name as the drive's keypad shows it (its row and raw value: the value in effect,
+    or the one written and not yet entered; a monitor as the drive reads it now). ``ParamError`` for a name the
+    station's table does not have."""
+    param = station.store.table.resolve(name)
+    raw = station.drive.monitor(param.name) if param.read_only else station.store.value(param.name)
+    return param, raw
+
+
+def keypad_write(station: Station, name: str, raw: int, now: int, *, save: bool) -> Err:
+    """Set a parameter by name as the drive's keypad does: in effect at once (the drive model reconfigured), with
+    *save* also stored as CONFIG_MOD = 1 stores it (the EEPROM image). ``Err.DATA`` for a monitor or a value outside
+    the row's range, ``Err.UNDERVOLTAGE`` while the main power is off (as PRM_WR)."""
+    param = station.store.table.resolve(name)
+    if param.read_only:
+        return Err.DATA
+    try:
+        station.store.table.check(param, raw)
+    except ParamError:
+        return Err.DATA
+    if not station.drive.status.main_power_on:
+        return Err.UNDERVOLTAGE
+    station.store.pending.pop(param.name, None)
+    station.store.active[param.name] = raw
+    reconfigure(station, now)
+    station._log.info("keypad_write", param=param.name, raw=raw, save=save)
+    if save:
+        station.saved_params = station.store.overrides()
+        station.eeprom.changed(config_sub=False)
+    return Err.OK

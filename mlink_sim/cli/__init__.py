@@ -26,8 +26,8 @@ SHORT_HELP = {
     "decode": "Decode a datagram given as hex, or every datagram of a capture (--pcap).",
     "replay": "Send a capture's master frames to live slaves and compare their answers.",
     "proxy": "Forward datagrams between a master and slaves through loss, delay and corruption.",
-    "control": "Send a request to a running network, proxy or slave (impair, fault, stats …).",
-    "param": "Read or write a drive parameter of a running network's station by name (get, set).",
+    "control": "Send an operation to a running network, slave or proxy (run, set-param, impair, fault …).",
+    "param": "Read or write a station's drive parameter by name, on a running network or slave (get, set).",
     "status": "Print the status of a running network or slave (phase, Hz, current, LEDs, alarms); --watch.",
     "wireshark": "Install or locate the Wireshark dissector of mlink-sim's datagrams.",
     "compose": "Write a docker-compose testbed: one container per station and a master.",
@@ -67,7 +67,8 @@ def _register_optional() -> None:
     from .examples import examples_cmd
     from .network import master_cmd, up_cmd, validate_cmd
     from .probe import probe_cmd
-    from .proxy import control_cmd, proxy_cmd
+    from .control import control_cmd
+    from .proxy import proxy_cmd
     from .remote import param_cmd, status_cmd
     from .replay import replay_cmd
     from .report import report_cmd

@@ -49,7 +49,7 @@ def control_token(token: str | None, token_file: str | None, flag: str = "--cont
 def endpoint_token(control: tuple[str, int] | None, token: str | None, token_file: str | None) -> str | None:
     """The token of a control endpoint bound at *control* (None: no endpoint): binding anything but a loopback
     address without one is a usage error."""
-    from ..aio.slave.token import is_loopback
+    from ..aio.control.token import is_loopback
 
     value = control_token(token, token_file)
     if control is not None and value is None and not is_loopback(control[0]):

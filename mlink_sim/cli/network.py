@@ -313,7 +313,7 @@ def master_cmd(config_path, endpoints, seed, duration, timeline, report, report_
 def validate_cmd(config_path: str) -> None:
     """Check CONFIG without starting anything; print a one-screen summary, and a warning for each timeline check
     the drives' settings cannot meet (exit 0 all the same)."""
-    from ..aio.run.expectations import timeline_warnings
+    from ..scenario.expectations import timeline_warnings
 
     config, _ = load_checked(config_path)
     net = config.network

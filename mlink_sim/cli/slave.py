@@ -63,16 +63,28 @@ def station_specs_from_config(
 
 
 async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool = False,
-                 cpus: set[int] | None = None, control_host: str | None = None) -> int:
-    """Serve until SIGINT / SIGTERM; the exit status, 128 + the signal's number (130 / 143)."""
+                 cpus: set[int] | None = None, control: tuple[str, int] | None = None,
+                 token: str | None = None) -> int:
+    """Serve until SIGINT / SIGTERM, with the control endpoint at *control* (None: none); the exit status, 128 + the
+    signal's number (130 / 143)."""
+    from ..aio.control.slave import serve_slave
+
     loop = asyncio.get_running_loop()
     stop, caught = stop_on_signals(loop)
     await server.start()
+    endpoint = ops = None
+    control_port = None
+    if control is not None:
+        try:
+            endpoint, ops, (_, control_port) = await serve_slave(server, *control, token)
+        except OSError:
+            await server.close()
+            raise
     if server.allow is None:
         print("mlink-sim slave: no --allow-master: any source may CONNECT to a free or released station "
               "(docs/cards.md, \"Who may change a station\")", file=sys.stderr, flush=True)
     settle_heap()  # before the first command arrives: no full collection of the start-up heap mid-cycle
-    info = server.ready_info()
+    info = {**server.ready_info(), "control": control_port}
     if rt:  # docs/timing.md, "Real-time scheduling": below the master's clock, off its CPU
         info["realtime"] = realtime.apply(realtime.WORKER_PRIORITY, cpus or realtime.cpu_plan()[1],
                                           placed=cpus is not None)
@@ -91,14 +103,19 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
                 f"({st['link']}, {st['frame_size']}-byte frames, {loop_name(loop)})",
                 flush=True,
             )
-        if info["control"] is not None:
-            where = f"{control_host}:{info['control']}"
-            print(f"mlink-sim slave control: {where} (mlink-sim control {where} stats|cpu|plant|release)", flush=True)
+        if control is not None:
+            where = f"[{control[0]}]:{control_port}" if ":" in control[0] else f"{control[0]}:{control_port}"
+            print(f"mlink-sim slave control: {where} (mlink-sim status {where}; mlink-sim param get|set {where} …; "
+                  f"mlink-sim control {where} OP)", flush=True)
     log.info("ready", stations=[f"{s['address']:#04x}@{s['host']}:{s['port']}" for s in info["stations"]],
              control=info["control"])
     await stop.wait()
     log.info("stopping", signal=signal.Signals(caught[0]).name,
              host_stalls=server.stalls.totals("self"))  # this process's own (metrics/stalls.py)
+    if ops is not None:
+        ops.close()
+    if endpoint is not None:
+        endpoint.close()
     await server.close()
     return 128 + caught[0]
 
@@ -145,7 +162,8 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
               help="With --config: where a station listens (overrides the config); repeatable.")
 @click.option("--state-dir", type=click.Path(file_okay=False), help="Directory of the EEPROM images (CONFIG_MOD 1).")
 @click.option("--control", default="127.0.0.1:0", show_default=True, metavar="HOST:PORT",
-              help="The control endpoint: stats, cpu, plant, release ('mlink-sim control'); 'off' to disable.")
+              help="The control endpoint: status, get-param, set-param, fault, release, stats, cpu ('mlink-sim "
+                   "status', 'mlink-sim param', 'mlink-sim control'; docs/control.md); 'off' to disable.")
 @click.option("--allow-master", "allow_master", multiple=True, metavar="ADDR",
               help="Take commands that change a station (CONNECT included) only from this source: HOST, HOST:PORT "
                    "or a CIDR network; repeatable. Others get read-only NOP answers (docs/cards.md). Default: any.")
@@ -233,13 +251,11 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
         click.echo(f"mlink-sim slave: {exc}", err=True)
         sys.exit(2)
     capture = open_capture_or_exit("slave", capture_path, capture_max)
-    server = SlaveServer(stations, state_dir=state, control=control_addr, absorb_ns=absorb_ns, capture=capture,
-                         shared=shared_port, arrival_poll=poll, allow=allow,
-                         control_token=token)
+    server = SlaveServer(stations, state_dir=state, absorb_ns=absorb_ns, capture=capture, shared=shared_port,
+                         arrival_poll=poll, allow=allow)
     loop = new_event_loop()
     try:
-        code = loop.run_until_complete(_serve(server, ready_json, log_json, rt, cpus,
-                                              control_addr[0] if control_addr else None))
+        code = loop.run_until_complete(_serve(server, ready_json, log_json, rt, cpus, control_addr, token))
     except OSError as exc:
         where = "" if isinstance(exc, BindError) else f" on {', '.join(f'{s.host}:{s.port}' for s in stations)}"
         click.echo(f"mlink-sim slave: cannot listen{where}: {exc.strerror or exc}", err=True)

@@ -12,7 +12,7 @@ from typing import Any
 
 import click
 
-from ..aio.slave.token import is_loopback
+from ..aio.control.token import is_loopback
 from ..aio.transport.udp import new_event_loop, stop_on_signals
 from ..config import parse_endpoint
 from .control_token import control_token as resolve_token

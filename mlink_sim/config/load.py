@@ -10,7 +10,8 @@ from pydantic import ValidationError
 
 from ..examples import example_names, example_path
 from ..params import FAMILIES, ParamError
-from .model import CARD_FAMILY, Config
+from ..operations import OpError, check_speed
+from .model import CARD_FAMILY, Config, StationConfig
 
 __all__ = ["ConfigError", "load_config", "parse_config", "resolve_config_path", "station_param_assignments"]
 
@@ -77,6 +78,40 @@ def _check_params(source: str, config: Config) -> None:
                 break
     if problems:
         raise ConfigError("\n".join(problems))
+    _check_speeds(source, config)
+
+
+def _check_speeds(source: str, config: Config) -> None:
+    """Every ``run`` / ``speed`` step's ``hz`` against the maximum output frequency of each station it is for, as that
+    frequency is at the step (the config's E1-04 / n011, then each earlier ``set-param`` of it): the rule, and the
+    message, of every other surface (:func:`~mlink_sim.operations.check_speed`)."""
+    tops = {st.address: max_frequency(st) for st in config.station}
+    for i, step in sorted(enumerate(config.timeline), key=lambda item: item[1].at):
+        targets = config.station if step.station == "all" else [config.station_by_address(step.station)]
+        for st in targets:
+            top, name = tops[st.address]
+            if step.do == "set-param" and step.param is not None and step.value is not None:
+                table = FAMILIES[CARD_FAMILY[st.card]]
+                param, raw = table.parse_assignment(f"{step.param}={step.value}")
+                if param.name == name:
+                    tops[st.address] = (param.to_eng(raw), name)
+            elif step.do in ("run", "speed") and step.hz is not None:
+                try:
+                    check_speed(step.hz, st.address, top, name)
+                except OpError as exc:
+                    raise ConfigError(f"{source}: timeline[{i}].{exc}") from None
+
+
+def max_frequency(st: StationConfig) -> tuple[float, str]:
+    """The station's maximum output frequency in Hz as its parameters set it (A1000 E1-04, VS-606V7 n011) and that
+    parameter: the bound of every frequency reference it is given."""
+    table = FAMILIES[CARD_FAMILY[st.card]]
+    values = table.defaults()
+    for name, value in st.params.items():
+        param, raw = table.parse_assignment(f"{name}={value}")
+        values[param.name] = raw
+    name = "n011" if CARD_FAMILY[st.card] == "v7" else "E1-04"
+    return table.by_name(name).to_eng(values[name]), name
 
 
 def parse_config(text: str, source: str = "<config>") -> Config:

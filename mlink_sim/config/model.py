@@ -16,11 +16,12 @@ from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter
 
 from ..faults.spec import FAULT_ACTIONS
 from ..impair.spec import Impairment, parse_probability
+from ..operations import OPERATIONS, OpError, operation, parse_request
 from ..units import format_ns, parse_address, parse_duration_ns
 from ..wire.codes import CmdAlm, CommAlm, Link, M2Alarm
 from ..wire.drive_codes import SiT3DriveAlarm, SiT3DriveWarning, V7InverterAlarm, V7InverterWarning
 from .deploy import CpuList, DeployConfig, NodeName, check_deploy
-from .faults import FAULT_FIELDS, check_fault_step, check_fault_targets, fault_end_ns
+from .faults import check_fault_step, check_fault_targets, fault_end_ns
 from .units import parse_arrival_poll
 
 __all__ = [
@@ -228,16 +229,15 @@ class StationConfig(BaseModel):
         return parse_endpoint(self.endpoint) if self.endpoint else (default_host, 0)
 
 
-_ACTIONS = ("run", "stop", "set-param", "fault-reset", "alm-clr", "ef0", "disconnect", "connect", "kill-slave",
-            "impair", "heal", *FAULT_ACTIONS)
+#: The timeline's actions: every operation of the table a timeline offers (``do = NAME``, its arguments as the step's
+#: fields), and each fault by its name (``do = "silence"``: the ``fault`` operation of that fault).
+_ACTIONS = (*(op.name for op in OPERATIONS.values() if op.timeline), *FAULT_ACTIONS)
 _EXPECTS = ("running", "stopped", "speed-agree", "phase", "no-alarm", "alarm", "output-hz", "alarm-seen", "recovered",
             "refused")
 
 
-#: The fields of ``do = "impair"`` (docs/faults.md), checked by :class:`~mlink_sim.impair.Impairment`.
-IMPAIR_FIELDS = ("loss", "burst", "delay", "jitter", "duplicate", "reorder", "corrupt")
-#: The actions that take ``for`` (how long the fault lasts).
-FOR_ACTIONS: tuple[str, ...] = FAULT_FIELDS["for"]
+#: The step's fields that are durations (ns), given to the operations as text with their unit.
+_DURATION_FIELDS = frozenset({"delay", "jitter", "for"})
 Probability = float | str
 
 
@@ -250,12 +250,13 @@ class TimelineStep(BaseModel):
     station: Address | Literal["all"] = Field("all", description="station address, or 'all'")
     do: Literal[_ACTIONS] | None = Field(None, description="action: " + ", ".join(_ACTIONS))  # type: ignore[valid-type]
     expect: Literal[_EXPECTS] | None = Field(None, description="check: " + ", ".join(_EXPECTS))  # type: ignore[valid-type]
-    direction: Literal["forward", "reverse", "to-station", "to-master", "both"] | None = Field(
+    direction: str | None = Field(
         None, description="run: 'forward' (default) or 'reverse'; impair: 'to-station', 'to-master' or 'both' "
         "(default)")
-    speed_hz: float | None = Field(None, ge=0, description="run: frequency reference in Hz")
+    hz: float | None = Field(None, description="run, speed: frequency reference in Hz, up to E1-04 / n011")
     param: str | None = Field(None, description="set-param: parameter name, e.g. 'C1-01'")
-    value: float | int | None = Field(None, description="set-param: value in engineering units")
+    value: float | int | str | None = Field(None, description="set-param: value in engineering units")
+    eeprom: bool | None = Field(None, description="set-param, enter: save it too (CONFIG_MOD 1)")
     output_hz: float | None = Field(None, description="output-hz: expected output frequency in Hz")
     tolerance_hz: float = Field(0.5, ge=0, description="output-hz: tolerance in Hz")
     phase: int | None = Field(None, ge=1, le=3, description="phase: expected communication phase")
@@ -286,32 +287,57 @@ class TimelineStep(BaseModel):
     def _one_of(self) -> TimelineStep:
         if (self.do is None) == (self.expect is None):
             raise ValueError("a timeline step needs exactly one of 'do' (an action) or 'expect' (a check)")
-        if self.do == "run" and self.speed_hz is None:
-            raise ValueError("'do = \"run\"' needs speed_hz")
-        if self.do == "set-param" and (self.param is None or self.value is None):
-            raise ValueError("'do = \"set-param\"' needs param and value")
+        if self.do is not None:
+            self._check_action()
         if self.expect == "output-hz" and self.output_hz is None:
             raise ValueError("'expect = \"output-hz\"' needs output_hz")
         if self.expect == "phase" and self.phase is None:
             raise ValueError("'expect = \"phase\"' needs phase")
-        given = [name for name in IMPAIR_FIELDS if getattr(self, name) is not None]
-        if given and self.do != "impair":
-            raise ValueError(f"{given[0]}: only 'do = \"impair\"' takes it")
-        if self.for_ is not None and self.do not in FOR_ACTIONS:
-            raise ValueError(f"for: only {', '.join(repr(a) for a in FOR_ACTIONS)} take it")
         if self.do == "impair":
-            if self.direction in ("forward", "reverse"):
-                raise ValueError(f"direction: impair takes 'to-station', 'to-master' or 'both', got "
-                                 f"{self.direction!r}")
-            self.direction = self.direction or "both"
             self.impairment  # noqa: B018 - ImpairError (a ValueError) names the bad field
-        elif self.direction in ("to-station", "to-master", "both"):
-            raise ValueError(f"direction: {self.direction!r} applies to 'do = \"impair\"' (run: 'forward' or "
-                             "'reverse')")
-        elif self.direction is None:
-            self.direction = "forward"
         check_fault_step(self)
         return self
+
+    @property
+    def operation(self) -> str:
+        """The operation an action step performs: its own name, or ``fault`` for a fault (``do = "silence"`` …)."""
+        assert self.do is not None
+        return "fault" if self.do in FAULT_ACTIONS else self.do
+
+    def request(self, station: Any) -> dict[str, Any]:
+        """The control request this action step makes of *station* (an address, or ``"all"``): its operation and
+        the step's fields as the operation's arguments (a duration as exact text with its unit)."""
+        op = operation(self.operation)
+        fields: dict[str, Any] = {"op": op.name, "station": station}
+        for arg in op.args:
+            value = getattr(self, arg.python, None)
+            if arg.name in ("station", "do") or value is None:
+                continue
+            fields[arg.name] = f"{value}ns" if arg.name in _DURATION_FIELDS else value
+        if op.name == "fault":
+            fields["do"] = self.do
+        return fields
+
+    def _check_action(self) -> None:
+        """An action's fields are its operation's arguments, read by the operations table as every other surface
+        reads them (:func:`~mlink_sim.operations.parse_request`): a field the operation does not take, one it needs
+        and lacks, a value of the wrong kind, with the operation's own message."""
+        op = operation(self.operation)
+        takes = {a.python for a in op.args}
+        extra = sorted(k for k in self.model_fields_set if k not in ("at", "station", "do") and k not in takes
+                       and getattr(self, k) is not None)
+        if extra:
+            names = ", ".join(a.name for a in op.args if a.name not in ("station", "do")) or "no field but station"
+            field = "for" if extra[0] == "for_" else extra[0]
+            raise ValueError(f"{field}: 'do = \"{self.do}\"' does not take it (it takes {names})")
+        # a step on every station is one request per station (the fault operations take 'all' themselves)
+        takes_all = any(a.name == "station" and not a.required for a in op.args)
+        try:
+            parse_request(op, self.request(self.station if self.station != "all" else "all" if takes_all else 0))
+        except OpError as exc:
+            raise ValueError(str(exc).removeprefix(f"{op.name}: ")) from None
+        if op.name in ("run", "impair") and self.direction is None:
+            self.direction = "forward" if op.name == "run" else "both"
 
     @property
     def impairment(self) -> Impairment:
@@ -332,9 +358,11 @@ class TimelineStep(BaseModel):
         what = f"do {self.do}" if self.do else f"expect {self.expect}"
         extra = ""
         if self.do == "run":
-            extra = f" {self.direction} {self.speed_hz:g} Hz"
+            extra = f" {self.direction} {self.hz:g} Hz"
+        elif self.do == "speed":
+            extra = f" {self.hz:g} Hz"
         elif self.do == "set-param":
-            extra = f" {self.param}={self.value}"
+            extra = f" {self.param}={self.value}" + (" (EEPROM)" if self.eeprom else "")
         elif self.expect == "output-hz":
             extra = f" {self.output_hz:g}±{self.tolerance_hz:g} Hz"
         elif self.expect == "phase":

@@ -22,12 +22,12 @@ from .assertions import (
 from ..units import format_ns
 from .histogram import LatencyHistogram
 from .network import NetworkMetrics, StationMetrics, station_key
-from .report import REPORT_SCHEMA, SCHEMA_ID, dumps_report, host_info, write_report
+from .report import REPORT_SCHEMA, SCHEMA_ID, build_report, dumps_report, host_info, write_report
 
 __all__ = [
     "LatencyHistogram", "format_ns",
     "NetworkMetrics", "StationMetrics", "station_key",
-    "REPORT_SCHEMA", "SCHEMA_ID", "write_report", "dumps_report", "host_info",
+    "REPORT_SCHEMA", "SCHEMA_ID", "build_report", "write_report", "dumps_report", "host_info",
     "Assertion", "AssertionResult", "AssertionSyntaxError", "parse_assertion", "parse_assertions", "check_all",
     "assertable_fields",
 ]

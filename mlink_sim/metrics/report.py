@@ -17,13 +17,13 @@ import functools
 import json
 import os
 import platform
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from .. import _accel
 from .._files import write_atomically
 
-__all__ = ["REPORT_SCHEMA", "SCHEMA_ID", "INJECTED_KINDS", "write_report", "dumps_report", "host_info"]
+__all__ = ["REPORT_SCHEMA", "SCHEMA_ID", "INJECTED_KINDS", "build_report", "write_report", "dumps_report", "host_info"]
 
 #: Value of the report's ``"schema"`` field. Bumped (``/2``) on any incompatible change of the document.
 SCHEMA_ID = "mlink-sim/report/1"
@@ -232,6 +232,16 @@ REPORT_SCHEMA: dict[str, Any] = {
         },
     },
 }
+
+
+def build_report(metrics: Any, meta: dict[str, Any], assertions: Sequence[Any] = ()) -> dict[str, Any]:
+    """The report of *metrics* (a ``NetworkMetrics``, a copy of a running network's) with *meta*, and *assertions*
+    (parsed ``--assert`` expressions) evaluated into it."""
+    from .assertions import check_all
+
+    report = metrics.report(meta=meta)
+    report["assertions"] = [r.as_dict() for r in check_all(list(assertions), report)] if assertions else []
+    return report
 
 
 def dumps_report(report: Mapping[str, Any]) -> str:

@@ -34,7 +34,7 @@ from typing import IO, Any
 __all__ = ["TRACE_COLUMNS", "FIGURE_COLUMNS", "PLOT_COLUMNS", "ACTION_EVENTS", "MAX_ACTIONS", "TraceWriter",
            "Trace", "StationTrace", "TraceError", "read_trace"]
 
-#: A station's figures in a ``sample`` row, in order: the station figures of ``aio/run/figures.py`` flattened (the
+#: A station's figures in a ``sample`` row, in order: the station figures of ``aio/present/figures.py`` flattened (the
 #: alarm as code and name; without the LED colours), docs/report.md.
 FIGURE_COLUMNS: tuple[str, ...] = (
     "address", "name", "card", "link", "phase", "connected", "alarm_code", "alarm_name", "warnings", "leds",

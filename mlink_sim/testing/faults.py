@@ -50,20 +50,19 @@ def _episode(d: dict[str, Any] | None) -> FaultEpisode | None:
 
 
 class FaultMethods(abc.ABC):
-    """The fault methods over both clocks; each network class implements the two ways in below."""
+    """The fault methods over both clocks, each one the ``fault`` operation of one kind (the network class's
+    :meth:`fault`, :class:`~mlink_sim.operations.NetworkOperations`)."""
 
-    @abc.abstractmethod
-    def _fault(self, station: int, action: str, fields: dict[str, Any]) -> dict[str, Any]:
-        """Apply one fault to *station* (its action and fields as in the timeline); its episode as JSON."""
+    fault: Any  #: the ``fault`` operation of the network class
 
     @abc.abstractmethod
     def _fault_episode(self, station: int) -> dict[str, Any] | None:
         """The station's latest fault episode as JSON, or None."""
 
     def _apply(self, station: int, action: str, **fields: Any) -> FaultEpisode:
-        fields = {("for" if k == "for_" else k): v for k, v in fields.items() if v is not None}
-        fault = fault_from_fields(action, fields)  # ValueError here, in the test
-        episode = _episode(self._fault(station, action, fault.as_fields()))
+        fault_from_fields(action, {("for" if k == "for_" else k): v for k, v in fields.items() if v is not None})
+        reply = self.fault(station, do=action, **fields)  # a bad value raised above, in the test
+        episode = _episode(next(iter(reply["episodes"].values())))
         assert episode is not None
         return episode
 

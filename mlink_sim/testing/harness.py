@@ -6,11 +6,16 @@ own interpreter; the test talks to it over a loopback socket. Every method is a 
 ``net.aio`` offers the request methods as awaitables for ``async def`` tests.
 
     with RunningNetwork("configs/quickstart.toml") as net:      # bring-up done on entry
+        net.set_param(0x21, "C1-01", 1.0)                        # PRM_WR and CONFIG: a 1 s ramp from now on
         net.run(0x21, hz=30)                                     # forward at 30 Hz (o1-03 units handled)
         net.wait_until(lambda: net.output_hz(0x21) > 29.9, timeout=10)
-        assert net.prm_rd(0x21, 0x0200) == 20                    # PRM_RD C1-01 through the master
+        assert net.get_param(0x21, "C1-01") == 1.0               # PRM_RD C1-01 through the master
         assert net.metrics.rtt.p99 < 0.5e-3                      # live figures, seconds
         net.check("missed == 0", "station[0x21].rtt.p99 < 1ms")  # the --assert language
+
+The network's operations are :class:`~mlink_sim.operations.NetworkOperations`' methods, performed in the host by the
+handlers a control request reaches; the bare master requests (``prm_rd``, ``prm_wr``, ``send_config``, ``id_rd``,
+``alm_rd``, ``alm_clr``, ``set_control``) stay beside them for tests of a master's own handling.
 """
 
 from __future__ import annotations
@@ -30,11 +35,12 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
-from ..aio.run.scenario import CheckResult, StationControls, speed_scale
 from ..aio.run.supervisor import parse_workers
 from ..config import Config, load_config, resolve_config_path
 from ..master.types import (ParamRequestError, ParamValue, RequestTimeout, StationAlarmError, StationState,
                             StationView)
+from ..operations import NetworkOperations, OpError, request_of
+from ..scenario import CheckResult, StationViews, speed_scale
 from .faults import FaultMethods
 from .metrics import ReportChecks
 from .wait import poll_until
@@ -68,6 +74,8 @@ def _decode(value: Any) -> Any:
 
 def _raise(error: dict[str, Any]) -> None:
     kind, message = error.get("type"), error.get("message", "")
+    if kind == "OpError":
+        raise OpError(str(error.get("kind", "bad_request")), message)
     if kind == "StationAlarmError":
         raise StationAlarmError(error.get("station", 0), error.get("code", 0), error.get("name", ""), message)
     if kind == "ParamRequestError":
@@ -87,8 +95,8 @@ def _raise(error: dict[str, Any]) -> None:
 class _AsyncApi:
     """``await net.aio.prm_rd(...)`` etc. for ``async def`` tests (each call runs in a worker thread)."""
 
-    _METHODS = frozenset({"prm_rd", "prm_wr", "send_config", "id_rd", "alm_rd", "alm_clr", "disconnect",
-                          "reconnect"})
+    _METHODS = frozenset({"prm_rd", "prm_wr", "send_config", "id_rd", "alm_rd", "alm_clr", "get_param",
+                          "set_param", "alarm_clear", "enter", "disconnect", "connect", "fault"})
 
     def __init__(self, owner: RunningNetwork) -> None:
         self._owner = owner
@@ -104,8 +112,8 @@ class _AsyncApi:
         return call
 
 
-class RunningNetwork(StationControls, ReportChecks, FaultMethods):
-    """The network of *config* (a TOML path), up for as long as the ``with`` block (or :meth:`start`/:meth:`stop`).
+class RunningNetwork(NetworkOperations, StationViews, ReportChecks, FaultMethods):
+    """The network of *config* (a TOML path), up for as long as the ``with`` block (or :meth:`start`/:meth:`close`).
 
     *workers* is ``up --workers``: a number of slave processes, ``"station"`` (one per station) or ``"auto"``
     (None, the default: one per station up to max(2, CPUs − 1) stations, else CPUs − 1); *seed* fixes the draws
@@ -198,7 +206,7 @@ class RunningNetwork(StationControls, ReportChecks, FaultMethods):
         except OSError:
             return ""
 
-    def stop(self) -> dict[str, Any] | None:
+    def close(self) -> dict[str, Any] | None:
         """DISCONNECT, stop masters and slaves, end the host; returns the final report (None if never up)."""
         if self._proc is None:
             return self.final_report
@@ -234,7 +242,7 @@ class RunningNetwork(StationControls, ReportChecks, FaultMethods):
         return self.start()
 
     def __exit__(self, *exc: object) -> None:
-        self.stop()
+        self.close()
 
     # ------------------------------------------------------------------ requests to the host
     def _rpc(self, method: str, *args: Any, rpc_timeout: float | None = 30.0, **kwargs: Any) -> Any:
@@ -260,7 +268,12 @@ class RunningNetwork(StationControls, ReportChecks, FaultMethods):
             _raise(reply["error"])
         return reply.get("result")
 
-    # ------------------------------------------------------------------ the master API, blocking
+    # ------------------------------------------------------------------ the operations
+    def _perform(self, op: str, **args: Any) -> dict[str, Any]:
+        timeout = 30.0 if op in ("connect", "report") else 15.0
+        return dict(self._rpc("op", request_of(op, **args), rpc_timeout=timeout))
+
+    # ------------------------------------------------------------------ the bare master API, blocking
     def prm_rd(self, station: int, register: int | str, size: int = 2, *,
                timeout: float = 10.0) -> int | bytes | ParamValue:
         """PRM_RD of a parameter by name (``"C1-01"``: a :class:`~mlink_sim.master.ParamValue` in its unit) or by
@@ -271,7 +284,8 @@ class RunningNetwork(StationControls, ReportChecks, FaultMethods):
 
     def prm_wr(self, station: int, register: int | str, value: int | float | str, size: int = 2, *,
                timeout: float = 10.0) -> None:
-        """PRM_WR by name in engineering units (``prm_wr(0x21, "C1-01", 5.0)``) or by register with the raw int."""
+        """PRM_WR by name in engineering units (``prm_wr(0x21, "C1-01", 5.0)``) or by register with the raw int:
+        written, not entered (the drive keeps its value until :meth:`send_config`; :meth:`set_param` does both)."""
         self._rpc("prm_wr", station, register, value, size, rpc_timeout=timeout + 5)
 
     def send_config(self, station: int, mode: int = 0, *, timeout: float = 10.0) -> None:
@@ -288,42 +302,9 @@ class RunningNetwork(StationControls, ReportChecks, FaultMethods):
     def alm_clr(self, station: int, *, timeout: float = 10.0) -> None:
         self._rpc("alm_clr", station, rpc_timeout=timeout + 5)
 
-    def disconnect(self, station: int, *, timeout: float = 10.0) -> None:
-        self._rpc("disconnect", station, rpc_timeout=timeout + 5)
-
-    def reconnect(self, station: int, *, timeout: float | None = None) -> None:
-        """CONNECT again after a DISCONNECT and wait until the station is back at its phase."""
-        t = timeout or self._bringup_timeout
-        self._rpc("reconnect", station, rpc_timeout=t + 5, timeout=t)
-
     def set_control(self, station: int, **fields: Any) -> None:
         """Cyclic INV_CTL fields (forward, reverse, speed_ref [raw], fault_reset, ef0, …); others stay as set."""
         self._rpc("set_control", station, **fields)
-
-    def kill_slave(self, station: int) -> bool:
-        """SIGKILL the worker process hosting *station* (it is restarted and brought up again)."""
-        return bool(self._rpc("kill_slave", station))
-
-    def impair(self, station: int | str = "all", spec: Any = None, **fields: Any) -> Any:
-        """Start a network impairment on *station* (``"all"``: every station), replacing the one there: *spec* is
-        an :class:`~mlink_sim.impair.Impairment` or its text (``"loss=5%,delay=200us"``), or give its fields
-        (``impair(0x21, loss=0.1, for_=2.0)``; durations in seconds). Bad values raise ValueError here, before
-        anything is sent (docs/faults.md). Returns the Impairment."""
-        from ..impair import as_impairment, target_station
-
-        impairment = as_impairment(spec, fields)
-        target = target_station(station)
-        self._rpc("impair", "all" if target is None else target, **impairment.as_fields())
-        return impairment
-
-    def heal(self, station: int | str = "all") -> int:
-        """End the network impairments of *station* (``"all"``: of every station); how many ended."""
-        from ..impair import target_station
-
-        target = target_station(station)
-        return int(self._rpc("heal", "all" if target is None else target))
-    def _fault(self, station: int, action: str, fields: dict[str, Any]) -> dict[str, Any]:
-        return self._rpc("fault", station, action, fields)
 
     def _fault_episode(self, station: int) -> dict[str, Any] | None:
         return self._rpc("fault_episode", station)
@@ -358,7 +339,7 @@ class RunningNetwork(StationControls, ReportChecks, FaultMethods):
 
     # ------------------------------------------------------------------ figures
     def report(self) -> dict[str, Any]:
-        """The report document as of now (docs/report.md); after :meth:`stop`, the final one."""
+        """The report document as of now (docs/report.md); after :meth:`close`, the final one."""
         if self._proc is None and self.final_report is not None:
             return self.final_report
         from ..metrics import NetworkMetrics

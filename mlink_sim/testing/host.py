@@ -10,11 +10,12 @@ bring-up is over, then serves requests on ``127.0.0.1:P``: one JSON object per l
     ← {"id": 7, "result": 20}
     ← {"id": 7, "error": {"type": "StationAlarmError", "message": "…", "station": 33, "code": 148, "name": "…"}}
 
-Methods: the request methods of :class:`~mlink_sim.aio.run.session.NetworkApi` (``prm_rd`` … ``reconnect``),
-``set_control``, ``view``, ``views``, ``kill_slave``, ``impair``/``heal``, ``fault``/``fault_episode`` (docs/faults.md),
-``snapshot`` (figures as bucket pairs + report meta; the
-client builds the report, so the cycle is never held up by it), ``reset_metrics``, ``timeline`` (waits for the
-config's timeline and returns its checks) and ``stop`` (DISCONNECT, final report, exit). SIGTERM, SIGINT or the
+Methods: ``op`` (one of the network's operations, ``{"method": "op", "args": [{"op": "set-param", …}]}``,
+performed by the same handlers as a control request: :mod:`mlink_sim.aio.control.network`), the bare master requests
+of :class:`~mlink_sim.aio.run.netapi.NetworkApi` (``prm_rd`` … ``disconnect``), ``set_control``, ``view``, ``views``,
+``fault_episode`` (docs/faults.md), ``snapshot`` (figures as bucket pairs + report meta; the client builds the report,
+so the cycle is never held up by it), ``reset_metrics``, ``timeline`` (waits for the config's timeline and returns
+its checks) and ``stop`` (DISCONNECT, final report, exit). SIGTERM, SIGINT or the
 test process dying (``PR_SET_PDEATHSIG``) stop it too; its slave workers never outlive it.
 """
 
@@ -31,19 +32,23 @@ from typing import Any
 
 
 from .._log import get_logger
-from ..aio.run.scenario import Scenario, speed_scales
+from ..aio.control.endpoint import perform
+from ..aio.control.events import RunLog
+from ..aio.control.network import NetworkOps
+from ..aio.control.timeline import TimelineRunner
 from ..aio.run.session import NetworkSession
 from ..aio.run.supervisor import resolve_workers
 from ..aio.transport.udp import new_event_loop
 from ..config import ConfigError, load_config
-from ..faults import fault_from_fields
 from ..jsonable import to_jsonable
 from ..master.types import ParamValue
+from ..scenario import Timeline, speed_scales
 from .faults import episode_dict
 
 log = get_logger("mlink_sim.testing.host")
 
-_REQUESTS = frozenset({"prm_rd", "prm_wr", "config", "id_rd", "alm_rd", "alm_clr", "disconnect"})
+#: the bare master requests (:class:`~mlink_sim.aio.run.netapi.NetworkApi`), for tests of a master's own handling
+_REQUESTS = frozenset({"prm_rd", "prm_wr", "config", "id_rd", "alm_rd", "alm_clr"})
 
 
 def encode_value(value: Any) -> Any:
@@ -59,7 +64,7 @@ def encode_value(value: Any) -> Any:
 
 def encode_error(exc: BaseException) -> dict[str, Any]:
     out: dict[str, Any] = {"type": type(exc).__name__, "message": str(exc)}
-    for name in ("station", "code", "name", "command", "attempts", "busy", "allowed"):
+    for name in ("station", "code", "name", "command", "attempts", "busy", "allowed", "kind"):
         value = getattr(exc, name, None)
         if isinstance(value, (int, str)):
             out[name] = value
@@ -73,17 +78,17 @@ class Host:
         self.session = session
         self.stop = asyncio.Event()
         self.final: dict[str, Any] | None = None
-        self.scenario: Scenario | None = None
+        events = RunLog(next(iter(session.masters.values())).now_ns)
+        for master in session.masters.values():
+            events.watch(master)
+        self.ops = NetworkOps(session, events, scales=scales)
+        self.handlers = self.ops.handlers()
+        self.scenario: Timeline | None = None
         self.scenario_task: asyncio.Task[None] | None = None
         if timeline:
             loop = asyncio.get_running_loop()
-            assert session.net is not None
-            self.scenario = Scenario(session.config, session.net, scales)
-
-            async def sleep_until(when: float) -> None:
-                await asyncio.sleep(max(0.0, when - loop.time()))
-
-            self.scenario_task = loop.create_task(self.scenario.run(loop.time(), sleep_until))
+            self.scenario = self.ops.timeline = Timeline(session.config)
+            self.scenario_task = loop.create_task(TimelineRunner(self.scenario, self.ops).run(loop.time()))
 
     async def handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         try:
@@ -112,13 +117,10 @@ class Host:
     async def dispatch(self, method: str, args: list[Any], kwargs: dict[str, Any]) -> Any:
         net = self.session.net
         assert net is not None
+        if method == "op":
+            return await perform(self.handlers, args[0])
         if method in _REQUESTS:
             return encode_value(await getattr(net, method)(*args, **kwargs))
-        if method == "reconnect":
-            station, timeout = args[0], kwargs.get("timeout", 10.0)
-            await net.reconnect(station)
-            await net.master(station).wait_until(lambda: net.view(station).at_target, timeout)
-            return None
         if method == "set_control":
             net.set_control(*args, **kwargs)
             return None
@@ -126,25 +128,10 @@ class Host:
             return encode_value(net.view(*args))
         if method == "views":
             return {str(a): encode_value(v) for a, v in net.views().items()}
-        if method == "kill_slave":
-            return net.kill_slave(*args)
-        if method == "impair":
-            from ..impair import as_impairment, target_station
-
-            spec = as_impairment(kwargs.pop("spec", None), kwargs)
-            self.session.impair(target_station(args[0] if args else "all"), spec)
-            return spec.as_fields()
-        if method == "heal":
-            from ..impair import target_station
-
-            return self.session.heal(target_station(args[0] if args else "all"))
-        if method == "fault":  # testing/faults.py: station, action, fields
-            station, action, fields = args
-            return episode_dict(await net.fault(station, fault_from_fields(action, fields)))
         if method == "fault_episode":
             return episode_dict(net.fault_control.stage(args[0]).latest(args[0]))
-        if method == "snapshot":
-            metrics, meta = await self.session.snapshot(slave_stats=kwargs.get("slave_stats", True))
+        if method == "snapshot":  # the report op's figures; the client builds the report
+            metrics, meta = await self.ops.report_parts(slave_stats=kwargs.get("slave_stats", True))
             return {"metrics": metrics.to_wire(hdr=False), "meta": meta}
         if method == "reset_metrics":
             self.session.reset_metrics()
@@ -177,7 +164,7 @@ async def serve(args: argparse.Namespace) -> int:
     interrupted = asyncio.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, interrupted.set)
-    scales = speed_scales(config) if args.timeline else None  # before the clock starts (aio/run/scenario.py)
+    scales = speed_scales(config) if args.timeline else None  # before the clock starts (scenario/timeline.py)
     workers = resolve_workers(args.workers, len(config.station))  # ValueError: reported as an error event
     session = await NetworkSession.open(config, Path(args.config), workers=workers,
                                         state_dir=args.state_dir, run_dir=args.run_dir, seed=args.seed)

@@ -121,7 +121,7 @@ class _Factory:
 
         report_dir = self.request.config.getoption("--mlink-report-dir")
         for index, net in enumerate(self.started):
-            report = net.stop()
+            report = net.close()
             if report_dir and report is not None:
                 Path(report_dir).mkdir(parents=True, exist_ok=True)
                 write_report(Path(report_dir) / _report_name(self.request.node.nodeid, index), report)

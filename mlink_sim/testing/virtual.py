@@ -11,25 +11,24 @@ from pathlib import Path
 from typing import Any
 
 from ..aio.run.embed import BringUpFailed, VirtualNetwork
-from ..aio.run.scenario import CheckResult
 from ..config import load_config, resolve_config_path
-from .harness import NetworkNotUp, _AsyncApi
-from ..faults import fault_from_fields
+from ..operations import NetworkOperations
+from ..scenario import CheckResult, StationViews
 from .faults import FaultMethods, episode_dict
+from .harness import NetworkNotUp, _AsyncApi
 from .metrics import ReportChecks
 from .wait import poll_until
 
 __all__ = ["VirtualRunningNetwork"]
 
-#: What the handle passes straight to the :class:`VirtualNetwork` (the master API, the stations, time).
+#: What the handle passes straight to the :class:`VirtualNetwork` (the bare master API, the stations, time).
 _DELEGATED = frozenset({
-    "prm_rd", "prm_wr", "send_config", "id_rd", "alm_rd", "alm_clr", "disconnect", "reconnect", "set_control",
-    "run", "stop_station", "kill_slave", "view", "views", "output_hz", "running", "station", "snapshots", "snapshot",
-    "advance", "run_until", "step", "now", "now_ns", "reset_metrics", "impair", "heal",
+    "prm_rd", "prm_wr", "send_config", "id_rd", "alm_rd", "alm_clr", "set_control", "view", "views", "station",
+    "snapshots", "snapshot", "advance", "run_until", "step", "now", "now_ns", "reset_metrics",
 })
 
 
-class VirtualRunningNetwork(ReportChecks, FaultMethods):
+class VirtualRunningNetwork(NetworkOperations, StationViews, ReportChecks, FaultMethods):
     """:class:`~mlink_sim.testing.RunningNetwork`'s API on simulated time; *seed* draws the network model's jitter.
     *workers*, *run_dir* and *log_level* are accepted for symmetry and have nothing to do here."""
 
@@ -41,51 +40,61 @@ class VirtualRunningNetwork(ReportChecks, FaultMethods):
         self._options: dict[str, Any] = {"seed": seed, "bringup_timeout": bringup_timeout,
                                          "reset_after_bringup": reset_after_bringup, "state_dir": state_dir}
         self._timeline = timeline
-        self.network: VirtualNetwork | None = None
+        self.virtual: VirtualNetwork | None = None
         self.problems: list[str] = []
         self.final_report: dict[str, Any] | None = None
         self.aio = _AsyncApi(self)  # type: ignore[arg-type]  # duck-typed: the same request methods
 
     def start(self) -> VirtualRunningNetwork:
         """Power the stations up and bring them up (:class:`~mlink_sim.testing.NetworkNotUp` if one does not)."""
-        if self.network is not None:
+        if self.virtual is not None:
             raise RuntimeError("network already started")
         try:
-            self.network = VirtualNetwork(self.config_path, **self._options)
+            self.virtual = VirtualNetwork(self.config_path, **self._options)
         except BringUpFailed as exc:
             raise NetworkNotUp(exc.problems) from None
-        self.problems = list(self.network.session.problems)
+        self.problems = list(self.virtual.session.problems)
         if self._timeline:
-            self.network.start_timeline()
+            self.virtual.start_timeline()
         return self
 
-    def stop(self) -> dict[str, Any] | None:
+    def close(self) -> dict[str, Any] | None:
         """DISCONNECT, stop; the final report (None if never started)."""
-        if self.network is not None:
-            self.final_report = self.network.close()
+        if self.virtual is not None:
+            self.final_report = self.virtual.close()
         return self.final_report
 
     def __enter__(self) -> VirtualRunningNetwork:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:
-        self.stop()
+        self.close()
 
     def _net(self) -> VirtualNetwork:
-        if self.network is None:
+        if self.virtual is None:
             raise RuntimeError("the network is not running")
-        return self.network
+        return self.virtual
 
     def __getattr__(self, name: str) -> Any:
         if name in _DELEGATED:
             return getattr(self._net(), name)
         raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
 
-    # ------------------------------------------------------------------ waiting, in simulated time
-    def _fault(self, station: int, action: str, fields: dict[str, Any]) -> dict[str, Any]:
-        net = self._net()
-        return episode_dict(net.call(net.net.fault(station, fault_from_fields(action, fields))))  # type: ignore[return-value]
+    def _perform(self, op: str, **args: Any) -> dict[str, Any]:
+        return self._net()._perform(op, **args)
 
+    def view(self, station: int) -> Any:
+        return self._net().view(station)
+
+    @property
+    def _scales(self) -> dict[int, Any]:  # type: ignore[override]  # StationViews reads the network's
+        return self._net()._scales
+
+    @property
+    def _links(self) -> dict[int, Any]:  # type: ignore[override]
+        return self._net()._links
+
+    # ------------------------------------------------------------------ waiting, in simulated time
     def _fault_episode(self, station: int) -> dict[str, Any] | None:
         return episode_dict(self._net().net.fault_control.stage(station).latest(station))
 
@@ -107,11 +116,11 @@ class VirtualRunningNetwork(ReportChecks, FaultMethods):
 
     # ------------------------------------------------------------------ figures
     def report(self) -> dict[str, Any]:
-        """The report as of now (``meta.clock`` = ``"virtual"``); after :meth:`stop`, the final one."""
+        """The report as of now (``meta.clock`` = ``"virtual"``); after :meth:`close`, the final one."""
         if self.final_report is not None:
             return self.final_report
         return self._net().report()
 
     def __repr__(self) -> str:
-        state = "running" if self.network is not None and self.final_report is None else "stopped"
+        state = "running" if self.virtual is not None and self.final_report is None else "stopped"
         return f"VirtualRunningNetwork({str(self.config_path)!r}, {len(self.config.station)} stations, {state})"

@@ -1,33 +1,20 @@
-"""The HTTP side of the control operations: the client of the run's control endpoint, the mapping of an
-operation's error ``kind`` to an HTTP status, and the checks of what a request names (a station, a parameter).
+"""The HTTP side of the control operations: the client of the run's control endpoint and the mapping of an
+operation's error ``kind`` to an HTTP status (:data:`~.openapi.STATUS_OF_KIND`).
 
 Every answer of the API that is not a success is ``{"error": "one line", "kind": K}`` with a 4xx status; a control
 endpoint that does not answer is 503 (``kind`` ``no_answer``), the only status of the 5xx class the server gives.
 
-Touches: one UDP socket per request to the control endpoint (:func:`~mlink_sim.aio.run.control.query_control`).
+Touches: one UDP socket per request to the control endpoint (:func:`~mlink_sim.aio.control.endpoint.query_control`).
 """
 
 from __future__ import annotations
 
-import re
 from typing import Any
 
-from ..aio.run.control import query_control
-from ..units import parse_address
+from ..aio.control.endpoint import query_control
+from .openapi import STATUS_OF_KIND
 
-__all__ = ["ApiError", "Control", "STATUS_OF_KIND", "station_arg", "param_name"]
-
-#: An operation's error ``kind`` → the HTTP status it is answered with (docs/web.md, "Errors").
-STATUS_OF_KIND = {
-    "bad_request": 400,
-    "unknown_station": 404,
-    "unknown_param": 404,
-    "out_of_range": 422,
-    "refused": 409,
-    "unavailable": 409,
-}
-
-_PARAM_NAME = re.compile(r"[A-Za-z][A-Za-z0-9]{0,3}(-[0-9A-Za-z]{1,4})?")
+__all__ = ["ApiError", "Control"]
 
 
 class ApiError(Exception):
@@ -41,27 +28,6 @@ class ApiError(Exception):
 
     def body(self) -> dict[str, str]:
         return {"error": self.message, "kind": self.kind}
-
-
-def station_arg(text: str, *, all_ok: bool = False) -> str:
-    """The station named in a path (``0x21``, ``21H``, ``21h``, ``33``; ``all`` where *all_ok*) as the control
-    operations take it (``0x21``); a 400 for anything else."""
-    if all_ok and text.lower() == "all":
-        return "all"
-    try:
-        address = parse_address(text)
-    except ValueError as exc:
-        raise ApiError(400, "bad_request", f"station: {exc}") from None
-    return f"0x{address:02X}"
-
-
-def param_name(text: str) -> str:
-    """A parameter's name as the drive's manual writes it (``C1-01``, ``b1-01``, ``n020``), unchanged (the case is
-    the manual's: ``b1-01`` and ``C1-01``); a 400 for text that cannot be one (the network says whether the station
-    knows it: 404)."""
-    if not _PARAM_NAME.fullmatch(text):
-        raise ApiError(400, "bad_request", f"parameter: expected a name such as C1-01 or n020, got {text!r}")
-    return text
 
 
 class Control:

@@ -4,7 +4,9 @@ as ``/api/openapi.json``). docs/web.md.
 
 The server sees the network only through the run's control endpoint: ``GET /api/status`` and the event stream
 through the one shared poller (:class:`~mlink_sim.web.feed.Feed`), every other route through one control operation
-per request (:class:`~mlink_sim.web.api.Control`).
+per request (:class:`~mlink_sim.web.api.Control`). The operations' routes are built from the operations table (each
+operation with an HTTP route: its path's arguments from the path, the others from the query or the JSON body, read
+by the table before anything is sent), as is their OpenAPI document (:mod:`.openapi`).
 
 Safety (docs/web.md, "Who can reach the page"): with a token, every ``/api/`` request carries it
 (``Authorization: Bearer TOKEN``); without one the server answers only requests addressed to a loopback name
@@ -29,17 +31,18 @@ from typing import Any
 from aiohttp import web
 
 from .._log import get_logger
-from ..aio.run.control import ASYNC_LIMIT_S
-from ..aio.slave.token import is_loopback
-from .api import ApiError, Control, param_name, station_arg
+from ..aio.control.endpoint import ASYNC_LIMIT_S
+from ..aio.control.token import is_loopback
+from ..operations import OpError, Operation, parse_request, served_by
+from .api import ApiError, Control
 from .feed import Feed, Message
+from .openapi import STATUS_OF_KIND, openapi_document, path_args
 
 __all__ = ["build_app", "openapi_document", "start_server", "STATIC"]
 
 log = get_logger("mlink_sim.web")
 
 STATIC = Path(__file__).parent / "static"
-_OPENAPI = Path(__file__).parent / "openapi.yaml"
 #: an event stream's comment line when nothing else was sent for this long (keeps proxies from closing it)
 _KEEPALIVE_S = 15.0
 #: how long an operation through the master (PRM_RD / PRM_WR, CONFIG, ALM_CLR) may take to answer: beyond the
@@ -53,15 +56,6 @@ TOKEN = web.AppKey("token", str)
 Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
 _KIND_OF_STATUS = {400: "bad_request", 401: "unauthorized", 403: "forbidden", 404: "not_found",
                    405: "method_not_allowed", 413: "too_large", 415: "unsupported_media_type"}
-
-
-@functools.cache
-def openapi_document() -> dict[str, Any]:
-    """The OpenAPI 3.1 document of the API (``openapi.yaml``, read once)."""
-    import yaml
-
-    document: dict[str, Any] = yaml.safe_load(_OPENAPI.read_text(encoding="utf-8"))
-    return document
 
 
 def _json(body: Any, status: int = 200, headers: dict[str, str] | None = None) -> web.Response:
@@ -115,9 +109,8 @@ async def _guard(request: web.Request, handler: Handler) -> web.StreamResponse:
     return await handler(request)
 
 
-async def _body(request: web.Request, allowed: tuple[str, ...] | None = ()) -> dict[str, Any]:
-    """The request's JSON object (an empty body: ``{}``); *allowed*: the fields it may have (None: any but the
-    control request's own ``op``, ``station`` and ``token``)."""
+async def _body(request: web.Request) -> dict[str, Any]:
+    """The request's JSON object (an empty body: ``{}``)."""
     raw = await request.read()
     if not raw.strip():
         return {}
@@ -127,16 +120,7 @@ async def _body(request: web.Request, allowed: tuple[str, ...] | None = ()) -> d
         raise ApiError(400, "bad_request", f"the body is not JSON: {exc}") from None
     if not isinstance(body, dict):
         raise ApiError(400, "bad_request", f"the body is a JSON object, got {type(body).__name__}")
-    reserved = ("op", "station", "token", "id")
-    unknown = sorted(k for k in body if (k in reserved if allowed is None else k not in allowed))
-    if unknown:
-        expected = "none" if allowed == () else ", ".join(allowed) if allowed else "not " + ", ".join(reserved)
-        raise ApiError(400, "bad_request", f"unknown field(s) {', '.join(unknown)} (expected: {expected})")
     return body
-
-
-def _station(request: web.Request, *, all_ok: bool = False) -> str:
-    return station_arg(request.match_info["address"], all_ok=all_ok)
 
 
 async def _index(request: web.Request) -> web.StreamResponse:
@@ -145,10 +129,6 @@ async def _index(request: web.Request) -> web.StreamResponse:
 
 async def _openapi(request: web.Request) -> web.StreamResponse:
     return _json(openapi_document())
-
-
-async def _network(request: web.Request) -> web.StreamResponse:
-    return _json(await request.app[CONTROL].ask("network"))
 
 
 async def _status(request: web.Request) -> web.StreamResponse:
@@ -160,67 +140,31 @@ async def _status(request: web.Request) -> web.StreamResponse:
     return _json(status)
 
 
-async def _report(request: web.Request) -> web.StreamResponse:
-    reply = await request.app[CONTROL].ask("report", timeout=5.0)
-    report = reply.get("report")
-    return _json(report if isinstance(report, dict) else reply)
-
-
-async def _run(request: web.Request) -> web.StreamResponse:
-    station = _station(request)
-    body = await _body(request, ("direction", "speed_hz"))
-    if body.get("direction", "forward") not in ("forward", "reverse"):
-        raise ApiError(400, "bad_request", f"direction: 'forward' or 'reverse', got {body['direction']!r}")
-    speed = body.get("speed_hz")
-    if speed is not None and (isinstance(speed, bool) or not isinstance(speed, int | float)):
-        raise ApiError(400, "bad_request", f"speed_hz: a number of Hz, got {speed!r}")
-    return _json(await request.app[CONTROL].ask("run", station=station, **body))
-
-
-def _simple(op: str) -> Handler:
-    async def handler(request: web.Request) -> web.StreamResponse:
-        station = _station(request)
-        await _body(request)
-        timeout = _MASTER_TIMEOUT_S if op == "alarm-clear" else 2.0
-        return _json(await request.app[CONTROL].ask(op, timeout=timeout, station=station))
-
-    handler.__name__ = f"_{op.replace('-', '_')}"
-    return handler
-
-
-async def _param_get(request: web.Request) -> web.StreamResponse:
-    station, name = _station(request), param_name(request.match_info["name"])
-    return _json(await request.app[CONTROL].ask("param", timeout=_MASTER_TIMEOUT_S, station=station, name=name))
-
-
-async def _param_put(request: web.Request) -> web.StreamResponse:
-    station, name = _station(request), param_name(request.match_info["name"])
-    body = await _body(request, ("value", "eeprom"))
-    value = body.get("value")
-    if value is None or isinstance(value, bool) or not isinstance(value, int | float | str):
-        raise ApiError(400, "bad_request", f"value: the parameter's value in its unit (a number), got {value!r}")
-    eeprom = body.get("eeprom", False)
-    if not isinstance(eeprom, bool):
-        raise ApiError(400, "bad_request", f"eeprom: true or false, got {eeprom!r}")
-    fields: dict[str, Any] = {"station": station, "name": name, "value": value}
-    if eeprom:
-        fields["eeprom"] = True
-    return _json(await request.app[CONTROL].ask("param", timeout=_MASTER_TIMEOUT_S, **fields))
-
-
-def _spec(op: str) -> Handler:
-    """``fault`` / ``impair``: the timeline's spec, as text (``{"fault": "silence,for=200ms"}``) or as its fields
-    (``{"do": "silence", "for": "200ms"}``); ``heal``: an empty object."""
+def _route(op: Operation) -> Handler:
+    """The handler of *op*'s route: its arguments from the path, the query (GET) or the JSON body, read by the table
+    (a 400 before anything is sent), then the operation asked of the network's control endpoint."""
+    assert op.http is not None
+    method = op.http[0]
+    in_path = path_args(op)
+    timeout = _MASTER_TIMEOUT_S if op.through_master or op.name in ("report", "fault") else 2.0
 
     async def handler(request: web.Request) -> web.StreamResponse:
-        station = _station(request, all_ok=True)
-        body = await _body(request, () if op == "heal" else None)
-        if op != "heal" and not body:
-            example = '{"fault": "silence,for=200ms"}' if op == "fault" else '{"impair": "loss=10%,for=2s"}'
-            raise ApiError(400, "bad_request", f"{op}: give the spec, e.g. {example}")
-        return _json(await request.app[CONTROL].ask(op, station=station, **body))
+        fields: dict[str, Any] = dict(request.query) if method == "GET" else await _body(request)
+        clash = sorted(set(fields) & set(in_path) | set(fields) & {"op", "token", "id"})
+        if clash:
+            raise ApiError(400, "bad_request", f"{op.name}: {', '.join(clash)} is given by the path or the "
+                                               "endpoint, not in the request")
+        fields.update({name: request.match_info[name] for name in in_path})
+        try:
+            parse_request(op, fields)
+        except OpError as exc:
+            raise ApiError(STATUS_OF_KIND[exc.kind], exc.kind, str(exc)) from None
+        reply = await request.app[CONTROL].ask(op.name, timeout=timeout, **fields)
+        if op.name == "report" and isinstance(reply.get("report"), dict):
+            return _json(reply["report"])
+        return _json(reply)
 
-    handler.__name__ = f"_{op}"
+    handler.__name__ = "_" + op.python
     return handler
 
 
@@ -266,17 +210,10 @@ def build_app(control: Control, token: str | None = None, *, interval: float = 0
     add = app.router.add_route
     add("GET", "/", _index)
     add("GET", "/api/openapi.json", _openapi)
-    add("GET", "/api/network", _network)
-    add("GET", "/api/status", _status)
-    add("GET", "/api/report", _report)
     add("GET", "/api/events", _events)
-    add("POST", "/api/stations/{address}/run", _run)
-    for op in ("stop", "alarm-clear"):
-        add("POST", f"/api/stations/{{address}}/{op}", _simple(op))
-    for op in ("fault", "impair", "heal"):
-        add("POST", f"/api/stations/{{address}}/{op}", _spec(op))
-    add("GET", "/api/stations/{address}/params/{name}", _param_get)
-    add("PUT", "/api/stations/{address}/params/{name}", _param_put)
+    for op in served_by("network"):
+        if op.http is not None:
+            add(op.http[0], op.http[1], _status if op.name == "status" else _route(op))
     app.router.add_static("/static/", STATIC, append_version=False)
 
     async def on_shutdown(app: web.Application) -> None:

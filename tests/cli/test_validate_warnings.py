@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from mlink_sim.aio.run.expectations import timeline_warnings
+from mlink_sim.scenario.expectations import timeline_warnings
 from mlink_sim.config import load_config, parse_config
 from mlink_sim.examples import example_names
 
@@ -44,7 +44,7 @@ load = { kind = "fan" }
 [[timeline]]
 at = "0s"
 do = "run"
-speed_hz = 40.0
+hz = 40.0
 
 [[timeline]]
 at = "2s"

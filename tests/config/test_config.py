@@ -71,7 +71,7 @@ def test_defaults_follow_card_and_link() -> None:
         ('[[station]]\naddress = 0x22\ncard = "si-t3"\nlink = "ML3"\n', "station[1].link: si-t3 speaks"),
         ('[[station]]\naddress = 0x22\ncard = "si-t3"\nparams = { "C1-01" = 99999 }\n', "station[1].params: C1-01"),
         ('[[station]]\naddress = 0x22\ncard = "si-t3"\nbogus = 1\n', "station[1].bogus: unknown field"),
-        ('[[timeline]]\nat = "1s"\ndo = "run"\n', "needs speed_hz"),
+        ('[[timeline]]\nat = "1s"\ndo = "run"\n', "timeline[0]: hz is missing"),
         ('[[timeline]]\nat = "1s"\nstation = 0x30\nexpect = "running"\n', "timeline[0].station: 30H is not"),
         ('[[timeline]]\nat = "soon"\nexpect = "running"\n', "timeline[0].at"),
     ],

@@ -49,7 +49,7 @@ def test_the_full_syntax_loads() -> None:
 
 def test_defaults_percentages_and_the_run_direction_unchanged() -> None:
     config = parse_config(BASE + '[[timeline]]\nat = "1s"\ndo = "impair"\nloss = "5%"\n'
-                          '[[timeline]]\nat = "2s"\ndo = "run"\nspeed_hz = 10\n')
+                          '[[timeline]]\nat = "2s"\ndo = "run"\nhz = 10\n')
     impair, run = config.timeline
     assert impair.direction == "both" and impair.impairment.loss == 0.05 and impair.impairment.for_ns is None
     assert run.direction == "forward"
@@ -62,12 +62,13 @@ def test_defaults_percentages_and_the_run_direction_unchanged() -> None:
     ('do = "impair"\ndelay = 300', "expected a duration with a unit"),
     ('do = "impair"\nloss = 0.1\nburst = 0.5', "burst: the mean length of a loss burst"),
     ('do = "impair"\nburst = 3', "burst: needs loss"),
-    ('do = "impair"\nloss = 0.1\ndirection = "forward"', "direction: impair takes 'to-station'"),
+    ('do = "impair"\nloss = 0.1\ndirection = "forward"',
+     "direction: expected 'to-station', 'to-master' or 'both', got 'forward'"),
     ('do = "impair"', "nothing to do"),
     ('do = "impair"\nloss = 0.1\nfor = "0s"', "for: expected a duration above 0"),
-    ('do = "run"\nspeed_hz = 5\ndirection = "to-master"', "direction: 'to-master' applies to 'do = \"impair\"'"),
-    ('do = "stop"\nloss = 0.1', "loss: only 'do = \"impair\"' takes it"),
-    ('do = "heal"\nfor = "1s"', "for: only 'impair'"),
+    ('do = "run"\nhz = 5\ndirection = "to-master"', "direction: expected 'forward' or 'reverse', got 'to-master'"),
+    ('do = "stop"\nloss = 0.1', "loss: 'do = \"stop\"' does not take it (it takes no field but station)"),
+    ('do = "heal"\nfor = "1s"', "for: 'do = \"heal\"' does not take it (it takes no field but station)"),
     ('do = "impair"\nlos = 0.1', "unknown field"),
 ])
 def test_bad_values_name_the_step_and_the_field(step: str, message: str) -> None:

@@ -38,7 +38,7 @@ load = { kind = "fan" }
 [[timeline]]
 at = "0.2s"
 do = "run"
-speed_hz = 20.0
+hz = 20.0
 
 [[timeline]]
 at = "2s"

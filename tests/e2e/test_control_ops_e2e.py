@@ -1,5 +1,6 @@
-"""``mlink-sim control`` against a standalone slave offers the slave's operations (stats, cpu, plant, release,
-ping; aio/slave/server.py) and says which command answers an operation the slave refuses."""
+"""``mlink-sim control`` against a standalone slave: the slave's operations of the table (status, get-param, set-param,
+fault, release, stats, cpu, drive, ping; mlink_sim.aio.control.slave), a request checked by the table before anything
+is sent, and an operation another endpoint answers named as such."""
 
 from __future__ import annotations
 
@@ -15,21 +16,24 @@ def test_control_speaks_a_slaves_operations(slave) -> None:
     assert cpu.returncode == 0 and json.loads(cpu.stdout)["cpu_s"] >= 0
     stats = run_cli("control", where, "stats")
     assert stats.returncode == 0 and "0x21" in json.loads(stats.stdout)["stations"]
-    plant = run_cli("control", where, "plant", "0x21", "load,torque=5")
-    assert plant.returncode == 0, plant.stderr
-    handle = json.loads(plant.stdout)["handle"]
+    fault = run_cli("control", where, "fault", "0x21", "load,torque=5")
+    assert fault.returncode == 0, fault.stderr
+    handle = json.loads(fault.stdout)["handle"]
     assert run_cli("control", where, "release", "21H", str(handle)).returncode == 0
     again = run_cli("control", where, "release", "21H", str(handle))
-    assert again.returncode == 1 and "refused release: no drive fault" in again.stderr
+    assert again.returncode == 2 and "refused release: release: no drive fault" in again.stderr
     assert run_cli("control", where, "ping").returncode == 0
     other = run_cli("control", where, "impair", "21H", "loss=5%")
-    assert other.returncode == 1 and "impair is answered by: up/master --control, proxy" in other.stderr
+    assert other.returncode == 2 and "'impair' is answered by a network or a proxy, not by this slave" in other.stderr
 
 
 def test_control_refuses_a_malformed_request_before_sending() -> None:
-    cases = [(["plant", "21H"], "plant needs ADDR and SPEC"), (["plant", "21H", "silence,for=1s"], "plant takes a drive fault"),
-             (["release", "21H", "one"], "HANDLE is the number plant answered"), (["cpu", "21H"], "cpu takes no station"),
-             (["stats", "21H", "x"], "stats takes no SPEC")]
+    cases = [(["release", "21H", "one"], "handle: expected a whole number 1 or more, got 'one'"),
+             (["cpu", "21H"], "Got unexpected extra argument (21H)"),
+             (["run", "21H", "--hz", "fast"], "hz: expected a number, got 'fast'"),
+             (["run", "21H"], "run: hz is missing"),
+             (["set-param", "21H", "C1-01"], "Missing argument 'VALUE'"),
+             (["impair", "21X", "loss=5%"], "station: expected a station address such as 0x21 or 21H, got '21X'")]
     for args, expected in cases:
         r = run_cli("control", "127.0.0.1:9", *args)
         assert r.returncode == 2 and expected in r.stderr, (args, r.stderr)

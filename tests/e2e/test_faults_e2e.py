@@ -90,7 +90,7 @@ def test_the_network_faults_example_passes_on_the_real_clock(tmp_path: Path) -> 
     (["proxy", "--listen", "127.0.0.1:0", "--to", "127.0.0.1:9", "--impair", "loss=150%"], "loss: a probability"),
     (["proxy", "--listen", "127.0.0.1:0", "--to", "127.0.0.1:9", "--to", "127.0.0.1:10"], "one --to per --listen"),
     (["proxy", "--listen", "nowhere", "--to", "127.0.0.1:9"], "expected HOST:PORT"),
-    (["control", "127.0.0.1:9", "impair", "0x21"], "impair needs ADDR and SPEC"),
+    (["control", "127.0.0.1:9", "impair", "0x21"], "impair: nothing to do; give at least one of loss"),
     (["control", "127.0.0.1:9", "heal", "nowhere"], "station:"),
 ])
 def test_bad_proxy_and_control_input_is_exit_2(args: list[str], message: str) -> None:

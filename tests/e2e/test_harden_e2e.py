@@ -26,7 +26,7 @@ def _net(run_at: str, check_at: str) -> str:
 [[timeline]]
 at = "{run_at}"
 do = "run"
-speed_hz = 10.0
+hz = 10.0
 
 [[timeline]]
 at = "{check_at}"
@@ -180,9 +180,9 @@ def test_report_invariant_and_verdict_on_the_virtual_clock(tmp_path: Path) -> No
      "station[1].options: unknown card option 'et3_syncmode_tabel19'; did you mean 'et3_syncmode_table19'?"),
     (('card = "si-et3"', 'card = "si-et3"\noptions = { et3_syncmode_table19 = "yes" }'),
      "station[1].options: card option 'et3_syncmode_table19' expects true or false"),
-    (('speed_hz = 10.0', 'speed_hz = 10.0\n\n[[timeline]]\nat = "1s"\ndo = "set-param"\nparam = "QQ-12"\n'
+    (('hz = 10.0', 'hz = 10.0\n\n[[timeline]]\nat = "1s"\ndo = "set-param"\nparam = "QQ-12"\n'
                          'value = 1.0'), "timeline[1].param: unknown parameter 'QQ-12'"),
-    (('speed_hz = 10.0', 'speed_hz = 10.0\n\n[[timeline]]\nat = "1s"\ndo = "set-param"\nparam = "C1-01"\n'
+    (('hz = 10.0', 'hz = 10.0\n\n[[timeline]]\nat = "1s"\ndo = "set-param"\nparam = "C1-01"\n'
                          'value = 99999'), "timeline[1].param: C1-01: 99999.0 s is out of range"),
     (('expect = "running"', 'expect = "alarm"\nalarm = "E55"'), "timeline[1].alarm: expected an alarm name"),
 ])

@@ -37,7 +37,7 @@ params = { "n003" = 3, "n004" = 9, "n019" = 1.0, "n020" = 1.0 }
 [[timeline]]
 at = "0.2s"
 do = "run"
-speed_hz = 20.0
+hz = 20.0
 
 [[timeline]]
 at = "3s"

@@ -1,4 +1,4 @@
-"""A running ``mlink-sim up --control`` seen and steered through its control endpoint (aio/run/ops.py,
+"""A running ``mlink-sim up --control`` seen and steered through its control endpoint (aio/control/network.py,
 docs/control.md): ``mlink-sim param get|set`` (PRM_RD, PRM_WR + CONFIG through the master; SI-T3 Tables 8/9/12),
 ``mlink-sim status``, and the operations run, stop, alarm-clear, network, report, with an error ``kind`` for each
 kind of bad request. One real network of processes on 127.0.0.1, port 0."""
@@ -15,7 +15,7 @@ from typing import Any
 
 import pytest
 
-from mlink_sim.aio.run.control import query_control
+from mlink_sim.aio.control.endpoint import query_control
 
 from .conftest import MLINK, lines_until, run_cli
 
@@ -85,7 +85,7 @@ def test_param_get_and_set_by_name_through_the_master(network: Network) -> None:
     (["set", "0x21", "C1-01=99999"], "out of range"),
     (["set", "0x21", "C1-01=0.05"], "finer than the setting resolution"),
     (["set", "0x21", "C1-01"], "NAME=VALUE: expected e.g. C1-01=5.0"),
-    (["get", "nowhere", "C1-01"], "ADDR 'nowhere'"),
+    (["get", "nowhere", "C1-01"], "station: expected a station address such as 0x21 or 21H, got 'nowhere'"),
 ])
 def test_a_bad_parameter_request_is_a_usage_error(network: Network, args: list[str], message: str) -> None:
     r = run_cli("param", args[0], network.address, *args[1:])
@@ -122,7 +122,7 @@ def test_status_watch_shows_it_again_until_interrupted(network: Network) -> None
 
 
 def test_run_and_stop_steer_the_drive_and_the_figures_follow(network: Network) -> None:
-    reply = network.ask("run", station="0x23", direction="reverse", speed_hz=15.0)
+    reply = network.ask("run", station="0x23", direction="reverse", hz=15.0)
     assert reply["ok"] and reply["station"]["address"] == "0x23"
     st = network.wait("0x23", lambda s: s["output_hz"] and abs(s["output_hz"] - 15.0) < 0.1)
     assert st["running"] and st["direction"] == "reverse" and st["reference_hz"] == pytest.approx(15.0, abs=0.01)
@@ -142,16 +142,17 @@ def test_alarm_clear_is_answered_once_the_station_did_it(network: Network) -> No
 
 
 @pytest.mark.parametrize("op, fields, kind", [
-    ("run", {"station": "0x21", "direction": "forward", "speed_hz": 500.0}, "out_of_range"),
-    ("run", {"station": "0x21", "direction": "sideways", "speed_hz": 5.0}, "bad_request"),
-    ("run", {"station": "0x21", "direction": "forward", "speed_hz": "fast"}, "bad_request"),
+    ("run", {"station": "0x21", "direction": "forward", "hz": 500.0}, "out_of_range"),
+    ("run", {"station": "0x21", "direction": "sideways", "hz": 5.0}, "bad_request"),
+    ("run", {"station": "0x21", "direction": "forward", "hz": "fast"}, "bad_request"),
     ("stop", {"station": "0x40"}, "unknown_station"),
-    ("fault", {"station": "0x40", "fault": "silence,for=1s"}, "unknown_station"),
-    ("fault", {"station": "0x21", "fault": "silence,for=forever"}, "bad_request"),
+    ("fault", {"station": "0x40", "spec": "silence,for=1s"}, "unknown_station"),
+    ("fault", {"station": "0x21", "spec": "silence,for=forever"}, "bad_request"),
     ("stop", {}, "bad_request"),
-    ("param", {"station": "0x21"}, "bad_request"),
-    ("param", {"station": "0x21", "name": "C1-01", "value": [1]}, "bad_request"),
-    ("param", {"station": "0x21", "name": "C9-99"}, "unknown_param"),
+    ("get-param", {"station": "0x21"}, "bad_request"),
+    ("set-param", {"station": "0x21", "param": "C1-01", "value": [1]}, "bad_request"),
+    ("get-param", {"station": "0x21", "param": "C9-99"}, "unknown_param"),
+    ("run", {"station": "0x21", "speed_hz": 5.0}, "bad_request"),
     ("status", {"since": -1}, "bad_request"),
     ("teleport", {}, "bad_request"),
 ])
@@ -163,9 +164,9 @@ def test_a_bad_request_gets_its_error_kind(network: Network, op: str, fields: di
 def test_a_station_that_does_not_answer_refuses_a_run(network: Network) -> None:
     """A station cut off (all its datagrams lost) falls to phase 0 in the master's view: a run command is refused
     until it is back."""
-    assert network.ask("impair", station="0x22", impair="loss=100%,for=4s")["ok"]
+    assert network.ask("impair", station="0x22", spec="loss=100%,for=4s")["ok"]
     network.wait("0x22", lambda s: not s["connected"], timeout=5)
-    refused = network.ask("run", station="0x22", direction="forward", speed_hz=10.0)
+    refused = network.ask("run", station="0x22", direction="forward", hz=10.0)
     assert not refused["ok"] and refused["kind"] == "refused" and "needs a connection" in refused["error"]
     st = network.wait("0x22", lambda s: s["phase"] == 3, timeout=20)
     assert st["phase"] == 3
@@ -194,7 +195,8 @@ def test_a_standalone_slaves_status(slave) -> None:
     assert lines[0].startswith("slave pid") and lines[2].split()[:4] == ["23H", "si-et3", "ML3", "P1"]
     assert "R/E CON- LK1- LK2-" in lines[2]  # SI-ET3 Table 4: powered, no connection, no frames
     raw = json.loads(run_cli("status", where, "--json").stdout)
-    assert "0x23" in raw["stations"]  # the slave's own stats reply
+    assert [st["address"] for st in raw["stations"]] == ["0x23"]  # the slave's own status: the same figures
+    assert raw["stations"][0]["rtt_p99_us"] is None  # only a master measures a round trip
 
 
 def test_no_answer_names_the_address_and_exits_1() -> None:

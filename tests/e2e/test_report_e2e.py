@@ -43,7 +43,7 @@ params = { "b1-01" = 3, "b1-02" = 3, "C1-01" = 1.0, "C1-02" = 1.0 }
 at = "0.1s"
 do = "run"
 direction = "forward"
-speed_hz = 30.0
+hz = 30.0
 
 [[timeline]]
 at = "1.2s"
@@ -197,7 +197,7 @@ def test_a_real_clock_run_traces_control_requests_and_its_report_opens_offline(t
     assert {("control", "0x23"), ("impair-start", "0x23"), ("impair-end", "0x23")} <= events
     impair, param = (a for a in actions if a["event"] == "control")
     assert impair["detail"].startswith("impair ") and "delay=100us,for=300ms" in impair["detail"]
-    assert param["address"] == "0x21" and param["detail"].startswith("param ") and '"value":1.5' in param["detail"]
+    assert param["address"] == "0x21" and param["detail"].startswith("set-param ") and '"value":1.5' in param["detail"]
     _check_page(html.read_text(), json.loads(report.read_text()), stations=2)
 
 

@@ -158,13 +158,13 @@ def _ask(port: int, request: dict, timeout: float = 0.5) -> dict | None:
 
 
 def test_a_slave_s_control_endpoint_off_loopback_answers_only_requests_with_its_token(slave, tmp_path: Path) -> None:
-    """``--control 0.0.0.0:0 --control-token-file FILE``: a stats or plant request without the token, or with
-    another, gets no answer and plants nothing (counted in control_refused); with it, the endpoint answers."""
+    """``--control 0.0.0.0:0 --control-token-file FILE``: a stats or fault request without the token, or with
+    another, gets no answer and applies nothing (counted in control_refused); with it, the endpoint answers."""
     token = tmp_path / "token"
     token.write_text("s3cret-token\n")
     proc = slave("--card", "si-t3", "--station", "0x21", "--control", "0.0.0.0:0", "--control-token-file", str(token))
     ctl = proc.ready["control"]
-    plant = {"op": "plant", "station": 0x21, "fault": {"do": "load", "torque": 5}}
+    plant = {"op": "fault", "station": 0x21, "do": "load", "torque": 5}
     assert _ask(ctl, {"op": "stats"}) is None
     assert _ask(ctl, {**plant, "token": "wrong"}) is None
     assert _ask(ctl, plant) is None

@@ -146,28 +146,28 @@ def test_torque_step_on_a_fan_load_is_refused():
         PlantFaults().apply(0x21, b.card, LoadStep(torque=1.0), b.now)
 
 
-def test_the_plant_control_request_applies_releases_and_refuses_bad_input():
-    """``{"op": "plant"}`` / ``{"op": "release"}`` on a slave's control endpoint (aio/slave/faults.py): a bad request is an
-    ``ok: false`` reply naming what is wrong, never an exception."""
-    from mlink_sim.aio.slave.faults import handle_plant_request
+def test_a_drive_fault_is_applied_released_and_bad_input_refused_by_kind():
+    """A slave's drive fault (aio/slave/faults.py, what its ``fault`` / ``release`` operations do): applied with a
+    handle, released by it; a station not here, a fault that is not a drive's, an unknown handle are
+    ``OpError``s of their kind, never another exception."""
+    from mlink_sim.aio.slave.faults import apply_drive_fault, release_drive_fault
+    from mlink_sim.faults import fault_from_fields
+    from mlink_sim.operations import OpError
 
     b = Bench("si-t3").up()
     plants = PlantFaults()
     stations = {0x21: b.card}
-    reply = handle_plant_request({"op": "plant", "station": 0x21, "fault": {"do": "mains-loss", "for": "1s"}},
-                                 stations, plants, b.now)
-    assert reply["ok"] and isinstance(reply["handle"], int)
+    handle = apply_drive_fault(stations, plants, 0x21, fault_from_fields("mains-loss", {"for": "1s"}), b.now)
+    assert isinstance(handle, int)
     assert not b.card.drive.drive.status.main_power_on or b.card.drive.drive.dc_bus_v > 0
-    assert handle_plant_request({"op": "release", "station": 0x21, "handle": reply["handle"]}, stations, plants,
-                                b.now)["ok"]
-    for bad, why in [
-        ({"op": "plant", "station": 0x22, "fault": {"do": "load", "torque": 1.0}}, "no station"),
-        ({"op": "plant", "station": 0x21, "fault": {"do": "silence", "for": "1s"}}, "not a drive fault"),
-        ({"op": "plant", "station": 0x21, "fault": {"do": "load"}}, "give torque"),
-        ({"op": "plant", "station": 0x21, "fault": {"do": "warp"}}, "do: expected one of"),
-        ({"op": "plant", "station": 0x21, "fault": None}, "do: expected one of"),
-        ({"op": "release", "station": 0x21, "handle": 99}, "no drive fault 99"),
-        ({"op": "release", "station": "0x21", "handle": 1}, "no station"),
+    release_drive_fault(stations, plants, 0x21, handle, b.now)
+    load = fault_from_fields("load", {"torque": 1.0})
+    for call, kind, why in [
+        (lambda: apply_drive_fault(stations, plants, 0x22, load, b.now), "unknown_station", "not served here"),
+        (lambda: apply_drive_fault(stations, plants, 0x21, fault_from_fields("silence", {"for": "1s"}), b.now),
+         "bad_request", "not a drive fault"),
+        (lambda: release_drive_fault(stations, plants, 0x21, 99, b.now), "bad_request", "no drive fault 99"),
     ]:
-        reply = handle_plant_request(bad, stations, plants, b.now)
-        assert not reply["ok"] and why in reply["error"], (bad, reply)
+        with pytest.raises(OpError) as err:
+            call()
+        assert err.value.kind == kind and why in str(err.value)

@@ -39,8 +39,7 @@ def step(body: str) -> str:
     ('do = "silence"\nfor = "-2ms"', "expected a duration"),
     ('do = "skip-cycles"', "count: required"),
     ('do = "skip-cycles"\ncount = 0', "count: expected a whole number of transmission cycles"),
-    ('do = "skip-cycles"\ncount = 2\nfor = "1s"', "for: only 'impair', 'silence', 'freeze-wdt', 'load', 'lock-rotor', "
-                                                  "'mains-loss' take it"),
+    ('do = "skip-cycles"\ncount = 2\nfor = "1s"', "for: do = \"skip-cycles\" does not take it (it takes count)"),
     ('do = "freeze-wdt"', "for: required"),
     ('do = "bad-command"', "kind: required, one of 'phase', 'combination', 'data-size'"),
     ('do = "bad-command"\nkind = "size"', "kind: expected one of"),
@@ -52,7 +51,7 @@ def step(body: str) -> str:
     ('station = 0x23\ndo = "load"\ninertia = 0.1', None),
     ('do = "mains-loss"', "for: required"),
     ('do = "lock-rotor"', None),
-    ('do = "run"\nspeed_hz = 10.0\ncount = 3', 'count: only do = "skip-cycles" takes it'),
+    ('do = "run"\nhz = 10.0\ncount = 3', "count: 'do = \"run\"' does not take it (it takes hz, direction)"),
     ('expect = "recovered"', "needs within"),
     ('expect = "no-alarm"\nwithin = "5ms"', 'within: only expect = "recovered"'),
     ('expect = "refused"\nalarm = "A.94"', "expected an alarm name"),
@@ -116,38 +115,41 @@ def test_plugin_methods_on_the_virtual_clock():
 
 
 def test_control_requests_inject_faults_into_a_running_network():
-    """``{"op": "fault"}`` / ``{"op": "recovery"}`` on the control endpoint of a running ``up`` (aio/run/faults.py):
+    """``{"op": "fault"}`` / ``{"op": "recovery"}`` on the control endpoint of a running ``up`` (aio/control/faults.py):
     the same faults as the timeline, a repeated request (same ``id``) injected once, bad values refused."""
     import asyncio
+    import json
 
-    from mlink_sim.aio.run.control import ControlServer
-    from mlink_sim.aio.run.faults import fault_ops, parse_fault_text
+    from mlink_sim.aio.control.endpoint import ControlServer
+    from mlink_sim.operations import parse_fault_text
 
     assert parse_fault_text("load,torque=5,for=1s") == ("load", {"torque": 5, "for": "1s"})
     with VirtualNetwork("faults-master", seed=3) as net:
-        server = ControlServer(fault_ops(net.session))
+        server = ControlServer(net.ops.handlers(), "network")
 
         def ask(**request):
             async def go():
-                reply = server.handle(__import__("json").dumps(request).encode())
-                await asyncio.sleep(0.002)
+                reply = server.handle(json.dumps(request).encode())
+                if isinstance(reply, asyncio.Future):
+                    reply = await reply
                 return reply
             return net.call(go())
 
-        reply = ask(op="fault", station="0x21", fault="skip-cycles,count=2", id="a")
+        reply = ask(op="fault", station="0x21", spec="skip-cycles,count=2", id="a")
         assert reply["ok"] and reply["fault"] == {"do": "skip-cycles", "count": 2}
-        assert ask(op="fault", station="0x21", fault="skip-cycles,count=2", id="a") == reply
+        assert ask(op="fault", station="0x21", spec="skip-cycles,count=2", id="a") == reply
         net.advance(0.1)
         episodes = ask(op="recovery", station="0x21")["episodes"]
         assert episodes["0x21"]["what"] == "skip-cycles count=2" and episodes["0x21"]["recovery_ns"] < 50_000_000
         assert net.report()["station"]["0x21"]["injected"]["skips"] == 2
-        bad = ask(op="fault", station="0x21", fault="skip-cycles,count=0")
+        bad = ask(op="fault", station="0x21", spec="skip-cycles,count=0")
         assert not bad["ok"] and "count: expected a whole number" in bad["error"]
-        assert not ask(op="fault", station="0x99", fault="silence,for=1s")["ok"]
+        unknown = ask(op="fault", station="0x99", spec="silence,for=1s")
+        assert not unknown["ok"] and unknown["kind"] == "unknown_station"
 
 
 def test_mlink_sim_control_fault_checks_the_spec_before_sending():
-    from mlink_sim.cli.proxy import control_cmd
+    from mlink_sim.cli.control import control_cmd
 
     for spec, why in (("silence", "for: required"), ("warp,for=1s", "do: expected one of"),
                       ("silence,200ms", "expected NAME=VALUE")):

@@ -49,7 +49,7 @@ SMALL = textwrap.dedent("""
     [[timeline]]
     at = "0.2s"
     do = "run"
-    speed_hz = 20.0
+    hz = 20.0
 
     [[timeline]]
     at = "2s"

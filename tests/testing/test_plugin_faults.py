@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import pytest
 
-from mlink_sim.impair import ImpairError
+from mlink_sim.operations import OpError
 
 
 @pytest.mark.mlink_network("configs/faults-network.toml", clock="virtual", seed=2)
 def test_impair_then_heal_a_station(mlink_network):
     net = mlink_network
-    spec = net.impair(0x21, loss=0.1, for_=2.0)  # every tenth datagram, both ways, for two simulated seconds
-    assert spec.loss == 0.1 and spec.for_ns == 2_000_000_000
+    reply = net.impair(0x21, loss=0.1, for_=2.0)  # every tenth datagram, both ways, for two simulated seconds
+    assert reply["impairment"] == {"loss": 0.1, "for": "2000000000ns"} and reply["describe"] == "loss 10%, for 2s"
     net.wait(1.0)
     injected = net.metrics.report["station"]["0x21"]["injected"]
     assert injected["drops"] > 0
@@ -30,9 +30,10 @@ def test_every_station_and_the_text_form(mlink_network):
     mlink_network.wait(1.0)
     for station in ("0x21", "0x22", "0x23"):
         assert mlink_network.metrics.report["station"][station]["injected"]["corruptions"] > 0
-    with pytest.raises(ImpairError, match="loss: a probability"):
+    with pytest.raises(OpError, match="loss: a probability") as err:
         mlink_network.impair(0x21, loss=2)
-    with pytest.raises(ImpairError, match="station"):
+    assert err.value.kind == "bad_request"
+    with pytest.raises(OpError, match="station: expected a station address"):
         mlink_network.impair("nowhere", loss=0.1)
 
 

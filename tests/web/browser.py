@@ -131,9 +131,9 @@ def _docs_shots(out: Path) -> int:
         with browser(*found) as session:
             session.get(url)
             for name in ("21H", "22H", "23H"):
-                http.post(f"api/stations/{name}/run", {"direction": "forward", "speed_hz": 30.0})
+                http.post(f"api/stations/{name}/run", {"direction": "forward", "hz": 30.0})
             time.sleep(8)
-            http.post("api/stations/21H/run", {"direction": "reverse", "speed_hz": 20.0})
+            http.post("api/stations/21H/run", {"direction": "reverse", "hz": 20.0})
             time.sleep(6)
             http.post("api/stations/23H/fault", {"fault": "lock-rotor"})
             time.sleep(3)

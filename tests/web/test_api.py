@@ -55,41 +55,41 @@ def test_the_status_gives_every_station_its_figures(http: Http) -> None:
 
 
 def test_run_then_stop_a_station_by_either_address_notation(http: Http) -> None:
-    status, body = http.post("api/stations/0x21/run", {"direction": "forward", "speed_hz": 20.0})
-    check_response("/api/stations/{address}/run", "post", status, body)
+    status, body = http.post("api/stations/0x21/run", {"direction": "forward", "hz": 20.0})
+    check_response("/api/stations/{station}/run", "post", status, body)
     assert body["station"]["name"] == "21H"
     wait_for(lambda: (by_name(stations(http))["21H"]["output_hz"] or 0) > 5.0, 20, "21H above 5 Hz")
     assert by_name(stations(http))["21H"]["direction"] == "forward"
     status, body = http.post("api/stations/21H/stop")
-    check_response("/api/stations/{address}/stop", "post", status, body)
+    check_response("/api/stations/{station}/stop", "post", status, body)
     wait_for(lambda: by_name(stations(http))["21H"]["output_hz"] == 0.0, 20, "21H at 0 Hz")
 
 
 def test_a_parameter_reads_and_writes_back_in_its_unit(http: Http) -> None:
     status, body = http.get("api/stations/21H/params/C1-01")  # the config sets C1-01 = 2.0 s
-    check_response("/api/stations/{address}/params/{name}", "get", status, body)
+    check_response("/api/stations/{station}/params/{param}", "get", status, body)
     assert (body["param"]["name"], body["param"]["value"], body["param"]["unit"]) == ("C1-01", 2.0, "s")
     status, body = http.request("PUT", "api/stations/0x23/params/C1-02", {"value": 3.0, "eeprom": False})
-    check_response("/api/stations/{address}/params/{name}", "put", status, body)
+    check_response("/api/stations/{station}/params/{param}", "put", status, body)
     assert body["param"]["value"] == 3.0
     status, body = http.get("api/stations/23h/params/C1-02")
     assert (status, body["param"]["value"]) == (200, 3.0)
 
 
 def test_faults_impairments_and_heal_are_taken_and_answered_as_documented(http: Http) -> None:
-    status, body = http.post("api/stations/22H/fault", {"fault": "silence,for=100ms"})
-    check_response("/api/stations/{address}/fault", "post", status, body)
+    status, body = http.post("api/stations/22H/fault", {"spec": "silence,for=100ms"})
+    check_response("/api/stations/{station}/fault", "post", status, body)
     assert status == 200, body
     assert body["describe"].startswith("silence")
-    status, body = http.post("api/stations/21H/impair", {"impair": "loss=5%,for=1s"})
-    check_response("/api/stations/{address}/impair", "post", status, body)
+    status, body = http.post("api/stations/21H/impair", {"spec": "loss=5%,for=1s"})
+    check_response("/api/stations/{station}/impair", "post", status, body)
     assert status == 200, body
     status, body = http.post("api/stations/all/heal")
-    check_response("/api/stations/{address}/heal", "post", status, body)
+    check_response("/api/stations/{station}/heal", "post", status, body)
     assert status == 200, body
     assert body["ended"] >= 1
     status, body = http.post("api/stations/22H/alarm-clear")
-    check_response("/api/stations/{address}/alarm-clear", "post", status, body)
+    check_response("/api/stations/{station}/alarm-clear", "post", status, body)
 
 
 def test_the_report_is_the_report_of_the_run_so_far(http: Http) -> None:
@@ -118,11 +118,11 @@ BAD: list[tuple[str, str, Any, dict[str, str] | None, int, str]] = [
     ("PUT", "api/stations/21H/params/C1-01", {"value": True}, None, 400, "bad_request"),
     ("PUT", "api/stations/21H/params/C1-01", {"value": 1, "colour": "red"}, None, 400, "bad_request"),
     ("POST", "api/stations/21H/run", {"direction": "up"}, None, 400, "bad_request"),
-    ("POST", "api/stations/21H/run", {"speed_hz": 1e6}, None, 422, "out_of_range"),
+    ("POST", "api/stations/21H/run", {"hz": 1e6}, None, 422, "out_of_range"),
     ("POST", "api/stations/0x99/stop", {}, None, 404, "unknown_station"),
-    ("POST", "api/stations/21H/fault", {"fault": "melt,for=1s"}, None, 400, "bad_request"),
+    ("POST", "api/stations/21H/fault", {"spec": "melt,for=1s"}, None, 400, "bad_request"),
     ("POST", "api/stations/21H/fault", {}, None, 400, "bad_request"),
-    ("POST", "api/stations/21H/impair", {"station": "22H", "impair": "loss=5%"}, None, 400, "bad_request"),
+    ("POST", "api/stations/21H/impair", {"station": "22H", "spec": "loss=5%"}, None, 400, "bad_request"),
 ]
 
 
@@ -133,9 +133,9 @@ def test_a_bad_request_gets_a_4xx_with_a_one_line_reason(http: Http, method: str
                                                          kind: str) -> None:
     status, answer = http.request(method, path, body, headers=headers)
     assert (status, answer["kind"]) == (code, kind), answer
-    template = "/" + path.replace("99H", "{address}").replace("21X", "{address}").replace("0x99", "{address}")
-    template = template.replace("21H", "{address}").replace("X9-99", "{name}").replace("C1%2001", "{name}")
-    template = template.replace("C1-01", "{name}")
+    template = "/" + path.replace("99H", "{station}").replace("21X", "{station}").replace("0x99", "{station}")
+    template = template.replace("21H", "{station}").replace("X9-99", "{param}").replace("C1%2001", "{param}")
+    template = template.replace("C1-01", "{param}")
     check_response(template, method, status, answer)
     assert "\n" not in answer["error"]
 
@@ -144,7 +144,7 @@ def test_a_form_post_is_refused_so_that_another_site_cannot_send_one(http: Http)
     status, body = http.request("POST", "api/stations/21H/stop", raw=b"x=1",
                                 content_type="application/x-www-form-urlencoded")
     assert (status, body["kind"]) == (415, "unsupported_media_type")
-    check_response("/api/stations/{address}/stop", "post", status, body)
+    check_response("/api/stations/{station}/stop", "post", status, body)
 
 
 def test_a_request_under_a_name_other_than_loopback_is_refused_without_a_token(http: Http) -> None:

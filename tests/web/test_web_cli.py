@@ -109,7 +109,7 @@ def test_master_web_serves_a_master_whose_slave_runs_elsewhere(tmp_path) -> None
             rows = wait_for(lambda: [s for s in stations(http) if s["phase"] == 3], 30, "phase 3")
             assert [s["name"] for s in rows] == ["21H"]
             status, body = http.get("api/stations/21H/params/C1-01")
-            check_response("/api/stations/{address}/params/{name}", "GET", status, body)
+            check_response("/api/stations/{station}/params/{param}", "GET", status, body)
             assert status == 200 and body["param"]["unit"] == "s"  # read through the master from the slave
         finally:
             master.stop()

@@ -1,8 +1,8 @@
-"""The network run: ``mlink-sim up`` / ``master`` (network), the session that opens the workers and the masters
-(session), its virtual-clock variant (virtual_session) and the embedded API on it (embed), the timeline (scenario,
-faultchecks), the slave worker processes (supervisor), the live status (status), the control endpoint and its
-client (control), the faults on a running network (faults) and the trace's sampler (trace).
+"""The network run — orchestration and supervision: ``mlink-sim up`` / ``master`` and their phases (network), the
+verdict and the summary (verdict), the session that opens the workers and the masters (session), the master API
+routed per station (netapi), the session on the virtual clock (virtual_session) and the embedded network on it
+(embed), the slave worker processes (supervisor) and the web server's process (webproc).
 
-The top layer of :mod:`mlink_sim.aio` with tools: may import every layer below it (virtual, slave, master,
-transport, timing).
+The top layer of :mod:`mlink_sim.aio` with tools: may import every layer below it (control, present, virtual,
+slave, master, transport, timing).
 """

@@ -5,21 +5,22 @@ only inside :meth:`~VirtualNetwork.advance` / :meth:`~VirtualNetwork.run_until` 
     from mlink_sim.aio.run.embed import VirtualNetwork
 
     with VirtualNetwork("configs/quickstart.toml", seed=1) as net:   # stations powered up, bring-up done
+        net.set_param(0x21, "C1-01", 1.0)                            # PRM_WR and CONFIG: a 1 s ramp from now on
         net.run(0x21, hz=30)                                         # forward at 30 Hz (o1-03 units handled)
         while net.output_hz(0x21) < 29.9:
             net.step()                                               # one transmission cycle
-        assert net.prm_rd(0x21, "C1-01") == 2.0                      # PRM_RD by name: 2.0 s (a ParamValue)
-        assert net.prm_rd(0x21, 0x0200) == 20                        # by register: the raw count (0.1 s units)
-        net.prm_wr(0x21, "C1-01", 5.0); net.send_config(0x21)        # 5.0 s, checked against 0.0 … 6000.0 s
+        assert net.get_param(0x21, "C1-01") == 1.0                   # PRM_RD by name: 1.0 s (a ParamValue)
         net.advance(60.0)                                            # a simulated minute, in a few seconds
         print(net.now, net.report()["rtt"]["p99"])
 
-The master API (``prm_rd``, ``prm_wr``, ``send_config``, ``id_rd``, ``alm_rd``, ``alm_clr``, ``disconnect``,
-``reconnect``, ``set_control``, ``run``, ``stop_station``, ``view``) is the real master's, routed per station
-(:class:`~mlink_sim.aio.run.session.NetworkApi`); a request blocks until answered, advancing simulated time meanwhile.
-Parameters go by name (the station's card picks the table) or by register number (raw counts); a bad name, type or
-value raises :class:`~mlink_sim.master.ParamRequestError` before anything is sent. ``view()`` decodes what it
-carries: ``output_hz``, ``status_bits``, ``bit("RUNX")``, ``alarm_text``.
+The network's operations (``run``, ``stop``, ``set_param``, ``get_param``, ``alarm_clear``, ``impair``, ``fault``,
+``status`` …: :class:`~mlink_sim.operations.NetworkOperations`, one method per operation of the table) do what a
+control request, the command line and the HTTP API do, and refuse what they refuse, with the same message
+(:class:`~mlink_sim.operations.OpError`). The bare master API stays beside them under the protocol's names, for tests
+of a master's own handling (``prm_rd``, ``prm_wr`` — written, not entered: CONFIG is ``send_config`` — ``id_rd``,
+``alm_rd``, ``alm_clr``, ``set_control``, ``view``), routed per station (:class:`~mlink_sim.aio.run.netapi.NetworkApi`).
+A request blocks until answered, advancing simulated time meanwhile. ``view()`` decodes what it carries:
+``output_hz``, ``status_bits``, ``bit("RUNX")``, ``alarm_text``.
 :meth:`~VirtualNetwork.station` is the card core itself (``snapshot()``: phase, LEDs, alarms, drive, counters).
 
 Touches: no socket, thread or wall clock; a virtual session on a virtual event loop of its own.
@@ -29,15 +30,21 @@ from __future__ import annotations
 
 import asyncio
 import threading
-from collections.abc import Awaitable, Sequence
+from collections.abc import Awaitable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
 from ...config import Config, load_config
-from .scenario import CheckResult, Scenario, StationControls, speed_scales
-from .session import NetworkApi, build_report
+from ...metrics import build_report
+from ...operations import NetworkOperations, request_of
+from ...scenario import CheckResult, StationViews, Timeline, speed_scales
+from ..control.endpoint import perform
+from ..control.events import RunLog
+from ..control.network import NetworkOps
+from ..control.timeline import TimelineRunner
 from ..virtual.vclock import VirtualEventLoop
+from .netapi import NetworkApi
 from .virtual_session import VirtualSession
 
 __all__ = ["VirtualNetwork", "NetworkSnapshot", "BringUpFailed"]
@@ -63,7 +70,7 @@ class BringUpFailed(RuntimeError):
         self.problems = problems
 
 
-class VirtualNetwork(StationControls):
+class VirtualNetwork(NetworkOperations, StationViews):
     """The network of *config* (a :class:`~mlink_sim.config.Config` or a TOML path) on simulated time.
 
     *seed*: the jitter draws of the network model (``[network] latency`` / ``jitter``). *bring_up*: bring every
@@ -88,7 +95,13 @@ class VirtualNetwork(StationControls):
         net = self.session.net
         assert net is not None  # open() builds it
         self.net: NetworkApi = net
-        self._scenario: tuple[Scenario, asyncio.Task[None]] | None = None
+        events = RunLog(self.session.masters[next(iter(self.session.masters))].now_ns)
+        for master in self.session.masters.values():
+            events.watch(master)
+        #: the network's operations, which the methods of the table perform (and the timeline)
+        self.ops = NetworkOps(self.session, events, in_thread=False, scales=self._scales)
+        self._handlers = self.ops.handlers()
+        self._scenario: tuple[Timeline, asyncio.Task[None]] | None = None
         self._closed = False
         self.final_report: dict[str, Any] | None = None
         if bring_up:
@@ -147,7 +160,11 @@ class VirtualNetwork(StationControls):
         """Let the network run for *cycles* transmission cycles."""
         self.run_until_ns(self.loop.clock.now + cycles * self.config.network.transmission_cycle)
 
-    # ------------------------------------------------------------------ the master API
+    # ------------------------------------------------------------------ the operations
+    def _perform(self, op: str, **args: Any) -> dict[str, Any]:
+        return self.call(perform(self._handlers, request_of(op, **args)))
+
+    # ------------------------------------------------------------------ the bare master API
     def set_control(self, station: int, **fields: Any) -> None:
         """Cyclic INV_CTL fields (forward, reverse, speed_ref [raw], fault_reset, ef0, …); others stay as set."""
         self.net.set_control(station, **fields)
@@ -167,7 +184,8 @@ class VirtualNetwork(StationControls):
 
     def prm_wr(self, station: int, register: int | str, value: Any, size: int = 2) -> None:
         """PRM_WR by name in engineering units (``prm_wr(0x21, "C1-01", 5.0)``, range-checked) or by register
-        number with the raw int; :meth:`send_config` makes it take effect."""
+        number with the raw int: written, not entered (the drive keeps its value until :meth:`send_config`;
+        :meth:`set_param` does both)."""
         self.call(self.net.prm_wr(station, register, value, size))
 
     def send_config(self, station: int, mode: int = 0) -> None:
@@ -182,39 +200,6 @@ class VirtualNetwork(StationControls):
 
     def alm_clr(self, station: int) -> None:
         self.call(self.net.alm_clr(station))
-
-    def disconnect(self, station: int) -> None:
-        self.call(self.net.disconnect(station))
-
-    def reconnect(self, station: int, timeout: float = 10.0) -> None:
-        """CONNECT again after a DISCONNECT and wait until the station is back at its phase."""
-        net = self.net
-
-        async def again() -> None:
-            await net.reconnect(station)
-            await net.master(station).wait_until(lambda: net.view(station).at_target, timeout)
-
-        self.call(again())
-
-    def impair(self, station: int | str | None = "all", spec: Any = None, **fields: Any) -> Any:
-        """Start a network impairment on *station* (``"all"``: every station), replacing the one there:
-        *spec* is an :class:`~mlink_sim.impair.Impairment` or its text (``"loss=5%,delay=200us"``), or give its
-        fields (``loss=0.1, for_=2.0``; durations in seconds). Returns the Impairment (docs/faults.md)."""
-        from ...impair import as_impairment, target_station
-
-        impairment = as_impairment(spec, fields)
-        self.session.impair(target_station(station), impairment)
-        return impairment
-
-    def heal(self, station: int | str | None = "all") -> int:
-        """End the network impairments of *station* (``"all"``: of every station); how many ended."""
-        from ...impair import target_station
-
-        return self.session.heal(target_station(station))
-
-    def kill_slave(self, station: int) -> bool:
-        """The station stops answering, as a killed slave process; powered up again 0.5 s later."""
-        return self.net.kill_slave(station)
 
     # ------------------------------------------------------------------ the stations
     def station(self, address: int) -> Any:
@@ -234,29 +219,29 @@ class VirtualNetwork(StationControls):
     # ------------------------------------------------------------------ timeline and figures
     def start_timeline(self) -> None:
         """Start the config's timeline now ("0 s" of its steps); its actions run as time advances."""
-        scenario = Scenario(self.config, self.net, self._scales)
-        loop = self.loop
-        task = loop.create_task(scenario.run(loop.time(), _sleep_until))
-        self._scenario = (scenario, task)
+        timeline = self.ops.timeline = Timeline(self.config)
+        task = self.loop.create_task(TimelineRunner(timeline, self.ops).run(self.loop.time()))
+        self._scenario = (timeline, task)
 
     def run_timeline(self) -> list[CheckResult]:
         """Run the timeline to its end (started now unless :meth:`start_timeline` was called); its checks."""
         if self._scenario is None:
             self.start_timeline()
         assert self._scenario is not None
-        scenario, task = self._scenario
+        timeline, task = self._scenario
         self.call(asyncio.shield(task))
-        return list(scenario.results)
+        return list(timeline.results)
 
     def reset_metrics(self) -> None:
         """Start the figures afresh from now."""
         self.session.reset_metrics()
 
-    def report(self, assertions: Sequence[Any] = ()) -> dict[str, Any]:
-        """The report as of now (docs/report.md; ``meta.clock`` = ``"virtual"``); after :meth:`close`, the final one."""
+    def report(self) -> dict[str, Any]:
+        """The report as of now (docs/report.md; ``meta.clock`` = ``"virtual"``, the timeline's checks so far); after
+        :meth:`close`, the final one."""
         if self._closed and self.final_report is not None:
             return self.final_report
-        return self.call(self.session.report(assertions=assertions))
+        return super().report()
 
     def close(self) -> dict[str, Any] | None:
         """DISCONNECT every station, stop; returns the final report (with the timeline's checks). Idempotent."""
@@ -295,9 +280,3 @@ def _collect(task: asyncio.Future[Any]) -> None:
 def _resolve(fut: asyncio.Future[None]) -> None:
     if not fut.done():
         fut.set_result(None)
-
-
-async def _sleep_until(when: float) -> None:
-    delay = when - asyncio.get_running_loop().time()
-    if delay > 0:
-        await asyncio.sleep(delay)

@@ -25,21 +25,21 @@ from ... import _accel
 from ..._log import get_logger
 from ...config import Config, TimelineStep, format_ns
 from ...metrics import write_report
-from .control import ControlServer, impairment_ops
-from .events import RunLog
-from .expectations import timeline_warnings
-from .faults import fault_ops
-from .ops import RunOps
-from .scenario import CheckResult, Scenario, speed_scales
-from .session import EndpointError, NetworkSession, build_plans
-from .status import LiveStatus, StatusInfo, SummaryWriter, WorstP99, render_lines
+from ...scenario import CheckResult, Timeline, speed_scales
+from ...scenario.expectations import timeline_warnings
+from ..control.endpoint import ControlServer
+from ..control.events import RunLog
+from ..control.network import NetworkOps
+from ..control.timeline import TimelineRunner, sleep_until
+from ..present.status import LiveStatus, StatusInfo, WorstP99, render_lines
+from ..present.trace import DEFAULT_INTERVAL_NS, TraceSampler
+from .session import EndpointError, NetworkSession
 from .supervisor import resolve_workers
-from .trace import DEFAULT_INTERVAL_NS, TraceSampler
+from .verdict import SIGNAL_EXIT, Verdict, print_summary
 from .virtual_session import VirtualSession
 from .webproc import WebProcess
 
-__all__ = ["RunOptions", "RunOutcome", "Verdict", "SIGNAL_EXIT", "EndpointError", "run_up", "run_network",
-           "build_plans", "cut_by_duration"]
+__all__ = ["RunOptions", "RunOutcome", "SIGNAL_EXIT", "EndpointError", "run_up", "run_network", "cut_by_duration"]
 
 log = get_logger("mlink_sim.network")
 
@@ -71,11 +71,11 @@ class RunOptions:
     #: without *realtime*; None: the kernel's choice, or the real-time plan
     cpus: set[int] | None = None
     capture: Any = None  #: a started CaptureWriter recording every datagram of the masters (``--capture``)
-    #: ``--control HOST:PORT``: answer control requests (impair, heal, faults) while running (aio/run/control.py)
+    #: ``--control HOST:PORT``: answer the network's operations while running (aio/control, docs/control.md)
     control: tuple[str, int] | None = None
-    #: ``--control-token``: the token every control request must carry (None: none; aio/slave/token.py)
+    #: ``--control-token``: the token every control request must carry (None: none; aio/control/token.py)
     control_token: str | None = None
-    #: ``--trace FILE.csv``: each station's figures every ``trace_interval_ns`` and the actions (aio/run/trace.py)
+    #: ``--trace FILE.csv``: each station's figures every ``trace_interval_ns`` and the actions (aio/present/trace.py)
     trace_path: Path | None = None
     trace_interval_ns: int = DEFAULT_INTERVAL_NS
     #: ``--report-html FILE``: the HTML report (metrics/html.py); without ``trace_path`` from a temporary trace
@@ -95,13 +95,6 @@ class RunOutcome:
     problems: list[str]
 
 
-async def _sleep_until(when: float) -> None:
-    loop = asyncio.get_running_loop()
-    delay = when - loop.time()
-    if delay > 0:
-        await asyncio.sleep(delay)
-
-
 async def run_up(config: Config, opts: RunOptions) -> RunOutcome:
     """Start the slave worker processes (``--workers``: one per station, or packed), then run the network against
     them."""
@@ -111,10 +104,6 @@ async def run_up(config: Config, opts: RunOptions) -> RunOutcome:
 async def run_network(config: Config, endpoints: dict[int, tuple[str, int]], opts: RunOptions) -> RunOutcome:
     """Start one master per link against *endpoints* (slaves started elsewhere) and run the network."""
     return await _run(config, opts, endpoints)
-
-
-#: Exit status of a run ended by a signal: 128 + the signal number, as a shell reports a process it killed.
-SIGNAL_EXIT = {signal.SIGINT: 130, signal.SIGTERM: 143}
 
 
 async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str, int]] | None) -> RunOutcome:
@@ -141,27 +130,27 @@ async def _run(config: Config, opts: RunOptions, endpoints: dict[int, tuple[str,
                 f"{len(cut)} timeline step(s), which will not run: {'; '.join(s.describe for s in cut)}")
     scales = speed_scales(config)  # now, not in the event loop once it keeps time
     run.status = LiveStatus() if opts.status else None
+    timeline = Timeline(config)
     try:
-        session = await _open(run, session_cls, endpoints, workers)
+        session = await _open(run, session_cls, endpoints, workers, scales)
         stopper = run.loop.create_task(run.stop.wait())
         await _bring_up(run, session, stopper)
-        assert session.net is not None
-        scenario = Scenario(config, session.net, scales)
-        if run.ops is not None:
-            run.ops.scenario = scenario
+        assert run.ops is not None
+        run.ops.timeline = timeline
+        runner = TimelineRunner(timeline, run.ops)
         capture = opts.capture
         if capture is not None:  # the timeline's actions (runs, writes, injected faults) as capture comments
-            scenario.note = lambda text: capture.note(int(run.loop.time() * 1e9), text)
+            runner.note = lambda text: capture.note(int(run.loop.time() * 1e9), text)
         if not run.stop.is_set():
-            await _timeline(run, session, scenario, stopper, length)
+            await _timeline(run, session, runner, stopper, length)
         stopper.cancel()
-        report = await _report(run, session, scenario)
+        report = await _report(run, session, timeline)
     except BaseException:
         _drop_temporary_trace(run)
         raise
     finally:
         await _close(run)
-    return _verdict(run, report, scenario, session.problems, cut)
+    return _verdict(run, report, timeline, session)
 
 
 @dataclasses.dataclass
@@ -175,7 +164,7 @@ class _Run:
     caught: list[signal.Signals] = dataclasses.field(default_factory=list)  #: the signal that ended the run
     status: LiveStatus | None = None
     control: ControlServer | None = None
-    ops: RunOps | None = None  #: the control endpoint's operations on the network (``--control``)
+    ops: NetworkOps | None = None  #: the network's operations: the timeline's, and the control endpoint's
     session: NetworkSession | None = None
     sampler: TraceSampler | None = None  #: the trace (--trace, --report-html)
     trace_file: Path | None = None  #: where it is written: --trace's file, or a temporary one for --report-html
@@ -212,8 +201,9 @@ def _workers(run: _Run, endpoints: dict[int, tuple[str, int]] | None) -> tuple[t
 
 
 async def _open(run: _Run, session_cls: type[NetworkSession], endpoints: dict[int, tuple[str, int]] | None,
-                workers: int | None) -> NetworkSession:
-    """Open the session (the workers, one master per link) and, with ``--control``, the control endpoint."""
+                workers: int | None, scales: dict[int, Any]) -> NetworkSession:
+    """Open the session (the workers, one master per link), its operations and, with ``--control`` (or ``--web``),
+    the control endpoint that serves them."""
     opts = run.opts
     session = run.session = await session_cls.open(
         run.config, opts.config_path, endpoints=endpoints, workers=workers, state_dir=opts.state_dir,
@@ -225,16 +215,17 @@ async def _open(run: _Run, session_cls: type[NetworkSession], endpoints: dict[in
                 else f"cpus: {granted}")
     if opts.trace_path is not None or opts.report_html is not None:
         run.sampler = _open_trace(run, session)
+    masters = list(session.masters.values())
+    events = RunLog(masters[0].now_ns)
+    for master in masters:
+        events.watch(master)
+    run.ops = NetworkOps(session, events, opts.assertions, in_thread=opts.clock != "virtual", scales=scales)
     if opts.control is not None or opts.web is not None:
         # --web without --control: an endpoint on loopback for the web server only, with a token of its own
         token = opts.control_token if opts.control is not None else secrets.token_urlsafe(16)
-        masters = list(session.masters.values())
-        log = RunLog(masters[0].now_ns)
-        for master in masters:
-            log.watch(master)
-        run.ops = RunOps(session, log, opts.assertions, in_thread=opts.clock != "virtual")
-        ops = run.ops.ops({**impairment_ops(session), **fault_ops(session)})
-        run.control = ControlServer(run.sampler.recording(ops) if run.sampler else ops, token=token)
+        handlers = run.ops.handlers()
+        run.control = ControlServer(run.sampler.recording(handlers) if run.sampler else handlers, "network",
+                                    token=token)
         host, port = await run.control.start(*(opts.control or ("127.0.0.1", 0)))
         if opts.control is not None:
             _notice(opts, "control", f"control: {host}:{port} (mlink-sim status {host}:{port}; mlink-sim param "
@@ -256,7 +247,7 @@ async def _bring_up(run: _Run, session: NetworkSession, stopper: asyncio.Task[An
         await asyncio.gather(bring, return_exceptions=True)
 
 
-async def _timeline(run: _Run, session: NetworkSession, scenario: Scenario, stopper: asyncio.Task[Any],
+async def _timeline(run: _Run, session: NetworkSession, runner: TimelineRunner, stopper: asyncio.Task[Any],
                     length: int | None) -> None:
     """Run the timeline with the live status from the end of bring-up until its end (*length*), --duration or a
     signal (*stopper*)."""
@@ -268,15 +259,15 @@ async def _timeline(run: _Run, session: NetworkSession, scenario: Scenario, stop
     t0 = loop.time()
     if run.sampler is not None:
         run.sampler.start(t0)
-        scenario.on_action, scenario.on_check = run.sampler.on_step, run.sampler.on_check
+        runner.on_action, runner.on_check = run.sampler.on_step, run.sampler.on_check
     if run.ops is not None:
         run.ops.log.start()
-    tasks = [loop.create_task(scenario.run(t0, _sleep_until))]
-    frame = _framer(config, session, scenario, t0, length)
+    tasks = [loop.create_task(runner.run(t0))]
+    frame = _framer(config, session, runner.timeline, runner.ops.scales, t0, length)
     if status is not None:
         status.start()
         tasks.append(loop.create_task(_status_loop(status, frame)))
-    end = loop.create_task(_sleep_until(t0 + length / 1e9)) if length is not None else None
+    end = loop.create_task(sleep_until(t0 + length / 1e9)) if length is not None else None
     waiters = {stopper} | ({end} if end else set())
     if end is None and not config.timeline:
         _notice(opts, "no_end", "running until Ctrl-C (no timeline, no --duration)")
@@ -284,26 +275,26 @@ async def _timeline(run: _Run, session: NetworkSession, scenario: Scenario, stop
     for task in [*tasks, *waiters]:
         task.cancel()
     await asyncio.gather(*tasks, return_exceptions=True)
-    session.problems.extend(scenario.action_errors)
+    session.problems.extend(runner.timeline.action_errors)
     if status is not None:
         status.stop(frame(status.width))
 
 
-async def _report(run: _Run, session: NetworkSession, scenario: Scenario) -> dict[str, Any]:
+async def _report(run: _Run, session: NetworkSession, timeline: Timeline) -> dict[str, Any]:
     """The trace's last rows, the slaves' last figures, DISCONNECT (while the slaves still run), the timeline's
     checks, the report."""
     if run.sampler is not None:
         await run.sampler.close()
     await session.refresh_slave_stats()
     await session.close_masters()
-    scenario.results[:] = scenario.results_naming_stalls(session.metrics.stalls)
-    for c in scenario.results:
+    timeline.results[:] = timeline.results_naming_stalls(session.metrics.stalls)
+    for c in timeline.results:
         session.metrics.record_check(c.at_s, c.what, c.ok, c.detail, c.cause, station=c.station)
     interrupted = run.caught[0].name if run.caught else None
     trace = {} if run.opts.trace_path is None else {"trace": str(run.opts.trace_path),
                                                      "trace_interval_ns": run.opts.trace_interval_ns}
     return await session.report(assertions=run.opts.assertions, slave_stats=False, extra_meta={
-        "interrupted": interrupted, "not_run": [s.describe for s in scenario.not_run()], **trace})
+        "interrupted": interrupted, "not_run": [s.describe for s in timeline.not_run()], **trace})
 
 
 async def _close(run: _Run) -> None:
@@ -328,15 +319,17 @@ async def _close(run: _Run) -> None:
         run.loop.remove_signal_handler(sig)
 
 
-def _verdict(run: _Run, report: dict[str, Any], scenario: Scenario, problems: list[str],
-             cut: list[TimelineStep]) -> RunOutcome:
-    """Write the report, judge the run (:class:`Verdict`), print the summary."""
-    if run.opts.report_path is not None:
-        write_report(run.opts.report_path, report)
+def _verdict(run: _Run, report: dict[str, Any], timeline: Timeline, session: NetworkSession) -> RunOutcome:
+    """Write the report, judge the run (:class:`~.verdict.Verdict`), print the summary."""
+    opts = run.opts
+    if opts.report_path is not None:
+        write_report(opts.report_path, report)
     html_failed = _write_html(run, report)
-    verdict = Verdict.of(scenario, report, problems, run.caught[0] if run.caught else None, cut)
-    _print_summary(run.config, report, scenario, verdict, problems, run.opts)
-    return RunOutcome(verdict.exit_code or int(html_failed), report, scenario.results, problems)
+    verdict = Verdict.of(timeline, report, len(session.unreached), run.caught[0] if run.caught else None)
+    files = [f"{what}: {path}" for what, path in (("report", opts.report_path), ("trace", opts.trace_path),
+                                                  ("HTML report", opts.report_html)) if path is not None]
+    print_summary(run.config, report, timeline, verdict, session.problems, opts.duration_ns, files)
+    return RunOutcome(verdict.exit_code or int(html_failed), report, timeline.results, session.problems)
 
 
 def _open_trace(run: _Run, session: NetworkSession) -> TraceSampler | None:
@@ -407,62 +400,7 @@ def cut_by_duration(config: Config, duration_ns: int | None) -> list[TimelineSte
     return [s for s in sorted(config.timeline, key=lambda s: s.at) if s.at >= duration_ns]
 
 
-_Signal = signal.Signals  # for the annotations inside Verdict, whose field `signal` hides the module there
-
-
-@dataclasses.dataclass(frozen=True)
-class Verdict:
-    """The run's outcome in one place, so the summary line and the exit status can never disagree."""
-
-    failed_checks: int
-    failed_asserts: int
-    unreached: int  #: stations that never reached their phase
-    not_run: int  #: timeline steps that never began
-    checks_not_run: int
-    held: int  #: checks and assertions that held
-    signal: signal.Signals | None
-
-    @classmethod
-    def of(cls, scenario: Scenario, report: dict[str, Any], problems: list[str], sig: _Signal | None,
-           cut: list[TimelineStep]) -> Verdict:
-        asserts = report.get("assertions", [])
-        not_run = scenario.not_run()
-        return cls(
-            failed_checks=sum(not c.ok for c in scenario.results),
-            failed_asserts=sum(not a.get("ok") for a in asserts),
-            unreached=sum("did not reach" in p for p in problems),
-            not_run=len(not_run),
-            checks_not_run=sum(s.expect is not None for s in not_run),
-            held=sum(c.ok for c in scenario.results) + sum(bool(a.get("ok")) for a in asserts),
-            signal=sig,
-        )
-
-    @property
-    def exit_code(self) -> int:
-        if self.signal is not None:
-            return SIGNAL_EXIT[self.signal]
-        return 1 if self.failed_checks or self.failed_asserts or self.unreached else 0
-
-    def line(self, duration_ns: int | None) -> str:
-        parts = []
-        if self.signal is not None:
-            parts.append(f"interrupted by {self.signal.name}")
-        failed = self.failed_checks + self.failed_asserts
-        if failed:
-            parts.append(f"{failed} check(s) failed")
-        if self.unreached:
-            parts.append(f"{self.unreached} station(s) did not come up")
-        if self.not_run:
-            why = "" if self.signal is not None else f" (--duration {format_ns(duration_ns or 0)} ended the run)"
-            parts.append(f"{self.not_run} timeline step(s) not run{why}")
-        if not parts and self.held:
-            return "all checks held"
-        if not parts:
-            return "run complete (no checks in the timeline, no --assert)"
-        return "; ".join(parts) + (f"; {self.held} check(s) held" if self.held else "")
-
-
-def _framer(config: Config, session: NetworkSession, scenario: Scenario, t0: float,
+def _framer(config: Config, session: NetworkSession, timeline: Timeline, scales: dict[int, Any], t0: float,
             length: int | None) -> Callable[[int | None], list[str]]:
     """A function drawing the current status frame for a terminal of a given width (None: not a terminal;
     docs/timing.md: bounded work per call)."""
@@ -471,9 +409,9 @@ def _framer(config: Config, session: NetworkSession, scenario: Scenario, t0: flo
     assert session.net is not None
 
     def frame(width: int | None) -> list[str]:
-        step = scenario.current
+        step = timeline.current
         return render_lines(StatusInfo(
-            config=config, net=session.net, metrics=session.metrics, scales=scenario.scales,
+            config=config, net=session.net, metrics=session.metrics, scales=scales,
             elapsed_s=loop.time() - t0, total_s=None if length is None else length / 1e9,
             step=step.describe if step else None, p99_ns=p99.step(session.metrics)), width)
 
@@ -484,43 +422,3 @@ async def _status_loop(status: LiveStatus, frame: Callable[[int | None], list[st
     while True:
         await asyncio.sleep(status.interval)
         status.show(frame(status.width))
-
-
-def _print_summary(config: Config, report: dict[str, Any], scenario: Scenario, verdict: Verdict,
-                   problems: list[str], opts: RunOptions) -> None:
-    out = SummaryWriter.for_terminal(sys.stdout)
-    rtt = report.get("rtt", {})
-    print(f"\n== {config.network.name}: {len(config.station)} stations, "
-          f"{format_ns(config.network.transmission_cycle)} cycle, {report['meta']['duration_s']:.1f} s ==", file=out)
-    if rtt.get("count"):
-        print(f"rtt p50 {format_ns(rtt['p50'])}  p99 {format_ns(rtt['p99'])}  max {format_ns(rtt['max'])}  "
-              f"({rtt['count']} responses); missed cycles {report.get('missed', 0)}, "
-              f"missing responses {report.get('missing', 0)}, late {report.get('late', 0)}", file=out)
-    injected = [f"{int(key, 16):02X}H " + ", ".join(f"{n} {kind}" for kind, n in st["injected"].items() if n)
-                for key, st in report.get("station", {}).items() if any(st.get("injected", {}).values())]
-    if injected:  # docs/faults.md: what was done on purpose, next to what the stations reported
-        print("injected: " + "; ".join(injected), file=out)
-    host = report.get("host")
-    if host:
-        st = host["stall"]
-        bound = f"absorbs up to {format_ns(host['bound'])}" if host["policy"] == "absorb" else "strict"
-        print(f"host stalls {st['count']}, longest {format_ns(st['max'])}, {st['cycles']} cycles delayed: "
-              f"{st['absorbed']} run late, {st['lost']} lost (policy {bound})", file=out)
-    for c in scenario.results:
-        why = f" — {c.cause}" if c.cause else ""
-        print(f"  {'ok  ' if c.ok else 'FAIL'} {c.what}: {c.detail}{why}", file=out)
-    for step in scenario.not_run():
-        print(f"  --   {step.describe}: not run", file=out)
-    for r in report.get("assertions", []):
-        print(f"  {'ok  ' if r.get('ok') else 'FAIL'} assert {r.get('message') or r.get('text')}", file=out)
-    for p in problems:
-        print(f"  note {p}", file=out)
-    meta = report["meta"]
-    wall = meta.get("wall")
-    if meta.get("clock") == "virtual" and isinstance(wall, dict):
-        print(f"virtual clock (seed {meta.get('seed')}): {wall['simulated_s']:.1f} s simulated in "
-              f"{wall['elapsed_s']:.2f} s wall, {wall['speedup'] or 0:g}x real time", file=out)
-    line = verdict.line(opts.duration_ns)
-    files = [f"{what}: {path}" for what, path in (("report", opts.report_path), ("trace", opts.trace_path),
-                                                  ("HTML report", opts.report_html)) if path is not None]
-    print("; ".join([line, *files]), file=out, flush=True)

@@ -6,6 +6,7 @@
     session = await NetworkSession.open(config, config_path=path)   # workers + masters, cycling
     await session.bring_up(timeout=10)                               # every station at its phase
     await session.net.prm_rd(0x21, 0x0180)                           # the master API, routed per station
+                                                                     # (:class:`~.netapi.NetworkApi`)
     report = await session.report()                                  # live figures (docs/report.md)
     await session.close()                                            # DISCONNECT, stop masters and workers
 
@@ -36,170 +37,17 @@ from ..timing.realtime import cpu_plan as rt_cpu_plan
 from ..timing.realtime import format_cpus as rt_format_cpus
 from ..timing.ticker import CycleTimer
 from ..transport.udp import bind_address_for, resolve
-from .control import query_control
-from .faults import FaultControl
-from .scenario import restart_profile, speed_scale
+from ..control.endpoint import query_control
+from .netapi import NetworkApi, build_plans
 from .supervisor import Worker, WorkerError, WorkerSpec, plan_workers
 
-__all__ = ["NetworkSession", "NetworkApi", "EndpointError", "build_plans", "build_report"]
+__all__ = ["NetworkSession", "EndpointError", "flatten_counters"]
 
 log = get_logger("mlink_sim.session")
 
 
 class EndpointError(ValueError):
     """A station endpoint that cannot be used (unresolvable host name)."""
-
-
-def build_plans(config: Config) -> dict[Link, Any]:
-    """One :class:`~mlink_sim.master.plan.NetworkPlan` per link present in the config."""
-    from ...master.plan import NetworkPlan, StationPlan
-
-    by_link: dict[Link, list[Any]] = {}
-    for st in config.station:
-        assert st.link is not None
-        plan = StationPlan(
-            address=st.address,
-            link=st.link,
-            data_size=st.frame_size or 0,
-            com_tim=st.com_tim or 0,
-            sync=st.sync,
-            subcmd=bool(st.subcmd),  # the config's validation fills it in
-            name=st.name or "",
-            card=st.card,
-            et3_syncmode_table19=bool(st.options.get("et3_syncmode_table19", False)),
-            hz_per_count=speed_scale(st).to_hz(1),  # the views' output_hz (o1-03 / n035 units)
-            **restart_profile(st),
-        )
-        by_link.setdefault(st.link, []).append(plan)
-    return {
-        link: NetworkPlan(link=link, tcycle_ns=config.network.transmission_cycle, stations=tuple(stations),
-                          answer_window_ns=config.network.absorb_ns)
-        for link, stations in by_link.items()
-    }
-
-
-
-class NetworkApi:
-    """The master API of a whole network: every call is routed to the master of the station's link.
-
-    Keeps each station's INV_CTL fields, so that a partial update (``set_control(0x21, ef0=True)``) leaves the
-    other fields as they were. Implements the scenario's ``NetworkHandle``."""
-
-    def __init__(self, config: Config, masters: dict[Link, Any], workers: dict[int, Worker]) -> None:
-        self.network_config = config
-        self.masters = masters
-        self.workers = workers
-        # the config's validation fills every station's link in
-        self.by_station = {st.address: masters[st.link] for st in config.station}  # type: ignore[index]
-        self._controls: dict[int, dict[str, Any]] = {st.address: {} for st in config.station}
-        self.fault_control = FaultControl(self)  #: station, master and drive faults (docs/faults.md)
-
-    def master(self, station: int) -> Any:
-        """The :class:`~mlink_sim.aio.master.runner.Master` serving *station*."""
-        return self.by_station[station]
-
-    def view(self, station: int) -> Any:
-        """The master's :class:`~mlink_sim.master.StationView` of *station* (state, phase, status, alarms …)."""
-        return self.by_station[station].view(station)
-
-    async def drive_activity(self, station: int) -> Any:
-        """What *station*'s drive model is doing (:class:`~mlink_sim.drive.activity.DriveActivity`): read on the
-        card core in this process (the virtual clock), else asked of its slave worker (``{"op": "drive"}``); None
-        when the slave runs elsewhere (``mlink-sim master``) or does not answer within 0.5 s."""
-        from ...drive.activity import DriveActivity
-
-        worker = self.workers.get(station)
-        if worker is None:
-            return None
-        read = getattr(worker, "activity", None)
-        if read is not None:
-            return read()
-        port = worker.control_port
-        if not (worker.alive and port):
-            return None
-        reply = await query_control("127.0.0.1", port, "drive", timeout=0.5, station=station)
-        if not reply or not reply.get("ok"):
-            return None
-        try:
-            return DriveActivity.from_dict(reply["activity"])
-        except (ValueError, KeyError, TypeError):
-            return None
-
-    def alarms_seen(self, station: int) -> dict[str, int]:
-        """Every alarm *station* raised so far, as the master saw it: name -> how many times."""
-        return dict(self.by_station[station].alarms_seen.get(station, {}))
-
-    def views(self) -> dict[int, Any]:
-        out: dict[int, Any] = {}
-        for m in self.masters.values():
-            out.update(m.views())
-        return out
-
-    def control(self, station: int) -> dict[str, Any]:
-        return dict(self._controls[station])
-
-    def set_control(self, station: int, **fields: Any) -> None:
-        """Update the cyclic INV_CTL fields of *station* (forward, reverse, speed_ref, fault_reset, ef0 …)."""
-        merged = self._controls[station]
-        merged.update(fields)
-        self.by_station[station].set_control(station, **merged)
-
-    async def prm_rd(self, station: int, register: int | str, size: int = 2) -> Any:
-        """PRM_RD by name (a ``ParamValue`` in units) or register number (raw): ``Master.prm_rd``."""
-        return await self.by_station[station].prm_rd(station, register, size)
-
-    async def prm_wr(self, station: int, register: int | str, value: Any, size: int = 2) -> Any:
-        """PRM_WR by name (engineering units, range-checked) or register number (raw): ``Master.prm_wr``."""
-        return await self.by_station[station].prm_wr(station, register, value, size=size)
-
-    async def config(self, station: int, mode: int = 0) -> Any:
-        return await self.by_station[station].config(station, mode)
-
-    async def id_rd(self, station: int, code: int, offset: int = 0, size: int = 8) -> Any:
-        return await self.by_station[station].id_rd(station, code, offset, size)
-
-    async def alm_rd(self, station: int, mode: int = 0, index: int = 0) -> Any:
-        return await self.by_station[station].alm_rd(station, mode, index)
-
-    async def alm_clr(self, station: int) -> Any:
-        return await self.by_station[station].alm_clr(station)
-
-    async def disconnect(self, station: int) -> Any:
-        return await self.by_station[station].disconnect(station)
-
-    async def reconnect(self, station: int) -> Any:
-        self.by_station[station].connect(station)
-
-    #: the session that owns the impairment layer (``impair``/``heal``), set by it
-    faults: Any = None
-
-    def impair(self, station: int | None, spec: Any) -> None:
-        """Start the network impairment *spec* (an :class:`~mlink_sim.impair.Impairment`) on *station* (None:
-        every station), replacing the one there (docs/faults.md)."""
-        self._faults().impair(station, spec)
-
-    def heal(self, station: int | None = None) -> int:
-        """End every network impairment of *station* (None: of every station); returns how many ended."""
-        return self._faults().heal(station)
-
-    def _faults(self) -> Any:
-        if self.faults is None:
-            raise RuntimeError("this network has no impairment layer")
-        return self.faults
-
-    def kill_slave(self, station: int) -> bool:
-        worker = self.workers.get(station)
-        if worker is None:
-            return False
-        log.warning("killing_slave", station=f"{station:#04x}", pid=worker.pid)
-        worker.kill()
-        return True
-
-    async def fault(self, station: int, fault: Any) -> Any:
-        """Start *fault* (a :mod:`mlink_sim.faults.spec` value) on *station* now; returns its
-        :class:`~mlink_sim.faults.Episode` (recovery measured after its end). Drive faults need the slaves of
-        ``up`` or the virtual clock (:class:`~mlink_sim.aio.slave.faults.PlantError` otherwise)."""
-        return await self.fault_control.inject(station, fault)
 
 
 def _local_target(host: str) -> str:
@@ -229,6 +77,10 @@ class NetworkSession:
         self.metrics.stalls = StallLog(config.network.host_stalls, config.network.absorb_ns)
         self.metrics.stalls.reset(time.monotonic_ns())
         self.problems: list[str] = problems if problems is not None else []
+        #: the in-memory network whose card cores are in this process (the virtual clock's), else None
+        self.fabric: Any = None
+        #: the stations found not at their target phase after bring-up (address -> the master's state then)
+        self.unreached: dict[int, str] = {}
         self.masters: dict[Link, Any] = {}
         self.worker_list: list[Worker] = []
         self.workers: dict[int, Worker] = {}
@@ -459,9 +311,12 @@ class NetworkSession:
         return self.not_up()
 
     def not_up(self) -> list[str]:
+        """One message per station not at its target phase now; each such station is counted in
+        :attr:`unreached` (the run's verdict reads it) and named in :attr:`problems`."""
         assert self.net is not None
-        out = [f"station {v.address:02X}H did not reach its phase (state {v.state.value})"
-               for v in self.net.views().values() if not v.at_target]
+        late = {v.address: v.state.value for v in self.net.views().values() if not v.at_target}
+        self.unreached.update(late)
+        out = [f"station {a:02X}H did not reach its phase (state {state})" for a, state in late.items()]
         self.problems.extend(m for m in out if m not in self.problems)
         return out
 
@@ -530,7 +385,7 @@ class NetworkSession:
                     continue
                 self.slave_snapshots[int(key, 16)] = snap
                 if isinstance(counters := snap.get("counters"), dict):
-                    self.metrics.record_slave_counters(int(key, 16), _flatten_counters(counters))
+                    self.metrics.record_slave_counters(int(key, 16), flatten_counters(counters))
 
     def reset_metrics(self) -> None:
         """Start the master-side figures afresh (e.g. after bring-up, to measure the steady state only). The
@@ -577,18 +432,12 @@ class NetworkSession:
                      slave_stats: bool = True) -> dict[str, Any]:
         """The report document as of now (schema: docs/report.md), with *assertions* evaluated into it."""
         metrics, meta = await self.snapshot(extra_meta=extra_meta, slave_stats=slave_stats)
+        from ...metrics import build_report
+
         return build_report(metrics, meta, assertions)
 
 
-def build_report(metrics: Any, meta: dict[str, Any], assertions: Sequence[Any] = ()) -> dict[str, Any]:
-    """The report of a :meth:`NetworkSession.snapshot`, with *assertions* evaluated into it."""
-    from ...metrics import check_all
-
-    report = metrics.report(meta=meta)
-    report["assertions"] = [r.as_dict() for r in check_all(list(assertions), report)] if assertions else []
-    return report
-
-def _flatten_counters(counters: dict[str, Any]) -> dict[str, int]:
+def flatten_counters(counters: dict[str, Any]) -> dict[str, int]:
     out: dict[str, int] = {}
     for key, value in counters.items():
         if isinstance(value, bool):

@@ -24,6 +24,9 @@ from pathlib import Path
 from typing import Any
 
 from ..._log import get_logger
+from ...operations import request_of
+from ..control.endpoint import query_control
+from ..slave.faults import PlantError
 from ..timing.realtime import unplace_child
 
 __all__ = ["WorkerSpec", "Worker", "WorkerError", "child_setup", "die_with_parent", "plan_workers", "parse_workers",
@@ -157,6 +160,40 @@ class Worker:
     @property
     def control_port(self) -> int | None:
         return None if self.ready is None else self.ready.get("control")
+
+    async def ask(self, op: str, timeout: float = 1.0, **args: Any) -> dict[str, Any] | None:
+        """The reply of the worker's control endpoint to the operation *op* with *args* (by their Python names), or
+        None when it does not run or did not answer within *timeout* s."""
+        port = self.control_port
+        if not (self.alive and port):
+            return None
+        request = request_of(op, **args)
+        return await query_control("127.0.0.1", port, request.pop("op"), timeout=timeout, **request)
+
+    async def drive_fault(self, station: int, fault: Any) -> int:
+        """Apply the drive fault *fault* (a :mod:`mlink_sim.faults.spec` value) to *station*'s drive in the worker,
+        which ends it by itself after its ``for``; the fault's handle. :class:`PlantError` when the worker refused
+        or did not answer."""
+        fields = {("for_" if k == "for" else k): v for k, v in fault.as_fields().items()}
+        reply = await self.ask("fault", station=station, **fields)
+        if reply is None:
+            raise PlantError(f"the slave of station {station:02X}H did not answer the drive-fault request")
+        if not reply.get("ok"):
+            raise PlantError(str(reply.get("error")))
+        return int(reply.get("handle", 0))
+
+    async def drive_activity(self, station: int) -> Any:
+        """What *station*'s drive model is doing (:class:`~mlink_sim.drive.activity.DriveActivity`), asked of the
+        worker; None when it does not answer within 0.5 s."""
+        from ...drive.activity import DriveActivity
+
+        reply = await self.ask("drive", timeout=0.5, station=station)
+        if not reply or not reply.get("ok"):
+            return None
+        try:
+            return DriveActivity.from_dict(reply["activity"])
+        except (ValueError, KeyError, TypeError):
+            return None
 
     def log_tail(self, lines: int = 8) -> str:
         try:

@@ -6,7 +6,7 @@ What differs from the real-time run is only time and transport. :class:`VirtualS
 :class:`~mlink_sim.aio.master.runner.Master` objects on a :class:`~mlink_sim.aio.virtual.fabric.FabricPort` instead of a
 UDP socket, cycled by a :class:`~mlink_sim.aio.virtual.fabric.VirtualCycle`. It must run on a
 :class:`~mlink_sim.aio.virtual.vclock.VirtualEventLoop`. Bring-up, the master API, the timeline, the checks, the report
-and the summary are the real-time run's own code (``aio/run/network.py``, ``aio/run/scenario.py``, ``metrics``).
+and the summary are the real-time run's own code (``aio/run/network.py``, ``scenario/timeline.py``, ``metrics``).
 
 The report says ``meta.clock = "virtual"`` and carries the seed and the network model; everything that depends on
 the wall clock is in ``meta.started``, ``meta.host`` and ``meta.wall`` (:data:`WALL_META`), so two runs with the
@@ -29,10 +29,11 @@ from ...master import MasterCore, NetworkPlan
 from ...faults import FaultStage
 from ...faults.plant import PlantFaults
 from ..virtual.fabric import Fabric, FabricPort, VirtualCycle
-from ..slave.faults import handle_plant_request
+from ..slave.faults import apply_drive_fault, release_drive_fault
 from ..timing.heap import settle_heap
 from ..master.runner import Master, MetricsSink, NullMetrics
-from .session import NetworkApi, NetworkSession, _flatten_counters, build_plans
+from .netapi import NetworkApi, build_plans
+from .session import NetworkSession, flatten_counters
 from ..slave.stations import build_station, spec_for
 from ..virtual.vclock import VirtualEventLoop
 
@@ -101,19 +102,29 @@ class _VirtualWorker:
     def kill(self) -> None:
         self.session.kill_station(self.address)
 
-    def plant(self, request: dict[str, Any]) -> dict[str, Any]:
-        """A drive fault on the card core itself (what a slave's ``{"op": "plant"}`` does)."""
+    async def drive_fault(self, station: int, fault: Any) -> int:
+        """A drive fault on the card core itself (what a slave worker's ``fault`` operation does), ended by itself
+        after its ``for`` in simulated time."""
         fabric = self.session.fabric
-        station = fabric.station(self.address)
-        reply = handle_plant_request(request, {} if station is None else {self.address: station},
-                                     self.session.plants, fabric.clock.now)
-        fabric.rearm(self.address)  # the drive is moving again: poll it
-        return reply
+        core = fabric.station(station)
+        cores = {} if core is None else {station: core}
+        handle = apply_drive_fault(cores, self.session.plants, station, fault, fabric.clock.now)
+        fabric.rearm(station)  # the drive is moving again: poll it
+        if fault.for_ns is not None:
+            asyncio.get_running_loop().call_later(fault.for_ns / 1e9, self._release, station, handle)
+        return handle
 
-    def activity(self) -> Any:
+    def _release(self, station: int, handle: int) -> None:
+        fabric = self.session.fabric
+        core = fabric.station(station)
+        if core is not None:
+            release_drive_fault({station: core}, self.session.plants, station, handle, fabric.clock.now)
+            fabric.rearm(station)
+
+    async def drive_activity(self, station: int) -> Any:
         """The station's ``Drive.activity()`` (None while it is down), read on the card core itself."""
-        station = self.session.fabric.station(self.address)
-        return None if station is None else station.drive.drive.activity()
+        core = self.session.fabric.station(station)
+        return None if core is None else core.drive.drive.activity()
 
 
 class VirtualSession(NetworkSession):
@@ -170,7 +181,7 @@ class VirtualSession(NetworkSession):
         if self.capture is not None:
             self._cycle_callbacks.append(self._capture_flusher(cycle.period_ns))
         workers = {st.address: _VirtualWorker(self, st.address) for st in self.config.station}
-        self.net = NetworkApi(self.config, self.masters, workers)  # type: ignore[arg-type]
+        self.net = NetworkApi(self.config, self.masters, workers)
         self.net.faults = self
         settle_heap(collect=False)  # as the real-time session, without the collection (docs/performance.md)
         cycle.start()
@@ -209,7 +220,7 @@ class VirtualSession(NetworkSession):
         """The stations' counters and snapshots, read from the card cores in this process."""
         for address, node in self.fabric.nodes.items():
             if node.station is not None:
-                self.metrics.record_slave_counters(address, _flatten_counters(node.station.counters.as_dict()))
+                self.metrics.record_slave_counters(address, flatten_counters(node.station.counters.as_dict()))
                 self.slave_snapshots[address] = to_jsonable(node.station.snapshot())
 
     def _clock_s(self) -> float:

@@ -1,6 +1,7 @@
-"""Drive faults on the slave side: a slave process's answer to a ``plant`` / ``release`` request of its control
-endpoint (docs/faults.md). The drive fault is applied to the card core's drive model in this process, so its effect
-reaches the master only through the station's answers, as a real drive's would.
+"""Drive faults on the slave side (docs/faults.md): a drive fault applied to a card core's drive model in the process
+that hosts the station, so that its effect reaches the master only through the station's answers, as a real drive's
+would. A slave's ``fault`` / ``release`` operations (:mod:`mlink_sim.aio.control.slave`) and the virtual clock's
+card cores use these two functions.
 
 May import the sans-I/O fault specs (:mod:`mlink_sim.faults`) and nothing of the run above it.
 
@@ -13,11 +14,12 @@ from collections.abc import Mapping
 from typing import Any
 
 from ..._log import get_logger
-from ...faults import FaultError, fault_from_fields
+from ...faults import FaultError, FaultSpec
 from ...faults.plant import PlantFaults
 from ...faults.spec import PLANT_FAULTS
+from ...operations import OpError, station_name
 
-__all__ = ["PlantError", "handle_plant_request"]
+__all__ = ["PlantError", "apply_drive_fault", "release_drive_fault"]
 
 log = get_logger("mlink_sim.faults")
 
@@ -26,28 +28,35 @@ class PlantError(RuntimeError):
     """A drive fault could not be applied (no slave process to reach, the slave refused or did not answer)."""
 
 
-def handle_plant_request(request: Mapping[str, Any], stations: Mapping[int, Any], plants: PlantFaults,
-                         now: int) -> dict[str, Any]:
-    """A slave's answer to ``{"op": "plant", "station": 33, "fault": {"do": "load", "torque": 5}}`` (apply; the
-    reply carries a ``handle``) or ``{"op": "release", "station": 33, "handle": 1}``; *stations* maps addresses to
-    the card cores of this process. Bad input is an ``ok: false`` reply with the reason, never an exception."""
-    address = request.get("station")
-    station = stations.get(address) if isinstance(address, int) else None
+def _station(stations: Mapping[int, Any], address: int) -> Any:
+    station = stations.get(address)
     if station is None:
-        return {"ok": False, "error": f"no station {address!r} in this process"}
+        known = ", ".join(station_name(a) for a in stations) or "none"
+        raise OpError("unknown_station", f"station {station_name(address)} is not served here (stations: {known})")
+    return station
+
+
+def apply_drive_fault(stations: Mapping[int, Any], plants: PlantFaults, address: int, fault: FaultSpec,
+                      now: int) -> int:
+    """Apply the drive fault *fault* to station *address* (a card core of *stations*) at *now*; its handle for
+    :func:`release_drive_fault`. ``OpError``: no such station here, or not a drive fault."""
+    station = _station(stations, address)
+    if fault.action not in PLANT_FAULTS:
+        raise OpError("bad_request", f"fault: {fault.action} is not a drive fault ({', '.join(PLANT_FAULTS)}): the "
+                                     "station and master faults are the network's (up/master --control)")
     try:
-        if request.get("op") == "release":
-            handle = request.get("handle")
-            # address is an int here: station is None otherwise
-            if not isinstance(handle, int) or not plants.release(address, station, handle, now):  # type: ignore[arg-type]
-                return {"ok": False, "error": f"no drive fault {handle!r} in force on station {address:02X}H"}
-            return {"ok": True}
-        fields = dict(request.get("fault") or {})
-        fault = fault_from_fields(str(fields.pop("do", "")), fields)
-        if fault.action not in PLANT_FAULTS:
-            return {"ok": False, "error": f"{fault.action} is not a drive fault ({', '.join(PLANT_FAULTS)})"}
         handle = plants.apply(address, station, fault, now)  # type: ignore[arg-type]
     except FaultError as exc:
-        return {"ok": False, "error": str(exc)}
-    log.info("drive_fault", station=f"{address:02X}H", fault=fault.describe, handle=handle)
-    return {"ok": True, "handle": handle}
+        raise OpError("bad_request", f"fault: {exc}") from None
+    log.info("drive_fault", station=station_name(address), fault=fault.describe, handle=handle)
+    return handle
+
+
+def release_drive_fault(stations: Mapping[int, Any], plants: PlantFaults, address: int, handle: int,
+                        now: int) -> None:
+    """End the drive fault *handle* of station *address* at *now*; ``OpError`` when there is none."""
+    station = _station(stations, address)
+    if not plants.release(address, station, handle, now):
+        raise OpError("bad_request", f"release: no drive fault {handle} in force on station "
+                                       f"{station_name(address)}")
+    log.info("drive_fault_released", station=station_name(address), handle=handle)

@@ -8,13 +8,12 @@ are written atomically in a worker thread, and once an image is written, fsync'd
 (``station.eeprom_durable``): a CONFIG to EEPROM answers CMDRDY = 0 until then (docs/cards.md, "EEPROM").
 Temporary files a killed process left are removed at start.
 
-A small JSON-over-UDP *control* endpoint answers ``{"op": "stats"}`` with every station's snapshot, counters and
-the process CPU time (``{"op": "cpu"}``: the CPU time only, small at any station count), so the supervisor
-(``mlink-sim up``) can collect slave-side figures without sharing anything but the network. The ``stats`` reply is
-built one station a millisecond, the loop answering the cyclic commands in between (``SlaveServer._reply_stats``).
+What a slave's control endpoint answers (:mod:`mlink_sim.aio.control.slave`: ``stats``, ``cpu``, ``status``, the
+parameters, the drive faults) it reads here: :meth:`SlaveServer.stats` (every station's snapshot and counters, the
+process's CPU time and host stalls), :meth:`SlaveServer.stats_text` (the same, built one station at a time, the loop
+answering the cyclic commands in between), :meth:`SlaveServer.cpu`.
 
-Touches: the stations' UDP sockets and the control endpoint, the card cores, the EEPROM image files (a worker thread
-writes them).
+Touches: the stations' UDP sockets, the card cores, the EEPROM image files (a worker thread writes them).
 """
 
 from __future__ import annotations
@@ -38,11 +37,9 @@ from ...metrics.stalls import WORKER_STALL_NS, StallLog
 from ...faults.plant import PlantFaults
 from .allow import AllowList
 from .bus import Bus, Port, due
-from .token import ControlToken
-from .faults import handle_plant_request
 from .state import atomic_write, eeprom_path, remove_stale_temps
 from ..transport.tapped import tap
-from ..transport.udp import BatchEndpoint, DatagramEndpoint, open_batch_endpoint, open_endpoint
+from ..transport.udp import BatchEndpoint, open_batch_endpoint
 from ..timing.realtime import yield_after_send
 
 __all__ = ["HostedStation", "SlaveServer"]
@@ -96,14 +93,12 @@ class SlaveServer:
         stations: list[HostedStation],
         *,
         state_dir: str | Path | None = None,
-        control: tuple[str, int] | None = ("127.0.0.1", 0),
         absorb_ns: int = 0,
         capture: Any = None,
         shared: bool = False,
         arrival_poll: tuple[int, int | None] | None = None,
         batched: bool = True,
         allow: AllowList | None = None,
-        control_token: str | None = None,
     ) -> None:
         """*capture*: a :class:`~mlink_sim.capture.CaptureWriter`: every station socket is tapped, and each
         station's phase changes (seen by the 1 ms tick) become notes.
@@ -124,8 +119,6 @@ class SlaveServer:
         datagram); the others' datagrams go to the cards' ``receive_untrusted``. Host names are resolved in a worker
         thread at the start and again, once a second at most, while one is unresolved or an unknown source shows.
 
-        *control_token*: the token every control request must carry (:mod:`mlink_sim.aio.slave.token`; None: none).
-
         *batched*: the batched calls (``sendmmsg``/``recvmmsg``, UDP segmentation offload) where the kernel has them;
         False keeps the per-datagram calls on every socket (the tests compare both paths that way)."""
         self.stations = stations
@@ -140,14 +133,11 @@ class SlaveServer:
         self.stalls = StallLog("absorb" if absorb_ns else "strict", absorb_ns)
         self.batched = batched
         self.allow = allow
-        self.control_token = ControlToken(control_token)
         self._resolving: asyncio.Future[None] | None = None
         self._resolved_at = 0.0
         self._unresolved: list[str] = []  #: the names last logged as unresolved
         self._tick_due = 0
         self.state_dir = Path(state_dir) if state_dir else None
-        self._control_addr = control
-        self._control: DatagramEndpoint | None = None
         self._tick: asyncio.TimerHandle | None = None
         self._pending_writes: dict[Path, tuple[HostedStation, int, bytes]] = {}
         self._writer: asyncio.Task[None] | None = None
@@ -159,8 +149,7 @@ class SlaveServer:
         self._capture = capture
         self._phases = {id(hs): hs.station.phase for hs in stations}
         self._cores = [hs.station for hs in stations]  #: the card cores, for the tick's scan (``bus.due``)
-        self.plants = PlantFaults()  #: drive faults in force (``{"op": "plant"}``)
-        self._replies: set[asyncio.Task[None]] = set()  #: ``stats`` replies being built (:meth:`_reply_stats`)
+        self.plants = PlantFaults()  #: drive faults in force (a slave's ``fault`` operation)
         for hs in stations:
             if self.state_dir is not None and hs.eeprom is None:
                 hs.eeprom = eeprom_path(self.state_dir, hs.station.card, hs.station.address)
@@ -191,8 +180,6 @@ class SlaveServer:
                     hs.endpoint, hs.port = endpoint, endpoint.local_address[1]
                 if len(group) > 1 or len(groups) == 1:
                     endpoint.poll_arrivals(self.arrival_poll)
-            if self._control_addr is not None:
-                self._control = await open_endpoint(self._on_control, *self._control_addr)
         except OSError:
             await self.close()
             raise
@@ -213,10 +200,6 @@ class SlaveServer:
             self._collect_eeprom(hs)
             if hs.endpoint is not None:
                 hs.endpoint.close()
-        for task in list(self._replies):
-            task.cancel()
-        if self._control is not None:
-            self._control.close()
         if self._resolving is not None:  # a name being resolved in a worker thread: its answer lands on this loop
             await asyncio.wait([self._resolving], timeout=2.0)
         if self._writer is not None:
@@ -225,7 +208,7 @@ class SlaveServer:
             self._writer = None
 
     def ready_info(self) -> dict[str, Any]:
-        """What the ``ready`` line reports: where every station listens and the control port."""
+        """What the ``ready`` line reports: where every station listens (the caller adds the control port)."""
         return {
             "event": "ready",
             "pid": os.getpid(),
@@ -240,7 +223,6 @@ class SlaveServer:
                 }
                 for hs in self.stations
             ],
-            "control": None if self._control is None else self._control.local_address[1],
         }
 
     # -- datagrams --------------------------------------------------------------------------------------------
@@ -452,7 +434,7 @@ class SlaveServer:
         return {**self._stats_head(since), "stations": dict(map(self._station_stats, self.stations))}
 
     def _stats_head(self, since: int) -> dict[str, Any]:
-        return {**self.cpu(), "unaddressed": self.unaddressed, "control_refused": self.control_token.refused,
+        return {**self.cpu(), "unaddressed": self.unaddressed,
                 "stalls": self.stalls.events("self", last=_STALLS_REPORTED, since=since),
                 "stall_totals": self.stalls.totals("self", since)}
 
@@ -460,23 +442,21 @@ class SlaveServer:
     def _station_stats(hs: HostedStation) -> tuple[str, Any]:
         return f"{hs.station.address:#04x}", to_jsonable(hs.station.snapshot())
 
-    async def _reply_stats(self, since: int, addr: Any) -> None:
-        """The ``{"op": "stats"}`` reply, :meth:`stats` built one station at a time, the worker sleeping
-        :data:`_STATS_PACE_S` between two (the loop answers the bursts meanwhile, and the CPU is free for the
-        master), for :data:`_STATS_PACED_S` at most. Built at once it held the worker's loop 1.2–1.4 ms for 8
-        stations and 4.1–5.9 ms for 62, and each query made 24–30 answers late at 8 ML-III × 250 µs and 189–294 at
-        62 ML-III × 1 ms; paced, 62 stations take 64–121 ms and 0–3 answers per query came late
-        (docs/performance.md). Each
-        station's figures are its own at one instant; the stations' instants lie up to that long apart."""
-        head = json.dumps(self._stats_head(since), separators=_COMPACT)
+    async def stats_text(self, since: int = 0, **extra: Any) -> str:
+        """:meth:`stats` (and *extra* fields) as the JSON text of a reply (``"ok": true`` first), built one station
+        at a time, the worker sleeping :data:`_STATS_PACE_S` between two (the loop answers the bursts meanwhile, and
+        the CPU is free for the master), for :data:`_STATS_PACED_S` at most: built at once, the stats of many
+        stations would hold the worker's loop for milliseconds and make answers late (docs/performance.md, "A
+        slave's stats"). Each station's figures are its own at one instant; the stations' instants lie up to that
+        long apart."""
+        head = json.dumps({"ok": True, **self._stats_head(since), **extra}, separators=_COMPACT)
         parts = []
         paced_until = time.monotonic() + _STATS_PACED_S
         for hs in list(self.stations):
             key, snap = self._station_stats(hs)
             parts.append(f'"{key}":{json.dumps(snap, separators=_COMPACT)}')
             await asyncio.sleep(_STATS_PACE_S if time.monotonic() < paced_until else 0)
-        if not self._closing:
-            self._send_control(f'{head[:-1]},"stations":{{{",".join(parts)}}}}}'.encode(), addr)
+        return f'{head[:-1]},"stations":{{{",".join(parts)}}}}}'
 
     def _poll_stats(self) -> dict[str, int]:
         """The arrival polls' counters, summed over the sockets (:meth:`ArrivalPoll.stats
@@ -489,49 +469,16 @@ class SlaveServer:
                 total[key] = max(total.get(key, 0), value) if key in _POLL_MAX_KEYS else total.get(key, 0) + value
         return total
 
-    def _on_control(self, data: bytes, addr: Any) -> None:
-        try:
-            request = json.loads(data)
-            op = request.get("op") if isinstance(request, dict) else None
-        except (ValueError, UnicodeDecodeError):
-            request, op = None, None
-        if not self.control_token.admits(request):
-            n = self.control_token.refused
-            if n & (n - 1) == 0:
-                log.warning("control_refused", reason="no token or a wrong one", refused=n)
-            return
-        if op == "stats":
-            since = request.get("since", 0)
-            task = asyncio.get_running_loop().create_task(self._reply_stats(
-                since if isinstance(since, int) and not isinstance(since, bool) else 0, addr))
-            self._replies.add(task)
-            task.add_done_callback(self._replies.discard)
-            return
-        if op in ("plant", "release"):  # a drive fault (aio/run/faults.py, docs/faults.md)
-            self._forget()
-            reply = handle_plant_request(request, {hs.station.address: hs.station for hs in self.stations},
-                                         self.plants, time.monotonic_ns())
-        elif op == "drive":  # what a station's drive is doing, for a failed check (aio/run/explain.py)
-            reply = self._drive_activity(request.get("station"))
-        elif op == "cpu":
-            reply = self.cpu()
-        elif op == "ping":
-            reply = {"ok": True, "pid": os.getpid()}
-        else:
-            reply = {"ok": False, "error": "expected a JSON object with op = 'stats', 'cpu', 'ping', 'drive', "
-                                           "'plant' or 'release'"}
-        self._send_control(json.dumps(reply, separators=_COMPACT).encode(), addr)
+    def hosted(self, address: int) -> HostedStation | None:
+        """The station *address* of this process, or None."""
+        return next((hs for hs in self.stations if hs.station.address == address), None)
 
-    def _drive_activity(self, station: Any) -> dict[str, Any]:
-        """``{"op": "drive", "station": 33}``: the station's ``Drive.activity()`` as of its last advance (reading it
-        changes nothing)."""
-        for hs in self.stations:
-            if hs.station.address == station:
-                return {"ok": True, "activity": hs.station.drive.drive.activity().as_dict()}
-        return {"ok": False, "error": f"no station {station!r} in this process"}
+    def cores(self) -> dict[int, Any]:
+        """This process's card cores, by station address."""
+        return {hs.station.address: hs.station for hs in self.stations}
 
-    def _send_control(self, payload: bytes, addr: Any) -> None:
-        if len(payload) > 60_000:
-            payload = json.dumps({"ok": False, "error": "stats too large for one datagram"}).encode()
-        if self._control is not None:
-            self._control.sendto(payload, addr)
+    def changed(self, hs: HostedStation) -> None:
+        """*hs* was changed from outside its commands (a drive fault, a parameter set by its keypad): answers made
+        ahead are dropped, a new EEPROM image is written."""
+        self._forget(hs)
+        self._collect_eeprom(hs)

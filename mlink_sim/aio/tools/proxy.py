@@ -55,7 +55,7 @@ class ImpairingProxy:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._line: DelayLine | None = None
 
-    # -- the control endpoint's target (aio/run/control.py) ----------------------------------------------------------
+    # -- the control endpoint's target (aio/control/endpoint.py) ----------------------------------------------------------
     def impair(self, station: int | None, spec: Any) -> None:
         self.impairments.impair(spec, station, _mono())
 

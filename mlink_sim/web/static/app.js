@@ -210,9 +210,9 @@ function wireControls(st) {
   const speed = () => Number(form(".ctl-run").elements.speed.value);
   const base = `api/stations/${addr}`;
   const actions = {
-    forward: () => act("run", () => api("POST", `${base}/run`, { direction: "forward", speed_hz: speed() }),
+    forward: () => act("run", () => api("POST", `${base}/run`, { direction: "forward", hz: speed() }),
       () => `running forward at ${speed()} Hz`),
-    reverse: () => act("run", () => api("POST", `${base}/run`, { direction: "reverse", speed_hz: speed() }),
+    reverse: () => act("run", () => api("POST", `${base}/run`, { direction: "reverse", hz: speed() }),
       () => `running in reverse at ${speed()} Hz`),
     stop: () => act("stop", () => api("POST", `${base}/stop`, {}), () => "stopping"),
     "alarm-clear": () => act("alarm clear", () => api("POST", `${base}/alarm-clear`, {}), () => "alarm clear sent"),
@@ -229,11 +229,11 @@ function wireControls(st) {
     },
     fault: () => {
       const spec = form(".ctl-fault").elements.fault.value.trim();
-      act("fault", () => api("POST", `${base}/fault`, { fault: spec }), (r) => "injected: " + r.describe);
+      act("fault", () => api("POST", `${base}/fault`, { spec: spec }), (r) => "injected: " + r.describe);
     },
     impair: () => {
       const spec = form(".ctl-fault").elements.impair.value.trim();
-      act("impair", () => api("POST", `${base}/impair`, { impair: spec }),
+      act("impair", () => api("POST", `${base}/impair`, { spec: spec }),
         (r) => "impaired: " + (r.describe || JSON.stringify(r.impairment)));
     },
     heal: () => act("heal", () => api("POST", `${base}/heal`, {}), (r) => `healed (${r.ended} ended)`),
@@ -289,7 +289,7 @@ function stationName(key) {
   return st ? st.info.name : (key || "");
 }
 
-// one line per event kind (mlink_sim/aio/run/events.py); anything else: its fields
+// one line per event kind (mlink_sim/aio/control/events.py); anything else: its fields
 function describeEvent(e) {
   const who = stationName(e.station);
   switch (e.kind) {

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import pytest
 
 from mlink_sim.aio.run.network import Verdict, cut_by_duration
-from mlink_sim.aio.run.status import STATUS_FIELDS, LiveStatus, StatusInfo, WorstP99, fit, render_lines
+from mlink_sim.aio.present.status import STATUS_FIELDS, LiveStatus, StatusInfo, WorstP99, fit, render_lines
 from mlink_sim.config import parse_config
 from mlink_sim.master import StationState
 from mlink_sim.metrics import NetworkMetrics

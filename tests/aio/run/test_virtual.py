@@ -58,7 +58,7 @@ def test_bring_up_and_the_master_api_work_as_on_the_real_clock():
         net.advance(3.0)
         assert net.running(0x21) and net.output_hz(0x21) == pytest.approx(30, abs=0.1)
         assert net.station(0x21).snapshot().drive.output_hz == pytest.approx(30, abs=0.1)  # the slave side
-        net.stop_station(0x21)
+        net.stop(0x21)
         net.advance(5.0)
         assert not net.running(0x21) and net.output_hz(0x21) < 0.5
 

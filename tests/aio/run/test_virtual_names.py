@@ -68,7 +68,7 @@ def test_view_decodes_output_hz_and_status_bits(net):
     assert {"RUNX", "AGREE", "CMDRDY"} <= set(view.status_bits) and view.bit("AGREE")
     assert view.alarm_text is None
     assert "FORWARD" not in net.view(0x23).status_bits  # SI-ET3 INVCMD_STAT: not running
-    net.stop_station(0x21)
+    net.stop(0x21)
 
 
 def test_a_call_cut_short_by_the_loop_leaves_no_unretrieved_task():

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from mlink_sim.aio.slave.allow import AllowList, parse_rule
-from mlink_sim.aio.slave.token import ControlToken, is_loopback
+from mlink_sim.aio.control.token import ControlToken, is_loopback
 
 
 def test_host_allows_every_port_host_port_one_cidr_a_network() -> None:

@@ -49,7 +49,7 @@ async def _server(state: Path) -> tuple[SlaveServer, _Udp]:
     # a scripted master sends when it likes: no silence verdicts (SI-T3 Table 22) in this test
     patient = CardOptions(silence_tolerance_ns=60_000_000_000)
     card = create_card("si-t3", settings=settings_for("si-t3", 0x21, 32, [], options=patient), now=0)
-    server = SlaveServer([HostedStation(card, "127.0.0.1", 0)], state_dir=state, control=None)
+    server = SlaveServer([HostedStation(card, "127.0.0.1", 0)], state_dir=state)
     await server.start()
     master = _Udp(("127.0.0.1", server.stations[0].port))
     assert (await master.send(ml2.Connect(0x21, 0x80, 1))).message.alarm == 0

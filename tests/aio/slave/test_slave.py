@@ -10,6 +10,7 @@ import time
 import pytest
 
 from mlink_sim.aio.slave import server as slave_module
+from mlink_sim.aio.control.slave import serve_slave
 from mlink_sim.aio.slave.server import HostedStation, SlaveServer
 from mlink_sim.aio.transport import mmsg
 from mlink_sim.cards import create_card, settings_for
@@ -26,7 +27,7 @@ def _nop(cycle: int) -> bytes:
 
 async def _server(arrival_poll: tuple[int, int | None] | None = None) -> tuple[SlaveServer, tuple[str, int]]:
     card = create_card("si-t3", settings=settings_for("si-t3", 0x21, 17, []), now=0)
-    server = SlaveServer([HostedStation(card, "127.0.0.1", 0)], control=None, arrival_poll=arrival_poll)
+    server = SlaveServer([HostedStation(card, "127.0.0.1", 0)], arrival_poll=arrival_poll)
     await server.start()
     return server, ("127.0.0.1", server.stations[0].port)
 
@@ -118,7 +119,7 @@ def test_no_silence_is_due_before_phase_2() -> None:
 async def _shared_server(*addresses: int, batched: bool = True) -> SlaveServer:
     stations = [HostedStation(create_card("si-t3", settings=settings_for("si-t3", a, 17, []), now=0), "127.0.0.1", 0)
                 for a in addresses]
-    server = SlaveServer(stations, control=None, shared=True, batched=batched)
+    server = SlaveServer(stations, shared=True, batched=batched)
     await server.start()
     return server
 
@@ -226,7 +227,7 @@ async def test_shared_port_keeps_each_stations_backlog_rule() -> None:
 async def test_stations_of_different_links_keep_ports_of_their_own() -> None:
     t3 = create_card("si-t3", settings=settings_for("si-t3", 0x21, 17, []), now=0)
     et3 = create_card("si-et3", settings=settings_for("si-et3", 0x21, 32, []), now=0)
-    server = SlaveServer([HostedStation(t3, "127.0.0.1", 0), HostedStation(et3, "127.0.0.1", 0)], control=None,
+    server = SlaveServer([HostedStation(t3, "127.0.0.1", 0), HostedStation(et3, "127.0.0.1", 0)],
                          shared=True)
     await server.start()
     try:  # the same address on two links: two buses, two ports
@@ -247,7 +248,7 @@ async def test_arrival_poll_on_each_shared_socket_or_a_lone_station_s_only() -> 
 
     for stations, shared, polls in ((cards(0x21, 0x22), True, 1), (cards(0x21), False, 1),
                                     (cards(0x21, 0x22), False, 0)):
-        server = SlaveServer(stations, control=None, shared=shared, arrival_poll=setting)
+        server = SlaveServer(stations, shared=shared, arrival_poll=setting)
         await server.start()
         try:
             endpoints = {id(hs.endpoint): hs.endpoint for hs in server.stations}.values()
@@ -256,7 +257,7 @@ async def test_arrival_poll_on_each_shared_socket_or_a_lone_station_s_only() -> 
             assert set(server.cpu()["arrival_poll"]) == (keys if polls else set())
         finally:
             await server.close()
-    server = SlaveServer(cards(0x21), control=None)  # the default: no poll
+    server = SlaveServer(cards(0x21))  # the default: no poll
     await server.start()
     try:
         assert server.stations[0].endpoint is not None and server.stations[0].endpoint.poll is None
@@ -265,7 +266,7 @@ async def test_arrival_poll_on_each_shared_socket_or_a_lone_station_s_only() -> 
 
 
 async def test_a_stats_reply_is_built_between_bursts_and_says_what_stats_says() -> None:
-    """``{"op": "stats"}`` is answered one station at a time (``SlaveServer._reply_stats``): a command that came
+    """``{"op": "stats"}`` is answered one station at a time (``SlaveServer.stats_text``): a command that came
     while the reply was built is answered before the reply goes, and the reply is :meth:`SlaveServer.stats` as
     one compact JSON datagram (docs/performance.md)."""
     import json
@@ -273,11 +274,11 @@ async def test_a_stats_reply_is_built_between_bursts_and_says_what_stats_says() 
     addresses = list(range(0x21, 0x29))
     stations = [HostedStation(create_card("si-t3", settings=settings_for("si-t3", a, 17, []), now=0), "127.0.0.1", 0)
                 for a in addresses]
-    server = SlaveServer(stations, control=("127.0.0.1", 0), shared=True)
+    server = SlaveServer(stations, shared=True)
     await server.start()
+    endpoint, _, control = await serve_slave(server, "127.0.0.1", 0, None)
     client = _client()
     try:
-        control = ("127.0.0.1", server.ready_info()["control"])
         client.sendto(json.dumps({"op": "stats"}).encode(), control)
         client.sendto(_nop_to(0x21, 7), ("127.0.0.1", stations[0].port))
         got: list[bytes] = []
@@ -292,34 +293,38 @@ async def test_a_stats_reply_is_built_between_bursts_and_says_what_stats_says() 
         assert len(got) == 2
         assert decode(got[0], kind=Kind.RESPONSE).station == 0x21  # the command first
         reply = json.loads(got[1])
-        expected = server.stats()
-        assert list(reply) == list(expected)
+        expected = {"ok": True, **server.stats(), "control_refused": 0}
+        assert sorted(reply) == sorted(expected)
         assert reply["stations"] == json.loads(json.dumps(expected["stations"]))
         assert sorted(reply["stations"]) == [f"{a:#04x}" for a in addresses]
         assert reply["ok"] is True and reply["unaddressed"] == 0
         assert b", " not in got[1] and b": " not in got[1][:200]  # compact, as every control reply
     finally:
         client.close()
+        endpoint.close()
         await server.close()
 
 
 async def test_a_stats_reply_still_being_built_is_dropped_at_close() -> None:
     stations = [HostedStation(create_card("si-t3", settings=settings_for("si-t3", a, 17, []), now=0), "127.0.0.1", 0)
                 for a in (0x21, 0x22)]
-    server = SlaveServer(stations, control=("127.0.0.1", 0), shared=True)
+    server = SlaveServer(stations, shared=True)
     await server.start()
+    endpoint, _, control = await serve_slave(server, "127.0.0.1", 0, None)
     client = _client()
     try:
         import json
 
-        client.sendto(json.dumps({"op": "stats"}).encode(), ("127.0.0.1", server.ready_info()["control"]))
+        client.sendto(json.dumps({"op": "stats"}).encode(), control)
         for _ in range(200):
             await asyncio.sleep(0)
-            if server._replies:
+            if endpoint._tasks:
                 break
-        assert server._replies
+        assert endpoint._tasks
+        endpoint.close()
         await server.close()
-        assert not server._replies
+        await asyncio.sleep(0)
+        assert not endpoint._tasks
         await asyncio.sleep(0.05)
         with pytest.raises(BlockingIOError):
             client.recv(65536)
@@ -336,11 +341,12 @@ async def test_a_stats_reply_is_paced_only_for_so_long(monkeypatch) -> None:
     monkeypatch.setattr(slave_module, "_STATS_PACED_S", 0.0)
     stations = [HostedStation(create_card("si-t3", settings=settings_for("si-t3", a, 17, []), now=0), "127.0.0.1", 0)
                 for a in range(0x21, 0x29)]
-    server = SlaveServer(stations, control=("127.0.0.1", 0), shared=True)
+    server = SlaveServer(stations, shared=True)
     await server.start()
+    endpoint, _, control = await serve_slave(server, "127.0.0.1", 0, None)
     client = _client()
     try:
-        client.sendto(json.dumps({"op": "stats"}).encode(), ("127.0.0.1", server.ready_info()["control"]))
+        client.sendto(json.dumps({"op": "stats"}).encode(), control)
         for _ in range(100):  # 0.5 s at most: a single paced pause would take that long
             await asyncio.sleep(0.005)
             try:
@@ -353,4 +359,5 @@ async def test_a_stats_reply_is_paced_only_for_so_long(monkeypatch) -> None:
         assert len(reply["stations"]) == 8
     finally:
         client.close()
+        endpoint.close()
         await server.close()

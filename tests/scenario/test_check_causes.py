@@ -10,7 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from mlink_sim.aio.run.explain import explain
+from mlink_sim.scenario.explain import explain
 from mlink_sim.drive import Drive, DriveCommand, DriveSettings, Family, LoadSpec
 from mlink_sim.drive.monitors import hz_to_ref
 from mlink_sim.metrics import REPORT_SCHEMA
@@ -37,7 +37,7 @@ params = { "b1-01" = 3, "b1-02" = 3, "C1-01" = 2.0, "C1-02" = 1.0 }
 [[timeline]]
 at = "0s"
 do = "run"
-speed_hz = 40.0
+hz = 40.0
 
 [[timeline]]
 at = "2s"
@@ -89,7 +89,7 @@ def test_a_failed_check_with_real_slave_processes_reads_the_cause_from_the_slave
 [[timeline]]
 at = "0s"
 do = "run"
-speed_hz = 40.0
+hz = 40.0
 
 [[timeline]]
 at = "1s"
@@ -143,7 +143,7 @@ load = { kind = "inertia", inertia = 0.5 }
 [[timeline]]
 at = "0s"
 do = "run"
-speed_hz = 40.0
+hz = 40.0
 
 [[timeline]]
 at = "0.5s"
@@ -194,7 +194,7 @@ value = 8.0
 [[timeline]]
 at = "0.5s"
 do = "run"
-speed_hz = 40.0
+hz = 40.0
 
 [[timeline]]
 at = "2s"

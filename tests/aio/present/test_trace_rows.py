@@ -1,10 +1,10 @@
-"""The trace's sample rows are the station figures (aio/run/figures.py) flattened into the trace's columns
+"""The trace's sample rows are the station figures (aio/present/figures.py) flattened into the trace's columns
 (docs/report.md, "Traces"): one column per figure, the alarm as code and name, the warnings and LEDs as text."""
 
 from __future__ import annotations
 
-from mlink_sim.aio.run.figures import FIGURE_FIELDS
-from mlink_sim.aio.run.trace import _row
+from mlink_sim.aio.present.figures import FIGURE_FIELDS
+from mlink_sim.aio.present.trace import _row
 from mlink_sim.metrics.trace import FIGURE_COLUMNS, TRACE_COLUMNS
 
 

@@ -16,9 +16,9 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-from ...drive.activity import PARAM_ROLES, DriveActivity, ramp_seconds
-from ...drive.settings import Family
-from ...params import FAMILIES
+from ..drive.activity import PARAM_ROLES, DriveActivity, ramp_seconds
+from ..drive.settings import Family
+from ..params import FAMILIES
 
 __all__ = ["explain", "param_text", "RUN_SOURCE"]
 

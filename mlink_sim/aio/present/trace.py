@@ -1,7 +1,7 @@
 """The trace of a running network (``--trace FILE.csv``, ``--trace-interval``): a sampler in the master's process.
 
 Every *interval* of the run's clock (the wall clock, or simulated time with ``--clock virtual``) it writes one
-``sample`` row per station: the station figures (:mod:`mlink_sim.aio.run.figures`, the one definition the status
+``sample`` row per station: the station figures (:mod:`mlink_sim.aio.present.figures`, the one definition the status
 and the web page share), flattened into the trace's columns (:data:`mlink_sim.metrics.trace.TRACE_COLUMNS`). Beside
 them it writes an ``action`` row for each thing done or seen: a timeline step, a control request that acts, an
 impairment's start and end, a fault's start and end and the station's recovery (from the masters' fault stages),
@@ -33,6 +33,7 @@ from typing import Any
 
 from ..._log import get_logger
 from ...metrics.trace import TraceWriter
+from ...operations import OPERATIONS
 from .figures import NetworkFigures, station_key
 
 __all__ = ["TraceSampler", "DEFAULT_INTERVAL_NS", "SNAPSHOT_EVERY_S", "ACTING_OPS"]
@@ -47,8 +48,9 @@ SNAPSHOT_EVERY_S = 0.5
 FLUSH_EVERY_S = 1.0
 #: Stations sampled in one go before the loop is let go (about 0.2 ms of figures).
 SLICE = 8
-#: Control operations that change the run: each request is an ``action`` row (``control``); the others only read.
-ACTING_OPS = frozenset({"impair", "heal", "fault", "run", "stop", "alarm-clear", "param"})
+#: Control operations that change the run (:data:`mlink_sim.operations.OPERATIONS` that act): each request is an
+#: ``action`` row (``control``); the others only read.
+ACTING_OPS = frozenset(op.name for op in OPERATIONS.values() if op.acts)
 
 _HEAD = itemgetter("address", "name", "card", "link", "phase", "connected")
 _TAIL = itemgetter("running", "direction", "reference_hz", "output_hz", "output_current_a", "dc_bus_v",
@@ -82,7 +84,7 @@ class TraceSampler:
         self._last_impairment: tuple[Any, ...] = ()
         #: the card cores are in this process (virtual clock): their snapshots are read at each sample
         workers = session.net.workers
-        self._local = bool(workers) and all(hasattr(w, "activity") for w in workers.values())
+        self._local = bool(workers) and session.fabric is not None
         self._remote = bool(workers) and not self._local  #: slave workers of ``mlink-sim up``
         session.fault_hooks.append(self._on_impairment)
 
@@ -132,31 +134,29 @@ class TraceSampler:
         self.writer.action(result.at_s, "check", f"{'ok' if result.ok else 'FAIL'} {result.what}: {result.detail}",
                            station_key(result.station))
 
-    def recording(self, ops: dict[str, Callable[[dict[str, Any]], Any]]) -> dict[str, Callable[[dict[str, Any]], Any]]:
-        """The control endpoint's *ops*, those of :data:`ACTING_OPS` writing a ``control`` row when they succeed
-        (``param`` only when it writes a value); an operation answered later writes it once it is answered."""
-        def wrap(name: str, op: Callable[[dict[str, Any]], Any]) -> Callable[[dict[str, Any]], Any]:
-            def note(request: dict[str, Any]) -> None:
-                if name != "param" or "value" in request:
-                    fields = {k: v for k, v in request.items() if k not in ("op", "token", "id")}
-                    self.action("control", f"{name} {json.dumps(fields, separators=(',', ':'))}",
-                                _station_of(request.get("station")))
+    def recording(self, handlers: dict[str, Callable[..., Any]]) -> dict[str, Callable[..., Any]]:
+        """The control endpoint's *handlers*, those of :data:`ACTING_OPS` writing a ``control`` row when they
+        succeed; an operation answered later writes it once it is answered."""
+        def wrap(name: str, op: Callable[..., Any]) -> Callable[..., Any]:
+            def note(args: dict[str, Any]) -> None:
+                fields = {k: v for k, v in args.items() if v is not None and k != "station"}
+                self.action("control", f"{name} {json.dumps(fields, separators=(',', ':'))}", args.get("station"))
 
-            def recorded(request: dict[str, Any]) -> Any:
-                reply = op(request)
+            def recorded(**args: Any) -> Any:
+                reply = op(**args)
                 if not inspect.isawaitable(reply):
-                    note(request)
+                    note(args)
                     return reply
 
                 async def answered() -> Any:  # an operation answered later (through the master): once it has
                     out = await reply
-                    note(request)
+                    note(args)
                     return out
 
                 return answered()
             return recorded
 
-        return {name: wrap(name, op) if name in ACTING_OPS else op for name, op in ops.items()}
+        return {name: wrap(name, op) if name in ACTING_OPS else op for name, op in handlers.items()}
 
     def _on_impairment(self, event: str, station: int | None, group: str, describe: str) -> None:
         """An impairment began or ended on *station*'s path: one row, though the layer calls once per direction."""
@@ -200,7 +200,7 @@ class TraceSampler:
         net, metrics, station = session.net, session.metrics, figures.station
         slices = [self._addresses[i:i + SLICE] for i in range(0, len(self._addresses), SLICE)]
         interval = self.interval_s
-        fabric = getattr(session, "fabric", None) if self._local else None
+        fabric = session.fabric if self._local else None
         snapshots = self._snapshots if fabric is not None else session.slave_snapshots
         per_flush = max(1, round(FLUSH_EVERY_S / interval))
         k = 0
@@ -256,14 +256,3 @@ class TraceSampler:
             except OSError as exc:
                 log.info("trace_snapshot_failed", error=str(exc))
             await asyncio.sleep(SNAPSHOT_EVERY_S)
-
-
-def _station_of(value: Any) -> int | None:
-    from ...units import parse_address
-
-    if value in (None, "all"):
-        return None
-    try:
-        return parse_address(value)
-    except (ValueError, TypeError):
-        return None

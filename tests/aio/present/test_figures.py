@@ -1,4 +1,4 @@
-"""Station figures (mlink_sim.aio.run.figures): one flat, JSON-safe dict per station from the master's view, its
+"""Station figures (mlink_sim.aio.present.figures): one flat, JSON-safe dict per station from the master's view, its
 monitors (SI-T3 Table 18, SI-ET3 Table 22, SI-T/V7 Table 5), the slave's snapshot and the cards' LED tables
 (SI-T3 Table 3, SI-ET3 Table 4, SI-T/V7 §3.3), on a network of the virtual clock."""
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from mlink_sim.aio.run.embed import VirtualNetwork
-from mlink_sim.aio.run.figures import FIGURE_FIELDS, NetworkFigures, run_direction
+from mlink_sim.aio.present.figures import FIGURE_FIELDS, NetworkFigures, run_direction
 from mlink_sim.config import load_config
 from mlink_sim.jsonable import to_jsonable
 from mlink_sim.master.types import StationState

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import pyte
 import pytest
 
-from mlink_sim.aio.run.status import COLUMNS, LiveStatus, StatusInfo, SummaryWriter, render_lines
+from mlink_sim.aio.present.status import COLUMNS, LiveStatus, StatusInfo, SummaryWriter, render_lines
 from mlink_sim.config import parse_config
 from mlink_sim.master import StationState
 from mlink_sim.metrics import NetworkMetrics

@@ -1,10 +1,10 @@
-"""The run's event ring (mlink_sim.aio.run.events): numbered, bounded, read after a number, times from the
+"""The run's event ring (mlink_sim.aio.control.events): numbered, bounded, read after a number, times from the
 timeline's 0 s."""
 
 from __future__ import annotations
 
-from mlink_sim.aio.run.events import RunLog
-from mlink_sim.aio.run.scenario import CheckResult
+from mlink_sim.aio.control.events import RunLog
+from mlink_sim.scenario import CheckResult
 from mlink_sim.master.types import AlarmRaised, StateChanged, StationState
 
 

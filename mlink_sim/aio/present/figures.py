@@ -40,7 +40,7 @@ from ...drive.monitors import SEL_MON_TABLES, ref_to_hz
 from ...master.types import StationState
 from ...params import card_label
 from ...wire import CmdAlm, CommAlm, InvCmdStat, Link, M2Alarm, M2Status
-from .scenario import drive_settings
+from ...scenario.values import drive_settings
 
 __all__ = ["FIGURE_FIELDS", "StationFigures", "NetworkFigures", "RttPercentiles", "run_direction", "station_key",
            "snapshot_figures"]

@@ -1,33 +1,27 @@
-"""The control endpoint of a running ``mlink-sim up`` or ``mlink-sim proxy`` (``--control HOST:PORT``): one JSON
-object per UDP datagram each way, the same shape as a slave's stats endpoint (aio/slave/server.py). docs/faults.md,
-"While it runs".
+"""The control endpoint of a running network (``up``/``master --control``), a standalone slave (``slave
+--control``) or the impairing proxy (``proxy --control``): one JSON object per UDP datagram each way, answered by the
+operations of :data:`mlink_sim.operations.OPERATIONS` this endpoint serves (docs/control.md, "The requests").
 
-    → {"op": "impair", "station": "0x21", "impair": "loss=10%,for=2s"}        (or the fields: "loss": 0.1, …)
-    ← {"ok": true, "impairment": {"loss": 0.1, "for": "2000000000ns"}}
-    → {"op": "heal", "station": "all"}
-    ← {"ok": true, "ended": 2}
-    → {"op": "faults"}
-    ← {"ok": true, "faults": [...], "injected": {"0x21": {"drops": 12}}}
-    ← {"ok": false, "error": "loss: a probability is between 0 and 1 …", "kind": "bad_request"}
+    → {"op": "impair", "station": "21H", "impair": "loss=10%,for=2s"}        (or the fields: "loss": 0.1, …)
+    ← {"ok": true, "impairment": {"loss": 0.1, "for": "2000000000ns"}, "describe": "loss 10%, for 2s"}
+    → {"op": "set-param", "station": "21H", "param": "C1-01", "value": 5.0, "id": "w1"}
+    ← {"ok": false, "error": "hz: 250 Hz is outside 0…60 Hz, the maximum output frequency of station 21H (E1-04)",
+       "kind": "out_of_range"}
 
-An error reply's ``kind`` says what went wrong (:data:`ERROR_KINDS`: ``bad_request``, ``unknown_station``,
-``unknown_param``, ``out_of_range``, ``refused``, ``unavailable``). An operation may answer later (a coroutine: a
-parameter read through the master); the endpoint keeps answering others meanwhile, and one still unanswered after
-:data:`ASYNC_LIMIT_S` gets an ``unavailable`` error. A request carrying an ``"id"`` seen among the last
-:data:`REMEMBERED` is answered with the first reply (waiting for it if needed) without acting again: a client repeats
-a request whose reply UDP lost. A reply larger than one datagram is sent in parts (``{"ok": true, "part": 0,
-"parts": 3, "data": "<base64 of a piece of the JSON>"}``), which :func:`query_control` puts together.
+Every request is read by the table (:func:`~mlink_sim.operations.parse_request`): a field the operation does not
+take, a missing argument or a value of the wrong kind is refused here, before the operation's handler sees it, with
+the same message the other surfaces give. An error reply's ``kind`` is one of
+:data:`~mlink_sim.operations.ERROR_KINDS`. An operation may answer later (an awaitable: a parameter read through the
+master); the endpoint keeps answering others meanwhile, and one still unanswered after :data:`ASYNC_LIMIT_S` gets an
+``unavailable`` error. A request carrying an ``"id"`` seen among the last :data:`REMEMBERED` is answered with the first
+reply (waiting for it if needed) without acting again: a client repeats a request whose reply UDP lost. A reply
+larger than one datagram is sent in parts (``{"ok": true, "part": 0, "parts": 3, "data": "<base64 of a piece of the
+JSON>"}``), which :func:`query_control` puts together.
 
 A request carries the endpoint's token (``"token": "…"``) when it has one: without it, or with another, it is counted
-and not answered (:mod:`mlink_sim.aio.slave.token`; an endpoint bound to anything but a loopback address must have
-one).
+and not answered (:mod:`.token`; an endpoint bound to anything but a loopback address must have one).
 
-The operations are a table (:func:`impairment_ops`); another kind of fault adds its own entries
-(:mod:`mlink_sim.aio.run.faults`, :mod:`mlink_sim.aio.run.ops`). A client:
-:func:`query_control` (``mlink-sim control``; the network run asks the slave workers' stats endpoints with it too).
-
-Touches: one UDP socket of its own (the endpoint, or the client's); the operations act on the run through the table
-they are given.
+Touches: one UDP socket of its own (the endpoint, or the client's); the operations act through the handlers given.
 """
 
 from __future__ import annotations
@@ -41,23 +35,21 @@ from collections.abc import Awaitable, Callable
 from typing import Any
 
 from ..._log import get_logger
-from ..slave.token import ControlToken
+from ...operations import ENDPOINTS, OpError, Operation, operation, parse_request, served_by
+from .token import ControlToken
 from ..transport.udp import DatagramEndpoint, open_endpoint
 
-__all__ = ["ControlServer", "Encoded", "Op", "OpError", "ERROR_KINDS", "ASYNC_LIMIT_S", "REMEMBERED", "QUIET", "impairment_ops",
+__all__ = ["ControlServer", "Encoded", "Handler", "ASYNC_LIMIT_S", "REMEMBERED", "encode_reply", "perform",
            "query_control"]
 
 log = get_logger("mlink_sim.control")
 
-#: An operation: the request (a dict) -> the reply's fields (``ok`` is added), or an awaitable of them;
-#: :class:`OpError` (or ValueError, TypeError, KeyError: ``bad_request``) -> an error reply.
-Op = Callable[[dict[str, Any]], "Reply | Awaitable[Reply]"]
-#: The kinds of an error reply, in the order of the HTTP statuses a web server maps them to (400, 404, 404, 422,
-#: 409, 409).
-ERROR_KINDS = ("bad_request", "unknown_station", "unknown_param", "out_of_range", "refused", "unavailable")
+#: An operation's handler: its arguments by their Python names (as :func:`~mlink_sim.operations.parse_request` reads
+#: them) -> the reply's fields (``ok`` is added), or an awaitable of them; :class:`~mlink_sim.operations.OpError` ->
+#: an error reply of its kind.
+Handler = Callable[..., "Reply | Awaitable[Reply]"]
 ASYNC_LIMIT_S = 10.0  #: an operation that answers later gets this long
 REMEMBERED = 64  #: request ids remembered (their replies), for requests UDP made a client repeat
-QUIET = ("status", "network", "report", "faults", "recovery")  #: operations that only read: not logged
 _MAX_REPLY = 60_000
 _PART = 44_000  #: bytes of the JSON reply per part: 58,668 in base64, a part stays one datagram
 
@@ -81,51 +73,45 @@ class Encoded:
 Reply = dict[str, Any] | Encoded
 
 
-class OpError(ValueError):
-    """An operation's refusal: one line and its :data:`ERROR_KINDS` entry."""
-
-    def __init__(self, kind: str, message: str) -> None:
-        assert kind in ERROR_KINDS, kind
-        super().__init__(message)
-        self.kind = kind
-
-
 def _error(exc: BaseException) -> dict[str, Any]:
-    return {"ok": False, "error": str(exc) or type(exc).__name__,
-            "kind": exc.kind if isinstance(exc, OpError) else "bad_request"}
+    if isinstance(exc, OpError):
+        return exc.as_reply()
+    return {"ok": False, "error": str(exc) or type(exc).__name__, "kind": "bad_request"}
 
 
-def impairment_ops(target: Any) -> dict[str, Op]:
-    """``impair``, ``heal`` and ``faults`` on *target*: anything with ``impair(station, spec)``, ``heal(station)``
-    and an ``impairments`` layer (a :class:`~mlink_sim.aio.run.session.NetworkSession`, the proxy)."""
-    from ...impair import as_impairment, target_station
-    from ...metrics.network import station_key
-
-    def impair(request: dict[str, Any]) -> dict[str, Any]:
-        fields = {k: v for k, v in request.items() if k not in ("op", "station", "impair", "id")}
-        spec = as_impairment(request.get("impair"), fields)
-        target.impair(target_station(request.get("station", "all")), spec)
-        return {"impairment": spec.as_fields(), "describe": spec.describe()}
-
-    def heal(request: dict[str, Any]) -> dict[str, Any]:
-        return {"ended": target.heal(target_station(request.get("station", "all")))}
-
-    def faults(request: dict[str, Any]) -> dict[str, Any]:
-        layer = target.impairments
-        return {"faults": [{**f, "station": f["station"] if f["station"] == "all" else station_key(f["station"])}
-                           for f in layer.faults()],
-                "injected": {station_key(a): c for a, c in layer.injected().items()}}
-
-    return {"impair": impair, "heal": heal, "faults": faults}
+async def perform(handlers: dict[str, Handler], request: dict[str, Any]) -> dict[str, Any]:
+    """*request* (a control request: ``op`` and its fields) performed in this process by *handlers*, read as the
+    endpoint reads it: its reply's fields (``ok`` left out), or :class:`~mlink_sim.operations.OpError`. The Python
+    API and the pytest plugin's host act through it, so they behave as a control request does."""
+    op = operation(request.get("op", ""))
+    if op.name not in handlers:
+        raise OpError("unavailable", f"{op.name!r} is not answered here")
+    reply = handlers[op.name](**parse_request(op, request))
+    if inspect.isawaitable(reply):
+        reply = await asyncio.wait_for(reply, ASYNC_LIMIT_S)
+    if isinstance(reply, Encoded):
+        reply = reply.decode()
+    return {k: v for k, v in reply.items() if k != "ok"}
 
 
 class ControlServer:
-    """Answers control requests with the operations of *ops* (plus ``ping``); with *token*, only those that carry it
-    (:class:`~mlink_sim.aio.slave.token.ControlToken`)."""
+    """Answers the control requests of *endpoint* (one of :data:`~mlink_sim.operations.ENDPOINTS`) with *handlers*
+    (operation name -> :data:`Handler`; ``ping`` is answered here); with *token*, only the requests that carry it
+    (:class:`~.token.ControlToken`). Every operation the table gives *endpoint* must have a handler, but those
+    *absent* names (operations this endpoint's run cannot serve, e.g. ``kill-slave`` without slave processes:
+    answered ``unavailable``)."""
 
-    def __init__(self, ops: dict[str, Op], token: str | None = None, quiet: tuple[str, ...] = QUIET) -> None:
-        self.ops = dict(ops)
-        self.quiet = frozenset(quiet)  #: operations not logged (read-only ones a page asks many times a second)
+    def __init__(self, handlers: dict[str, Handler], endpoint: str, token: str | None = None,
+                 absent: dict[str, str] | None = None) -> None:
+        self.endpoint = endpoint
+        self.served = {op.name: op for op in served_by(endpoint)}
+        self.absent = dict(absent or {})
+        missing = sorted(set(self.served) - set(handlers) - set(self.absent) - {"ping"})
+        extra = sorted(set(handlers) - set(self.served))
+        if missing or extra:
+            raise ValueError(f"the {endpoint} endpoint's handlers do not match the operations table: "
+                             f"missing {missing or 'none'}, not in the table for it {extra or 'none'}")
+        self.handlers = dict(handlers)
         self.token = ControlToken(token)
         self._endpoint: DatagramEndpoint | None = None
         #: request id -> its reply, or the future of a reply still to come (the last REMEMBERED ids)
@@ -163,8 +149,8 @@ class ControlServer:
         if isinstance(request, dict):
             request.pop("token", None)  # admitted: the operations see their own fields only
         if not isinstance(request, dict) or not isinstance(request.get("op"), str):
-            return {"ok": False, "kind": "bad_request", "error": "expected a JSON object with 'op' (one of: "
-                                                                 f"{', '.join(sorted([*self.ops, 'ping']))})"}
+            return {"ok": False, "kind": "bad_request", "error": f"expected a JSON object with 'op' (one of: "
+                                                                 f"{', '.join(self.served)})"}
         rid = request.get("id")
         if isinstance(rid, (str, int)) and not isinstance(rid, bool):
             known = self._replies.get(rid)
@@ -177,34 +163,49 @@ class ControlServer:
             return reply
         return self._act(request)
 
-    def _act(self, request: dict[str, Any]) -> Reply | asyncio.Future[Reply]:
-        op = request["op"]
-        if op == "ping":
-            return {"ok": True}
-        fn = self.ops.get(op)
-        if fn is None:
-            return {"ok": False, "kind": "bad_request",
-                    "error": f"unknown op {op!r} (known: {', '.join(sorted([*self.ops, 'ping']))})"}
+    def _operation(self, name: str) -> Operation:
+        op = self.served.get(name)
+        if op is not None:
+            return op
         try:
-            reply = fn(request)
+            known = operation(name)
+        except OpError:
+            raise OpError("bad_request", f"unknown op {name!r} (this {self.endpoint} answers: "
+                                         f"{', '.join(self.served)})") from None
+        where = " or ".join(f"a {e}" for e in ENDPOINTS if e in known.endpoints)
+        raise OpError("bad_request", f"{name!r} is answered by {where}, not by this {self.endpoint} (it answers: "
+                                     f"{', '.join(self.served)})")
+
+    def _act(self, request: dict[str, Any]) -> Reply | asyncio.Future[Reply]:
+        try:
+            op = self._operation(request["op"])
+            if op.name == "ping":
+                return {"ok": True}
+            if op.name in self.absent:
+                raise OpError("unavailable", self.absent[op.name])
+            args = parse_request(op, request)
+            reply = self.handlers[op.name](**args)
         except (ValueError, TypeError, KeyError) as exc:
             return _error(exc)
-        if op not in self.quiet:
-            log.info("control", op=op, request={k: v for k, v in request.items() if k not in ("op", "token")})
+        if op.acts:
+            log.info("control", op=op.name, request={k: v for k, v in request.items() if k not in ("op", "token")})
         if isinstance(reply, Encoded):
             return reply
         if not inspect.isawaitable(reply):
             return {"ok": True, **reply}
-        return self._later(op, reply)
+        return self._later(op.name, reply)
 
     def _later(self, op: str, pending: Awaitable[Reply]) -> asyncio.Future[Reply]:
         """The future reply of an operation that answers later (bounded by :data:`ASYNC_LIMIT_S`)."""
         loop = asyncio.get_running_loop()
         fut: asyncio.Future[Reply] = loop.create_future()
+        work = asyncio.ensure_future(pending)  # under way at once: a close cancels it, never leaves it unawaited
+        self._tasks.add(work)
+        work.add_done_callback(self._tasks.discard)
 
         async def finish() -> None:
             try:
-                result = await asyncio.wait_for(pending, ASYNC_LIMIT_S)
+                result = await asyncio.wait_for(work, ASYNC_LIMIT_S)
                 reply: Reply = result if isinstance(result, Encoded) else {"ok": True, **result}
             except TimeoutError:
                 reply = {"ok": False, "kind": "unavailable",

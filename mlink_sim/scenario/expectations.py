@@ -1,7 +1,7 @@
 """Timeline checks the drive's settings cannot meet, found before anything runs (``mlink-sim validate``, and ``up`` /
 ``master`` before they start; docs/configuration.md, "Checks the settings cannot meet").
 
-For every station the timeline's ``run``, ``stop`` and ``set-param`` steps are followed on the soft starter's ramp
+For every station the timeline's ``run``, ``speed``, ``stop`` and ``set-param`` steps are followed on the soft starter's ramp
 as the drive model defines it (docs/drive-model.md section 3: a rate of ``E1-04 / C1-01`` Hz/s, ``n011 / n019`` on
 the VS-606V7, S-curves adding half their times; :func:`~mlink_sim.drive.activity.ramp_seconds`), from the config's
 parameters on the drive defaults. An ``output-hz``, ``speed-agree`` or ``stopped`` check due before the ramp can get
@@ -18,12 +18,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ...config import CARD_FAMILY, Config, StationConfig, TimelineStep
-from ...drive import Drive, DriveCommand, DriveSettings, Family, LoadSpec, hz_to_ref
-from ...drive.activity import PARAM_ROLES, ramp_seconds
-from ...params import FAMILIES
+from ..config import CARD_FAMILY, Config, StationConfig, TimelineStep
+from ..drive import Drive, DriveCommand, DriveSettings, Family, LoadSpec, hz_to_ref
+from ..drive.activity import PARAM_ROLES, ramp_seconds
+from ..params import FAMILIES
 from .explain import RUN_SOURCE, param_text
-from .scenario import station_values
+from .values import station_values
 
 __all__ = ["timeline_warnings"]
 
@@ -86,12 +86,13 @@ def _station(config: Config, st: StationConfig, steps: list[TimelineStep], index
             settings = DriveSettings.from_params(family, values)
         elif step.do == "run" and not (settings.run_from_network and settings.ref_from_network):
             return out + _sources(st.address, family, settings, values)  # the drive does not run: nothing to follow
-        elif step.do in ("run", "stop"):
+        elif step.do in ("run", "stop") or (step.do == "speed" and ramp.running):
             f_now = _position(ramp, settings, at)
-            if step.do == "run":
-                hz = min(step.speed_hz or 0.0, settings.max_freq_hz)
+            if step.do in ("run", "speed"):
+                hz = min(step.hz or 0.0, settings.max_freq_hz)
                 hz = 0.0 if hz < settings.min_freq_hz else hz
-                ramp = _Ramp(at, f_now, -hz if step.direction == "reverse" else hz, True)
+                reverse = step.direction == "reverse" if step.do == "run" else ramp.target < 0
+                ramp = _Ramp(at, f_now, -hz if reverse else hz, True)
             else:
                 ramp = _Ramp(at, 0.0 if settings.coast_on_run_off else f_now, 0.0, False)
         elif step.expect in ("output-hz", "speed-agree", "stopped"):

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ...master.types import AlarmCleared, AlarmRaised, Recovered, StateChanged
-from .figures import station_key
+from ..present.figures import station_key
 
 __all__ = ["RunLog", "CAPACITY", "PER_REPLY"]
 
