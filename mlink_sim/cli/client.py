@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import secrets
 import sys
+import time
 from typing import Any
 
 import click
@@ -23,6 +24,8 @@ from .inputs import InputError
 __all__ = ["ask", "endpoint", "refused", "silence", "usage", "USAGE_KINDS", "ATTEMPTS"]
 
 ATTEMPTS = 3  #: a request is sent up to this often (UDP); a repeat carries the same id and does not act twice
+FIRST_S = 0.4  #: how long the first attempt waits: a silent address is looked at (:func:`silence`) after it
+PROBE_S = 0.4  #: how long that look waits for a station's answer
 #: error kinds that mean the request itself was wrong (exit 2); the others (refused, unavailable) exit 1
 USAGE_KINDS = ("bad_request", "unknown_station", "unknown_param", "out_of_range")
 
@@ -54,13 +57,15 @@ def ask(where: tuple[str, int], request: dict[str, Any], timeout: float, token: 
 
     fields = {k: v for k, v in request.items() if k != "op"}
     fields.setdefault("id", secrets.token_hex(8))
-    each = timeout / ATTEMPTS
+    end = time.monotonic() + timeout
+    first = min(timeout / ATTEMPTS, FIRST_S)
     for attempt in range(ATTEMPTS):
+        each = first if attempt == 0 else max(0.05, (end - time.monotonic()) / (ATTEMPTS - attempt))
         reply = asyncio.run(query_control(where[0], where[1], request["op"], timeout=each, token=token, **fields))
         if reply is not None:
             return reply
         if attempt == 0:
-            found = silence(where, station, min(each, 0.5))
+            found = silence(where, station, PROBE_S)
             if found:
                 click.echo(f"mlink-sim: {where[0]}:{where[1]} {found}", err=True)
                 sys.exit(2)

@@ -65,6 +65,36 @@ def _trace_options(report_html: str | None, trace: str | None, interval: str) ->
             "trace_path": report_path(trace, "--trace", "trace.csv"), "trace_interval_ns": ns}
 
 
+def _options(config: Config, path: Path, *, command: str, duration: str | None, report: str | None,
+             report_html: str | None, trace: str | None, trace_interval: str, asserts: tuple[str, ...], status: bool,
+             include_bringup: bool, log_json: bool, bringup_timeout: str, rt: bool, cpus: set[int] | None,
+             control: str | None, control_token: str | None, control_token_file: str | None,
+             capture_path: Any, capture_max: Any, web_at: Any, web_secret: str | None,
+             background: bool = True, **only: Any) -> RunOptions:
+    """The :class:`RunOptions` of the flags ``up`` and ``master`` share (each checked before the run), and *only*
+    those of one of them (``up``'s workers, state and run directories, clock)."""
+    where = parse_control(control)
+    return RunOptions(
+        config_path=path,
+        duration_ns=_duration(duration, "--duration"),
+        report_path=report_path(report),
+        **_trace_options(report_html, trace, trace_interval),
+        assertions=assertions(asserts, [st.address for st in config.station]),
+        status=status,
+        include_bringup=include_bringup,
+        log_json=log_json,
+        bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
+        realtime=rt,
+        cpus=cpus,
+        control=where,
+        control_token=endpoint_token(where, control_token, control_token_file),
+        capture=open_capture_or_exit(command, capture_path, capture_max, background=background),
+        web=web_at,
+        web_token=web_secret,
+        **only,
+    )
+
+
 def _run(coro_factory: Any, clock: str = "real") -> int:
     if clock == "virtual":
         from ..aio.virtual.vclock import VirtualEventLoop
@@ -212,29 +242,13 @@ def up_cmd(config_path, workers, state_dir, run_dir, clock, seed, duration, time
     if clock == "virtual" and (workers != "auto" or run_dir):
         click.echo("note: --clock virtual runs every station in this process: --workers and --run-dir are not used",
                    err=True)
-    opts = RunOptions(
-        config_path=path,
-        duration_ns=_duration(duration, "--duration"),
-        report_path=report_path(report),
-        **_trace_options(report_html, trace, trace_interval),
-        assertions=assertions(asserts, [st.address for st in config.station]),
-        status=status,
-        include_bringup=include_bringup,
-        log_json=log_json,
-        bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
-        workers=workers,
-        state_dir=Path(state_dir) if state_dir else None,
-        run_dir=Path(run_dir) if run_dir else None,
-        realtime=rt,
-        cpus=cpus,
-        clock=clock,
-        seed=seed,
-        control=parse_control(control),
-        control_token=endpoint_token(parse_control(control), control_token, control_token_file),
-        capture=open_capture_or_exit("up", capture_path, capture_max, background=clock != "virtual"),
-        web=web_at,
-        web_token=web_secret,
-    )
+    opts = _options(config, path, command="up", duration=duration, report=report, report_html=report_html,
+                    trace=trace, trace_interval=trace_interval, asserts=asserts, status=status,
+                    include_bringup=include_bringup, log_json=log_json, bringup_timeout=bringup_timeout, rt=rt,
+                    cpus=cpus, control=control, control_token=control_token, control_token_file=control_token_file,
+                    capture_path=capture_path, capture_max=capture_max, web_at=web_at, web_secret=web_secret,
+                    background=clock != "virtual", workers=workers, state_dir=Path(state_dir) if state_dir else None,
+                    run_dir=Path(run_dir) if run_dir else None, clock=clock, seed=seed)
     from ..aio.run.supervisor import WorkerError
 
     try:
@@ -277,25 +291,12 @@ def master_cmd(config_path, endpoints, seed, duration, timeline, report, report_
             f"no endpoint for station(s) {', '.join(missing)}: set 'endpoint' in the config or pass "
             "--endpoint ADDR=HOST:PORT"
         )
-    opts = RunOptions(
-        config_path=path,
-        duration_ns=_duration(duration, "--duration"),
-        report_path=report_path(report),
-        **_trace_options(report_html, trace, trace_interval),
-        assertions=assertions(asserts, [st.address for st in config.station]),
-        status=status,
-        include_bringup=include_bringup,
-        log_json=log_json,
-        bringup_timeout_s=_duration(bringup_timeout, "--bringup-timeout") / 1e9,  # type: ignore[operator]
-        realtime=rt,
-        cpus=cpus,
-        seed=seed,
-        control=parse_control(control),
-        control_token=endpoint_token(parse_control(control), control_token, control_token_file),
-        capture=open_capture_or_exit("master", capture_path, capture_max),
-        web=web_at,
-        web_token=web_secret,
-    )
+    opts = _options(config, path, command="master", duration=duration, report=report, report_html=report_html,
+                    trace=trace, trace_interval=trace_interval, asserts=asserts, status=status,
+                    include_bringup=include_bringup, log_json=log_json, bringup_timeout=bringup_timeout, rt=rt,
+                    cpus=cpus, control=control, control_token=control_token, control_token_file=control_token_file,
+                    capture_path=capture_path, capture_max=capture_max, web_at=web_at, web_secret=web_secret,
+                    seed=seed)
     from ..aio.run.webproc import WebError
 
     try:

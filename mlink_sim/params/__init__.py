@@ -14,7 +14,7 @@ Lookups: ``table.by_name("c1-01")``, ``table.by_register(0x0200)``; command line
 from __future__ import annotations
 
 from .a1000 import A1000, A1000_SI_ET3, A1000_SI_T3
-from .table import Param, ParamError, ParamTable
+from .table import FAMILY_TABLES, Param, ParamError, ParamTable
 from .v7 import VS606V7
 
 __all__ = [
@@ -32,6 +32,7 @@ __all__ = [
 ]
 
 FAMILIES: dict[str, ParamTable] = {"a1000": A1000, "v7": VS606V7}
+FAMILY_TABLES.update(FAMILIES)
 
 CARDS: dict[str, ParamTable] = {"si-t3": A1000_SI_T3, "si-et3": A1000_SI_ET3, "si-t/v7": VS606V7}
 

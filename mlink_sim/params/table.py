@@ -195,6 +195,11 @@ class Param:
         return self.with_unit(f"{self.format_number(self.minimum)} … {self.format_number(self.maximum)}")
 
 
+#: The drive families' tables by family (``mlink_sim.params`` fills it): an unknown name is looked up in the
+#: others for its hint (:meth:`ParamTable.by_name`).
+FAMILY_TABLES: dict[str, ParamTable] = {}
+
+
 @dataclass(frozen=True)
 class ParamTable:
     """An immutable, indexed parameter table for one drive family (or a card's view of it).
@@ -260,13 +265,25 @@ class ParamTable:
         return self._by_name.get(name.strip().upper())
 
     def by_name(self, name: str) -> Param:
-        """Case-insensitive lookup; raises :class:`ParamError` for an unknown name."""
+        """Case-insensitive lookup; raises :class:`ParamError` for an unknown name, with a hint: the row of the
+        same name of another family (:data:`FAMILY_TABLES`) and the one of the same title here, or a name close to
+        it of the same kind (a monitor for a monitor, a setting for a setting)."""
         row = self.get(name)
         if row is None:
-            hint = difflib.get_close_matches(name.strip().upper(), list(self._by_name), n=1)
-            suffix = f" (did you mean {self._by_name[hint[0]].name}?)" if hint else ""
-            raise ParamError(f"unknown parameter '{name.strip()}' for {self.where}{suffix}")
+            raise ParamError(f"unknown parameter '{name.strip()}' for {self.where}{self._hint(name.strip().upper())}")
         return row
+
+    def _hint(self, key: str) -> str:
+        for other in FAMILY_TABLES.values():
+            foreign = other.get(key) if other.family != self.family else None
+            if foreign is not None:
+                same = [r.name for r in self.rows if r.title.lower() == foreign.title.lower()]
+                here = f"; the {self.label}'s is {same[0]}" if same else f"; the {self.label} has none of that title"
+                return f" ({foreign.name} is the {other.label}'s {foreign.title}{here})"
+        monitor = any(r.read_only and r.name.upper()[:1] == key[:1] for r in self.rows)
+        pool = [n for n, r in self._by_name.items() if r.read_only == monitor]
+        hint = difflib.get_close_matches(key, pool, n=1)
+        return f" (did you mean {self._by_name[hint[0]].name}?)" if hint else ""
 
     def by_register(self, register: int) -> Param | None:
         """The row at a MEMOBUS register number (primary or alternative), or None."""

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import Any, TextIO
 
 from ...config import Config, format_ns
+from ...operations import alarm_text, station_name
 from ...wire import Link
 from .figures import run_direction
 
@@ -98,14 +99,16 @@ def station_cells(st: Any, view: Any, hz: float) -> tuple[str, ...]:
     link: Link = st.link
     run_state = _RUN_STATE[run_direction(link, view.status)]
     if view.fault or view.alarm or view.comm_alm or view.cmd_alm:
-        alarm = view.alarm_name or (f"COMM_ALM {view.comm_alm:X}H" if view.comm_alm else "alarm")
+        code = (f"{view.alarm:02X}H" if view.alarm else f"COMM_ALM {view.comm_alm:X}H" if view.comm_alm
+                else f"CMD_ALM {view.cmd_alm:X}H" if view.cmd_alm else None)
+        alarm = alarm_text({"code": code, "name": view.alarm_name})
     elif view.warning:
         alarm = f"warn {view.alarm_name or ''}".strip()
     else:
         alarm = "ok"
     rtt = f"{view.rtt_ns / 1e6:.2f} ms" if view.rtt_ns is not None else "-"
     phase = f"P{view.phase}" if view.phase else view.state.value
-    return (f"{st.address:02X}H", st.card, link.name, phase, run_state, f"{hz:.2f} Hz", rtt, alarm)
+    return (station_name(st.address), st.card, link.name, phase, run_state, f"{hz:.2f} Hz", rtt, alarm)
 
 
 def station_line(st: Any, view: Any, hz: float) -> str:

@@ -33,7 +33,7 @@ from typing import Any
 
 from ..._log import get_logger
 from ...metrics.trace import TraceWriter
-from ...operations import OPERATIONS
+from ...operations import OPERATIONS, leds_text
 from .figures import NetworkFigures, station_key
 
 __all__ = ["TraceSampler", "DEFAULT_INTERVAL_NS", "SNAPSHOT_EVERY_S", "ACTING_OPS"]
@@ -63,7 +63,7 @@ def _row(t: float, fig: dict[str, Any]) -> tuple[Any, ...]:
     leds = fig["leds"]
     return (t, "sample", *_HEAD(fig), "" if alarm is None else alarm["code"] or "",
             "" if alarm is None else alarm["name"], "|".join(fig["warnings"]),
-            " ".join(f"{k}={v}" for k, v in leds.items()) if leds else "", *_TAIL(fig), "", "")
+            leds_text(leds), *_TAIL(fig), "", "")
 
 
 class TraceSampler:

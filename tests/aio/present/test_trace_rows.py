@@ -22,7 +22,7 @@ def test_a_sample_row_flattens_the_alarm_warnings_and_leds() -> None:
     row = dict(zip(TRACE_COLUMNS, _row(1.25, fig), strict=True))
     assert row["t_s"] == 1.25 and row["kind"] == "sample" and row["address"] == "0x23"
     assert (row["alarm_code"], row["alarm_name"]) == ("COMM_ALM 8H", "FCS_ERROR")
-    assert row["warnings"] == "D_WAR|WDT_WARNING" and row["leds"] == "R/E=on CON=on LK1=blink LK2=off"
+    assert row["warnings"] == "D_WAR|WDT_WARNING" and row["leds"] == "R/E CON LK1* LK2-"
     assert row["output_hz"] == 29.5 and row["running"] is True and row["event"] == row["detail"] == ""
     fig.update(alarm={"code": None, "name": "D_ALM"}, warnings=[], leds={})
     row = dict(zip(TRACE_COLUMNS, _row(2.0, fig), strict=True))
