@@ -74,6 +74,7 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.master.slave",
     "mlink_sim.master.answers",
     "mlink_sim.master.fastpath",
+    "mlink_sim.master.operations",
     "mlink_sim.master.core",
     "mlink_sim.aio.virtual.vqueue",
     "mlink_sim.aio.virtual.fabric",

@@ -71,6 +71,7 @@ from .msghdr import NAME_SIZE as _NAME_SIZE
 from .msghdr import IoVec as _IoVec
 from .msghdr import MMsgHdr as _MMsgHdr
 from .msghdr import MsgHdr as _MsgHdr
+from .ports import PeerPort
 from .sendlayout import MAX_VECTOR, Group, Layout, Shapes, encode
 
 __all__ = ["BurstSocket", "CAPACITY", "drain", "gso_supported", "supported", "wrap"]
@@ -106,7 +107,7 @@ def _kernel_has_gso() -> bool:
 _GSO_KERNEL = _kernel_has_gso()
 
 
-def wrap(sock: socket.socket, *, batched: bool = True) -> Any:
+def wrap(sock: socket.socket, *, batched: bool = True) -> PeerPort:
     """*sock* as a :class:`BurstSocket` where the batched calls are :func:`supported`, else *sock* itself.
     *batched*: False keeps *sock* itself (the per-datagram calls) where the batched ones exist too."""
     return BurstSocket(sock) if batched and supported() and sock.type == socket.SOCK_DGRAM else sock
