@@ -392,8 +392,8 @@ class Master:
         """One response for the core, through the fault stage when a fault is in force (a silenced station's is
         dropped)."""
         faults = self.faults
-        if faults is not None and faults.active and len(datagram) > 3:
-            kept = faults.to_master(datagram[3], datagram, now)
+        if faults is not None and faults.active:
+            kept = faults.from_station(datagram, now)
             if kept is None:
                 return
             datagram = kept
