@@ -66,7 +66,8 @@ class OptionalBuildExt(build_ext):
     """build_ext that reuses an up-to-date extension from the source tree and says so when one does not compile.
 
     Reuse: pip builds in a fresh temporary directory each time, so without it every ``pip install -e .`` (which
-    scripts/test and scripts/up run) would compile the cores again (≈ 4 min on a 2-vCPU VM). mypyc rewrites its C
+    scripts/test and scripts/up run) would compile the cores again, minutes each time (docs/performance.md,
+    "Builds and checks"). mypyc rewrites its C
     files only when they change, so an extension in the tree newer than its C sources (those under build/; the
     runtime's own files come with the pinned mypy, checked by the stamp) is the same build.
     Failure: each extension is ``optional``, so the install goes on; mlink_sim._accel then runs the whole
@@ -162,8 +163,8 @@ def _ext_modules() -> list[object]:
     return list(exts)
 
 
-#: Only the commands that build extensions run mypyc (its type check takes ≈ 20 s): pip also runs this file for
-#: the build requirements and the metadata.
+#: Only the commands that build extensions run mypyc (its type check alone takes seconds): pip also runs this file
+#: for the build requirements and the metadata.
 _BUILDS = {"build", "build_ext", "bdist_wheel", "editable_wheel", "develop", "install"}
 
 

@@ -1,4 +1,4 @@
-"""The benchmarks of mlink-sim: what the simulator achieves on this machine and what it costs, each figure beside
+"""The benchmarks of mlink-sim: what the simulator achieves on the machine they run on and what it costs, each figure beside
 the floor the machine itself allows. Not installed with the package; run from the repository's root, e.g.
 ``python -m benchmarks.bench --targets``. benchmarks/README.md lists the modules and their commands.
 

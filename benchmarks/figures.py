@@ -173,7 +173,7 @@ def add_window(windows: dict[Any, Window], key: Any, w: Window) -> None:
 
 
 def steal_share(ticks: tuple[int, ...]) -> float:
-    """The time the hypervisor ran something else while this VM's CPUs had work (``steal``, the 8th field of
+    """The time the hypervisor ran something else while the guest's CPUs had work (``steal``, the 8th field of
     ``/proc/stat``'s first line), in % of all CPUs' time, from the ticks that passed in each of the first 8 fields
     (``benchmarks.floor.ticks_between``); 0.0 without them. A floor that misses cycles while this is high points at the
     host (a slowdown the host causes without stealing is not in it)."""

@@ -75,7 +75,7 @@ class Work:
     out (the master's encode), *decode_ns* per answer after it is read and stamped (the master's decode),
     *settle_ns* by the server per datagram after the read's echoes went back (the cards' work after the send of
     answers made ahead, ``Bus.settle``). A floor with the cores' time and none of their work: what the cores' CPU
-    alone costs on this machine, in the chain and after it."""
+    alone costs on the machine it runs on, in the chain and after it."""
 
     serve_ns: int = 0
     encode_ns: int = 0

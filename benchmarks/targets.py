@@ -17,12 +17,13 @@ costs a cell that many cycles of every station, and such stalls can come several
 0.05 points is 5 cycles in 10 s, so two such stalls in the simulator's one turn and none in its floor's would put
 a 10 s cell over. In 30 s the margin is 15 cycles, and each side's stalls average over three turns.
 
-"The floor" of a cell is the floor with the simulator's own system calls (``Cell.ref``). Both are measured with
+"The floor" of a cell is the floor with the simulator's own system calls (``Cell.ref``). Both are read by
 one definition of missed, RTT and CPU per exchange (:func:`benchmarks.figures.exchange_figures`). Where a bound is
 not met the verdict says what bounds it, from the same run: the CPU of the master and the workers, CPU per
 exchange against the floor's, wake-ups per cycle, stations that did not come up, or the floor itself breaking the
 bound. A floor that itself misses more than the margin (answers not back within a cycle) is **saturated**: it
-cannot carry the load on this machine either, and the table says so under its bounds (:func:`floor_saturation`).
+cannot carry the load on the machine the benchmark runs on either, and the table says so under its bounds
+(:func:`floor_saturation`).
 """
 
 from __future__ import annotations

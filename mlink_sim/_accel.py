@@ -74,6 +74,7 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.master.slave",
     "mlink_sim.master.answers",
     "mlink_sim.master.fastpath",
+    "mlink_sim.master.operations",
     "mlink_sim.master.core",
     "mlink_sim.aio.virtual.vqueue",
     "mlink_sim.aio.virtual.fabric",
@@ -159,7 +160,8 @@ def _built_from() -> dict[str, str]:
 
 def _why_not_compiled() -> str | None:
     """None when every compiled module is built from the .py next to it and the native library loads; else the
-    reason. "Built from" is by content (sha256; ≈ 1 ms for all), not by file times, which an install resets."""
+    reason. "Built from" is by content (sha256, about a millisecond for all: docs/performance.md, "Builds and
+    checks"), not by file times, which an install resets."""
     missing = [name for name in BUILT_MODULES if _extension(name) is None]
     if len(missing) == len(BUILT_MODULES):
         return "not built (no C compiler or mypyc at install time, or MLINK_BUILD_PURE=1)"

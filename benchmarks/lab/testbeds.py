@@ -75,7 +75,8 @@ def run_once(testbed: str, config: str, report: Path, timeout_s: float) -> Run:
 
 
 def summarize(side: Side) -> str:
-    """``swarm    2 of 2 passed  RTT p99 median 1.52 ms (1.41–1.63)  missed 0``."""
+    """One line per side: its name, how many of its runs passed, the median RTT p99 over them with its range, and
+    the cycles missed in all."""
     p99 = [r.rtt_p99_ns for r in side.runs if r.rtt_p99_ns is not None]
     missed = sum(r.missed or 0 for r in side.runs)
     figure = (f"RTT p99 median {statistics.median(p99) / 1e6:.2f} ms ({min(p99) / 1e6:.2f}–{max(p99) / 1e6:.2f})"

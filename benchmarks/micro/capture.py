@@ -14,8 +14,8 @@ apart where its noise is small, quoted as the median [p10, p90] over ``--repeat`
   (median over the runs). Also shown (and used for the headline with ``--no-real``): a **replay** of the
   datagrams and notes of a quickstart capture through a :class:`CaptureWriter`, in the 250-ms batches its thread
   takes, with the sources of answers shared as the batched tap shares them (fresh tuples without the batched
-  calls, as ``recvfrom`` makes them). The replay is about 0.5-0.65 of the in-situ figure on the 2-vCPU VM
-  (docs/performance.md, "Capture", has what was ruled out).
+  calls, as ``recvfrom`` makes them). The replay reads lower than the in-situ figure (docs/performance.md,
+  "Capture", has the two and what was ruled out).
 
 **Cross-checks**, in the same run: ``mlink-sim up quickstart`` with and without ``--capture``, the two runs of a
 pair back to back (their order alternates), on the real clock (``--duration D``) and on the virtual clock (the whole

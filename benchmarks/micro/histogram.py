@@ -4,7 +4,7 @@
 
 Recording (ns per call, best of *repeat* loops of *calls* calls, the empty loop's cost taken off):
 ``LatencyHistogram.record`` of one value; the same over *stations* histograms with RTT-like values (lognormal,
-median ≈ 200 µs, so that the counts are spread as in a running master); ``NetworkMetrics.record_rtt``,
+median e^12.2 ns, 199 µs, so that the counts are spread as in a running master); ``NetworkMetrics.record_rtt``,
 ``record_sent`` and ``record_cycle_lateness``.
 
 Report path (ms, best of 5), over *stations* histograms holding *values* RTT-like values in all: ``copy`` (what a
@@ -32,7 +32,7 @@ __all__ = ["main", "recording", "report_path", "rtt_like"]
 
 
 def rtt_like(n: int, seed: int = 1) -> list[int]:
-    """*n* values in ns, lognormal with median e^12.2 ≈ 199 µs: the spread of a 62-station line's RTTs."""
+    """*n* values in ns, lognormal with median e^12.2 ns (199 µs): the spread of a 62-station line's RTTs."""
     rnd = random.Random(seed)
     return [int(rnd.lognormvariate(12.2, 0.3)) for _ in range(n)]
 

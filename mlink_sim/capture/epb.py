@@ -7,8 +7,8 @@ layout of the uncommented Enhanced Packet Blocks packed here. Nothing here decla
 the interface id, the header struct (``_pack_hdr``, ``__hdr_fmt__``), its length (``__hdr_len__``), where the
 timestamp fields sit and their byte order (``__hdr__``) and the options of a block without comments
 (``_do_pack_options()``) all come from dpkt's ``EnhancedPacketBlockLE``. What replaces dpkt's *loop*
-(``Writer.writepkts``, which runs in Python for each block: 1.8–3.1 µs per block on the project's 2-vCPU VM, most
-of the 2 µs a datagram may cost in all) is :func:`mlink_sim.capture.pack.pack_records`, a loop compiled with mypyc
+(``Writer.writepkts``, which runs in Python for each block, most of the 2 µs a datagram may cost in all:
+docs/performance.md, "Batched calls") is :func:`mlink_sim.capture.pack.pack_records`, a loop compiled with mypyc
 that is handed the templates made here and the timestamp's byte order (docs/capture.md).
 
 How: every block of a given captured length is the same bytes except its timestamp and its data. dpkt's own header

@@ -44,7 +44,7 @@ _mono = time.monotonic_ns
 
 
 def source_address_for(peer: Any, port: int) -> tuple[str, int]:
-    """``(host, port)`` this machine sends from to reach *peer*: the kernel's route choice, with *port*."""
+    """``(host, port)`` the local host sends from to reach *peer*: the kernel's route choice, with *port*."""
     family = socket.AF_INET6 if ":" in str(peer[0]) else socket.AF_INET
     probe = socket.socket(family, socket.SOCK_DGRAM)
     try:

@@ -16,12 +16,13 @@ from typing import Any
 from ..capture.text import card_of_note
 from ..master import status_bits
 from ..params import Param, ParamError, ParamTable, for_card
-from ..wire import Frame, Link, describe
+from ..wire import Frame, Link, M2Alarm, describe
 
 __all__ = ["FrameNames", "parse_card"]
 
 _BY_LINK = {Link.ML3: "si-et3", Link.ML1: "si-t/v7"}
-_REFUSALS_ML2 = (0x94, 0x95)  # A.94 / A.95: the answer's data is not the register's (SI-T3 Table 25)
+#: A.94 / A.95: the answer's data is not the register's (SI-T3 Table 25)
+_REFUSALS_ML2 = (int(M2Alarm.DATA_SETTING_WARNING), int(M2Alarm.COMMAND_WARNING))
 
 
 def parse_card(text: str) -> tuple[int | None, str]:

@@ -47,11 +47,6 @@ class Episode:
         return {"station": self.station, "what": self.what, "start_ns": self.start_ns, "end_ns": self.end_ns,
                 "recovered_ns": self.recovered_ns, "recovery_ns": self.recovery_ns, "notes": list(self.notes)}
 
-    @property
-    def settled(self) -> bool:
-        """Recovered or given up: nothing more will change."""
-        return self.recovered_ns is not None or self.gave_up
-
 
 class RecoveryLog:
     """Episodes of every station; *on_recovery(station, ns)* is called once per recovered episode."""

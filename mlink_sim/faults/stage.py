@@ -39,7 +39,10 @@ from typing import Any
 from . import frames
 from .recovery import Episode, RecoveryLog
 from .spec import BadCommand, FaultSpec, FreezeWdt, MasterFault, Silence, SkipCycles
-from ..wire.frame import HEADER_SIZE, cycle_of
+from ..wire.frame import ENVELOPE, HEADER_SIZE, cycle_of
+from ..wire.layout import field_offset
+
+_STATION_AT = field_offset(ENVELOPE, "station")  # the envelope's station address
 
 __all__ = ["FaultStage", "StationTraits", "is_healthy", "INJECTED"]
 
@@ -219,6 +222,13 @@ class FaultStage:
         if st.bad is not None and frames.is_cyclic(datagram):
             datagram = self._bad(st, datagram, now)
         return datagram
+
+    def from_station(self, datagram: bytes, now: int) -> bytes | None:
+        """:meth:`to_master` of a response, its station read from the envelope; a datagram shorter than the
+        envelope passes as it is."""
+        if len(datagram) <= HEADER_SIZE:
+            return datagram
+        return self.to_master(datagram[_STATION_AT], datagram, now)
 
     def to_master(self, station: int, datagram: bytes, now: int) -> bytes | None:
         """A response from *station* on its way to the master: None when a fault swallows it."""

@@ -146,7 +146,31 @@ class Codec:
         return self.mod.Disconnect()
 
     def alm_clr(self) -> Any:
+        """ALM_CLR mode 0: clear present faults and alarms (SI-T3 Table 15, SI-ET3 "ALM_CLR")."""
         return self.mod.AlmClr(0)
+
+    def prm_rd(self, register: int, size: int) -> Any:
+        """PRM_RD of *size* bytes from MEMOBUS *register* (SI-T3 Table 8, SI-ET3 "PRM_RD")."""
+        return self.mod.PrmRd(register, size)
+
+    def prm_wr(self, register: int, size: int, data: bytes) -> Any:
+        """PRM_WR of *data* (*size* bytes, LSB first) to *register*: the DATA field is 8 bytes, the bytes past
+        SIZE zero (SI-T3 Table 9, SI-ET3 "PRM_WR")."""
+        return self.mod.PrmWr(register, size, data.ljust(8, b"\0"))
+
+    def config(self, mode: int) -> Any:
+        """CONFIG: 0 enables the written parameters (RAM), 1 also stores them to EEPROM (SI-T3 Table 12, SI-ET3
+        Table 15)."""
+        return self.mod.Config(mode)
+
+    def id_rd(self, code: int, offset: int, size: int) -> Any:
+        """ID_RD: *size* bytes of ID *code* from *offset* (DEVICE_CODE, SI-T3 Table 10; ID_CODE, SI-ET3
+        Table 14)."""
+        return self.mod.IdRd(code, offset, size)
+
+    def alm_rd(self, mode: int, index: int) -> Any:
+        """ALM_RD of mode *mode* from *index* (SI-T3 Table 14, SI-ET3 Tables 16/17)."""
+        return self.mod.AlmRd(mode, index)
 
     def inv_ctl(self, c: Control) -> Any:
         """INV_CTL 40H (SI-T3 Table 16 operation signals) or 50H (SI-ET3 Table 20 INVCMD_CTRL)."""

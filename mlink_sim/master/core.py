@@ -19,6 +19,7 @@ from . import answers, drivefault, requests, restart
 from .codec import Reply
 from .commands import Cmd, Send
 from .machine import Ev, expects, next_state
+from .operations import Operations
 from .plan import NetworkPlan
 from .slave import Sent, Slave
 from .types import (
@@ -32,7 +33,6 @@ from .types import (
     Recovered,
     Request,
     StateChanged,
-    StationDisconnected,
     StationState,
     StationView,
 )
@@ -49,14 +49,15 @@ _BRINGING: Final = frozenset((S.CONNECTING, S.SYNCING))  # counted against Netwo
 _CYCLIC: Final = Send.CYCLIC
 
 
-class MasterCore:
+class MasterCore(Operations):
     """Master of one network (see module docstring). Not thread-safe; never reads a clock.
 
     ``events`` is a bounded deque the I/O layer drains (:meth:`drain_events`); ``drops`` counts rejected datagrams
-    by :class:`~mlink_sim.wire.DropReason` or :class:`MasterDrop`."""
+    by :class:`~mlink_sim.wire.DropReason` or :class:`MasterDrop`. The operator's requests (:meth:`request`,
+    :meth:`prm_rd`, … :meth:`disconnect`) are :class:`~.operations.Operations`'."""
 
     def __init__(self, plan: NetworkPlan, *, max_events: int = 65_536) -> None:
-        self.plan = plan
+        super().__init__(plan)
         self.events: deque[Event] = deque(maxlen=max_events)
         self.drops: Counter[Any] = Counter()
         self.events_lost = 0
@@ -67,16 +68,8 @@ class MasterCore:
         #: only counts them (``mlink_sim.aio.master.runner.Master``: its metrics' ``record_rtt``) sets it and saves an
         #: event object and its dispatch per exchange. Late answers are ``Late`` events either way.
         self.on_rtt: Callable[[int, int], None] | None = None
-        self._now = 0
         self._cycle = 0
         self._window = plan.answer_window_ns
-        self._stations: list[Slave] = []
-        by_period: Counter[int] = Counter()
-        for sp in plan.stations:
-            period = sp.comm_cycles(plan.tcycle_ns)
-            self._stations.append(Slave(sp, by_period[period], period, plan.spread, plan.tcycle_ns))
-            by_period[period] += 1
-        self._by_addr = {st.address: st for st in self._stations}
         self._bringing = 0  #: stations in CONNECTING or SYNCING (NetworkPlan.bringup_window), kept by _fire
 
     # ------------------------------------------------------------------ cyclic entry points
@@ -174,58 +167,7 @@ class MasterCore:
         self.events.clear()
         return out
 
-    # ------------------------------------------------------------------ operator API
-    def request(self, station: int, body: Any, *, sub: bool | None = None, timeout_ns: int | None = None,
-                now: int | None = None) -> Request:
-        """Queue *body* (a wire command body of the station's generation, e.g. ``ml2.PrmRd(0x0200, 2)``).
-
-        Sent in the station's next slots in phase 2/3 (main command, or sub-command with ``sub=True``; ``None``
-        picks the sub-command for PRM_RD/PRM_WR on a 32-byte SI-T/V7, V7 §7.1), repeated while CMDRDY /
-        SUBCMDRDY reports busy and after a missing response, completed with the decoded response body or failed
-        with :class:`StationAlarmError` / :class:`RequestTimeout`. CONNECT and SYNC_SET are the core's own;
-        DISCONNECT is :meth:`disconnect`."""
-        st = self._station(station)
-        req = requests.build(st, body, sub, self._deadline(timeout_ns, now))
-        if req.kind is Cmd.DISCONNECT and not req.sub:
-            return self.disconnect(station, timeout_ns=timeout_ns, now=now)
-        if not st.enabled:
-            req._finish(error=StationDisconnected(f"station {station:02X}H is disconnected; connect() it first"))
-            return req
-        (st.sub_q if req.sub else st.main_q).append(req)
-        return req
-
-    def disconnect(self, station: int, *, timeout_ns: int | None = None, now: int | None = None) -> Request:
-        """Send DISCONNECT and keep the station in phase 1 (NOP only) until :meth:`connect`."""
-        st = self._station(station)
-        st.enabled = False
-        body = st.codec.disconnect()
-        req = Request(station, body, False, Cmd.DISCONNECT.value, st.codec.code_of(body),
-                      self._deadline(timeout_ns, now), Cmd.DISCONNECT)
-        if st.state in (S.OFFLINE, S.PHASE1):
-            req._finish(result=None)
-        else:
-            st.disconnect_waiters.append(req)
-        for q in (st.main_q, st.sub_q):
-            while q:
-                q.popleft()._finish(error=StationDisconnected(f"station {station:02X}H was disconnected"))
-        return req
-
-    def abort_requests(self, message: str = "master stopped") -> int:
-        """Fail every queued request (e.g. when the master stops cycling); returns how many."""
-        n = 0
-        for st in self._stations:
-            for q in (st.main_q, st.sub_q, st.disconnect_waiters):
-                while q:
-                    r = q.pop()
-                    r._finish(error=StationDisconnected(f"station {st.address:02X}H: {message}"))
-                    n += 1
-        return n
-
-    def connect(self, station: int) -> None:
-        """Allow (again) bring-up of a station after :meth:`disconnect`."""
-        st = self._station(station)
-        st.enabled = True
-
+    # ------------------------------------------------------------------ operator API (requests: .operations)
     def set_control(self, station: int, forward: bool = False, reverse: bool = False, speed_ref: int = 0,
                     torque_ref: int = 0, *, fault_reset: bool = False, ef0: bool = False, ext_bb: bool = False,
                     fault_history_clear: bool = False, multi_inputs: int = 0, sel_ref: int = 0, sel_mon: int = 0x41,
@@ -556,14 +498,3 @@ class MasterCore:
     def _drop(self, station: int | None, reason: Any) -> None:
         self.drops[reason] += 1
         self._emit(Dropped(station, reason))
-
-    def _deadline(self, timeout_ns: int | None, now: int | None) -> int:
-        base = self._now if now is None else now
-        return base + (self.plan.request_timeout_ns if timeout_ns is None else timeout_ns)
-
-    def _station(self, station: int) -> Slave:
-        try:
-            return self._by_addr[station]
-        except KeyError:
-            raise KeyError(f"no station {station:02X}H in the plan") from None
-

@@ -3,8 +3,9 @@
 Once a station is up, almost every slot is the same cyclic INV_CTL command (SI-T3 Table 16, SI-ET3 Table 20,
 SI-T/V7 Table 3) answered by an INV_CTL response without alarm or warning. The general path builds a
 :class:`~mlink_sim.wire.Frame` and message objects for it, then a :class:`~mlink_sim.master.codec.Reply`, and
-runs the phase machine. Profiling put that at ~10 µs to encode and ~25 µs to decode per station and cycle,
-which limits a 2-core machine to about 15 stations per millisecond.
+runs the phase machine: several times the CPU of the bytes-to-bytes exchange here, per station and cycle, which
+would limit the stations a small machine carries at 1 ms to a fraction of the targets (docs/performance.md, "The
+capacity targets"; "Compiled cores" has the cost of one exchange).
 
 :class:`CyclicFrames` does the same exchange with ``struct`` formats that are derived mechanically from the wire
 declarations. Nothing here is declared a second time:

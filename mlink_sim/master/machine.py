@@ -19,7 +19,8 @@ from types import MappingProxyType
 from .commands import Send
 from .types import StationState
 
-__all__ = ["Ev", "TRANSITIONS", "SENDS", "CONNECTED", "IllegalTransition", "next_state", "expects"]
+__all__ = ["Ev", "TRANSITIONS", "SENDS", "CONNECTED", "MAY_HOLD_CONNECTION", "IllegalTransition", "next_state",
+           "expects"]
 
 S = StationState
 
@@ -45,8 +46,14 @@ class Ev(enum.Enum):
     DISCONNECTED = "DISCONNECT ok (disconnect() on request)"
 
 
-#: States in which the slave holds a connection the master made (DISCONNECT releases it).
-CONNECTED = frozenset({S.CONNECTING, S.PHASE2, S.SYNCING, S.PHASE3, S.ALARM})
+#: States in which the master has seen the slave take its connection (phase 2 or 3): what "connected" means in
+#: the station figures and what the SI-ET3's CON LED shows, "Connection established" (SI-ET3 Table 4). Tuples of
+#: members, as :data:`MAY_HOLD_CONNECTION`: ``in`` compares them by identity (an enum's hash runs in Python).
+CONNECTED = (S.PHASE2, S.SYNCING, S.PHASE3, S.ALARM)
+#: States in which the slave may hold a connection the master made: :data:`CONNECTED`, and CONNECTING, whose
+#: CONNECT the slave may have taken although its answer has not come. DISCONNECT releases it: a station
+#: disconnected on request and every station of a closing master are sent DISCONNECT in these states.
+MAY_HOLD_CONNECTION = (S.CONNECTING, *CONNECTED)
 _ANSWERING = frozenset(S) - {S.OFFLINE}
 _UP = (S.PHASE2, S.SYNCING, S.PHASE3)
 

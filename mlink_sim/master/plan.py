@@ -198,7 +198,8 @@ class NetworkPlan:
     monitor before CONNECT: SI-T3 Table 22 lists no reception failure in phase 1, and SI-ET3 "Communication Phases"
     (Figure 19) says no fault is notified in phase 1). Not a figure of the manuals but the simulator's own pacing:
     CONNECT, SYNC_SET and their answers take the general path at both ends, several times the CPU of the steady
-    INV_CTL, and 62 stations brought up at once overloaded a 2-vCPU machine (docs/master.md, "Bring-up window")."""
+    INV_CTL, and a full line brought up at once can hold the master's clock up for hundreds of milliseconds
+    (docs/master.md, "Bring-up window")."""
 
     spread: bool = True
     """Spread stations with COM_TIM > 1 over the transmission cycles of their communication cycle (station *i*

@@ -2,31 +2,37 @@
 
 The core queues a :class:`~mlink_sim.master.types.Request` per station (main and sub-command queues), sends the
 head of each queue in the station's phase-2/3 slots and hands every answer and every silence to the functions
-here; these touch only the station's queues and the request.
+here; these touch only the station's queues and the request. A request built for a parameter or an ID carries
+what its answer's body gives (:func:`parameter_result`, :func:`id_result`): its result is that value.
 """
 
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from typing import Any
 
+from ..params import Param
 from ..wire import Unknown
+from . import named
 from .codec import command_name
 from .commands import Cmd
 from .slave import Sent, Slave
 from .types import Request, RequestTimeout, StationAlarmError
 
-__all__ = ["build", "complete", "expire", "unanswered", "MANAGED"]
+__all__ = ["build", "complete", "expire", "unanswered", "parameter_result", "id_result", "MANAGED"]
 
 #: Commands the core sends itself (bring-up and recovery); a request for them is refused.
 MANAGED = frozenset({Cmd.CONNECT, Cmd.SYNC_SET})
 
 
-def build(st: Slave, body: Any, sub: bool | None, deadline_ns: int) -> Request:
+def build(st: Slave, body: Any, sub: bool | None, deadline_ns: int,
+          result_of: Callable[[Any], Any] | None = None) -> Request:
     """A request for *body* to station *st* (see :meth:`MasterCore.request`); raises TypeError / ValueError for a
     body that is not a command of the station's generation, a sub-command where the plan has none, or a field
     that does not fit its layout (encoded here once, as a check, so that the cycle never meets a body it cannot
-    send; the cycle encodes the frame itself when it sends it)."""
+    send; the cycle encodes the frame itself when it sends it). *result_of*: the result the answer's body gives
+    (:attr:`Request.result_of`)."""
     codec, plan = st.codec, st.plan
     if sub is None:  # V7 §7.1 "PRM_RD can be used only in a sub-command": 32-byte SI-T/V7 PRM_RD/PRM_WR
         sub = (plan.is_v7 and plan.subcmd and type(body) in codec.sub_slot.by_class
@@ -45,7 +51,30 @@ def build(st: Slave, body: Any, sub: bool | None, deadline_ns: int) -> Request:
     kind = codec.kind_of(code)
     if kind in MANAGED:
         raise ValueError(f"{kind.value} is sent by the master core itself (bring-up and recovery)")
-    return Request(st.address, body, bool(sub), command_name(plan.link, code), code, deadline_ns, kind)
+    return Request(st.address, body, bool(sub), command_name(plan.link, code), code, deadline_ns, kind, result_of)
+
+
+def parameter_result(param: Param | None, size: int) -> Callable[[Any], Any]:
+    """What a PRM_RD answer gives: the first *size* bytes of its PARAMETER field (LSB first) as *param*'s
+    :class:`~mlink_sim.master.types.ParamValue`, or for a register read by number (*param* None) the unsigned word
+    when *size* is 2, else the bytes (SI-T3 Table 8, SI-ET3 "PRM_RD")."""
+
+    def result(body: Any) -> Any:
+        data = bytes(body.parameter[:size])
+        if param is not None:
+            return named.value_of(param, data)
+        return int.from_bytes(data, "little") if size == 2 else data
+
+    return result
+
+
+def id_result(size: int) -> Callable[[Any], Any]:
+    """What an ID_RD answer gives: the first *size* bytes of its ID field (SI-T3 Table 11, SI-ET3 Table 14)."""
+
+    def result(body: Any) -> Any:
+        return bytes(body.id[:size])
+
+    return result
 
 
 def complete(st: Slave, queue: deque[Request], req: Request, code: int | None, ready: bool,
@@ -68,7 +97,7 @@ def complete(st: Slave, queue: deque[Request], req: Request, code: int | None, r
             st.address, error[0], error[1],
             f"station {st.address:02X}H refused {req.command} {where}: {error[1]} ({error[0]:02X}H)"))
     else:
-        req._finish(result=body)
+        req._finish(result=body if req.result_of is None else req.result_of(body))
 
 
 def unanswered(st: Slave, sent: Sent, retries: int) -> None:

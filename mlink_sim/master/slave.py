@@ -15,7 +15,7 @@ from . import restart
 from .codec import Codec
 from .commands import Send
 from .fastpath import CyclicFrames
-from .machine import CONNECTED, SENDS, Ev
+from .machine import MAY_HOLD_CONNECTION, SENDS, Ev
 from .plan import StationPlan
 from .types import Control, Request, StationState, StationView
 
@@ -126,7 +126,7 @@ class Slave:
         """The main command of this slot: the state's (:data:`~.machine.SENDS`), refined. Changes nothing."""
         codec = self.codec
         if not self.enabled:
-            if self.state in CONNECTED:
+            if self.state in MAY_HOLD_CONNECTION:
                 return Send.DISCONNECT, codec.disconnect(), None
             return Send.PROBE, codec.nop(), None
         if cycle < self.hold_until:

@@ -348,16 +348,18 @@ class Request:
     Not thread-safe: the core and its callbacks run in one thread (the event loop's)."""
 
     __slots__ = ("station", "body", "sub", "command", "code", "kind", "deadline_ns", "attempts", "busy",
-                 "unanswered", "result", "error", "done", "_callbacks")
+                 "unanswered", "result", "error", "done", "result_of", "_callbacks")
 
     def __init__(self, station: int, body: Any, sub: bool, command: str, code: int, deadline_ns: int,
-                 kind: Cmd | None = None) -> None:
+                 kind: Cmd | None = None, result_of: Callable[[Any], Any] | None = None) -> None:
         self.station = station
         self.body = body
         self.sub = sub
         self.command = command  #: the command's name ("PRM_RD"; "30H" for a code the manuals do not define)
         self.code = code
         self.kind = kind
+        #: the result the answer's body gives (a parameter's value, the bytes asked for); None: the body itself
+        self.result_of = result_of
         self.deadline_ns = deadline_ns
         self.attempts = 0  #: times sent
         self.busy = 0  #: answers with CMDRDY/SUBCMDRDY = 0

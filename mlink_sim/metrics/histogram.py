@@ -5,16 +5,16 @@ its percentile rules and the HDR compressed transport form, but records into its
 counts array: one page of 1 024 counts per HDR bucket (a power of two of values), allocated when a value first
 falls in it. Real latencies fill two to four pages, so copying, merging and summarising touch a few thousand
 counts instead of 25 600, and a live report does not stall the cycle. ``HdrHistogram.record_value`` costs
-~1.3 µs a call in CPython (``bin()`` based leading-zero count, ctypes counters, min/max bookkeeping); the
+about a microsecond a call in CPython (``bin()`` based leading-zero count, ctypes counters, min/max bookkeeping); the
 inlined index computation and two list indexings below cost about 40 ns compiled (docs/report.md, "Cost on the
-recording path"). The counts are indexed lists of pages, not a ``dict`` keyed by index: in the master of a
-62-station network a dict's lookups (hash probe, a compare of two int objects, a second lookup to store) take 10 %
-of the master's CPU (``perf`` of ``mlink-sim up configs/ml3-62-max.toml``).
+recording path"). The counts are indexed lists of pages, not a ``dict`` keyed by index: a dict's lookups (hash
+probe, a compare of two int objects, a second lookup to store) for every answer are a visible share of a large
+network's master CPU (docs/performance.md, "Garbage collection").
 The pages are ``array.array("q")``, not lists: an array holds no object references, so a garbage collection
 visits it in one step instead of 1 024 (``tp_traverse`` visits only its type). As lists, the few hundred pages a
 62-station master fills after a reset are young containers of 1 024 references each, and the first collections
-of the measuring window traverse them all: a generation-0 collection of 2.2 ms and a generation-1 collection of
-4.2 ms, each in the middle of a cycle, in a 15 s window (measured with ``gc.callbacks``).
+of the measuring window traverse them all, each in the middle of a cycle, for milliseconds (docs/performance.md,
+"Garbage collection").
 Summaries are computed from the non-zero buckets with HdrHistogram's own index ⇄ value functions (tests check
 they equal the library's figures); the counts are copied into an ``HdrHistogram`` only to encode it or for
 :meth:`LatencyHistogram.to_hdr`.
@@ -70,7 +70,7 @@ _BITS: int = _SHIFT + 1                                        # 11
 # and 1), so that all 25 600 indices are covered by 25 pages.
 _PAGE: int = _HALF                                              # 1024 counts per page
 _PAGES: int = _COUNTS_LEN // _PAGE                              # 25
-# record() has these constants inlined (a global lookup each would cost ~10 %).
+# record() has these constants inlined (a global lookup each would be a visible share of its cost).
 assert _LAYOUT.unit_magnitude == 0 and (_SUB_MASK, _BITS, _SHIFT, _HALF) == (2047, 11, 10, 1024)
 assert _PAGES * _PAGE == _COUNTS_LEN
 _ZERO_PAGE = array("q", bytes(8 * _PAGE))  # copied for each new page: 1 024 zero counts
@@ -162,7 +162,7 @@ class LatencyHistogram:
         return sum(c for i, c in self._nonzero() if i <= top)
 
     def to_hdr(self) -> HdrHistogram:
-        """A new :class:`hdrh.histogram.HdrHistogram` holding these counts (~2 ms), for anything the summary
+        """A new :class:`hdrh.histogram.HdrHistogram` holding these counts (milliseconds), for anything the summary
         does not give (other percentiles, iterators, ``output_percentile_distribution``)."""
         h = _new_hdr()
         nonzero = self._nonzero()
@@ -213,7 +213,7 @@ class LatencyHistogram:
         """``{"count", "min", "p50", "p90", "p99", "p99_9", "max", "mean"}``, ints in ns; all 0 when empty.
 
         Same figures as the wrapped ``HdrHistogram`` gives (a test checks it), computed from the non-zero
-        buckets only (~2 ms instead of ~100 ms): percentiles and ``max`` are the highest value of their
+        buckets only (a small fraction of the library's time): percentiles and ``max`` are the highest value of their
         bucket, ``min`` the lowest, ``mean`` the mean of bucket midpoints (all within 0.1 % of the values).
         """
         nonzero = self._nonzero()

@@ -261,7 +261,7 @@ def write_report(path: str | os.PathLike[str], report: Mapping[str, Any]) -> Non
 
 
 def host_info() -> dict[str, Any]:
-    """What the run ran on, for ``meta.host``. The first call takes ~17 ms (``platform.platform()`` reads the
+    """What the run ran on, for ``meta.host``. The first call takes many cycles' time (``platform.platform()`` reads the
     interpreter binary for its libc version), so it is made once and kept: a session calls it before the cycle
     starts, and a live report in the middle of a run then costs nothing here."""
     return dict(_host_info())

@@ -53,7 +53,7 @@ def crc16_x25(data: bytes | bytearray | memoryview) -> int:
 def crc16_x25_pure(data: bytes | bytearray | memoryview, _rev: bytes = _REVERSE_BYTE,
                    _crc: Any = binascii.crc_hqx) -> int:
     """CRC-16/X-25 of *data* in Python (``binascii``): the fallback."""
-    if type(data) is not bytes and type(data) is not bytearray:  # bytes(b) costs ~0.3 µs even when b is bytes
+    if type(data) is not bytes and type(data) is not bytearray:  # bytes(b) copies even when b is bytes
         data = bytes(data)
     crc = _crc(data.translate(_rev), 0xFFFF)
     return ((_rev[crc & 0xFF] << 8) | _rev[crc >> 8]) ^ 0xFFFF

@@ -7,7 +7,7 @@ From that one declaration two codecs are derived:
 * the construct codec itself (``Layout.struct.parse/build``), used by tests as the oracle, and
 * a ``struct.Struct`` fast path, derived mechanically from the same declaration (``Int16ul`` -> ``H``,
   ``Bytes(8)`` -> ``8s``, ``Padding(2)`` -> ``2x`` …), used on the per-cycle hot path, where construct's
-  ~5 µs per parse would cost more than the whole rest of a station's cycle.
+  parse, microseconds each, would cost more than the whole rest of a station's cycle.
 
 The tests check that both agree for every layout (hypothesis round trips), so the fast path can never drift from
 the declaration.

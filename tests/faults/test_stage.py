@@ -146,3 +146,17 @@ def test_injected_counts_per_station():
     b.stage.inject(0x21, Silence(for_ns=4 * MS), b.now)
     b.run(8)
     assert b.stage.injected() == {0x21: {"skips": 3, "silences": 3}}  # answers within [t, t + 4 ms)
+
+
+def test_from_station_reads_the_station_from_the_envelope():
+    """What the master runner hands the stage (``FaultStage.from_station``): a silenced station's answer is dropped
+    as ``to_master`` of its envelope's station drops it; another's, and a datagram shorter than an envelope, pass."""
+    b = Bench("si-t3").up()
+    b.cycle += 1  # the next cycle's command, answered by the card outside the bench's step
+    answer = b.card.receive(b.core.on_cycle(b.cycle, b.now)[0][1], "master", b.now)
+    assert answer is not None and answer[3] == 0x21
+    b.stage.inject(0x21, Silence(for_ns=100 * MS), b.now)
+    assert b.stage.from_station(answer, b.now) is None
+    assert b.stage.from_station(answer[:4], b.now) == answer[:4]
+    other = answer[:3] + bytes([0x22]) + answer[4:]
+    assert b.stage.from_station(other, b.now) == other

@@ -1,7 +1,11 @@
 """The master on a real network: :class:`~mlink_sim.master.MasterCore` driven by a :class:`CycleTimer` over one UDP
 socket, with awaitable requests (docs/master.md, "Async API").
 
-The I/O here only moves bytes and timestamps; the core decides everything. The master owns a non-blocking UDP
+The I/O here only moves bytes and timestamps; the core decides everything, and builds every request's body and
+result (``core.prm_rd(…) -> Request``: :mod:`mlink_sim.master.operations`): a request method here awaits the core's
+:class:`~mlink_sim.master.Request`. The master holds its socket as a
+:class:`~mlink_sim.aio.transport.ports.DatagramPort` (its batched calls, a ``BurstPort``, found once when it takes
+the socket). The master owns a non-blocking UDP
 socket, watched with ``loop.add_reader``: each wake-up reads every datagram waiting (up to a bound), each stamped
 with ``time.monotonic_ns()`` as it is read, and it is also read in the clock's spin and before each cycle's commands,
 so an answer that arrived in time is never counted missing only because the loop was busy with the clock. Where
@@ -25,7 +29,6 @@ from typing import Any, Protocol, TypeVar
 
 
 from ..._log import get_logger
-from ...master import named
 from ...params import card_label
 from ...master import (
     AlarmCleared,
@@ -41,15 +44,14 @@ from ...master import (
     RunHeld,
     RunResumed,
     StateChanged,
-    StationState,
     StationView,
 )
 from ...capture.text import card_note
 from ...faults import Episode, FaultSpec, FaultStage, MasterFault, StationTraits
 from ...faults.stage import is_healthy
-from ...wire import Link, ml2, ml3
 from ..transport import mmsg
 from ..transport.impaired import ImpairedSocket
+from ..transport.ports import BurstPort, DatagramPort, bursts
 from ..transport.tapped import tap
 from ..timing.ticker import CycleTimer
 from ..transport.udp import bound_socket, close_watched
@@ -58,8 +60,6 @@ __all__ = ["Master", "MetricsSink", "NullMetrics", "run"]
 
 T = TypeVar("T")
 _mono = time.monotonic_ns
-_CONNECTED = (StationState.CONNECTING, StationState.PHASE2, StationState.SYNCING, StationState.PHASE3,
-              StationState.ALARM)
 
 
 class MetricsSink(Protocol):
@@ -119,9 +119,10 @@ class Master:
             metrics, "record_sent_burst", self._count_sent_one_by_one)
         self.transport_errors: Counter[str] = Counter()
         self._loop = loop
-        #: a socket.socket, or what stands in for it: a BurstSocket (batched calls), a capture's TappedSocket, an
-        #: ImpairedSocket, a FabricPort (the virtual clock); only the first has send_burst/recv_burst
-        self._sock: Any = None
+        #: a socket.socket, or what stands in for it: a BurstSocket (batched calls), a capture's tap, an
+        #: ImpairedSocket, a FabricPort (the virtual clock) (aio/transport/ports.py)
+        self._sock: DatagramPort | None = None
+        self._burst: BurstPort | None = None  #: the socket's batched calls, where it has them (:meth:`_use`)
         self._timer: CycleTimer | None = None
         self._owns_timer = True
         self.record_lateness = True  #: False for the 2nd+ master on a shared clock (counted once)
@@ -172,9 +173,10 @@ class Master:
             add_stations(self.core.addresses)
         sock = bound_socket(local[0], local[1], rcvbuf)
         if capture is not None:
-            self._sock, self._note = tap(capture, sock, batched=batched), capture.note  # the batched calls, tapped
+            self._use(tap(capture, sock, batched=batched))  # the batched calls, tapped
+            self._note = capture.note
         else:
-            self._sock = mmsg.wrap(sock, batched=batched)  # sendmmsg/recvmmsg where supported (docs/performance.md)
+            self._use(mmsg.wrap(sock, batched=batched))  # sendmmsg/recvmmsg where supported (docs/performance.md)
         if clock is None:
             recorder = getattr(self.metrics, "stall_recorder", None)
             self._timer = CycleTimer(plan.tcycle_ns, self._on_cycle, loop=loop, strategy=strategy,
@@ -182,10 +184,8 @@ class Master:
                                      on_stall=recorder("master") if callable(recorder) else None)
         else:
             self._timer, self._owns_timer = clock, False
-        if len(set(self.endpoints.values())) < len(self.endpoints):  # stations share a port (a packed worker)
-            enable_gro = getattr(self._sock, "enable_gro", None)  # its answers come as one burst: one read
-            if enable_gro is not None:
-                enable_gro()
+        if len(set(self.endpoints.values())) < len(self.endpoints) and self._burst is not None:
+            self._burst.enable_gro()  # stations share a port (a packed worker): its answers come as one burst
         self.note_cards()
         loop.add_reader(sock.fileno(), self.read_responses)  # a read on every arrival, stamped as it is read
         if clock is None:
@@ -193,6 +193,10 @@ class Master:
         self._log.info("master_started", local=sock.getsockname(), stations=len(plan.stations),
                        tcycle_ns=plan.tcycle_ns, strategy=self._timer.strategy)
         return self
+
+    def _use(self, sock: DatagramPort) -> None:
+        """Send and read through *sock* from now on, with its batched calls where it has them."""
+        self._sock, self._burst = sock, bursts(sock)
 
     def watch(self, fn: Callable[[int, Any], None]) -> None:
         """Call *fn(now_ns, event)* for each event a capture notes (state changes, alarms raised and cleared,
@@ -234,8 +238,7 @@ class Master:
             return
         self._closed = True
         core = self.core
-        reqs = [core.disconnect(a, timeout_ns=int(timeout * 1e9), now=self._now())
-                for a in core.addresses if core.state(a) in _CONNECTED]
+        reqs = core.disconnect_all(timeout_ns=_ns(timeout), now=self._now())
         if reqs and self._timer is not None and self._timer.running:
             futs = [self._future(r) for r in reqs]
             await asyncio.wait(futs, timeout=timeout)
@@ -252,7 +255,7 @@ class Master:
             if not fut.done():
                 fut.set_exception(ConnectionAbortedError("master closed"))
         self._waiters.clear()
-        sock, self._sock = self._sock, None
+        sock, self._sock, self._burst = self._sock, None, None
         if sock is not None:
             close_watched(self._loop, sock)
         self._log.info("master_closed", transport_errors=dict(self.transport_errors), drops=len(core.drops))
@@ -286,17 +289,12 @@ class Master:
                      if not v.at_target}
             raise TimeoutError(f"bring-up not complete after {timeout} s: {stuck}") from None
 
-    # ------------------------------------------------------------------ requests
+    # ------------------------------------------------------------------ requests (built by the core)
     async def request(self, station: int, body: Any, *, sub: bool | None = None,
                       timeout: float | None = None) -> Any:
         """Send *body* (a wire command body) and return the decoded response body; raises
         :class:`~mlink_sim.master.StationAlarmError` or :class:`~mlink_sim.master.RequestTimeout`."""
-        req = self.core.request(station, body, sub=sub, timeout_ns=None if timeout is None else int(timeout * 1e9),
-                                now=self._now())
-        return await self._future(req)
-
-    def _mod(self, station: int) -> Any:
-        return ml3 if self.core.plan.station(station).link is Link.ML3 else ml2
+        return await self._future(self.core.request(station, body, sub=sub, timeout_ns=_ns(timeout), now=self._now()))
 
     async def prm_rd(self, station: int, register: int | str, size: int = 2, *, sub: bool | None = None,
                      timeout: float | None = None) -> Any:
@@ -306,14 +304,10 @@ class Master:
         :class:`~mlink_sim.master.ParamValue`: a float in engineering units (``10.0``) with ``unit``, ``raw`` and
         ``register``. A register number returns the raw value: an unsigned int for ``size=2``, else the *size*
         bytes (LSB first). An unknown name or a bad register or size raises
-        :class:`~mlink_sim.master.ParamRequestError` before anything is sent."""
-        plan = self.core.plan.station(station)
-        reg, param = named.read_target(plan, register, size)
-        r = await self.request(station, self._mod(station).PrmRd(reg, size), sub=sub, timeout=timeout)
-        data = bytes(r.parameter[:size])
-        if param is not None:
-            return named.value_of(param, data)
-        return int.from_bytes(data, "little") if size == 2 else data
+        :class:`~mlink_sim.master.ParamRequestError` before anything is sent (:meth:`MasterCore.prm_rd
+        <mlink_sim.master.MasterCore.prm_rd>`)."""
+        return await self._future(self.core.prm_rd(station, register, size, sub=sub, timeout_ns=_ns(timeout),
+                                                   now=self._now()))
 
     async def prm_wr(self, station: int, register: int | str, value: Any, size: int = 2, *,
                      sub: bool | None = None, timeout: float | None = None) -> None:
@@ -322,34 +316,33 @@ class Master:
         (written LSB first in *size* bytes, negative as two's complement) or the bytes. A bad name, type or
         value raises :class:`~mlink_sim.master.ParamRequestError` before anything is sent. CONFIG
         (:meth:`config`) makes the written values take effect."""
-        plan = self.core.plan.station(station)
-        reg, data, _ = named.write_target(plan, register, value, size)
-        await self.request(station, self._mod(station).PrmWr(reg, size, data.ljust(8, b"\0")), sub=sub,
-                           timeout=timeout)
+        await self._future(self.core.prm_wr(station, register, value, size, sub=sub, timeout_ns=_ns(timeout),
+                                            now=self._now()))
 
     async def config(self, station: int, mode: int = 0, *, sub: bool = False, timeout: float | None = None) -> None:
         """CONFIG: 0 = enable written parameters (RAM), 1 = also store to EEPROM (SI-T3 Table 12, SI-ET3 Table 15)."""
-        await self.request(station, self._mod(station).Config(mode), sub=sub, timeout=timeout)
+        await self._future(self.core.config(station, mode, sub=sub, timeout_ns=_ns(timeout), now=self._now()))
 
     async def id_rd(self, station: int, code: int, offset: int = 0, size: int = 8, *,
                     timeout: float | None = None) -> bytes:
         """ID_RD: *size* bytes of ID *code* (DEVICE_CODE, SI-T3 Table 10 / ID_CODE, SI-ET3 Table 14) from *offset*."""
-        r = await self.request(station, self._mod(station).IdRd(code, offset, size), timeout=timeout)
-        return bytes(r.id[:size])
+        result: bytes = await self._future(self.core.id_rd(station, code, offset, size, timeout_ns=_ns(timeout),
+                                                           now=self._now()))
+        return result
 
     async def alm_rd(self, station: int, mode: int = 0, index: int = 0, *, sub: bool = False,
                      timeout: float | None = None) -> Any:
         """ALM_RD: the decoded response body (``alm_data`` per SI-T3 Table 14 / SI-ET3 Tables 16/17)."""
-        return await self.request(station, self._mod(station).AlmRd(mode, index), sub=sub, timeout=timeout)
+        return await self._future(self.core.alm_rd(station, mode, index, sub=sub, timeout_ns=_ns(timeout),
+                                                   now=self._now()))
 
     async def alm_clr(self, station: int, *, timeout: float | None = None) -> None:
         """ALM_CLR mode 0: clear present faults and alarms (SI-T3 Table 15)."""
-        await self.request(station, self._mod(station).AlmClr(0), timeout=timeout)
+        await self._future(self.core.alm_clr(station, timeout_ns=_ns(timeout), now=self._now()))
 
     async def disconnect(self, station: int, *, timeout: float | None = None) -> None:
         """DISCONNECT and keep the station in phase 1 until :meth:`connect`."""
-        req = self.core.disconnect(station, timeout_ns=None if timeout is None else int(timeout * 1e9), now=self._now())
-        await self._future(req)
+        await self._future(self.core.disconnect(station, timeout_ns=_ns(timeout), now=self._now()))
 
     def connect(self, station: int) -> None:
         """Bring a disconnected station up again (use :meth:`bring_up` to wait for it)."""
@@ -399,8 +392,8 @@ class Master:
         """One response for the core, through the fault stage when a fault is in force (a silenced station's is
         dropped)."""
         faults = self.faults
-        if faults is not None and faults.active and len(datagram) > 3:
-            kept = faults.to_master(datagram[3], datagram, now)
+        if faults is not None and faults.active:
+            kept = faults.from_station(datagram, now)
             if kept is None:
                 return
             datagram = kept
@@ -434,9 +427,9 @@ class Master:
         faults = self.faults
         if faults is not None and faults.active:
             out = [(s, d) for s, d in ((s, faults.to_station(s, d, now_ns)) for s, d in out) if d is not None]
-        send_burst = getattr(sock, "send_burst", None)
-        if send_burst is not None and len(out) > 1:  # the burst in one sendmmsg (mlink_sim.aio.transport.mmsg)
-            for _, exc in send_burst([(datagram, endpoints[station]) for station, datagram in out]):
+        burst = self._burst
+        if burst is not None and len(out) > 1:  # the burst in one sendmmsg (mlink_sim.aio.transport.mmsg)
+            for _, exc in burst.send_burst([(datagram, endpoints[station]) for station, datagram in out]):
                 self._on_error(exc)  # that datagram is lost, the others went
             self._count_sent(out)
         else:
@@ -463,10 +456,10 @@ class Master:
         faults = self.faults
         clean = faults is None or not faults.active
         on_response = self.core.on_response if clean else self.deliver
-        burst = getattr(sock, "recv_burst", None)
+        burst = self._burst
         if burst is not None:  # recvmmsg: what is waiting in one call, each batch stamped with the time it was read
             on_batch = self.core.on_responses if clean else self._deliver_all
-            for batch in mmsg.drain(burst, limit, self._on_error):
+            for batch in mmsg.drain(burst.recv_burst, limit, self._on_error):
                 on_batch(batch, _mono())
             return
         recv = sock.recv
@@ -499,11 +492,11 @@ class Master:
 
         def unwrap() -> None:
             if self._sock is wrapper:  # the wrapper stands in for the socket
-                self._sock = wrapper.sock
+                self._use(wrapper.sock)
 
         wrapper = ImpairedSocket(sock, layer, self._loop, on_ready=self.read_responses, on_error=self._on_error,
                                  on_idle=unwrap)
-        self._sock = wrapper
+        self._use(wrapper)
 
     def read_one(self) -> None:
         """The clock's ``idle`` hook: one datagram at most, so the spin ends close to its deadline."""
@@ -564,6 +557,11 @@ class Master:
             for pred, fut in list(self._waiters):
                 if not fut.done() and pred():
                     fut.set_result(None)
+
+
+def _ns(timeout: float | None) -> int | None:
+    """A timeout in seconds as the core takes it (ns); None: the plan's."""
+    return None if timeout is None else int(timeout * 1e9)
 
 
 def _consume(fut: asyncio.Future[Any]) -> None:

@@ -37,6 +37,7 @@ from typing import Any
 from ...cards.base import LED_WINDOW_NS
 from ...config import Config
 from ...drive.monitors import SEL_MON_TABLES, ref_to_hz
+from ...master.machine import CONNECTED as _CONNECTED
 from ...master.types import StationState
 from ...params import card_label
 from ...wire import CmdAlm, CommAlm, InvCmdStat, Link, M2Alarm, M2Status
@@ -50,9 +51,8 @@ FIGURE_FIELDS = ("address", "name", "card", "link", "phase", "connected", "alarm
                  "running", "direction", "reference_hz", "output_hz", "output_current_a", "dc_bus_v",
                  "motor_speed_rpm", "rtt_p50_us", "rtt_p99_us", "missed", "late")
 
-# Plain ints and a tuple of members: the figures are read many times a second, and an enum's ``&`` and hash run
-# in Python.
-_CONNECTED = (StationState.PHASE2, StationState.SYNCING, StationState.PHASE3, StationState.ALARM)
+# Plain ints (and machine.CONNECTED, a tuple of members): the figures are read many times a second, and an enum's
+# ``&`` and hash run in Python.
 _COMM_ALARMS = frozenset({int(M2Alarm.WDT_ERROR), int(M2Alarm.COMM_ERROR)})  #: SI-T3 Table 20 "LED (ERR) ON"
 _FORWARD, _REVERSE = int(InvCmdStat.FORWARD), int(InvCmdStat.REVERSE)
 _SEL_MON1, _SEL_MON2 = int(InvCmdStat.SEL_MON1), int(InvCmdStat.SEL_MON2)

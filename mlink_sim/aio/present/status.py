@@ -61,9 +61,9 @@ STATUS_FIELDS: tuple[tuple[str, Callable[[StatusInfo], str]], ...] = (
 class WorstP99:
     """The highest RTT p99 among the stations, refreshed *per_step* stations at a time, in turn.
 
-    A network-wide p99 merges every station's histogram: 35 ms for 62 stations with a few thousand buckets
-    each, measured on the 2-vCPU VM, i.e. 35 lost 1 ms cycles per refresh. One station's p99 takes about 1 ms,
-    so the status refreshes a couple of stations per frame and shows the worst of the latest figures."""
+    A network-wide p99 merges every station's histogram, a few thousand buckets each: tens of 1 ms cycles per
+    refresh on a large line, where one station's p99 is about one cycle (docs/performance.md, "Live status and
+    traces"), so the status refreshes a couple of stations per frame and shows the worst of the latest figures."""
 
     def __init__(self, per_step: int = 2) -> None:
         self.per_step = per_step

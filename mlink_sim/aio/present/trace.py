@@ -73,7 +73,7 @@ class TraceSampler:
         self.session = session
         self.writer = writer
         self.interval_s = interval_ns / 1e9
-        self.figures = NetworkFigures(session.config)  # once: each station's constants (~1 ms a station)
+        self.figures = NetworkFigures(session.config)  # once: each station's constants (too slow to make per sample)
         self._addresses = list(self.figures.by_address)
         self._t0: float | None = None  # the loop time of the timeline's 0 s, once it is known (start)
         self._early: list[tuple[float, str, str, str]] = []  # actions before it: (loop time, event, detail, address)
@@ -193,8 +193,8 @@ class TraceSampler:
     # ------------------------------------------------------------------ sampling
     async def _sample_loop(self, t0: float) -> None:
         """Sample every station each interval, :data:`SLICE` stations at a time with the loop free between two
-        slices (each row carries its slice's own time), so that a network of 62 stations never holds the cycle for
-        the whole ~1.6 ms its figures take (pure-Python cores, the 2-vCPU VM of docs/performance.md)."""
+        slices (each row carries its slice's own time), so that a large network never holds the cycle for the
+        whole time its figures take (docs/performance.md, "Live status and traces")."""
         loop = asyncio.get_running_loop()
         session, figures, writer = self.session, self.figures, self.writer
         net, metrics, station = session.net, session.metrics, figures.station

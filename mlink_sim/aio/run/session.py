@@ -260,7 +260,7 @@ class NetworkSession:
         plans = build_plans(self.config)
         from ...metrics import host_info
 
-        host_info()  # its first call reads the interpreter binary (~17 ms): not in the middle of a run
+        host_info()  # its first call reads the interpreter binary (many cycles' time): not in the middle of a run
         if self.cpus is not None:
             mine = self._placed if self._placed and not self.worker_list else self.cpus[0]
             self.realtime_granted["master"] = (apply(MASTER_PRIORITY, mine, placed=bool(self._placed))

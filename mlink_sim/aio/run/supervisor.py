@@ -86,10 +86,10 @@ def resolve_workers(spec: int | str | None, stations: int, cpus: int | None = No
 
     ``auto`` (the default, also None): one process per station while there are at most ``max(2, CPUs − 1)``
     stations; beyond that, ``CPUs − 1`` processes (at least one), so that the master's cycle clock keeps a CPU of
-    its own. Measured on 2 vCPUs (docs/performance.md): 9 ML-II stations at 1 ms missed
-    3.2 % and 37 % of the cycles with one process per station (slave CPU 101–123 %), 0.58 % and 0.32 % with one
-    process (56–58 %); every process wakes up for its own datagrams, and a wake-up costs 20–30 µs of CPU on this
-    VM. ``station``: one process per station; a number: that many (round-robin, at most one per station)."""
+    its own: every process wakes up for its own datagrams, and a wake-up costs CPU, so beyond a few stations one
+    process per station takes more CPU for the same work and misses more cycles (docs/performance.md, "Packed
+    slave workers"). ``station``: one process per station; a number: that many (round-robin, at most one per
+    station)."""
     spec = parse_workers(spec)
     if spec == "station":
         return None

@@ -73,8 +73,8 @@ class Port:
         self.receive: Callable[[bytes, Any, int], bytes | None] = station.receive
         self.pred: Prediction | None = None  #: the card's answer to the command it expects next (Bus.serve)
         self.responses: int = 0  #: the answers sent (a native count: the per-cycle path touches no Python object)
-        if hosted is not None:  # the station's count goes on from a port it had before
-            before = getattr(hosted, "bus_port", None)
+        if hosted is not None:  # the station's count goes on from a port it had before (HostedStation.bus_port)
+            before = hosted.bus_port
             if before is not None:
                 self.responses = before.responses
             hosted.bus_port = self

@@ -59,7 +59,7 @@ _STALLS_REPORTED = 256  # recent stalls in each stats reply (the session keeps t
 _COMPACT = (",", ":")  # json.dumps separators of the control replies
 _STATS_PACE_S = 0.001  #: the worker's sleep between two stations of a stats reply (SlaveServer._reply_stats)
 #: … for this long at most: the rest without a pause, so that the reply stays well inside the 1 s a query waits
-#: (``query_control``) on a loaded host too (62 stations paced took 64–121 ms here)
+#: (``query_control``) on a loaded host too (docs/performance.md, "A worker's stats reply")
 _STATS_PACED_S = 0.3
 
 
@@ -234,9 +234,9 @@ class SlaveServer:
         as many as a stall of the bound leaves at the shortest cycle: a stall of this process within the bound
         costs no command). On a bus their slots have passed; answering every one would queue latency up (a 1 MiB
         receive buffer holds about a second of commands) and keep an overloaded worker behind for good. A hiccup of
-        up to ``_KEEP_BEHIND`` cycles is still answered in full (late, not lost): with 2, a 3-cycle hiccup of a
-        worker on a busy machine became lost commands, reception failures and a bUS trip in the quickstart (3 of 6
-        runs failed; with 8, 0 of 6)."""
+        up to ``_KEEP_BEHIND`` cycles is still answered in full (late, not lost): a worker on a busy machine is held
+        up for a few cycles now and then, and a command lost to such a hiccup is a reception failure at the card,
+        two in a row an alarm and a bUS trip (docs/performance.md, "A worker's backlog")."""
         port = self._ports[id(hs)] = Port(hs.station, hs, self._keep_behind, self._collect_eeprom, time.monotonic_ns)
         return port
 

@@ -3,8 +3,8 @@ instead of a wake-up when it comes (docs/performance.md).
 
 A master sends its commands once per transmission cycle, so a slave worker knows when the next burst will come:
 one cycle after the last. Left to the event loop, the worker sleeps until the burst arrives and is then woken;
-on a virtual machine whose idle CPU halts, that wake-up took 36 µs (median) of the 250 µs cycle, and in stretches
-it came late enough that one read held two cycles' commands (docs/performance.md).
+on a virtual machine whose idle CPU halts, that wake-up is a large part of a 250 µs cycle, and in stretches it
+comes late enough that one read holds two cycles' commands (docs/performance.md, "Timer wake-up").
 :class:`ArrivalPoll` learns the cycle from the bursts' arrivals, wakes *lead_ns* before the next one is due (a
 timerfd) and reads the socket without blocking until the burst is there, for at most *lead_ns* past its due time;
 then the reader (``loop.add_reader``) has it again. A wake-up before the burst costs the worker its spin; a
@@ -12,28 +12,28 @@ wake-up when the burst comes costs the chain of the exchange.
 
 Between two empty reads the poll yields its CPU (``os.sched_yield``). The master that sends the burst may be
 queued on that very CPU: Linux packs the two processes on one CPU on a small machine, and a spinning worker would
-hold the master's cycle up until its poll gave up, a lead past the burst's due time. With idle CPUs polling, at
-8 ML-III × 250 µs, the clock's lateness p99 is 29–32 µs with the yield against 159–162 µs without it
-(docs/performance.md). Where nothing else is queued, the call returns at once.
+hold the master's cycle up until its poll gave up, a lead past the burst's due time (docs/performance.md,
+"Timer wake-up"). Where nothing else is queued, the call returns at once.
 
 The lead adapts: a poll that begins *lead_ns* ahead spins for that long less the timer's own wake-up, so the
-poll begins, instead, the timer's late wake-up (the second latest of the last :data:`LATE_SAMPLES`, ≈ p97) plus
+poll begins, instead, the timer's late wake-up (the second latest of the last :data:`LATE_SAMPLES`, about p97) plus
 :data:`LEAD_MARGIN_NS` ahead, at most *lead_ns*; a burst the reader had instead of the poll sets it back to
-*lead_ns*. At 8 ML-III stations × 250 µs that halved the spin, from 34 µs a cycle to 12–20 µs, with 99.7–99.8 % of
-the bursts read in the poll. Where the CPUs do not halt (``--realtime``'s CPU wake-up latency of 0), the timer is
-on time and the spin shrinks to the margin.
+*lead_ns*. So the spin is what the timer's lateness asks for and no more, and the bursts are still read in the
+poll (docs/performance.md, "Timer wake-up"). Where the CPUs do not halt (``--realtime``'s CPU wake-up latency of
+0), the timer is on time and the spin shrinks to the margin.
 
 The learned cycle is the median of the gaps between the last :data:`SAMPLES` bursts (reads less than
 :data:`SAME_BURST_NS` apart are one burst). With a ``max_period_ns`` (as "auto" sets) the poll is armed only while
 that cycle is at most it: at 1 ms the wake-up is a small part of the cycle, and a poll there did not lower the
 missed exchanges at 62 ML-III stations (docs/performance.md). Such a poll also stands down while the kernel holds
 the CPU wake-up latency at 0 (``mlink-sim up --realtime``, or any other holder of it; asked once a second): idle CPUs
-then poll, the timer wakes the worker on time, and at 8 ML-III × 250 µs the poll only cost CPU (22.1 against
-19.6 µs per exchange) and held the master's clock up (lateness p99 28 against 5 µs; docs/performance.md). The setting
+then poll, the timer wakes the worker on time, and the poll would only cost CPU and hold the master's clock up
+(docs/performance.md, "Timer wake-up"). The setting
 (``auto``, ``off``, a lead) is parsed by :func:`mlink_sim.config.units.parse_arrival_poll`. "auto" polls from at most
 :data:`~mlink_sim.config.units.AUTO_POLL_LEAD_NS` before the burst is due, at cycles up to
-:data:`~mlink_sim.config.units.AUTO_POLL_MAX_PERIOD_NS` (500 µs). 80 µs, because a timerfd woke the halted worker
-≈ 47 µs late: a fixed 50 µs lead had 3–23 % of the bursts read in the poll, a fixed 80 µs 99.8 %.
+:data:`~mlink_sim.config.units.AUTO_POLL_MAX_PERIOD_NS` (500 µs). 80 µs, because a timerfd wakes a halted worker
+tens of microseconds late, and the lead must cover that for the poll to read the burst (docs/performance.md,
+"Timer wake-up").
 
 Touches a timerfd and the CPU wake-up latency device (read only, :mod:`.realtime`); the socket only through the
 *read* callback its owner (the transport's batch endpoint) hands it.
@@ -52,7 +52,7 @@ __all__ = ["ArrivalPoll"]
 
 SAMPLES = 16  #: gaps between bursts from which the cycle is learned (their median)
 SAME_BURST_NS = 20_000  #: reads closer than this are one burst (the rest of a burst read a moment later)
-LATE_SAMPLES = 32  #: polls from whose timer wake-ups the lead is adapted (the second latest of them, ≈ p97)
+LATE_SAMPLES = 32  #: polls from whose timer wake-ups the lead is adapted (the second latest of them, about p97)
 LEAD_MARGIN_NS = 15_000  #: the lead: that wake-up's lateness and this much more (the shortest lead)
 #: how often a poll with a longest cycle ("auto") asks the kernel whether idle CPUs poll (its CPU wake-up latency
 #: held at 0: ``realtime.wakeup_latency_limit``); while they do, it stands down

@@ -1,9 +1,9 @@
 """Keep the garbage collector's full collections off the cycle.
 
 A full (generation 2) collection walks every object alive. In a master or slave process after start-up, that
-is tens of thousands of objects (pydantic models, construct layouts, the drive tables), and one pass took
-28–56 ms (measured with ``gc.callbacks`` in ``mlink-sim up configs/quickstart.toml``). At a 2 ms cycle that is
-15–25 cycles without a command, so every slave reported a communication alarm and tripped bUS. Freezing the
+is tens of thousands of objects (pydantic models, construct layouts, the drive tables), and one pass takes tens
+of milliseconds (docs/performance.md, "Garbage collection"): at a 2 ms cycle, many cycles without a command, so
+every slave would report a communication alarm and trip bUS. Freezing the
 start-up heap (:func:`gc.freeze`) moves those objects out of the collector's reach, and later collections only
 scan what the run itself allocates.
 
@@ -19,8 +19,9 @@ __all__ = ["settle_heap"]
 
 def settle_heap(*, collect: bool = True) -> None:
     """Collect once, then freeze everything alive: call after start-up, before the cycle starts. *collect* False
-    freezes without the collection (the virtual clock: the collection alone costs 0.10–0.16 s, a quarter of the
-    quickstart's budget; what start-up left as garbage then stays)."""
+    freezes without the collection (the virtual clock, whose quickstart runs in well under a second of wall time,
+    which the collection would take a large part of: docs/performance.md, "Garbage collection"; what start-up
+    left as garbage then stays)."""
     if collect:
         gc.collect()
     gc.freeze()

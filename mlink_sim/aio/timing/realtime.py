@@ -3,20 +3,20 @@
 Four requests, each granted or refused on its own and reported in one line:
 
 * **priority**: ``SCHED_FIFO`` for the calling thread (the event loop's), the master's clock above the slave
-  workers (:data:`MASTER_PRIORITY`, :data:`WORKER_PRIORITY`), so that ordinary processes of the host no longer
+  workers (:data:`MASTER_PRIORITY`, :data:`WORKER_PRIORITY`), so that ordinary processes of the host do not
   delay them; the kernel's RT throttling (``/proc/sys/kernel/sched_rt_runtime_us``, 95 % by default) keeps the
   machine usable even while the master spins before a deadline;
 * **memory**: ``mlockall(MCL_CURRENT | MCL_FUTURE)``, so no page fault stalls a cycle;
 * **wake-up latency**: the kernel's PM QoS request for a CPU wake-up latency of 0 µs (:func:`hold_wakeup_latency`,
   ``/dev/cpu_dma_latency``, as ``cyclictest`` does), held until the process exits: an idle CPU polls instead of
-  halting, so a datagram or a timer no longer waits for a halted CPU to wake up. On a virtual machine that wake-up
-  is the hypervisor's, and it cost the 8-station 250 µs line here ≈ 30 µs per hop and, at times, whole cycles
-  (docs/timing.md, "Real-time scheduling"). The price is power: the machine's idle CPUs spin while the network runs;
+  halting, so a datagram or a timer does not wait for a halted CPU to wake up. On a virtual machine that wake-up
+  is the hypervisor's, a large part of a short cycle's exchange (docs/timing.md, "Real-time scheduling";
+  docs/performance.md, "Timer wake-up"). The price is power: the machine's idle CPUs spin while the network runs;
 * **CPUs**: the master on a CPU of its own (the last one), the workers on the others (:func:`cpu_plan`), *only
   where the wake-up latency is held*. Apart, every command and every answer wakes the other CPU; without the hold
-  that CPU has halted, and on this VM the round trip of 62 ML-III stations rose from 252–291 to 311–332 µs (p50)
-  for an ordinary user, whom the placement is the one thing granted. Left to itself the kernel runs the master
-  and the worker it wakes on one CPU (docs/performance.md).
+  that CPU has halted, and the wake-up lengthens every round trip (docs/performance.md, "Timer wake-up"), so an
+  ordinary user, whom the placement would be the one thing granted, is not placed. Left to itself the kernel runs
+  the master and the worker it wakes on one CPU.
   The plan is made from the CPUs the process had before it first placed itself (:func:`allowed_cpus`): a session
   opened after the master took its CPU would otherwise put its workers on that same CPU, under the master's
   higher priority. CPUs the user chose (``--cpus``) are taken with or without the rest (:func:`pin`): a swarm
@@ -67,15 +67,16 @@ _UNPLACED = "CPUs left to the kernel (no wake-up latency held)"
 
 def yield_after_send() -> Callable[[], None] | None:
     """``os.sched_yield``, to be called by a process that has just sent the answers of a read and still has work
-    before it sleeps (a packed worker: its cards' :meth:`Bus.settle <mlink_sim.aio.slave.bus.Bus.settle>`, about 100 µs
-    for 62 SI-ET3 stations); ``None`` where the call does not exist.
+    before it sleeps (a packed worker: its cards' :meth:`Bus.settle <mlink_sim.aio.slave.bus.Bus.settle>`, a sizable
+    part of a 1 ms cycle for a full line); ``None`` where the call does not exist.
 
     Why: Linux wakes the reader of a local socket *synchronously* (``WF_SYNC``): the scheduler takes the waker for
     a process about to sleep and may queue the woken one behind it, on the waker's CPU. The worker does not sleep
     after its send; it settles. Without the yield the master reads its answers only after the settle, late, while
     the other CPU idles. Yielding once after the send lets the master run (or be moved) at once; where nothing else
-    waits on that CPU it returns at once (a system call, under a microsecond). Measured on a 2-vCPU machine,
-    62 ML-III × 1 ms: missed 0.75 → 0.35 %, RTT p99 744 → 426 µs (docs/performance.md). The master's clock calls
+    waits on that CPU it returns at once (a system call). Without it a line of many stations misses more
+    exchanges and its RTT tail grows (docs/performance.md, "Tried, not kept": no yield after the worker's send).
+    The master's clock calls
     it too, between two cycles of a catch-up after a stall, and the arrival poll between two empty reads, for the
     same reason (docs/timing.md, "The catch-up yields")."""
     return getattr(os, "sched_yield", None)
@@ -149,8 +150,8 @@ def unplace_child() -> None:
     """Ordinary scheduling and every CPU :func:`allowed_cpus` gives to the calling process, whatever it was
     granted: in a child between fork and exec (``preexec_fn``), and in :func:`withdraw`. A worker started by a
     master that holds SCHED_FIFO 40 on its own CPU (a restart during the run) otherwise ran its start-up there at
-    the master's priority, which the master cannot preempt: its clock stalled 170–270 ms (docs/timing.md,
-    "Real-time scheduling"). The worker then asks for its own (``mlink-sim slave --realtime --cpus``). Nothing
+    the master's priority, which the master cannot preempt: its clock stalled for the whole start-up
+    (docs/timing.md, "Real-time scheduling"; docs/performance.md, "Timer wake-up"). The worker then asks for its own (``mlink-sim slave --realtime --cpus``). Nothing
     raises (a refusal leaves what was inherited)."""
     if _allowed is None and os.sched_getscheduler(0) == os.SCHED_OTHER:
         return  # never placed: nothing to undo

@@ -82,7 +82,7 @@ def learn_wake_error(q: int, error_ns: int, cap_ns: int) -> int:
 
 
 def available_strategies() -> list[str]:
-    """Strategies usable on this machine (``"auto"`` is always accepted as well)."""
+    """Strategies the running kernel and loop offer (``"auto"`` is always accepted as well)."""
     global _timerfd_ok
     if _timerfd_ok is None:
         _timerfd_ok = timerfd_supported()

@@ -13,6 +13,7 @@ Touches: its UDP sockets (one per link and direction), a capture when given.
 from __future__ import annotations
 
 import asyncio
+import socket
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -21,6 +22,7 @@ from typing import Any
 from ..._log import get_logger
 from ...impair import Direction, ImpairmentLayer
 from ..transport.impaired import DelayLine
+from ..transport.ports import DatagramPort, PeerPort
 from ..transport.tapped import tap
 from ..transport.udp import bind_address_for, bound_socket, close_watched, resolve
 
@@ -37,8 +39,8 @@ class ProxyLink:
 
     listen: tuple[str, int]
     to: tuple[str, int]
-    down: Any = None  #: the master's side (bound to *listen*)
-    up: Any = None  #: towards the slave
+    down: PeerPort | None = None  #: the master's side (bound to *listen*)
+    up: PeerPort | None = None  #: towards the slave
     master: Any = None  #: where the last command came from: the answers go there
     counts: Counter[str] = field(default_factory=Counter)
 
@@ -69,11 +71,11 @@ class ImpairingProxy:
         try:
             for link in self.links:
                 link.to = await resolve(*link.to)
-                link.down = self._wrap(bound_socket(*link.listen))
-                link.listen = link.down.getsockname()[:2]
-                link.up = self._wrap(bound_socket(*bind_address_for([link.to])))
-                loop.add_reader(link.down.fileno(), self._from_master, link)
-                loop.add_reader(link.up.fileno(), self._from_slave, link)
+                down = link.down = self._wrap(bound_socket(*link.listen))
+                link.listen = down.getsockname()[:2]
+                up = link.up = self._wrap(bound_socket(*bind_address_for([link.to])))
+                loop.add_reader(down.fileno(), self._from_master, link)
+                loop.add_reader(up.fileno(), self._from_slave, link)
             self._line = DelayLine(loop, self._due)
         except BaseException:
             self.close()
@@ -81,7 +83,7 @@ class ImpairingProxy:
         for link in self.links:
             log.info("proxy_ready", listen=f"{link.listen[0]}:{link.listen[1]}", to=f"{link.to[0]}:{link.to[1]}")
 
-    def _wrap(self, sock: Any) -> Any:
+    def _wrap(self, sock: socket.socket) -> PeerPort:
         return sock if self.capture is None else tap(self.capture, sock)
 
     def close(self) -> None:
@@ -89,13 +91,12 @@ class ImpairingProxy:
             self._line.close()
             self._line = None
         for link in self.links:
-            for name in ("down", "up"):
-                sock = getattr(link, name)
+            for sock in (link.down, link.up):
                 if sock is not None and self._loop is not None:
                     close_watched(self._loop, sock)
                 elif sock is not None:
                     sock.close()
-                setattr(link, name, None)
+            link.down = link.up = None
 
     def totals(self) -> Counter[str]:
         out: Counter[str] = Counter()
@@ -105,20 +106,26 @@ class ImpairingProxy:
 
     # -- datagrams ----------------------------------------------------------------------------------------------
     def _from_master(self, link: ProxyLink) -> None:
-        for data, addr in self._read(link.down, link):
+        down, up = link.down, link.up
+        if down is None or up is None:
+            return  # closed
+        for data, addr in self._read(down, link):
             link.master = addr
             link.counts["to_station"] += 1
-            self._forward(link, data, Direction.TO_STATION, link.up, link.to)
+            self._forward(link, data, Direction.TO_STATION, up, link.to)
 
     def _from_slave(self, link: ProxyLink) -> None:
-        for data, _addr in self._read(link.up, link):
+        down, up = link.down, link.up
+        if down is None or up is None:
+            return  # closed
+        for data, _addr in self._read(up, link):
             link.counts["to_master"] += 1
             if link.master is None:
                 link.counts["no_master"] += 1  # an answer before any command: nowhere to send it
                 continue
-            self._forward(link, data, Direction.TO_MASTER, link.down, link.master)
+            self._forward(link, data, Direction.TO_MASTER, down, link.master)
 
-    def _read(self, sock: Any, link: ProxyLink) -> list[tuple[bytes, Any]]:
+    def _read(self, sock: PeerPort, link: ProxyLink) -> list[tuple[bytes, Any]]:
         out = []
         for _ in range(_BURST):
             try:
@@ -129,7 +136,7 @@ class ImpairingProxy:
                 link.counts["errors"] += 1
         return out
 
-    def _forward(self, link: ProxyLink, data: bytes, direction: Direction, sock: Any, addr: Any) -> None:
+    def _forward(self, link: ProxyLink, data: bytes, direction: Direction, sock: DatagramPort, addr: Any) -> None:
         layer = self.impairments
         if not layer.active:
             self._send(link, sock, data, addr)
@@ -141,7 +148,7 @@ class ImpairingProxy:
             elif self._line is not None:
                 self._line.push(now + delay, (link, sock, out, addr))
 
-    def _send(self, link: ProxyLink, sock: Any, data: bytes, addr: Any) -> None:
+    def _send(self, link: ProxyLink, sock: DatagramPort, data: bytes, addr: Any) -> None:
         try:
             sock.sendto(data, addr)
         except OSError:

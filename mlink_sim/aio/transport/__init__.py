@@ -1,4 +1,5 @@
-"""Sockets: UDP endpoints and the loop helpers (udp), the batched system calls ``sendmmsg``/``recvmmsg`` with UDP
+"""Sockets: what the layer needs of one (ports: the Protocols every socket and stand-in satisfies), UDP endpoints
+and the loop helpers (udp), the batched system calls ``sendmmsg``/``recvmmsg`` with UDP
 segmentation offload (mmsg, msghdr, gro, sendlayout), a capture's tap on them (tapped) and the impairment delay
 line in front of a socket (impaired).
 

@@ -21,6 +21,7 @@ from typing import Any
 
 from ...impair import Direction, ImpairmentLayer
 from ..timing.timerfd import TimerFD, timerfd_supported
+from .ports import DatagramPort
 
 __all__ = ["DelayLine", "ImpairedSocket"]
 
@@ -101,7 +102,7 @@ class ImpairedSocket:
     *on_error* counts a send that failed later (the master's transport errors); *on_idle* is called once every
     fault has ended and nothing is held (the master then takes its own socket back)."""
 
-    def __init__(self, sock: Any, layer: ImpairmentLayer, loop: asyncio.AbstractEventLoop, *,
+    def __init__(self, sock: DatagramPort, layer: ImpairmentLayer, loop: asyncio.AbstractEventLoop, *,
                  on_ready: Callable[[], None], on_error: Callable[[Exception], None],
                  on_idle: Callable[[], None]) -> None:
         self.sock = sock

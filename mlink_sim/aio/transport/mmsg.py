@@ -29,9 +29,9 @@ only where it must (before a device without the offload; at the receiving socket
 ``UDP_GRO``). Each datagram on a network is an
 ordinary UDP datagram. A socket that reads with ``UDP_GRO`` (:meth:`BurstSocket.enable_gro`) gets such a group as
 one buffer with its segment size, and the reads cut it again (one ``recvmmsg`` for up to four buffers, one
-``struct`` call to cut each), so every caller still sees one datagram per frame. On this 2-vCPU machine the
-kernel's path costs about 10 µs of CPU per datagram on loopback; a group of 62 costs about as much as one datagram
-(docs/performance.md). It pays where many stations share a port: the
+``struct`` call to cut each), so every caller still sees one datagram per frame. The kernel's path is paid per
+packet, not per datagram: an offloaded group costs about as much as one datagram (docs/performance.md, "Batched
+calls"). It pays where many stations share a port: the
 slave workers of ``mlink-sim up`` (``SlaveServer(shared=True)``).
 
 **One system call per burst**, whatever its size (up to 1024 messages), and one offloaded send per group of up to
@@ -71,6 +71,7 @@ from .msghdr import NAME_SIZE as _NAME_SIZE
 from .msghdr import IoVec as _IoVec
 from .msghdr import MMsgHdr as _MMsgHdr
 from .msghdr import MsgHdr as _MsgHdr
+from .ports import PeerPort
 from .sendlayout import MAX_VECTOR, Group, Layout, Shapes, encode
 
 __all__ = ["BurstSocket", "CAPACITY", "drain", "gso_supported", "supported", "wrap"]
@@ -106,7 +107,7 @@ def _kernel_has_gso() -> bool:
 _GSO_KERNEL = _kernel_has_gso()
 
 
-def wrap(sock: socket.socket, *, batched: bool = True) -> Any:
+def wrap(sock: socket.socket, *, batched: bool = True) -> PeerPort:
     """*sock* as a :class:`BurstSocket` where the batched calls are :func:`supported`, else *sock* itself.
     *batched*: False keeps *sock* itself (the per-datagram calls) where the batched ones exist too."""
     return BurstSocket(sock) if batched and supported() and sock.type == socket.SOCK_DGRAM else sock

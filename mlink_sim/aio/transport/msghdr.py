@@ -47,7 +47,8 @@ def _load() -> tuple[Any, Any] | None:
     except (OSError, AttributeError):
         return None
     # No argtypes: the arguments are Python ints (int), the header arrays themselves or byref() (pointers) and
-    # None (NULL), which ctypes passes as they are; argtypes' conversions cost ~1.5 µs per call (measured here).
+    # None (NULL), which ctypes passes as they are; argtypes' conversions would add about a microsecond to every
+    # call (docs/performance.md, "Batched calls").
     send.restype = recv.restype = ctypes.c_int
     return send, recv
 

@@ -25,6 +25,7 @@ from typing import Any
 from ...capture.tap import Sink, TappedSocket
 from . import mmsg
 from .mmsg import CAPACITY, BurstSocket
+from .ports import PeerPort
 
 __all__ = ["TappedBurstSocket", "tap"]
 
@@ -32,7 +33,7 @@ _mono = time.monotonic_ns
 _recvfrom_burst = BurstSocket.recvfrom_burst
 
 
-def tap(capture: Any, sock: socket.socket, *, batched: bool = True) -> Any:
+def tap(capture: Any, sock: socket.socket, *, batched: bool = True) -> PeerPort:
     """*sock* recording into *capture* (a :class:`~mlink_sim.capture.CaptureWriter`): the batched calls, tapped,
     where :func:`mmsg.supported <mlink_sim.aio.transport.mmsg.supported>` and *batched*; else a
     :class:`~mlink_sim.capture.tap.TappedSocket`."""

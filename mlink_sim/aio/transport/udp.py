@@ -13,6 +13,7 @@ from typing import Any
 
 from ..._log import get_logger
 from . import mmsg
+from .ports import BurstPort, DatagramPort, PeerPort, bursts
 from ..timing.arrival import ArrivalPoll
 
 __all__ = ["new_event_loop", "stop_on_signals", "DatagramEndpoint", "open_endpoint", "BatchEndpoint", "open_batch_endpoint", "loop_name",
@@ -123,7 +124,7 @@ class BindError(OSError):
         super().__init__(cause.errno, f"{reason}: {self.address}")
 
 
-def close_watched(loop: asyncio.AbstractEventLoop, sock: socket.socket) -> None:
+def close_watched(loop: asyncio.AbstractEventLoop, sock: DatagramPort) -> None:
     """Stop watching *sock* (``loop.add_reader``) and close it; a loop already closed is fine."""
     try:
         loop.remove_reader(sock.fileno())
@@ -152,8 +153,9 @@ class BatchEndpoint:
     ``sendto`` never raises: a full send buffer or an ICMP error reported on the socket is counted in
     :attr:`errors`, like :class:`DatagramEndpoint`."""
 
-    def __init__(self, sock: Any, on_batch: Callable[[list[tuple[bytes, Any]]], None], burst: int) -> None:
-        self._sock: Any = sock  #: a socket.socket, a BurstSocket (recvmmsg) or a capture's TappedSocket
+    def __init__(self, sock: PeerPort, on_batch: Callable[[list[tuple[bytes, Any]]], None], burst: int) -> None:
+        self._sock: PeerPort | None = sock  #: a socket.socket, a BurstSocket (recvmmsg) or a capture's tap
+        self._bursts: BurstPort | None = bursts(sock)  #: its batched calls, where it has them
         self._on_batch = on_batch
         self._burst = burst
         self.errors = 0
@@ -180,9 +182,10 @@ class BatchEndpoint:
         sock = self._sock
         if sock is None:
             return False
-        burst = getattr(sock, "recvfrom_burst", None)
-        if burst is not None:  # recvmmsg (mlink_sim.aio.transport.mmsg): one system call for what is waiting
-            batch = [item for got in mmsg.drain(burst, self._burst, self._count_error) for item in got]
+        bursts = self._bursts
+        if bursts is not None:  # recvmmsg (mlink_sim.aio.transport.mmsg): one system call for what is waiting
+            batch = [item for got in mmsg.drain(bursts.recvfrom_burst, self._burst, self._count_error)
+                     for item in got]
         else:
             recvfrom = sock.recvfrom
             batch = []
@@ -216,12 +219,11 @@ class BatchEndpoint:
         """Send every ``(data, addr)``: in one ``sendmmsg`` or offloaded ``sendmsg`` on a
         :class:`~mlink_sim.aio.transport.mmsg.BurstSocket`, else one ``sendto`` each; never raises (a datagram not sent
         counts in :attr:`errors`)."""
-        sock = self._sock
-        if sock is None:
+        if self._sock is None:
             return
-        send_burst = getattr(sock, "send_burst", None)
-        if send_burst is not None:
-            self.errors += len(send_burst(items))
+        bursts = self._bursts
+        if bursts is not None:
+            self.errors += len(bursts.send_burst(items))
             return
         for data, addr in items:
             self.sendto(data, addr)
@@ -230,8 +232,7 @@ class BatchEndpoint:
         """Read a peer's offloaded bursts as one buffer each
         (:meth:`mlink_sim.aio.transport.mmsg.BurstSocket.enable_gro`);
         False where the socket cannot."""
-        enable = getattr(self._sock, "enable_gro", None)
-        return bool(enable()) if enable is not None else False
+        return self._sock is not None and self._bursts is not None and self._bursts.enable_gro()
 
     @property
     def local_address(self) -> tuple[str, int]:
@@ -243,24 +244,25 @@ class BatchEndpoint:
         poll, self.poll = self.poll, None
         if poll is not None:
             poll.close()
-        sock, self._sock = self._sock, None
+        sock, self._sock, self._bursts = self._sock, None, None
         if sock is not None:
             close_watched(self._loop, sock)
 
 
 async def open_batch_endpoint(on_batch: Callable[[list[tuple[bytes, Any]]], None], host: str = "127.0.0.1",
                               port: int = 0, *, rcvbuf: int = 1 << 20, burst: int = 64,
-                              wrap: Callable[[socket.socket], Any] | None = None,
+                              wrap: Callable[[socket.socket], PeerPort] | None = None,
                               batched: bool = True) -> BatchEndpoint:
     """Bind a UDP socket on *host*:*port* (0 = any free port) and read it in batches (:class:`BatchEndpoint`).
     *wrap*: wraps the socket (a capture's tap, :func:`mlink_sim.aio.transport.tapped.tap`).
     *batched*: read with ``recvmmsg`` (:mod:`mlink_sim.aio.transport.mmsg`) where it is supported; False: never (the
     tests compare both paths that way)."""
-    sock: Any = bound_socket(host, port, rcvbuf)
+    plain = bound_socket(host, port, rcvbuf)
+    sock: PeerPort = plain
     if wrap is not None:
-        sock = wrap(sock)
+        sock = wrap(plain)
     elif batched and mmsg.supported():
-        sock = mmsg.BurstSocket(sock)
+        sock = mmsg.BurstSocket(plain)
     try:
         return BatchEndpoint(sock, on_batch, burst)
     except BaseException:

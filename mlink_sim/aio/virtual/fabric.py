@@ -8,8 +8,8 @@ A card answers at the instant a command reaches it; its :meth:`poll` runs at exa
 :meth:`next_deadline` (silence detection, the drive), where a slave process polls on a 1 ms tick. The draws
 happen in the order the datagrams are sent, which the cores fix, so a run is a pure function of config and seed.
 
-The master side is a :class:`FabricPort`, an object with the two socket methods the master's cycle uses
-(``sendto``, ``recv``), so :class:`~mlink_sim.aio.master.runner.Master` runs its own cycle code, fast path included,
+The master side is a :class:`FabricPort`, a :class:`~mlink_sim.aio.transport.ports.DatagramPort` (``sendto``,
+``recv`` and the socket's own calls: what the master's cycle uses), so :class:`~mlink_sim.aio.master.runner.Master` runs its own cycle code, fast path included,
 unchanged. Responses reach ``MasterCore.on_response`` at their arrival time: RTTs are the model's.
 
 Every datagram of a virtual run passes through here twice, so the module is compiled with the cores

@@ -134,7 +134,7 @@ def test_requests_are_read_by_the_table_and_errors_carry_their_kind():
 
     _serve({"heal": refuse, "faults": crash, "impair": impair}, scenario)
     assert seen == [{"station": 0x21, "spec": None, "loss": "5%", "burst": None, "delay": None, "jitter": None,
-                     "duplicate": None, "reorder": None, "corrupt": None, "direction": None, "for_": "2s"}]
+                     "duplicate": None, "reorder": None, "corrupt": None, "direction": None, "for_": "2000000000ns"}]
 
 
 def test_a_request_that_is_not_json_gets_a_bad_request():
