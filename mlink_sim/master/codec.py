@@ -41,7 +41,7 @@ from .commands import Cmd, cmd_of
 from .plan import StationPlan
 from .types import Control
 
-__all__ = ["Reply", "Codec", "codec_for", "compatible", "command_name"]
+__all__ = ["Reply", "Codec", "compatible", "command_name"]
 
 _NOT_CONNECTED_ML2 = {int(M2Cmd.INV_CTL), int(M2Cmd.SYNC_SET), int(M2Cmd.ALM_CLR)}
 _COMM_ALARMS_ML2 = {int(M2Alarm.WDT_ERROR), int(M2Alarm.COMM_ERROR)}
@@ -340,7 +340,3 @@ class Codec:
     def connect_refusal(reply: Reply) -> tuple[int, str] | None:
         """Why a CONNECT was refused, if it was (:attr:`Reply.connect_refusal`)."""
         return reply.connect_refusal
-
-
-def codec_for(plan: StationPlan) -> Codec:
-    return Codec(plan)

@@ -56,7 +56,6 @@ class NetworkApi:
     other fields as they were. The handlers of the network's operations (:mod:`mlink_sim.aio.control.network`) act through it."""
 
     def __init__(self, config: Config, masters: dict[Link, Any], workers: dict[int, Any]) -> None:
-        self.network_config = config
         self.masters = masters
         self.workers = workers
         # the config's validation fills every station's link in

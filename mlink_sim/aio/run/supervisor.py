@@ -17,7 +17,6 @@ import json
 import os
 import signal
 import sys
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -147,7 +146,6 @@ class Worker:
         self.restarts = 0
         self.stopping = False
         self._watch: asyncio.Task[None] | None = None
-        self.started_at = 0.0
 
     @property
     def pid(self) -> int | None:
@@ -218,7 +216,6 @@ class Worker:
             )
         finally:
             logf.close()
-        self.started_at = time.monotonic()
         assert self.proc.stdout is not None
         try:
             line = await asyncio.wait_for(self.proc.stdout.readline(), timeout)
