@@ -130,8 +130,7 @@ def _wait_script(placement: Placement) -> str:
     """A shell loop until every worker's first station answers a NOP."""
     probes = []
     for worker in placement.workers:
-        argv = worker.probe_argv()
-        argv[1] = f"{worker.reach}:{worker.ports[0]}"
+        argv = worker.probe_argv(remote=True)
         probes.append(f"until {shlex.join(argv)}; do sleep 1; done")
     return "; ".join(probes)
 
