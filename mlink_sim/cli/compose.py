@@ -16,7 +16,7 @@ from ..config import ConfigError, load_config, resolve_config_path
 from .params import Duration, Parsed
 from ..config.deploy import parse_node_address, with_node_addresses
 from ..testbed.compose import DEFAULT_IMAGE, DEFAULT_REPORT_DIR, DEFAULT_STATION_PORT, render_compose
-from ..testbed.k8s import write_k8s
+from ..testbed.k8s import REPORT_HOLD_S, write_k8s
 from ..testbed.stack import DEFAULT_RTPRIO, render_stack
 
 __all__ = ["compose_cmd"]
@@ -74,6 +74,15 @@ def _fail(message: str) -> NoReturn:
 @click.option("--no-master", "no_master", is_flag=True,
               help="With --stack: no master service; the file's header gives the `mlink-sim master` command to run "
                    "outside the swarm.")
+@click.option("--web", "web_port", type=click.IntRange(1, 65535), metavar="PORT",
+              help="With --k8s: the master serves the live page and the HTTP API on PORT of its node, with the token "
+                   "of a Secret PROJECT-token, and the master's Service has the port.")
+@click.option("--control", "control_port", type=click.IntRange(1, 65535), metavar="PORT",
+              help="With --k8s: the master answers control requests (mlink-sim status) on PORT of its node, with the "
+                   "same token, and the master's Service has the port.")
+@click.option("--report-hold", type=click.IntRange(0, 86400), default=REPORT_HOLD_S, show_default=True,
+              metavar="SECONDS", help="With --k8s: how long the master's pod keeps its report after the run, for "
+                                      "kubectl cp (0: it ends with the run).")
 @click.option("--node-address", "node_addresses", multiple=True, type=Parsed("NODE=ADDR", parse_node_address),
               help="With --stack/--k8s: the address of node NODE on this cluster, in place of the one in "
                    "[deploy.nodes] (repeatable), e.g. rack-b=10.0.0.12.")
@@ -82,6 +91,7 @@ def _fail(message: str) -> NoReturn:
 def compose_cmd(config_path: str, output: str | None, image: str, report_dir: str, port: int,
                 duration: str | None, asserts: tuple[str, ...], start_interval: bool,
                 realtime_budget: int | None, stack: bool, k8s_dir: bool, rtprio: int, no_master: bool,
+                web_port: int | None, control_port: int | None, report_hold: int,
                 node_addresses: tuple[tuple[str, str], ...], project: str | None) -> None:
     """Write a docker-compose file for the network in CONFIG: one container per slave station, a master that
     starts once every station answers its healthcheck, the config mounted read-only, the report on a volume.
@@ -91,6 +101,8 @@ def compose_cmd(config_path: str, output: str | None, image: str, report_dir: st
     for flag, given, needs in (("--start-interval", start_interval, not (stack or k8s_dir)),
                                ("--realtime-master", realtime_budget is not None, not (stack or k8s_dir)),
                                ("--rtprio", rtprio != DEFAULT_RTPRIO, stack), ("--no-master", no_master, stack),
+                               ("--web", web_port is not None, k8s_dir), ("--control", control_port is not None, k8s_dir),
+                               ("--report-hold", report_hold != REPORT_HOLD_S, k8s_dir),
                                ("--node-address", bool(node_addresses), stack or k8s_dir),
                                ("--project", project is not None, stack or k8s_dir)):
         if given and not needs:
@@ -114,14 +126,16 @@ def compose_cmd(config_path: str, output: str | None, image: str, report_dir: st
                "--port": None if port == DEFAULT_STATION_PORT else port, "--duration": duration,
                "--assert": asserts, "--start-interval": start_interval, "--realtime-master": realtime_budget,
                "--stack": stack, "--k8s": k8s_dir, "--rtprio": None if rtprio == DEFAULT_RTPRIO else rtprio,
-               "--no-master": no_master, "--node-address": tuple(f"{n}={a}" for n, a in node_addresses),
+               "--no-master": no_master, "--web": web_port, "--control": control_port,
+               "--report-hold": None if report_hold == REPORT_HOLD_S else report_hold, "--node-address": tuple(f"{n}={a}" for n, a in node_addresses),
                "--project": project}  # fmt: skip
     command = _command_line(config_path, output, options)
     try:
         if k8s_dir:
             assert output is not None
             written = write_k8s(config, config_path, output, command=command, project=project, image=image,
-                                station_port=port, duration=duration, asserts=asserts)
+                                station_port=port, duration=duration, asserts=asserts, web_port=web_port,
+                                control_port=control_port, report_hold=report_hold)
             click.echo(f"wrote {len(written)} manifest(s) into {output} (kubectl apply -f {shlex.quote(output)})",
                        err=True)
             return
