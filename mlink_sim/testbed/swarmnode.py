@@ -4,7 +4,7 @@ behind a veth pair whose link has a delay (and a loss) each way.
 ::
 
       this host (node A: the first engine, the swarm's manager)        namespace <prefix> (node B)
-      <prefix>h 198.19.254.1/30  ─── veth, the link: delay, loss ───  eth0 198.19.254.2/30
+      <prefix>h 198.19.X.Y+1/30  ─── veth, the link: delay, loss ───  eth0 198.19.X.Y+2/30
                                                                       dockerd -H unix://ROOT/docker.sock
 
 The engine has its own data root, exec root, pid file, socket, containerd namespace and cgroup parent
@@ -13,8 +13,8 @@ namespace's), and ``DOCKER_SERVICE_PREFER_OFFLINE_IMAGE=1``, so that a task runs
 (``docker save | docker -H … load``) without asking a registry first. It is started with ``nsenter --net``, not
 ``ip netns exec``, whose private mount of ``/sys`` would hide the cgroup hierarchy from it.
 
-The addresses are a /30 of 198.18.0.0/15 (RFC 2544 benchmarking, never routed) that the network-namespace
-testbed (:mod:`.netns`, 198.18.0.0/24) does not use. The link's delay: ``tc qdisc … netem delay D loss L`` on
+The addresses are a /30 of 198.19.0.0/16 (RFC 2544 benchmarking, never routed; the network-namespace testbed,
+:mod:`.netns`, uses 198.18.0.0/24), chosen by the prefix, so that two runs side by side have links of their own. The link's delay: ``tc qdisc … netem delay D loss L`` on
 both ends where the kernel has netem, else the user-space delay line (:mod:`.delayline`) on an NFQUEUE of the
 namespace, which holds every packet crossing the link either way. Which of the two carried the run is printed
 (``link=``).
@@ -30,6 +30,7 @@ without privileges.
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import json
 import os
 import re
@@ -38,6 +39,7 @@ import shutil
 import subprocess
 import sys
 import time
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,10 +48,9 @@ from ..impair.spec import parse_probability
 from ..units import format_ns, parse_duration_ns
 from .netns import list_links, list_netns, pid_alive, stop_pids
 
-__all__ = ["SecondNode", "HOST_IP", "NODE_IP", "start", "stop", "stale", "main"]
+__all__ = ["SecondNode", "NodeError", "LINK_NET", "link_up", "start", "stop", "stale", "main"]
 
-HOST_IP = "198.19.254.1"  #: node A's end of the link (the host)
-NODE_IP = "198.19.254.2"  #: node B's end (the namespace)
+LINK_NET = ipaddress.IPv4Network("198.19.0.0/16")  #: the links' /30s (RFC 2544)
 PREFIX_LEN = 30
 QUEUE = 0  #: the NFQUEUE of the delay line inside the namespace
 ENGINE_START_S = 60.0
@@ -79,6 +80,20 @@ class SecondNode:
         return self.prefix
 
     @property
+    def host_ip(self) -> str:
+        """Node A's end of the link (the host)."""
+        return str(LINK_NET[4 * self._block + 1])
+
+    @property
+    def node_ip(self) -> str:
+        """Node B's end (the namespace)."""
+        return str(LINK_NET[4 * self._block + 2])
+
+    @property
+    def _block(self) -> int:
+        return zlib.crc32(self.prefix.encode()) % (LINK_NET.num_addresses // 4)
+
+    @property
     def veth(self) -> str:
         return f"{self.prefix}h"
 
@@ -105,11 +120,11 @@ class SecondNode:
             ["ip", "netns", "add", ns],
             ["ip", "-n", ns, "link", "set", "lo", "up"],
             ["ip", "link", "add", self.veth, "type", "veth", "peer", "name", "eth0", "netns", ns],
-            ["ip", "addr", "add", f"{HOST_IP}/{PREFIX_LEN}", "dev", self.veth],
+            ["ip", "addr", "add", f"{self.host_ip}/{PREFIX_LEN}", "dev", self.veth],
             ["ip", "link", "set", self.veth, "up"],
-            ["ip", "-n", ns, "addr", "add", f"{NODE_IP}/{PREFIX_LEN}", "dev", "eth0"],
+            ["ip", "-n", ns, "addr", "add", f"{self.node_ip}/{PREFIX_LEN}", "dev", "eth0"],
             ["ip", "-n", ns, "link", "set", "eth0", "up"],
-            ["ip", "-n", ns, "route", "add", "default", "via", HOST_IP],
+            ["ip", "-n", ns, "route", "add", "default", "via", self.host_ip],
         ]
 
     def netem_commands(self) -> list[list[str]]:
@@ -199,18 +214,29 @@ def _delay_link(node: SecondNode, python: str) -> str:
     return f"delay line, {scheduling}" if scheduling else "delay line"
 
 
-def start(node: SecondNode, python: str = sys.executable) -> str:
-    """Build the node: namespace, link, its delay, the engine. The link's kind (:func:`_delay_link`)."""
-    for tool in ("ip", "nsenter", "dockerd", "docker"):
+def link_up(node: SecondNode, python: str = sys.executable) -> str:
+    """The namespace and the link with its delay (no engine yet); the link's kind (:func:`_delay_link`)."""
+    for tool in ("ip", "nsenter"):
         if shutil.which(tool) is None:
             raise NodeError(f"needs {tool} on PATH")
     if node.netns in list_netns():
         raise NodeError(f"a network namespace {node.netns} exists already")
+    taken = _run(["ip", "-o", "addr", "show", "to", f"{node.host_ip}/{PREFIX_LEN}"], check=False).stdout.strip()
+    if taken:
+        raise NodeError(f"the link's addresses {node.host_ip}/{PREFIX_LEN} are in use: {taken.split()[1]}")
     node.root.mkdir(parents=True, exist_ok=True)
-    (node.root / "daemon.json").write_text("{}\n")  # not the host's /etc/docker/daemon.json
     for argv in node.link_commands():
         _run(argv)
-    link = _delay_link(node, python)
+    return _delay_link(node, python)
+
+
+def start(node: SecondNode, python: str = sys.executable) -> str:
+    """Build the node: namespace, link, its delay, the engine. The link's kind (:func:`_delay_link`)."""
+    for tool in ("dockerd", "docker"):
+        if shutil.which(tool) is None:
+            raise NodeError(f"needs {tool} on PATH")
+    link = link_up(node, python)
+    (node.root / "daemon.json").write_text("{}\n")  # not the host's /etc/docker/daemon.json
     log = node.root / "dockerd.log"
     env = {**os.environ, "DOCKER_SERVICE_PREFER_OFFLINE_IMAGE": "1"}
     pid = _spawn(node.dockerd_argv(), log, env)
@@ -339,7 +365,7 @@ def main(argv: list[str] | None = None) -> int:
     except (NodeError, OSError, subprocess.TimeoutExpired) as exc:
         print(f"swarmnode: {exc}", file=sys.stderr)
         return 1
-    print(f"node_host={node.host}\nnode_ip={NODE_IP}\nhost_ip={HOST_IP}\nlink={shlex.quote(link)}\n"
+    print(f"node_host={node.host}\nnode_ip={node.node_ip}\nhost_ip={node.host_ip}\nlink={shlex.quote(link)}\n"
           f"link_delay={format_ns(node.delay_ns) if node.delay_ns else '0'}")
     return 0
 

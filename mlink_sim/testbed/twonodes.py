@@ -1,8 +1,8 @@
 """A config on the two nodes of ``scripts/swarm-testbed --nodes 2``, and the run's checks that only two nodes have.
 
-* ``place CONFIG OUT`` writes the config the stack is made from and prints, as shell assignments, the node label
+* ``place CONFIG OUT --prefix P`` writes the config the stack is made from and prints, as shell assignments, the node label
   and the two node names to label the engines with, and the ``mlink-sim compose`` options that give each node
-  its address on the link (:mod:`.swarmnode`). A config that places nothing gets a ``[deploy]`` of the testbed's:
+  its address on the link of the second node *P* (:mod:`.swarmnode`). A config that places nothing gets a ``[deploy]`` of the testbed's:
   the master on ``node-a`` (this host's engine) and every station, a worker of its own, on ``node-b`` (the second
   engine). A config with its own ``[deploy]`` keeps it when it names two nodes, the master's and one other: the
   master's is node A, the other node B, and ``--node-address`` gives each its address here.
@@ -28,7 +28,7 @@ from ..config import Config, ConfigError, load_config, resolve_config_path
 from ..units import format_ns, parse_duration_ns
 from . import health
 from .placement import Placement, plan
-from .swarmnode import HOST_IP, NODE_IP
+from .swarmnode import SecondNode
 
 __all__ = ["place", "remote_workers", "rtt_shows_the_link", "NODE_A", "NODE_B", "main"]
 
@@ -46,9 +46,10 @@ def _nodes(config: Config) -> set[str | None]:
             | {st.node or deploy.master.node for st in config.station if st.address not in served})  # fmt: skip
 
 
-def place(config: Config, text: str) -> tuple[str, str, str, str, list[str]]:
+def place(config: Config, text: str, host_ip: str, node_ip: str) -> tuple[str, str, str, str, list[str]]:
     """The config text for the stack, the node label, node A's and node B's label values and the ``mlink-sim
-    compose`` options for *config* (read from *text*). PlaceError when it cannot run on two nodes."""
+    compose`` options for *config* (read from *text*), node A at *host_ip* and node B at *node_ip*. PlaceError
+    when it cannot run on two nodes."""
     deploy = config.deploy
     master = deploy.master.node
     if master is None and not any(w.node for w in deploy.worker) and not any(st.node for st in config.station):
@@ -57,7 +58,7 @@ def place(config: Config, text: str) -> tuple[str, str, str, str, list[str]]:
                              "host, every station on the second node) or place the master and the stations")
         lines = [f"\n# written by scripts/swarm-testbed --nodes 2: the master on {NODE_A} (this host), every "
                  f"station on {NODE_B} (the second engine)", "[deploy]",
-                 f'nodes = {{ {NODE_A} = "{HOST_IP}", {NODE_B} = "{NODE_IP}" }}',
+                 f'nodes = {{ {NODE_A} = "{host_ip}", {NODE_B} = "{node_ip}" }}',
                  f'master = {{ node = "{NODE_A}" }}']  # fmt: skip
         for st in config.station:
             lines += ["", "[[deploy.worker]]", f"stations = [0x{st.address:02X}]", f'node = "{NODE_B}"']
@@ -67,7 +68,7 @@ def place(config: Config, text: str) -> tuple[str, str, str, str, list[str]]:
         raise PlaceError(f"it places its stations on {len(others)} node(s) besides the master's "
                          f"({', '.join(others) or 'none'}): this testbed has one, the second node")
     assert master is not None  # check_deploy: stations elsewhere need a placed master
-    options = ["--node-address", f"{master}={HOST_IP}", "--node-address", f"{others[0]}={NODE_IP}"]
+    options = ["--node-address", f"{master}={host_ip}", "--node-address", f"{others[0]}={node_ip}"]
     return text, deploy.label, master, others[0], options
 
 
@@ -102,6 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("place", help="the config for the stack, the node labels, the compose options")
     p.add_argument("config")
     p.add_argument("output", type=Path)
+    p.add_argument("--prefix", required=True, help="the second node's prefix (its link's addresses)")
     p = sub.add_parser("probe", help="a NOP from this host to every station on the second node")
     p.add_argument("config")
     p.add_argument("--port", type=int, required=True, help="the first station's UDP port")
@@ -112,7 +114,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.action == "place":
             source = Path(resolve_config_path(args.config)).read_text(encoding="utf-8")
-            text, label, node_a, node_b, options = place(_load(args.config), source)
+            link = SecondNode(args.prefix, Path("."))
+            text, label, node_a, node_b, options = place(_load(args.config), source, link.host_ip, link.node_ip)
             write_atomically(args.output, text, mode=0o644)
             print(f"node_label={shlex.quote(label)}\nnode_a={shlex.quote(node_a)}\nnode_b={shlex.quote(node_b)}\n"
                   f"place_args=({shlex.join(options)})")
