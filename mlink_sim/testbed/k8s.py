@@ -56,9 +56,10 @@ IMAGE_UID = 10001  #: the image's non-root user and group (Dockerfile)
 REPORT_HOLD_S = 600  #: how long the master's pod keeps its report after the run, for kubectl cp
 REPORT_DIR = "/reports"
 TOKEN_DIR = "/run/mlink-sim"
-#: CPU one process spends per transmission cycle, µs: its wake-ups, reads and answers (the fixed part) and each
-#: further station's exchange (docs/testbeds.md, "Kubernetes manifests", measured in the two-node swarm testbed)
-WORKER_CYCLE_US, MASTER_CYCLE_US, STATION_US = 60, 90, 4
+#: CPU one process spends per transmission cycle, µs, rounded up: a one-station slave worker and the master of
+#: three stations as the quickstart's containers used it in the two-node swarm testbed (docs/testbeds.md,
+#: "Kubernetes manifests"), and each further station's exchange (docs/performance.md: 3–4 µs per station)
+WORKER_CYCLE_US, MASTER_CYCLE_US, STATION_US = 130, 300, 4
 MIN_CPU_MILLI = 50
 _CONFIG_DIR = str(Path(CONFIG_IN_CONTAINER).parent)
 _RT_NOTE = ("Real time (the config gives its cpus): root in the container with SYS_NICE (SCHED_FIFO) and IPC_LOCK "
