@@ -6,7 +6,7 @@
   the master on ``node-a`` (this host's engine) and every station, a worker of its own, on ``node-b`` (the second
   engine). A config with its own ``[deploy]`` keeps it when it names two nodes, the master's and one other: the
   master's is node A, the other node B, and ``--node-address`` gives each its address here.
-* ``probe CONFIG`` sends every station on node B a NOP from this host, at the address the master reaches it at
+* ``probe CONFIG [--node-address NODE=ADDR …]`` sends every station on node B a NOP from this host, at the address the master reaches it at
   (the image's health probe, :mod:`.health`, from the other node): each must answer.
 * ``check REPORT --delay D`` holds when the report's RTT median is at least twice the link's delay: the
   datagrams crossed the delayed link both ways.
@@ -25,6 +25,7 @@ from pathlib import Path
 
 from .._files import write_atomically
 from ..config import Config, ConfigError, load_config, resolve_config_path
+from ..config.deploy import parse_node_address, with_node_addresses
 from ..units import format_ns, parse_duration_ns
 from . import health
 from .placement import Placement, plan
@@ -107,6 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("probe", help="a NOP from this host to every station on the second node")
     p.add_argument("config")
     p.add_argument("--port", type=int, required=True, help="the first station's UDP port")
+    p.add_argument("--node-address", action="append", default=[], metavar="NODE=ADDR",
+                   help="a node's address in place of the config's (place's options)")
     p = sub.add_parser("check", help="the report's RTT shows the link's delay")
     p.add_argument("report", type=Path)
     p.add_argument("--delay", required=True)
@@ -122,7 +125,8 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if args.action == "probe":
             failed = 0
-            for probe in remote_workers(plan(_load(args.config), args.port)):
+            config = with_node_addresses(_load(args.config), dict(map(parse_node_address, args.node_address)))
+            for probe in remote_workers(plan(config, args.port)):
                 if health.main(probe[1:]) != 0:
                     print(f"twonodes: no answer to a NOP from this host at {probe[1]}", file=sys.stderr)
                     failed += 1

@@ -80,3 +80,12 @@ def test_the_command_line(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text("[network]\n", encoding="utf-8")
     assert twonodes.main(["place", str(bad), str(out), "--prefix", "mlsw42"]) == 2
+
+
+def test_the_probe_goes_to_the_links_address_of_a_placed_config(tmp_path, monkeypatch, capsys):
+    path = tmp_path / "two.toml"
+    path.write_text(TWO_NODES, encoding="utf-8")
+    sent = []
+    monkeypatch.setattr(twonodes.health, "main", lambda argv: sent.append(argv[0]) or 0)
+    assert twonodes.main(["probe", str(path), "--port", "47001", "--node-address", f"rack-b={B}"]) == 0
+    assert sent == [f"{B}:47001"]
