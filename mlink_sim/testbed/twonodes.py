@@ -118,7 +118,11 @@ def main(argv: list[str] | None = None) -> int:
         if args.action == "place":
             source = Path(resolve_config_path(args.config)).read_text(encoding="utf-8")
             link = SecondNode(args.prefix, Path("."))
-            text, label, node_a, node_b, options = place(_load(args.config), source, link.host_ip, link.node_ip)
+            config = _load(args.config)
+            try:
+                text, label, node_a, node_b, options = place(config, source, link.host_ip, link.node_ip)
+            except PlaceError as exc:
+                raise PlaceError(f"{args.config}: {exc}") from None
             write_atomically(args.output, text, mode=0o644)
             print(f"node_label={shlex.quote(label)}\nnode_a={shlex.quote(node_a)}\nnode_b={shlex.quote(node_b)}\n"
                   f"place_args=({shlex.join(options)})")
