@@ -48,6 +48,7 @@ class Run:
     rtt_p99_ns: int | None  #: the report's rtt.p99; None without a report
     missed: int | None
     rtt_p50_ns: int | None = None  #: the report's rtt.p50
+    note: str = ""  #: the script's last line on stderr, for a run that failed or left no report
 
 
 @dataclass
@@ -82,12 +83,15 @@ def run_once(testbed: str, config: str, report: Path, timeout_s: float, extra: l
     if code == 2:
         raise SystemExit(f"testbeds: {TESTBEDS[testbed]} {' '.join(extra or [])} could not run: "
                          f"{err.strip().splitlines()[-1] if err else ''}")
+    lines = err.strip().splitlines()
+    note = lines[-1] if lines else ""
     try:
         doc: dict[str, Any] = json.loads(report.read_text(encoding="utf-8"))
         p50 = doc["rtt"].get("p50")
-        return Run(code, seconds, int(doc["rtt"]["p99"]), int(doc["missed"]), None if p50 is None else int(p50))
+        return Run(code, seconds, int(doc["rtt"]["p99"]), int(doc["missed"]), None if p50 is None else int(p50),
+                   note if code else "")  # fmt: skip
     except (OSError, ValueError, KeyError, TypeError):
-        return Run(code, seconds, None, None)
+        return Run(code, seconds, None, None, None, note)
 
 
 def _median(values: list[int]) -> str:
