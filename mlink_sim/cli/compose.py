@@ -68,7 +68,8 @@ def _fail(message: str) -> NoReturn:
                    "hosts' network, placed by node label ([deploy], a station's node), the master as a service.")
 @click.option("--k8s", "k8s_dir", is_flag=True,
               help="Write Kubernetes manifests into the directory -o DIR instead: a Deployment per slave worker, the "
-                   "master as a Job, hostNetwork, Guaranteed QoS with whole CPUs, the same placement.")
+                   "master as a Job, hostNetwork, CPU sized to each cycle (whole CPUs where the config gives cpus), the "
+                   "same placement.")
 @click.option("--rtprio", type=click.IntRange(0, 99), default=DEFAULT_RTPRIO, show_default=True,
               help="With --stack: the services' rtprio ulimit (0: none, for an engine that cannot raise it).")
 @click.option("--no-master", "no_master", is_flag=True,
