@@ -133,6 +133,7 @@ def main(argv: list[str] | None = None) -> int:
         if built.returncode != 0:
             print("testbeds: scripts/docker-build failed", file=sys.stderr)
             return 2
+    commit = _commit()  # the code that runs: the tree may move on while it does
     plan = arms(args.nodes, args.link_delay)
     sides = {name: Side(name) for name in plan}
     try:
@@ -156,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
         print(summarize(side))
     if args.json is not None:
         try:
-            meta = {"date": time.strftime("%Y-%m-%d"), "commit": _commit(), "machine": args.machine,
+            meta = {"date": time.strftime("%Y-%m-%d"), "commit": commit, "machine": args.machine,
                     "command": "python -m benchmarks.lab.testbeds " + " ".join(argv if argv is not None else sys.argv[1:]),
                     "config": args.config}  # fmt: skip
             doc = {**meta, **{n: [asdict(r) for r in s.runs] for n, s in sides.items()}}
