@@ -8,8 +8,8 @@
   master's is node A, the other node B, and ``--node-address`` gives each its address here.
 * ``probe CONFIG [--node-address NODE=ADDR …]`` sends every station on node B a NOP from this host, at the address the master reaches it at
   (the image's health probe, :mod:`.health`, from the other node): each must answer.
-* ``check REPORT --delay D`` holds when the report's RTT median is at least twice the link's delay: the
-  datagrams crossed the delayed link both ways.
+* ``check REPORT CONFIG --delay D`` holds when the RTT median of every station on node B is at least twice the
+  link's delay: its datagrams crossed the delayed link both ways.
 
 Exit codes: 0 held, 1 a check failed, 2 a usage error or a config these two nodes cannot run.
 """
@@ -22,6 +22,7 @@ import shlex
 import sys
 import tomllib
 from pathlib import Path
+from typing import Any
 
 from .._files import write_atomically
 from ..config import Config, ConfigError, load_config, resolve_config_path
@@ -31,7 +32,7 @@ from . import health
 from .placement import Placement, plan
 from .swarmnode import SecondNode
 
-__all__ = ["place", "remote_workers", "rtt_shows_the_link", "NODE_A", "NODE_B", "main"]
+__all__ = ["place", "remote_workers", "far_stations", "rtt_shows_the_link", "NODE_A", "NODE_B", "main"]
 
 NODE_A, NODE_B = "node-a", "node-b"  #: the node label values of this host's engine and the second one
 
@@ -78,17 +79,28 @@ def remote_workers(placement: Placement) -> list[list[str]]:
     return [w.probe_argv(remote=True) for w in placement.workers if w.node != placement.master_node]
 
 
-def rtt_shows_the_link(report: dict[str, object], delay_ns: int) -> tuple[bool, str]:
-    """Whether the report's RTT median is at least twice *delay_ns*, and the sentence that says so."""
-    rtt = report.get("rtt")
-    p50 = rtt.get("p50") if isinstance(rtt, dict) else None
-    if not isinstance(p50, int):
-        return False, "the report has no RTT median (rtt.p50)"
-    p99 = rtt.get("p99") if isinstance(rtt, dict) else None
-    figures = f"RTT p50 {format_ns(p50)}, p99 {format_ns(p99) if isinstance(p99, int) else '-'}"
-    if p50 >= 2 * delay_ns:
-        return True, f"{figures}: at least twice the link's delay ({format_ns(delay_ns)} each way)"
-    return False, f"{figures}: less than twice the link's delay ({format_ns(delay_ns)} each way)"
+def far_stations(placement: Placement) -> list[str]:
+    """The report's keys (``0x21``) of the stations on another node than the master's."""
+    return [f"0x{st.address:02x}" for w in placement.workers if w.node != placement.master_node for st in w.stations]
+
+
+def rtt_shows_the_link(report: dict[str, Any], delay_ns: int, stations: list[str]) -> tuple[bool, str]:
+    """Whether the RTT median of every one of *stations* (the report's keys) is at least twice *delay_ns*, and the
+    sentence that says so."""
+    per = report.get("station")
+    medians: dict[str, int] = {}
+    for key in stations:
+        rtt = per.get(key, {}).get("rtt") if isinstance(per, dict) else None
+        p50 = rtt.get("p50") if isinstance(rtt, dict) else None
+        if not isinstance(p50, int):
+            return False, f"the report has no RTT median of station {key} (station.{key}.rtt.p50)"
+        medians[key] = p50
+    if not medians:
+        return False, "no station runs on another node than the master's"
+    figures = ", ".join(f"{k[2:].upper()}H {format_ns(v)}" for k, v in medians.items())
+    if min(medians.values()) >= 2 * delay_ns:
+        return True, f"RTT p50 {figures}: each at least twice the link's delay ({format_ns(delay_ns)} each way)"
+    return False, f"RTT p50 {figures}: not each at least twice the link's delay ({format_ns(delay_ns)} each way)"
 
 
 def _load(path: str) -> Config:
@@ -110,8 +122,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--port", type=int, required=True, help="the first station's UDP port")
     p.add_argument("--node-address", action="append", default=[], metavar="NODE=ADDR",
                    help="a node's address in place of the config's (place's options)")
-    p = sub.add_parser("check", help="the report's RTT shows the link's delay")
+    p = sub.add_parser("check", help="the RTT of every station on the second node shows the link's delay")
     p.add_argument("report", type=Path)
+    p.add_argument("config")
     p.add_argument("--delay", required=True)
     args = parser.parse_args(argv)
     try:
@@ -136,7 +149,8 @@ def main(argv: list[str] | None = None) -> int:
                     failed += 1
             return 1 if failed else 0
         delay = parse_duration_ns(args.delay)
-        held, sentence = rtt_shows_the_link(json.loads(args.report.read_text(encoding="utf-8")), delay)
+        stations = far_stations(plan(_load(args.config)))
+        held, sentence = rtt_shows_the_link(json.loads(args.report.read_text(encoding="utf-8")), delay, stations)
         print(f"twonodes: {sentence}", file=sys.stderr)
         return 0 if held else 1
     except (PlaceError, ValueError) as exc:

@@ -62,11 +62,17 @@ def test_the_probe_from_the_masters_node_goes_to_each_station_elsewhere_at_its_n
     assert [p[:4] for p in probes] == [["mlink-health", "192.0.2.2:47001", "--station", "0x21"]]  # 23H is beside it
 
 
-def test_the_rtt_must_be_at_least_twice_the_delay():
-    assert rtt_shows_the_link({"rtt": {"p50": 400_000, "p99": 900_000}}, 200_000)[0]
-    held, sentence = rtt_shows_the_link({"rtt": {"p50": 399_999, "p99": 900_000}}, 200_000)
-    assert not held and "less than twice" in sentence
-    assert rtt_shows_the_link({}, 200_000) == (False, "the report has no RTT median (rtt.p50)")
+def test_the_rtt_of_every_station_on_the_second_node_must_be_at_least_twice_the_delay():
+    assert twonodes.far_stations(plan(two_nodes(), 47001)) == ["0x21", "0x22"]  # 23H is beside the master
+    report = {"station": {"0x21": {"rtt": {"p50": 400_000}}, "0x22": {"rtt": {"p50": 450_000}},
+                          "0x23": {"rtt": {"p50": 90_000}}}}  # fmt: skip
+    held, sentence = rtt_shows_the_link(report, 200_000, ["0x21", "0x22"])
+    assert held and sentence.startswith("RTT p50 21H 400us, 22H 450us: each at least twice")
+    report["station"]["0x22"]["rtt"]["p50"] = 399_999
+    assert not rtt_shows_the_link(report, 200_000, ["0x21", "0x22"])[0]
+    assert rtt_shows_the_link({}, 200_000, ["0x21"]) == (
+        False, "the report has no RTT median of station 0x21 (station.0x21.rtt.p50)")
+    assert not rtt_shows_the_link(report, 200_000, [])[0]
 
 
 def test_the_command_line(tmp_path, capsys):
@@ -74,9 +80,10 @@ def test_the_command_line(tmp_path, capsys):
     assert twonodes.main(["place", str(QUICKSTART), str(out), "--prefix", "mlsw42"]) == 0
     assert "node_a=node-a\nnode_b=node-b\n" in capsys.readouterr().out and "[deploy]" in out.read_text("utf-8")
     report = tmp_path / "report.json"
-    report.write_text(json.dumps({"rtt": {"p50": 100_000, "p99": 200_000}}), encoding="utf-8")
-    assert twonodes.main(["check", str(report), "--delay", "200us"]) == 1
-    assert "less than twice the link's delay (200us each way)" in capsys.readouterr().err
+    report.write_text(json.dumps({"station": {f"0x{a:02x}": {"rtt": {"p50": 100_000}} for a in (0x21, 0x22, 0x23)}}),
+                      encoding="utf-8")
+    assert twonodes.main(["check", str(report), str(out), "--delay", "200us"]) == 1
+    assert "not each at least twice the link's delay (200us each way)" in capsys.readouterr().err
     bad = tmp_path / "bad.toml"
     bad.write_text("[network]\n", encoding="utf-8")
     assert twonodes.main(["place", str(bad), str(out), "--prefix", "mlsw42"]) == 2
