@@ -13,9 +13,10 @@ import click
 
 from .._files import write_atomically
 from ..config import ConfigError, load_config, resolve_config_path
-from .params import Duration
+from .params import Duration, Parsed
+from ..config.deploy import parse_node_address, with_node_addresses
 from ..testbed.compose import DEFAULT_IMAGE, DEFAULT_REPORT_DIR, DEFAULT_STATION_PORT, render_compose
-from ..testbed.k8s import write_k8s
+from ..testbed.k8s import REPORT_HOLD_S, write_k8s
 from ..testbed.stack import DEFAULT_RTPRIO, render_stack
 
 __all__ = ["compose_cmd"]
@@ -67,18 +68,32 @@ def _fail(message: str) -> NoReturn:
                    "hosts' network, placed by node label ([deploy], a station's node), the master as a service.")
 @click.option("--k8s", "k8s_dir", is_flag=True,
               help="Write Kubernetes manifests into the directory -o DIR instead: a Deployment per slave worker, the "
-                   "master as a Job, hostNetwork, Guaranteed QoS with whole CPUs, the same placement.")
+                   "master as a Job, hostNetwork, CPU sized to each cycle (whole CPUs where the config gives cpus), the "
+                   "same placement.")
 @click.option("--rtprio", type=click.IntRange(0, 99), default=DEFAULT_RTPRIO, show_default=True,
               help="With --stack: the services' rtprio ulimit (0: none, for an engine that cannot raise it).")
 @click.option("--no-master", "no_master", is_flag=True,
               help="With --stack: no master service; the file's header gives the `mlink-sim master` command to run "
                    "outside the swarm.")
+@click.option("--web", "web_port", type=click.IntRange(1, 65535), metavar="PORT",
+              help="With --k8s: the master serves the live page and the HTTP API on PORT of its node, with the token "
+                   "of a Secret PROJECT-token, and the master's Service has the port.")
+@click.option("--control", "control_port", type=click.IntRange(1, 65535), metavar="PORT",
+              help="With --k8s: the master answers control requests (mlink-sim status) on PORT of its node, with the "
+                   "same token, and the master's Service has the port.")
+@click.option("--report-hold", type=click.IntRange(0, 86400), default=REPORT_HOLD_S, show_default=True,
+              metavar="SECONDS", help="With --k8s: how long the master's pod keeps its report after the run, for "
+                                      "kubectl cp (0: it ends with the run).")
+@click.option("--node-address", "node_addresses", multiple=True, type=Parsed("NODE=ADDR", parse_node_address),
+              help="With --stack/--k8s: the address of node NODE on this cluster, in place of the one in "
+                   "[deploy.nodes] (repeatable), e.g. rack-b=10.0.0.12.")
 @click.option("--project", help="With --stack/--k8s: the name of the swarm config or the Kubernetes objects' prefix "
                                 "(default: from the network's name).")
 def compose_cmd(config_path: str, output: str | None, image: str, report_dir: str, port: int,
                 duration: str | None, asserts: tuple[str, ...], start_interval: bool,
                 realtime_budget: int | None, stack: bool, k8s_dir: bool, rtprio: int, no_master: bool,
-                project: str | None) -> None:
+                web_port: int | None, control_port: int | None, report_hold: int,
+                node_addresses: tuple[tuple[str, str], ...], project: str | None) -> None:
     """Write a docker-compose file for the network in CONFIG: one container per slave station, a master that
     starts once every station answers its healthcheck, the config mounted read-only, the report on a volume.
     --stack writes a Docker Swarm stack and --k8s Kubernetes manifests for one machine or several."""
@@ -87,6 +102,9 @@ def compose_cmd(config_path: str, output: str | None, image: str, report_dir: st
     for flag, given, needs in (("--start-interval", start_interval, not (stack or k8s_dir)),
                                ("--realtime-master", realtime_budget is not None, not (stack or k8s_dir)),
                                ("--rtprio", rtprio != DEFAULT_RTPRIO, stack), ("--no-master", no_master, stack),
+                               ("--web", web_port is not None, k8s_dir), ("--control", control_port is not None, k8s_dir),
+                               ("--report-hold", report_hold != REPORT_HOLD_S, k8s_dir),
+                               ("--node-address", bool(node_addresses), stack or k8s_dir),
                                ("--project", project is not None, stack or k8s_dir)):
         if given and not needs:
             _fail(f"{flag} does not apply here (see mlink-sim compose --help)")
@@ -99,6 +117,8 @@ def compose_cmd(config_path: str, output: str | None, image: str, report_dir: st
     except ConfigError as exc:
         _fail(str(exc))
     config_path = str(resolve_config_path(config_path))  # a shipped example's name: the file it names
+    if node_addresses:
+        config = with_node_addresses(config, dict(node_addresses))
     if not report_dir.startswith("/"):
         raise click.BadParameter("must be an absolute path inside the container, e.g. /reports",
                                  param_hint="--report-dir")
@@ -107,13 +127,16 @@ def compose_cmd(config_path: str, output: str | None, image: str, report_dir: st
                "--port": None if port == DEFAULT_STATION_PORT else port, "--duration": duration,
                "--assert": asserts, "--start-interval": start_interval, "--realtime-master": realtime_budget,
                "--stack": stack, "--k8s": k8s_dir, "--rtprio": None if rtprio == DEFAULT_RTPRIO else rtprio,
-               "--no-master": no_master, "--project": project}  # fmt: skip
+               "--no-master": no_master, "--web": web_port, "--control": control_port,
+               "--report-hold": None if report_hold == REPORT_HOLD_S else report_hold, "--node-address": tuple(f"{n}={a}" for n, a in node_addresses),
+               "--project": project}  # fmt: skip
     command = _command_line(config_path, output, options)
     try:
         if k8s_dir:
             assert output is not None
             written = write_k8s(config, config_path, output, command=command, project=project, image=image,
-                                station_port=port, duration=duration, asserts=asserts)
+                                station_port=port, duration=duration, asserts=asserts, web_port=web_port,
+                                control_port=control_port, report_hold=report_hold)
             click.echo(f"wrote {len(written)} manifest(s) into {output} (kubectl apply -f {shlex.quote(output)})",
                        err=True)
             return

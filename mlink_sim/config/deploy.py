@@ -11,6 +11,7 @@ address in ``[deploy.nodes]``; each station takes commands only from the master'
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Annotated
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator
@@ -20,7 +21,8 @@ from ..units import format_cpus, parse_address, parse_cpus
 if TYPE_CHECKING:
     from .model import Config
 
-__all__ = ["DeployConfig", "DeployMaster", "DeployWorker", "NodeName", "CpuList", "check_deploy", "DEFAULT_NODE_LABEL"]
+__all__ = ["DeployConfig", "DeployMaster", "DeployWorker", "NodeName", "CpuList", "check_deploy", "DEFAULT_NODE_LABEL",
+           "parse_node_address", "with_node_addresses"]
 
 DEFAULT_NODE_LABEL = "mlink.node"
 #: a label value (Kubernetes: at most 63 characters, alphanumeric at both ends; swarm takes the same)
@@ -128,3 +130,22 @@ def check_deploy(config: Config) -> None:
         raise ValueError(f"deploy.nodes: no address for node {', '.join(dict.fromkeys(missing))} (the master and "
                          "the stations on other nodes reach each other there), e.g. "
                          f"nodes = {{ {missing[0]} = \"192.0.2.10\" }}")
+
+
+def parse_node_address(text: str) -> tuple[str, str]:
+    """``rack-b=192.0.2.2`` -> ``("rack-b", "192.0.2.2")`` (``mlink-sim compose --node-address``); ValueError with
+    a one-line reason otherwise."""
+    node, sep, address = (part.strip() for part in text.partition("="))
+    if not sep or not node or not address:
+        raise ValueError(f"expected NODE=ADDRESS such as rack-b=192.0.2.2, got {text!r}")
+    _node(node)
+    if not _HOST.fullmatch(address):
+        raise ValueError(f"{node}: expected a host name or IP address, got {address!r}")
+    return node, address
+
+
+def with_node_addresses(config: Config, addresses: Mapping[str, str]) -> Config:
+    """*config* with ``[deploy.nodes]`` entries set or replaced by *addresses* (the same placement on a cluster
+    whose nodes have other addresses)."""
+    deploy = config.deploy.model_copy(update={"nodes": {**config.deploy.nodes, **addresses}})
+    return config.model_copy(update={"deploy": deploy})

@@ -14,7 +14,8 @@ The layout (docs/testbeds.md):
 * ``master`` – ``mlink-sim master /config/network.toml --endpoint 0x21=station-21:PORT … --report
   /reports/report.json --no-status``, started only once every station is healthy (``depends_on`` with
   ``condition: service_healthy``), never restarted.
-* the config file bind-mounted read-only into every container, the report on the named volume ``reports``,
+* the config file bind-mounted read-only into every container (:func:`config_source_for`: relative to the
+  file's directory when the config lies under it, else absolute), the report on the named volume ``reports``,
   every service on the user-defined bridge network ``mlink``.
 
 A station's ``endpoint`` in the config is not used: inside its container every station listens on
@@ -149,8 +150,7 @@ def compose_document(
 ) -> dict[str, Any]:
     """The Compose document for *config*.
 
-    *config_source* is the config file's path as the compose file sees it (relative paths are relative to the
-    compose file's directory); *duration* and *asserts* are passed to ``mlink-sim master`` unchanged;
+    *config_source* is the config file's path as the compose file names it (:func:`config_source_for`); *duration* and *asserts* are passed to ``mlink-sim master`` unchanged;
     *start_interval* chooses :data:`HEALTH_START` over :data:`HEALTH_PORTABLE`; *realtime_budget_us* set, the
     master's container may use SCHED_FIFO (:func:`_realtime_master`).
     """
@@ -229,16 +229,20 @@ def to_yaml(document: dict[str, Any], header: str = "") -> str:
 
 
 def config_source_for(config_path: str | Path, output_path: str | Path | None) -> str:
-    """The config's path relative to the compose file's directory (cwd for stdout), ``./``-prefixed."""
+    """The config's path as the compose or stack file names it: ``./``-relative when the config lies in the file's
+    directory or below it (Compose and ``docker stack deploy`` resolve it from the file's directory, so the file
+    runs from any working directory, and moves with its folder), else absolute (a config elsewhere, or a file
+    written to stdout, whose directory is not known)."""
     # abspath, not resolve(): a path through a link (configs/ → mlink_sim/examples/) stays as the user wrote it
-    base = Path(os.path.abspath(output_path)).parent if output_path is not None else Path.cwd()
     target = Path(os.path.abspath(config_path))
+    if output_path is None or str(output_path) == "-":
+        return target.as_posix()
+    base = Path(os.path.abspath(output_path)).parent
     try:
-        rel = os.path.relpath(target, base)
+        rel = Path(os.path.relpath(target, base)).as_posix()
     except ValueError:  # pragma: no cover - different drives (Windows)
         return target.as_posix()
-    rel = Path(rel).as_posix()
-    return rel if rel.startswith("../") else f"./{rel}"
+    return target.as_posix() if rel.startswith("../") else f"./{rel}"
 
 
 def render_compose(

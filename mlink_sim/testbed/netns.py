@@ -42,7 +42,7 @@ from ..aio.run.supervisor import die_with_parent
 from . import firewall
 
 __all__ = ["Node", "Plan", "make_plan", "check_prefix", "cleanup", "stale_prefixes", "Testbed", "TestbedError",
-           "main", "DEFAULT_PORT", "SUBNET"]
+           "main", "DEFAULT_PORT", "SUBNET", "list_netns", "list_links", "pid_alive", "stop_pids"]
 
 SUBNET = "198.18.0"  #: a /24 inside 198.18.0.0/15 (RFC 2544); every testbed has its own bridge, so runs may overlap
 PREFIX_LEN = 24
@@ -197,7 +197,7 @@ def _ours(prefix: str) -> tuple[re.Pattern[str], re.Pattern[str]]:
     return re.compile(rf"^{p}-(m|s[0-9a-f]+)$"), re.compile(rf"^{p}(br|h\d+)$")
 
 
-def _pid_alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -212,17 +212,17 @@ def stale_prefixes(ip: str = "ip") -> list[str]:
     found = set()
     for name in [*list_netns(ip), *list_links(ip)]:
         m = _DEFAULT_FAMILY.match(name)
-        if m and not _pid_alive(int(m.group(2))):
+        if m and not pid_alive(int(m.group(2))):
             found.add(m.group(1))
     return sorted(found)
 
 
-def _stop_pids(pids: list[int], grace: float = 2.0) -> None:
+def stop_pids(pids: list[int], grace: float = 2.0) -> None:
     for pid in pids:
         with contextlib.suppress(ProcessLookupError):
             os.kill(pid, signal.SIGTERM)
     end = time.monotonic() + grace
-    while time.monotonic() < end and any(_pid_alive(p) for p in pids):
+    while time.monotonic() < end and any(pid_alive(p) for p in pids):
         time.sleep(0.05)
     for pid in pids:
         with contextlib.suppress(ProcessLookupError):
@@ -242,7 +242,7 @@ def cleanup(prefix: str, ip: str = "ip") -> list[str]:
             continue
         pids = [int(p) for p in _ip(ip, "netns", "pids", ns).stdout.split() if p.isdigit()]
         if pids:
-            _stop_pids(pids)
+            stop_pids(pids)
         if _ip(ip, "netns", "del", ns).returncode == 0:
             removed.append(ns)
     for name in list_links(ip):  # veths whose namespace end is gone are gone too; the bridge remains

@@ -46,9 +46,13 @@ class WorkerPlacement:
         argv += ["--allow-master", self.allow_master, "--log-json", *config.network.slave_flags(), "--realtime"]
         return argv + (["--cpus", self.cpus] if self.cpus else [])
 
-    def probe_argv(self) -> list[str]:
-        """The health probe of this worker: a NOP to its first station (one process serves them all)."""
-        return probe_argv(self.stations[0], self.ports[0])
+    def probe_argv(self, *, remote: bool = False) -> list[str]:
+        """The health probe of this worker: a NOP to its first station (one process serves them all), on its own
+        node (127.0.0.1) or, *remote*, from the master's node (the address the master reaches it at)."""
+        argv = probe_argv(self.stations[0], self.ports[0])
+        if remote:
+            argv[1] = f"{self.reach}:{self.ports[0]}"
+        return argv
 
     def endpoints(self) -> list[str]:
         """``--endpoint`` values of the master for this worker's stations: ``0x21=HOST:PORT``."""

@@ -47,6 +47,8 @@ def test_help_exits_0(name):
         ("swarm-testbed", ["configs/quickstart.toml", "--bogus"], "unknown option: --bogus"),
         ("swarm-testbed", ["configs/quickstart.toml", "--port", "high"], "whole numbers"),
         ("swarm-testbed", ["no/such.toml"], "cannot read no/such.toml"),
+        ("swarm-testbed", ["configs/quickstart.toml", "--nodes", "3"], "--nodes is 1 or 2, got 3"),
+        ("swarm-testbed", ["configs/quickstart.toml", "--link-delay", "1ms"], "--link-delay and --link-loss need --nodes 2"),
         ("docker-build", ["--bogus"], "unknown option: --bogus"),
         ("docker-base", ["--bogus"], "unknown option: --bogus"),
     ],
@@ -74,3 +76,17 @@ def test_swarm_testbed_refuses_a_config_placed_on_other_nodes(tmp_path):
     result = _run("swarm-testbed", str(placed))
     assert result.returncode == 2, result.stderr
     assert "places its processes on node(s) plc" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_swarm_testbed_on_two_nodes_refuses_a_config_placed_on_three(tmp_path):
+    """Two nodes: the master's and one other; a config that needs more is refused before anything starts."""
+    if os.geteuid() != 0:
+        pytest.skip("--nodes 2 needs root (it says so and exits 2 first)")
+    placed = tmp_path / "three.toml"
+    placed.write_text((ROOT / "configs" / "quickstart.toml").read_text(encoding="utf-8")
+                      + '\n[deploy]\nnodes = { a = "192.0.2.1", b = "192.0.2.2", c = "192.0.2.3" }\n'
+                      'master = { node = "a" }\n[[deploy.worker]]\nstations = [0x21]\nnode = "b"\n'
+                      '[[deploy.worker]]\nstations = [0x22]\nnode = "c"\n', encoding="utf-8")
+    result = _run("swarm-testbed", "--nodes", "2", str(placed))
+    assert result.returncode == 2, result.stderr
+    assert "2 node(s) besides the master's (b, c)" in result.stderr and len(result.stderr.strip().splitlines()) == 1

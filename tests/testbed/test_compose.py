@@ -220,13 +220,36 @@ def test_bad_options_are_value_errors():
         compose_document(config, report_dir="reports")
 
 
-def test_config_source_is_relative_to_the_compose_file(tmp_path):
+def test_config_source_is_relative_under_the_compose_files_directory_else_absolute(tmp_path):
     (tmp_path / "configs").mkdir()
     cfg = tmp_path / "configs" / "n.toml"
     cfg.touch()
     assert config_source_for(cfg, tmp_path / "compose.yaml") == "./configs/n.toml"
     (tmp_path / "out").mkdir()
-    assert config_source_for(cfg, tmp_path / "out" / "compose.yaml") == "../configs/n.toml"
+    assert config_source_for(cfg, tmp_path / "out" / "compose.yaml") == str(cfg)  # not ../: absolute
+    assert config_source_for(cfg, None) == str(cfg)  # stdout: where it lands is not known
+
+
+def test_a_compose_file_runs_from_any_directory(tmp_path, monkeypatch):
+    """The file written to stdout and saved elsewhere, read by Compose from another working directory: the config's
+    mount still names the config."""
+    cfg = tmp_path / "configs" / "n.toml"
+    cfg.parent.mkdir()
+    cfg.write_text(QUICKSTART.read_text(encoding="utf-8"), encoding="utf-8")
+    monkeypatch.chdir(tmp_path / "configs")
+    r = CliRunner().invoke(compose_cmd, ["n.toml"])
+    assert r.exit_code == 0, r.output
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "elsewhere" / "compose.yaml").write_text(r.output, encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    doc = yaml.safe_load(r.output)
+    assert doc["services"]["master"]["volumes"][0]["source"] == str(cfg)
+    compose = shutil.which("docker-compose")
+    if compose is None:
+        return
+    out = subprocess.run([compose, "-f", "elsewhere/compose.yaml", "config"], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert yaml.safe_load(out.stdout)["services"]["master"]["volumes"][0]["source"] == str(cfg)
 
 
 def test_checked_in_docker_compose_yml_is_up_to_date():
@@ -282,7 +305,7 @@ def test_cli_writes_stdout(monkeypatch):
     result = CliRunner().invoke(compose_cmd, ["configs/quickstart.toml"])
     assert result.exit_code == 0, result.output
     doc = yaml.safe_load(result.output)
-    assert doc["services"]["station-21"]["volumes"][0]["source"] == "./configs/quickstart.toml"
+    assert doc["services"]["station-21"]["volumes"][0]["source"] == str(REPO / "configs" / "quickstart.toml")
 
 
 def test_cli_regenerates_the_checked_in_file_byte_for_byte(monkeypatch, tmp_path):
