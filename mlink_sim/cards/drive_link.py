@@ -133,11 +133,6 @@ class DriveLink:
     def settings(self) -> DriveSettings:
         return self.drive.settings
 
-    @property
-    def run_commanded(self) -> bool:
-        c = self.drive.command_in_effect
-        return c.forward or c.reverse
-
     def fault_code(self, fault: Fault | None) -> int:
         return fault_code(self.family, fault)
 

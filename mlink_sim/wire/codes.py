@@ -187,10 +187,6 @@ class CommAlm(enum.IntEnum):
     SYNC_INTERVAL_ERROR = 0xB
     WDT_ERROR = 0xC
 
-    @property
-    def is_alarm(self) -> bool:
-        return self >= 0x8
-
 
 class SubCmdAlm(enum.IntEnum):
     """MECHATROLINK-III SUBCMD_ALM, SUB_STAT bits 8–11 (SI-ET3 Table 25)."""
