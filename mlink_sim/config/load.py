@@ -10,7 +10,7 @@ from pydantic import ValidationError
 
 from ..examples import example_names, example_path
 from ..params import FAMILIES, ParamError
-from .model import CARD_FAMILY, Config
+from .model import Config
 
 __all__ = ["ConfigError", "load_config", "parse_config", "resolve_config_path", "station_param_assignments"]
 
@@ -57,7 +57,7 @@ def station_param_assignments(config: Config) -> dict[int, list[str]]:
 def _check_params(source: str, config: Config) -> None:
     problems = []
     for i, st in enumerate(config.station):
-        table = FAMILIES[CARD_FAMILY[st.card]]
+        table = FAMILIES[st.profile.family]
         for text in station_param_assignments(config)[st.address]:
             try:
                 table.parse_assignment(text)
@@ -71,7 +71,7 @@ def _check_params(source: str, config: Config) -> None:
         targets = config.station if step.station == "all" else [config.station_by_address(step.station)]
         for st in targets:
             try:
-                FAMILIES[CARD_FAMILY[st.card]].parse_assignment(f"{step.param}={step.value}")
+                FAMILIES[st.profile.family].parse_assignment(f"{step.param}={step.value}")
             except ParamError as exc:
                 problems.append(f"{source}: timeline[{i}].param: {exc} (station {st.address:02X}H, {st.card})")
                 break

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..profiles import CardProfile, lookup
 from ..wire import ConnectVersion, Link, M2ComMod, M3ComMod, PROFILE_TYPE_INVERTER
 
 __all__ = ["StationPlan", "NetworkPlan", "TCYCLE_RANGE_NS"]
@@ -64,8 +65,10 @@ class StationPlan:
     """Informational label used in logs and views."""
 
     card: str = ""
-    """Informational card name ("si-t3", "si-et3", "si-t/v7"); picks the drive alarm-code table for names and
-    routes PRM_RD/PRM_WR to the sub-command on a 32-byte SI-T/V7 (V7 §7.1 PRM_RD note)."""
+    """The station's card, any spelling of a registered one (read as its key, "si-t-v7"; :mod:`mlink_sim.profiles`);
+    "" = not known. Its profile picks the drive code tables for names, the parameter table, the combination table,
+    the motor speed monitor and where PRM_RD/PRM_WR go (a 32-byte SI-T/V7 takes them only as sub-commands, V7
+    §7.1)."""
 
     et3_syncmode_table19: bool = False
     """ML-III only. SI-ET3 Table 19 reads COM_MOD.SYNCMODE 0 = synchronous, 1 = asynchronous – the reverse of
@@ -94,6 +97,8 @@ class StationPlan:
     def __post_init__(self) -> None:
         link = Link(self.link)
         object.__setattr__(self, "link", link)
+        if self.card:
+            object.__setattr__(self, "card", lookup(self.card).key)  # ValueError listing the cards
         if not 0 <= self.address <= 0xFF:
             raise ValueError(f"station address {self.address} does not fit one byte (0–255)")
         size = self.data_size or _DEFAULT_SIZE[link]
@@ -139,8 +144,16 @@ class StationPlan:
         return self.data_size == (32 if self.link is not Link.ML3 else 64)
 
     @property
-    def is_v7(self) -> bool:
-        return "".join(ch for ch in self.card.lower() if ch.isalnum()) == "sitv7"
+    def profile(self) -> CardProfile | None:
+        """The profile of the card the plan names (:mod:`mlink_sim.profiles`), None when it names none. Looked up by
+        name: read it once, where a station's codec or record is made."""
+        return lookup(self.card) if self.card else None
+
+    @property
+    def family(self) -> str:
+        """The drive family of its card ("a1000", "v7"); a plan that names no card is read by the rules every
+        MECHATROLINK-II card shares and the A1000 family's drive codes (SI-T3 Tables 26/27)."""
+        return lookup(self.card).family if self.card else "a1000"
 
     @property
     def label(self) -> str:

@@ -16,7 +16,7 @@ from typing import Any, Protocol
 
 
 from ..._log import get_logger
-from ...config import CARD_FAMILY, Config, StationConfig, TimelineStep
+from ...config import Config, StationConfig, TimelineStep
 from ...config.faults import step_fault
 from ...faults.spec import FAULT_ACTIONS
 from ...drive import DriveSettings, Family
@@ -51,7 +51,7 @@ class SpeedScale:
 
 def station_values(st: StationConfig) -> dict[str, int]:
     """The station's parameter set: family defaults with the config's assignments applied (raw values)."""
-    table = FAMILIES[CARD_FAMILY[st.card]]
+    table = FAMILIES[st.profile.family]
     values = table.defaults()
     for name, value in st.params.items():
         param, raw = table.parse_assignment(f"{name}={value}")
@@ -61,7 +61,7 @@ def station_values(st: StationConfig) -> dict[str, int]:
 
 def drive_settings(st: StationConfig) -> DriveSettings:
     """The station's drive settings as its parameters make them (about a millisecond: not in the cycle)."""
-    return DriveSettings.from_params(Family(CARD_FAMILY[st.card]), station_values(st))
+    return DriveSettings.from_params(Family(st.profile.family), station_values(st))
 
 
 def speed_scale(st: StationConfig) -> SpeedScale:
@@ -300,7 +300,7 @@ class Scenario:
             net.set_control(address, forward=False, reverse=False)
         elif step.do == "set-param":
             st = self.config.station_by_address(address)
-            param, raw = FAMILIES[CARD_FAMILY[st.card]].parse_assignment(f"{step.param}={step.value}")
+            param, raw = FAMILIES[st.profile.family].parse_assignment(f"{step.param}={step.value}")
             await net.prm_wr(address, param.register, param.encode(raw))
             await net.config(address, 0)
             self.values_of(address)[param.name] = raw
