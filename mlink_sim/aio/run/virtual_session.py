@@ -113,7 +113,7 @@ class _VirtualWorker:
     def activity(self) -> Any:
         """The station's ``Drive.activity()`` (None while it is down), read on the card core itself."""
         station = self.session.fabric.station(self.address)
-        return None if station is None else station.drive.drive.activity()
+        return None if station is None else station.drive_activity()
 
 
 class VirtualSession(NetworkSession):
