@@ -85,20 +85,16 @@ def _card(value: Any) -> str:
     return lookup(value).key
 
 
-class _RegisteredCards:
+def _registered_cards(schema: dict[str, Any]) -> None:
     """The JSON schema of a card field: the cards registered when the schema is made (:mod:`mlink_sim.profiles`)."""
-
-    def __get_pydantic_json_schema__(self, schema: Any, handler: Any) -> dict[str, Any]:
-        out = dict(handler(schema))
-        cards = profiles()
-        out["enum"] = [p.key for p in cards]
-        out["description"] = "option card: " + ", ".join(f"{p.key} ({p.label})" for p in cards)
-        return out
+    cards = profiles()
+    schema["enum"] = [p.key for p in cards]
+    schema["description"] = "option card, by its key: " + ", ".join(f"{p.key} ({p.label})" for p in cards)
 
 
 Address = Annotated[int, BeforeValidator(parse_address)]
 #: A station's ``card``: the key of a registered card (any spelling of one is read as its key).
-CardKey = Annotated[str, BeforeValidator(_card), _RegisteredCards()]
+CardKey = Annotated[str, BeforeValidator(_card)]
 DurationNs = Annotated[int, BeforeValidator(_duration)]
 LinkField = Annotated[Link, BeforeValidator(_link)]
 
@@ -194,7 +190,7 @@ class StationConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     address: Address = Field(description="station address, e.g. 0x21 (F6-20 / V7 switches S1-3 + S2)")
-    card: CardKey = Field(description="option card: its key (si-t3, si-et3, si-t-v7 and any registered card)")
+    card: CardKey = Field(description="option card, by its key", json_schema_extra=_registered_cards)
     link: LinkField | None = Field(
         None, description="ML1/ML2/ML3 for this station (default: network.link, else the card's own: ML3 for si-et3, "
         "ML2 for si-t3 and si-t-v7)"

@@ -72,6 +72,13 @@ def test_registered_it_is_looked_up_and_created_in_any_spelling(card: CardProfil
     assert station.snapshot().card == "si-t3-lab"
 
 
+def test_the_config_schema_and_the_card_option_list_it(card: CardProfile) -> None:
+    from mlink_sim.config import StationConfig
+
+    assert "si-t3-lab" in StationConfig.model_json_schema()["properties"]["card"]["enum"]
+    assert "si-t3-lab" in CliRunner().invoke(cli, ["slave", "--card", "nope", "--station", "22H"]).output
+
+
 def test_validate_reads_its_links_and_addresses_from_the_record(card: CardProfile, tmp_path: Path) -> None:
     runner = CliRunner()
     result = runner.invoke(cli, ["validate", _config(tmp_path)])
