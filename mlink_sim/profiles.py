@@ -66,7 +66,8 @@ class CardProfile:
     #: address, frame size and link speed are set by switches (a DIP switch and a rotary switch), not by the
     #: F6-20/F6-21/F6-22 parameters
     set_by_switches: bool = False
-    #: field name -> where the manual says it: "frames", "addresses", "motor_speed" and each behaviour flag set
+    #: field name -> where the manual says it: "frames", "addresses", "motor_speed" and each behaviour flag set;
+    #: "frames ML1" (a link's name) where a link carries fewer sizes than the others
     sources: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -120,6 +121,7 @@ BUILTIN: tuple[CardProfile, ...] = (
         sources={
             "frames": "SI-T3 Table 4 F6-21 (0 = 32-byte) and F6-22 (0 = 10 Mbps MECHATROLINK-II), the defaults; "
                       "MECHATROLINK-I carries 17-byte frames only (SI-T3 Table 29 note <3>)",
+            "frames ML1": "SI-T3 Table 29 note <3>",
             "addresses": "SI-T3 Table 4 F6-20: 21H–3EH (20H and 3FH raise AEr)",
             "motor_speed": "SI-T3 Table 18: SEL_MON 1 is U1-05 motor speed",
         },
@@ -144,6 +146,7 @@ BUILTIN: tuple[CardProfile, ...] = (
         sources={
             "frames": "V7 §3.4 S1-1 (ON = 10 Mbps MECHATROLINK-II) and S1-2 (ON = 32-byte), the factory settings; "
                       "MECHATROLINK-I carries 17-byte frames only (S1-1 note)",
+            "frames ML1": "V7 §3.4 S1-1 note",
             "addresses": "V7 §3.4 S1-3 and S2: 21H–3EH (20H and 3FH raise AEr)",
             "motor_speed": "V7 Table 5: SEL_MON 1 is the output frequency U-02; no code selects the motor speed",
             "prm_as_subcommand": "V7 §7.1, PRM_RD: \"can be used only in a sub-command\"",

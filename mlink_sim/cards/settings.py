@@ -19,7 +19,7 @@ from types import MappingProxyType
 from typing import Any
 
 from mlink_sim.params import ParamError, for_card
-from mlink_sim.profiles import lookup
+from mlink_sim.profiles import CardProfile, lookup
 from mlink_sim.wire import Link
 
 __all__ = ["CardOptions", "CardSettings", "settings_for"]
@@ -88,6 +88,13 @@ def _sizes(sizes: tuple[int, ...]) -> str:
     return " or ".join(map(str, sizes))
 
 
+def _only(profile: CardProfile, link: Link) -> str:
+    """"MECHATROLINK-I (4 Mbps) carries 17-byte frames only (SI-T3 Table 29 note <3>)"."""
+    source = profile.sources.get(f"frames {link.name}")
+    return (f"{link.label} ({link.speed_mbps} Mbps) carries {_sizes(profile.frames[link.name])}-byte frames only"
+            + (f" ({source})" if source else ""))
+
+
 def settings_for(
     card: str,
     station: int,
@@ -138,8 +145,7 @@ def settings_for(
             raise ValueError(f"{label}: frame size {frame_size} is not possible (S1-2 selects {_sizes(every)} bytes)")
         sizes = profile.frames[link.name]
         if frame_size is not None and frame_size not in sizes:
-            raise ValueError(f"{label}: {link.label} ({link.speed_mbps} Mbps) carries {_sizes(sizes)}-byte frames "
-                             f"only (S1-1)")
+            raise ValueError(f"{label}: {_only(profile, link)}")
         size = sizes[0] if frame_size is None and link is not links[0] else frame_size or default_sizes[0]
         return CardSettings(params, s1_1_10mbps=link is links[0], s1_2_32byte=size == default_sizes[0],
                             station=station, load=load, options=opts)
@@ -162,8 +168,7 @@ def settings_for(
         f6_21 = params.get("F6-21", table.by_name("F6-21").default)
         f6_22 = params.get("F6-22", table.by_name("F6-22").default)
         link, size = links[f6_22], default_sizes[f6_21]
-        sizes = profile.frames[link.name]
-        if size not in sizes:
-            raise ValueError(f"{label}: {link.label} (F6-22 = {f6_22}, {link.speed_mbps} Mbps) carries "
-                             f"{_sizes(sizes)}-byte frames only; use --frame-size {sizes[0]}")
+        if size not in profile.frames[link.name]:
+            raise ValueError(f"{label}: with F6-22 = {f6_22}, {_only(profile, link)}; use --frame-size "
+                             f"{profile.frames[link.name][0]}")
     return CardSettings(params, load=load, options=opts)
