@@ -125,3 +125,17 @@ def test_its_manual_is_one_of_the_manuals(profile: CardProfile) -> None:
         pytest.skip(f"manuals not available: {MANUALS}")
     name = profile.manual.replace("/", "-").replace(" ", "_") + ".txt"
     assert (MANUALS / name).is_file(), name
+
+
+def test_the_defaults_of_a_card_follow_its_record(registry: None) -> None:
+    """A card whose factory setting is 17-byte on MECHATROLINK-II: the master's plan and the config take it."""
+    from mlink_sim.config import parse_config
+    from mlink_sim.master import StationPlan
+
+    register(dataclasses.replace(lookup("si-t3"), key="si-t3-17", label="SI-T3/17", frames={"ML2": (17, 32)}))
+    assert StationPlan(0x21, Link.ML2, card="SI-T3/17").data_size == 17
+    assert StationPlan(0x21, Link.ML2, card="si-t3").data_size == 32 == StationPlan(0x21, Link.ML2).data_size
+    config = parse_config('[network]\ntransmission_cycle = "2ms"\n[[station]]\naddress = 0x21\ncard = "si-t3-17"\n')
+    assert (config.station[0].link, config.station[0].frame_size) == (Link.ML2, 17)
+    with pytest.raises(ValueError, match="unknown option card 'si-x9'"):
+        StationPlan(0x21, Link.ML2, card="si-x9")

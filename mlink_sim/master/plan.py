@@ -48,8 +48,9 @@ class StationPlan:
     """Generation of the network; must equal :attr:`NetworkPlan.link`."""
 
     data_size: int = 0
-    """Frame data size: 17 (ML-I), 17/32 (ML-II), 32/64 (ML-III). 0 = the card's factory setting: 17 on ML-I,
-    32 on ML-II (SI-T3 F6-21 = 0), 64 on ML-III (SI-ET3 Table 7, F6-21 default 0 = 64-byte)."""
+    """Frame data size: 17 (ML-I), 17/32 (ML-II), 32/64 (ML-III). 0 = the card's factory setting (its profile's
+    first size on the link); without a card named, 17 on ML-I, 32 on ML-II (SI-T3 F6-21 = 0), 64 on ML-III (SI-ET3
+    Table 7, F6-21 default 0 = 64-byte)."""
 
     com_tim: int = 0
     """CONNECT COM_TIM. ML-II/III: communication cycle in transmission cycles (1–32 / 1–255); ML-I: milliseconds
@@ -97,11 +98,14 @@ class StationPlan:
     def __post_init__(self) -> None:
         link = Link(self.link)
         object.__setattr__(self, "link", link)
+        sizes: tuple[int, ...] = ()
         if self.card:
-            object.__setattr__(self, "card", lookup(self.card).key)  # ValueError listing the cards
+            profile = lookup(self.card)  # ValueError listing the cards
+            object.__setattr__(self, "card", profile.key)
+            sizes = profile.frames.get(link.name, ())
         if not 0 <= self.address <= 0xFF:
             raise ValueError(f"station address {self.address} does not fit one byte (0–255)")
-        size = self.data_size or _DEFAULT_SIZE[link]
+        size = self.data_size or (sizes[0] if sizes else _DEFAULT_SIZE[link])
         object.__setattr__(self, "data_size", size)
         if size not in link.data_sizes:
             allowed = " or ".join(map(str, link.data_sizes))
