@@ -1,10 +1,11 @@
 """Build of mlink-sim: the metadata is in pyproject.toml; this file adds the optional compiled cores.
 
-The sans-I/O cores' hot modules (:data:`mlink_sim._accel.COMPILED_MODULES`) are compiled with mypyc, as
-written, from their type annotations (docs/performance.md, "Compiled cores"). Each compiled module is an
-extension module next to its ``.py`` file; the ``.py`` stays the one source and the pure-Python fallback. The
-hand-written C modules (:data:`mlink_sim._accel.C_EXTENSIONS`, e.g. the FCS in mlink_sim/wire/_fcsc.c) are built
-with them; the module that uses one keeps Python functions for the same work.
+The sans-I/O cores' hot modules (:data:`mlink_sim._accel.COMPILED_MODULES`: its ``CORE_MODULES``, read from
+mlink_sim/_accel.py by its syntax tree, and the cards' station modules, read from mlink_sim/profiles.py) are
+compiled with mypyc, as written, from their type annotations (docs/performance.md, "Compiled cores"). Each
+compiled module is an extension module next to its ``.py`` file; the ``.py`` stays the one source and the
+pure-Python fallback. The hand-written C modules (:data:`mlink_sim._accel.C_EXTENSIONS`, e.g. the FCS in
+mlink_sim/wire/_fcsc.c) are built with them; the module that uses one keeps Python functions for the same work.
 
 Without a C compiler (or mypy), or with ``MLINK_BUILD_PURE=1``, the install goes on without the extensions and
 says so; the package then runs the pure-Python modules and reports it (``mlink-sim --version``).
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import ast
 import hashlib
+import importlib.util
 import os
 import shutil
 import sys
@@ -52,9 +54,23 @@ def _names(tuple_name: str) -> list[str]:
     raise SystemExit(f"setup.py: {tuple_name} not found in mlink_sim/_accel.py")
 
 
+def _card_modules() -> list[str]:
+    """The station modules of the package's cards (``mlink_sim.profiles.BUILTIN``, as ``_accel.COMPILED_MODULES``
+    adds them): profiles.py is a leaf of the standard library, loaded from its file without the package."""
+    spec = importlib.util.spec_from_file_location("_mlink_sim_profiles", ROOT / "mlink_sim" / "profiles.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up while the class is made
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        del sys.modules[spec.name]
+    return [profile.module for profile in module.BUILTIN]
+
+
 def _modules() -> list[str]:
-    """The mypyc modules' file paths (``COMPILED_MODULES``)."""
-    return [name.replace(".", "/") + ".py" for name in _names("COMPILED_MODULES")]
+    """The mypyc modules' file paths (``_accel.COMPILED_MODULES``: ``CORE_MODULES`` and the cards' modules)."""
+    return [name.replace(".", "/") + ".py" for name in _names("CORE_MODULES") + _card_modules()]
 
 
 def _c_sources() -> dict[str, str]:

@@ -9,6 +9,7 @@ Layers (see docs/architecture.md):
 * ``mlink_sim.master``  – master core (sans-I/O) and its async API
 * ``mlink_sim.aio``     – asyncio/uvloop transport and timing: moves bytes, keeps time
 * ``mlink_sim.cli``     – command line and process supervision
+* ``mlink_sim.profiles`` – the option cards, one record each (key, label, tables, links), read by every layer
 """
 
 from . import _accel

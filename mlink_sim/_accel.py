@@ -28,17 +28,19 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 
-__all__ = ["BUILD_STAMP", "BUILT_MODULES", "COMPILED_MODULES", "C_EXTENSIONS", "MODE", "NATIVE_LIBRARY", "REASON",
-           "describe", "pure_requested", "select", "source_of"]
+from . import profiles  # the card profiles: the standard library only, so no compiled module is imported yet
 
-#: The modules mypyc compiles (setup.py reads this tuple): the steady-state paths of the master core, the cards
-#: and the drive model, and the wire helpers they call per datagram; the virtual clock's per-event path (its event
-#: queue and in-memory network), a slave worker's per-read path (aio.slave.bus), the metrics' per-exchange recorder
-#: (counters, RTT histograms) and the capture writer's per-datagram loop (capture.pack, without dpkt: the block
-#: layout is handed in). Not here: modules whose classes derive from RuntimeError (mypyc cannot compile them:
-#: cards.phases, master.machine, master.types), the declaration tables (construct layouts, codes, parameter
-#: tables) and everything else above the cores.
-COMPILED_MODULES: tuple[str, ...] = (
+__all__ = ["BUILD_STAMP", "BUILT_MODULES", "CORE_MODULES", "COMPILED_MODULES", "C_EXTENSIONS", "MODE", "NATIVE_LIBRARY",
+           "REASON", "describe", "pure_requested", "select", "source_of"]
+
+#: The modules mypyc compiles but the cards' own (setup.py reads this tuple): the steady-state paths of the master
+#: core, the cards and the drive model, and the wire helpers they call per datagram; the virtual clock's per-event
+#: path (its event queue and in-memory network), a slave worker's per-read path (aio.slave.bus), the metrics'
+#: per-exchange recorder (counters, RTT histograms) and the capture writer's per-datagram loop (capture.pack, without
+#: dpkt: the block layout is handed in). Not here: modules whose classes derive from RuntimeError (mypyc cannot
+#: compile them: cards.phases, master.machine, master.types), the declaration tables (construct layouts, codes,
+#: parameter tables, the card profiles) and everything else above the cores.
+CORE_MODULES: tuple[str, ...] = (
     "mlink_sim.wire.fcs",
     "mlink_sim.wire.frame",
     "mlink_sim.wire.layout",
@@ -61,11 +63,9 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.cards.snapshot",
     "mlink_sim.cards.parameters",
     "mlink_sim.cards.commands",
+    "mlink_sim.cards.connection",
     "mlink_sim.cards.base",
     "mlink_sim.cards.ml2_card",
-    "mlink_sim.cards.si_t3",
-    "mlink_sim.cards.si_t_v7",
-    "mlink_sim.cards.si_et3",
     "mlink_sim.master.plan",
     "mlink_sim.master.codec",
     "mlink_sim.master.commands",
@@ -83,6 +83,9 @@ COMPILED_MODULES: tuple[str, ...] = (
     "mlink_sim.metrics.network",
     "mlink_sim.capture.pack",
 )
+#: Every module mypyc compiles: :data:`CORE_MODULES` and the station module of each card of the package (its profile's
+#: ``station``, :data:`mlink_sim.profiles.BUILTIN`): a card added there is compiled with the rest.
+COMPILED_MODULES: tuple[str, ...] = CORE_MODULES + tuple(p.module for p in profiles.BUILTIN)
 #: Hand-written C extension modules of the compiled cores, each built by setup.py from the ``.c`` file of its name
 #: (mlink_sim/wire/_fcsc.c: the FCS and the datagram steps around it; mlink_sim/wire/fcs.py says why by hand). The
 #: module that uses one imports it when it can and keeps its pure-Python functions as the fallback; in pure mode

@@ -1,5 +1,6 @@
 """Slave stations: the SI-T3 (MECHATROLINK-II), SI-ET3 (MECHATROLINK-III) and SI-T/V7 (MECHATROLINK-I/II) option
-cards as sans-I/O state machines (docs/cards.md).
+cards as sans-I/O state machines (docs/cards.md); which cards there are, and what each is, is their profiles'
+table (:mod:`mlink_sim.profiles`).
 
 >>> from mlink_sim.cards import CardSettings, create_card
 >>> station = create_card("si-t3", settings=CardSettings(), now=0)
@@ -9,11 +10,10 @@ cards as sans-I/O state machines (docs/cards.md).
 
 from .base import DriveSnapshot, Station, StationCounters, StationSnapshot
 from .eeprom import EepromError, EepromImage
-from .registry import CARDS, create_card
+from .registry import create_card, station_class
 from .settings import CardOptions, CardSettings, settings_for
 
 __all__ = [
-    "CARDS",
     "CardOptions",
     "CardSettings",
     "DriveSnapshot",
@@ -24,4 +24,5 @@ __all__ = [
     "StationSnapshot",
     "create_card",
     "settings_for",
+    "station_class",
 ]

@@ -1,22 +1,18 @@
-"""The station machinery the three cards share: envelope checks, the connection, phases, reception
-failures, the watchdog, EEPROM bookkeeping, counters and the snapshot.
+"""The station the cards share: the Station API (receive, poll, the prediction, the deadline, EEPROM bookkeeping,
+the snapshot), the receive path's envelope checks, and the operations the command handlers use on the drive; the
+connection and its supervision (reception failures, alarms, the watchdog, the phases) are
+:class:`~mlink_sim.cards.connection.Connection`, its base.
 
 A station is sans-I/O: :meth:`Station.receive` takes a datagram, its source and the time and returns the
 response datagram (or None); :meth:`Station.poll` lets time pass (silence detection, the drive);
 :meth:`Station.next_deadline` says when ``poll`` is next due. Nothing raises out of ``receive``/``poll``:
-malformed input is a counted drop with a reason (:class:`StationCounters`).
+malformed input is a counted drop with a reason (:class:`StationCounters`). A station is made from its card's
+profile (:mod:`mlink_sim.profiles`: its key and label, parameter table, drive family, SEL_MON/SEL_REF tables) by
+:func:`~mlink_sim.cards.registry.create_card`.
 
-Ownership (docs/cards.md, "Who may change a station"): no source other than the connected master ever changes a
-parameter, the EEPROM, the run state or the phase. Once a master has CONNECTed, commands from any other source are
-ignored (counted, and logged once per source) until DISCONNECT or connection loss – F6-26 consecutive communication
-alarms, the point where the drive declares bUS "After establishing initial communication, the connection was lost"
-(SI-T3 Table 28). A station released by a connection loss is admitted "as from phase 1": only CONNECT binds it
-to a new master, nothing else that writes is executed. A NOP with no (or a NOP) sub-command is a read-only
-status query from anyone but the connected master, in phase 2/3 and after a loss alike.
-
-EEPROM timing (:class:`~mlink_sim.cards.eeprom.EepromWriteBack`): when the I/O layer persists the images, a CONFIG
-that stores to EEPROM is completed only once :meth:`Station.eeprom_durable` confirms its image; until then the card
-answers with CMDRDY = 0 and executes nothing else.
+EEPROM timing (:class:`~mlink_sim.cards.eeprom.EepromWriteBack`): when the I/O layer persists the images
+(:meth:`Station.persist_eeprom`), a CONFIG that stores to EEPROM is completed only once :meth:`Station.eeprom_durable`
+confirms its image; until then the card answers with CMDRDY = 0 and executes nothing else.
 """
 
 from __future__ import annotations
@@ -26,18 +22,22 @@ from collections.abc import Hashable, Mapping
 from types import MappingProxyType
 from typing import Any, ClassVar, Final
 
+from mlink_sim.drive.activity import DriveActivity
+from mlink_sim.params import for_card
+from mlink_sim.profiles import CardProfile
 from mlink_sim.wire import DropReason, Frame, Kind, Link, WireError, decode, ml2, ml3
 from mlink_sim.wire.frame import CYCLE_AT, Template, steady_delta
+from mlink_sim.wire.selections import SEL_REF_TABLES
 
 from .._log import get_logger
-from .drive_link import DriveCommand, DriveLink, Fault
+from .connection import DEFAULT_TCYCLE_NS, Connection
+from .drive_link import DriveLink, Fault
 from .eeprom import EepromImage, EepromWriteBack, power_up
-from .monitors import sel_mon_value, sel_ref_item
+from .monitors import sel_mon_value
 from .paramstore import ParamStore
-from .phases import PhaseEvent, next_phase
 from .prediction import Prediction, offer
 from .reception import FailureKind, ReceptionMonitor
-from .settings import CARD_NAMES, CardOptions, CardSettings, param_table
+from .settings import CardSettings
 from .snapshot import DriveSnapshot, StationCounters, StationSnapshot
 from .watchdog import Watchdog
 
@@ -45,23 +45,12 @@ __all__ = ["Station", "StationCounters", "StationSnapshot", "DriveSnapshot", "DE
 
 _LOG = get_logger("mlink_sim.cards")
 
-#: "Operation proceeds with a default transmission cycle of 2 ms" until CONNECT (phase 1, all three manuals).
-DEFAULT_TCYCLE_NS: Final = 2_000_000
 #: While the drive is still moving, poll at least this often (status displays, coasting after a fault).
 DRIVE_TICK_NS: Final = 10_000_000
 #: TX/RX/LK LEDs count as lit for this long after the last datagram ("LED may appear to be flashing").
 LED_WINDOW_NS: Final = 100_000_000
-_IDLE: Final = DriveCommand()
 #: :meth:`Station._fast_receive` declines: take the general path.
 SLOW: Final = object()
-
-
-_MAX_LOGGED_SOURCES: Final = 32
-#: Incidents that can repeat every cycle on an overloaded machine (reception failures, WDT errors, phase changes,
-#: bUS errors and the reconnections after them) are logged the first _LOG_FIRST times, then at the 2**k-th
-#: occurrence only; the counters keep every one. An unbounded log line per lost cycle would make an overloaded
-#: worker slower still.
-_LOG_FIRST: Final = 8
 
 
 _NOPS: Final = (ml2.Nop, ml3.Nop)
@@ -73,13 +62,12 @@ def _is_status_query(msg: Any) -> bool:
     return type(msg.body) in _NOPS and (msg.sub is None or type(msg.sub) in _NOPS)
 
 
-class Station(abc.ABC):
-    """Base of the card profiles; see the module docstring. Subclasses set the class attributes below and
-    implement the generation-specific hooks (``_power_up``, ``_process``, ``_report_failure``,
-    ``_report_wdt``, ``_clear_comm_alarms``, ``_leds``, ``_alarm_view``)."""
+class Station(Connection):
+    """Base of the card classes; see the module docstring. A card class sets the class attributes below and
+    implements the generation-specific hooks (``_power_up``, ``_process``, ``_status_reply``, ``_leds``,
+    ``_alarm_view``; those of :class:`~mlink_sim.cards.connection.Connection`); what it is (key, label, tables) comes
+    from the profile it is made with."""
 
-    card: ClassVar[str] = ""
-    family: ClassVar[str] = ""
     prm_immediate: ClassVar[bool] = False  #: PRM_WR takes effect without CONFIG (SI-T/V7)
     has_cyc: ClassVar[bool] = True  #: the drive has the CyC/CYC minor fault (not the VS-606V7)
     _cmd_wdt_at: ClassVar[int] = 0  #: the WDT byte's offset in an INV_CTL command datagram (the fast path's cards)
@@ -88,12 +76,14 @@ class Station(abc.ABC):
     link: Link
     data_size: int
 
-    def __init__(self, *, settings: CardSettings, now: int, eeprom: bytes | None = None) -> None:
-        self.label = CARD_NAMES[self.card]
-        self.options: CardOptions = settings.options
+    def __init__(self, profile: CardProfile, *, settings: CardSettings, now: int, eeprom: bytes | None = None) -> None:
+        self.profile = profile
+        self.card = profile.key  #: the registry key ("si-t-v7"): the snapshot's card, the EEPROM image's
+        self.label = profile.label  #: as the manual names the card ("SI-T/V7")
+        self.options = settings.options
         self.counters = StationCounters()
         self._log0 = _LOG.bind(card=self.card)
-        table = param_table(self.card)
+        table = for_card(profile)
         boot = power_up(self.card, table, eeprom, settings.params, self._log0)
         values = boot.values
         self.eeprom_error: str | None = boot.error  #: why the EEPROM image was not used (None: used, or none)
@@ -104,33 +94,34 @@ class Station(abc.ABC):
         self._log0 = self._log0.bind(station=f"{self.address:02X}H")
         self._log = self._log0.bind(phase=1)
         self.store = ParamStore(table, values, immediate=self.prm_immediate)
-        self.drive = DriveLink(self.family, self.label, values, settings.load, now,
+        self.drive = DriveLink(profile.family, profile.selections, values, settings.load, now,
                                history=boot.history)
+        self._sel_ref = SEL_REF_TABLES.get(profile.selections, ("",) * 16)
         self.watchdog = Watchdog()
         self.reception = ReceptionMonitor()
         self.phase = 1
         self.tcycle_ns = DEFAULT_TCYCLE_NS
         self.com_tim = 1
         self.comm_cycle_ns = DEFAULT_TCYCLE_NS
-        self._source: Hashable | None = None
+        self._source = None
         self._bus_count = 0
         self._now = now
-        self._rx_at: int | None = None
-        self._tx_at: int | None = None
+        self._rx_at = None
+        self._tx_at = None
         self._any_rx: int | None = None
-        self._cmd_key: tuple[int, int, int] | None = None
+        self._cmd_key = None
         # the fast path's steady state (a card's _fast_receive): the last command it took, its answers' template,
         # and the cycle of an answer that repeated the one before (-1: none; self.prediction)
         self._fast_cmd = b""
         self._answer = Template(0)
         self._steady_cycle = -1
         self._prediction: Prediction | None = None  # the one this card hands out, updated in place (prediction())
-        self.refs: dict[str, int] = {}  #: SEL_REF item -> last value (snapshot only)
+        self.refs = {}
         self.eeprom = EepromWriteBack()
-        self._seen_fault: Fault | None = None
+        self._seen_fault = None
         self._history = self.drive.history_names()
-        self._foreign_logged: set[str] = set()
-        self._incidents: dict[str, int] = {}
+        self._foreign_logged = set()
+        self._incidents = {}
         self.keep_outputs = True  #: False: compute the INV_CTL outputs every cycle (tests)
         self._out_key = -1  # DriveLink.outputs_key of self._out (-1: none)
         self._out: tuple[int, int, int, int] = (0, 0, 0, 0)
@@ -158,27 +149,10 @@ class Station(abc.ABC):
         ...
 
     @abc.abstractmethod
-    def _report_failure(self, kind: FailureKind, first: bool) -> None:
-        """Show a reception failure: warning (*first*) or communications alarm."""
-        ...
-
-    @abc.abstractmethod
-    def _report_wdt(self) -> None:
-        ...
-
-    @abc.abstractmethod
     def _status_reply(self, frame: Frame) -> bytes:
         """The answer to a status query from another source (each generation's own; SI-T3 / SI-ET3 NOP).
         A method, not a declared attribute: compiled (mypyc), a declared attribute is a slot of its own."""
         ...
-
-    @abc.abstractmethod
-    def _clear_comm_alarms(self) -> None:
-        ...
-
-    def _observe_drive(self) -> None:
-        """Take note of the drive's fault now (MECHATROLINK-II "most recent alarm" ordering); nothing by default."""
-        return None
 
     @abc.abstractmethod
     def _leds(self) -> tuple[dict[str, str], dict[str, str]]:
@@ -258,18 +232,34 @@ class Station(abc.ABC):
         """An EEPROM image waits for :meth:`take_eeprom`."""
         return self.eeprom.dirty
 
+    def persist_eeprom(self, enabled: bool) -> None:
+        """The I/O layer persists this station's EEPROM images (*enabled*: it writes each :meth:`take_eeprom` and
+        reports it with :meth:`eeprom_durable`, so a CONFIG to EEPROM completes once its image is durable) or not
+        (the default: a CONFIG completes at once)."""
+        self.eeprom.enabled = enabled
+
     def take_eeprom(self) -> bytes | None:
         """The EEPROM image to persist, when CONFIG_MOD = 1 or a fault-history change asks for it; its generation
-        is ``eeprom.taken`` (for :meth:`eeprom_durable`)."""
+        is :attr:`eeprom_generation` (for :meth:`eeprom_durable`)."""
         if not self.eeprom.take():
             return None
         return EepromImage(self.card, self.saved_params, self._history).to_bytes()
+
+    @property
+    def eeprom_generation(self) -> int:
+        """The generation of the image :meth:`take_eeprom` last returned."""
+        return self.eeprom.taken
 
     def eeprom_durable(self, generation: int, ok: bool = True) -> None:
         """The I/O layer's input: the image of *generation* is written, fsync'd and renamed (*ok*), or could not be
         written (:meth:`EepromWriteBack.durable`)."""
         if not self.eeprom.durable(generation, ok):
             self._log.error("eeprom_write_failed", generation=generation)
+
+    def drive_activity(self) -> DriveActivity:
+        """What the drive is doing and what holds it (:meth:`Drive.activity <mlink_sim.drive.Drive.activity>`),
+        read without advancing it."""
+        return self.drive.drive.activity()
 
     def snapshot(self) -> StationSnapshot:
         leds, colors = self._leds()
@@ -379,191 +369,19 @@ class Station(abc.ABC):
         self._sent(now)
         return out
 
-    def _accept(self, cycle: int, tcycle_ns: int, wdt: int, code: int, source: Hashable, now: int) -> bool:
-        """A well-formed command for this station: the connection, reception failures, the watchdog."""
-        known = self._source  # the worker hands every datagram of one source the same address object: `is` first
-        if known is not None and source is not known and source != known:
-            self._foreign(source)
-            return False
-        self.drive.drive.advance(now)  # the model itself: DriveLink.advance is only this
-        if self._source is not None:  # connected (phase 2/3): failures found by poll() are counted; the gap the rest
-            seen = self.reception.on_command(cycle, now)
-            if seen is None:
-                self.counters.drop("DUPLICATE")
-                return False
-            new, before, elapsed, jump = seen
-            if jump:  # a number the elapsed time does not allow: one failure (reception.py, SI-T3 Table 22)
-                self._incident("cycle_discontinuity", level="warning", source=repr(source), cycle=cycle)
-            if new:
-                self._failures(FailureKind.GAP, new, before, now)
-            if tcycle_ns != self.tcycle_ns:
-                self._failures(FailureKind.CYCLE, 1, 1, now)
-            if not self.watchdog.check(wdt, elapsed) and code != 0x0F:  # DISCONNECT carries no WDT (SI-ET3)
-                self._wdt_error(now)
-            self._bus_count = 0
-        else:  # phase 1, or released by a connection loss: admitted as from phase 1 (_arrival_phase)
-            self.watchdog.check(wdt, 1)
-        self.counters.rx_ok += 1
-        self._rx_at = now
-        return True
-
-    def _sent(self, now: int) -> None:
-        self.counters.tx += 1
-        self._tx_at = now
-        if self.drive.status.fault is not self._seen_fault:
-            self._watch_history()
-
-    def _fcs_error(self, now: int) -> None:
-        self.counters.fcs_errors += 1
-        before = self.reception.on_lost()
-        self._failures(FailureKind.FCS, 1, before, now)
-
-    def _failures(self, kind: FailureKind, n: int, before: int, now: int) -> None:
-        """*n* failures of *kind*, after *before* consecutive ones: the first is a warning, the rest alarms."""
-        self.counters.reception_failures += n if kind is not FailureKind.CYCLE else 0
-        alarms = n
-        if kind is not FailureKind.CYCLE and before == 0:
-            self._report_failure(kind, True)
-            alarms -= 1
-        if alarms:
-            self._report_failure(kind, False)
-            self._comm_alarm(alarms, now)
-        self._incident("reception_failure", kind=kind.value, count=n, consecutive=before + n)
-
-    def _comm_alarm(self, n: int, now: int) -> None:
-        """*n* communications alarms (E6 / COMM_ALM 8–B): phase 3 -> 2, bUS after F6-26 of them."""
-        if self._source is not None:  # not in the command whose gap has just released the station (phase 1 on)
-            self._phase_event(PhaseEvent.COMM_ALARM)
-        self.counters.bus_alarms += n
-        before = self._bus_count
-        self._bus_count += n
-        limit = self._bus_limit()
-        if before < limit <= self._bus_count:
-            detected = self.drive.trip_bus(now)
-            self._incident("bus_error", level="warning", alarms=self._bus_count, limit=limit, drive_fault=detected)
-            if self._source is not None:  # released: admitted as from phase 1 until a CONNECT (docs/cards.md)
-                self._incident("connection_lost", level="warning", source=repr(self._source))
-                self._source = None
-                self.reception.stop()  # nobody to count failures for ("Phase 1 never notifies")
-
-    def _bus_limit(self) -> int:
-        return 1
-
-    def _wdt_error(self, now: int) -> None:
-        self.counters.wdt_errors += 1
-        self.drive.trip_e5(now)  # the drive's E5 is this same event: the card's code is the most recent
-        self._observe_drive()
-        self._report_wdt()
-        self._phase_event(PhaseEvent.WDT_ERROR)
-        self._incident("wdt_error", level="warning", master_count=self.watchdog.master)
-
-    def _incident(self, event: str, level: str = "info", **fields: Any) -> None:
-        """Log a repeatable incident, bounded (see ``_LOG_FIRST``); ``occurrence`` numbers it."""
-        n = self._incidents[event] = self._incidents.get(event, 0) + 1
-        if n <= _LOG_FIRST or n & (n - 1) == 0:
-            getattr(self._log, level)(event, occurrence=n, **fields)
-
-    def _foreign(self, source: Hashable) -> None:
-        self.counters.foreign_source += 1
-        key = repr(source)
-        if key not in self._foreign_logged and len(self._foreign_logged) < _MAX_LOGGED_SOURCES:
-            self._foreign_logged.add(key)
-            self._log.warning("foreign_source_ignored", source=key, connected=repr(self._source))
-
-    def _internal_error(self, where: str) -> None:
-        n = self.counters.internal_errors = self.counters.internal_errors + 1
-        if n <= 10 or n & (n - 1) == 0:
-            self._log.exception("station_internal_error", where=where, count=n)
-
-    def _watch_history(self) -> None:
-        self._seen_fault = self.drive.status.fault
-        names = self.drive.history_names()
-        if names != self._history:
-            self._history = names
-            self.eeprom.changed()
-            self._log.info("eeprom_dirty", reason="fault history", history=list(names))
-
-    # -- phases ----------------------------------------------------------------------------------------
-    def _phase_event(self, event: PhaseEvent) -> None:
-        """Take the transition of *event* in the phase the station acts in (phases.PHASE_TRANSITIONS; an illegal one
-        raises PhaseError there)."""
-        self._set_phase(next_phase(self._arrival_phase(), event))
-
-    def _set_phase(self, phase: int) -> None:
-        if phase != self.phase:
-            old, self.phase = self.phase, phase
-            self._log = self._log0.bind(phase=phase)
-            self._incident("phase_changed", old=old, new=phase)
-            if phase == 3:
-                self.watchdog.armed = True
-            else:
-                self.watchdog.disarm()
-
     def _subcommands_active(self) -> bool:
         return False
-
-    def _arrival_phase(self) -> int:
-        """The phase a command is admitted in: the phase, or 1 for a station released by a connection loss – "as
-        from phase 1", so only CONNECT binds it and nothing that writes is executed (docs/cards.md)."""
-        return self.phase if self._source is not None else 1
 
     def _led_recent(self, at: int | None) -> bool:
         return at is not None and self._now - at <= LED_WINDOW_NS
 
     # -- the operations the command handlers use (mlink_sim.cards.commands, the cards' handler tables) --------------
-    def connect(self, source: Hashable, cycle: int, now: int, *, sync: bool, tcycle_ns: int, com_tim: int,
-                comm_cycle_ns: int, wdt: int) -> None:
-        """An accepted CONNECT from *source*: the connection, the transmission/communication cycle of the header from
-        now on, phase 2 or 3 (*sync*), reception-failure monitoring and the watchdog start."""
-        phase = next_phase(self._arrival_phase(), PhaseEvent.CONNECT_SYNC if sync else PhaseEvent.CONNECT_ASYNC)
-        self._source = source
-        self.tcycle_ns, self.com_tim, self.comm_cycle_ns = tcycle_ns, com_tim, comm_cycle_ns
-        self.reception.start(cycle, now, comm_cycle_ns, max(1, round(comm_cycle_ns / tcycle_ns)),
-                             self.options.silence_tolerance_ns)
-        self._bus_count = 0
-        self.watchdog.arm(wdt)
-        self._set_phase(phase)
-        if not sync:
-            self.watchdog.disarm()
-        self._incident("connected", source=repr(source), tcycle_ns=tcycle_ns, com_tim=com_tim, sync=sync)
-
-    def disconnect(self, now: int) -> None:
-        """DISCONNECT: "the data for the control command to the Drive is cleared to 0, and a fault reset
-        command is carried out" (SI-T3 / SI-T/V7); back to phase 1 and the 2 ms default cycle. Without a connection
-        (phase 1, or released by a connection loss) there is none to release and nothing changes: only the
-        connected master changes the run state or the phase."""
-        if self._source is None:
-            return
-        phase = next_phase(self._arrival_phase(), PhaseEvent.DISCONNECT)
-        self._incident("disconnected", source=repr(self._source))
-        self._source = None
-        self.reception.stop()
-        self.tcycle_ns = self.comm_cycle_ns = DEFAULT_TCYCLE_NS
-        self.com_tim = 1
-        self.drive.command(_IDLE, now)
-        self.drive.reset_fault(now)
-        self._cmd_key = None
-        self.refs.clear()
-        self._clear_comm_alarms()
-        self._set_phase(phase)
-
-    def sync_set(self, wdt: int) -> None:
-        """SYNC_SET: phase 3, the watchdog checked from the master count in *wdt* on."""
-        self.watchdog.arm(wdt)
-        self._phase_event(PhaseEvent.SYNC_SET)
-
-    def alarm_clear(self, now: int) -> bool:
-        """ALM_CLR / CMD_CTRL.ALM_CLR: communication alarms, card minor faults, drive faults (refused by the
-        drive while RUN is on). True if the drive accepted the reset."""
-        self._clear_comm_alarms()
-        self._bus_count = 0
-        return self.drive.reset_fault(now)
-
     def select_refs(self, sel: int, *values: int) -> None:
         """Record REF values by the item their SEL_REF nibble selects (SI-T3 Table 17, SI-ET3 Table 21, SI-T/V7
         Table 4; unused codes are ignored)."""
+        table = self._sel_ref
         for i, value in enumerate(values):
-            item = sel_ref_item(self.card, (sel >> (4 * i)) & 0xF)
+            item = table[(sel >> (4 * i)) & 0xF]
             if item:
                 self.refs[item] = value
 

@@ -53,11 +53,12 @@ def fault_by_name(name: str) -> Fault | None:
 
 
 class DriveLink:
-    """A drive of *family* ("a1000" / "v7") driven by one card."""
+    """A drive of *family* ("a1000" / "v7") driven by one card, whose SEL_MON table is *selections* (its key in
+    :data:`~mlink_sim.wire.selections.SEL_MON_TABLES`, the card profile's ``selections``)."""
 
-    __slots__ = ("family", "drive", "_restored", "_sel_mon", "_card_label", "_mon_static", "mon_readers")
+    __slots__ = ("family", "drive", "_restored", "_sel_mon", "_mon_static", "mon_readers")
 
-    def __init__(self, family: str, card_label: str, values: Mapping[str, int], load: LoadSpec | None,
+    def __init__(self, family: str, selections: str, values: Mapping[str, int], load: LoadSpec | None,
                  now: int, history: Iterable[str] = ()) -> None:
         self.family = Family(family)
         settings = DriveSettings.from_params(self.family, values)
@@ -66,8 +67,7 @@ class DriveLink:
         self.drive = Drive(self.family, settings, load, now=now)
         restored = [fault_by_name(n) for n in history]
         self._restored: list[Fault] = [f for f in restored if f is not None][:HISTORY_DEPTH]
-        self._card_label = card_label
-        self._sel_mon = SEL_MON_TABLES.get(card_label, ("",) * 16)
+        self._sel_mon = SEL_MON_TABLES.get(selections, ("",) * 16)  # the card's (CardProfile.selections)
         # SEL_MON codes whose value only the drive's state decides (SI-T3 Table 18 / SI-ET3 Table 22 / SI-T/V7 Table 5):
         # not the fault history (U2-xx, U3-xx, U-09) nor a parameter (F6-23/F6-24).
         self._mon_static = tuple(
@@ -132,11 +132,6 @@ class DriveLink:
     @property
     def settings(self) -> DriveSettings:
         return self.drive.settings
-
-    @property
-    def run_commanded(self) -> bool:
-        c = self.drive.command_in_effect
-        return c.forward or c.reverse
 
     def fault_code(self, fault: Fault | None) -> int:
         return fault_code(self.family, fault)

@@ -17,6 +17,7 @@ from collections.abc import Callable, Hashable, Mapping
 from types import MappingProxyType
 from typing import Any, ClassVar, Final
 
+from mlink_sim.profiles import CardProfile
 from mlink_sim.wire import (
     MAGIC, Frame, Kind, Link, M2Alarm, M2Cmd, M2Status, M2SubStatus, Unknown, encode, ml2,
 )
@@ -109,26 +110,28 @@ def echo_sub(sub: Any) -> Any:
 
 
 class Ml2Station(Station):
-    """A MECHATROLINK-I/II slave; the card profiles set the tables and the power-up settings."""
+    """A MECHATROLINK-I/II slave; the card classes set the tables and the power-up settings."""
 
     main_phases: ClassVar[Mapping[int, Any]] = ML2_MAIN_PHASES
     sub_phases: ClassVar[Mapping[int, Any]] = ML2_SUB_PHASES
     combinations: ClassVar[Mapping[int, frozenset[int]]] = ML2_COMBINATIONS
     id_areas: ClassVar[Mapping[int, bytes]] = ML2_ID_AREAS
     alm_rd_modes: ClassVar[frozenset[int]] = frozenset((0, 1, 2))
-    handlers: ClassVar[Mapping[int, Handler]]  #: the card profile's main-command table (MAIN_HANDLERS, adjusted)
+    handlers: ClassVar[Mapping[int, Handler]]  #: the card class's main-command table (MAIN_HANDLERS, adjusted)
     sub_handlers: ClassVar[Mapping[int, SubHandler]]  #: its sub-command table (SUB_HANDLERS, adjusted)
-    v7: ClassVar[bool] = False
+    alm_rd_history: ClassVar[int] = 10  #: ALM_RD mode 1: fault history entries (SI-T3 Table 14; SI-T/V7: 2)
     mfi_mask: ClassVar[int] = 0x3F  #: operation signals bits 2–7 -> S3–S8 (SI-T3 Table 16); V7: S3–S7
     _cmd_wdt_at: ClassVar[int] = _WDT_AT
 
-    def __init__(self, *, settings: CardSettings, now: int, eeprom: bytes | None = None) -> None:
+    def __init__(self, profile: CardProfile, *, settings: CardSettings, now: int, eeprom: bytes | None = None
+                 ) -> None:
         # the parameters spelled out: mypyc (docs/architecture.md, "Compiled cores (mypyc)") passes a **kwargs dict on
         # as one positional argument
-        super().__init__(settings=settings, now=now, eeprom=eeprom)
+        super().__init__(profile, settings=settings, now=now, eeprom=eeprom)
         # mapping-like: Ml2Alarms only calls get()
         self.alarms = Ml2Alarms(_CodeTable(self.drive.fault_code), _CodeTable(self.drive.minor_code))  # type: ignore[arg-type]
         self._subcmd = self.data_size == 32
+        self._bits_e_f = profile.status_bits_e_f  # STATUS bits E and F (V7 §7.3: not used)
         self._status_seen: object = None  # the DriveStatus self._status_word was computed from
         self._status_word = 0
         self._deferred_cyc = False
@@ -185,7 +188,7 @@ class Ml2Station(Station):
         checks): nothing is executed, no warning is consumed, RWDT does not advance (docs/cards.md)."""
         status = self.drive.status
         alarm, alm, warng = self.alarms.report(status.fault, status.minor, status.fault_reset_input)
-        word = ml2_status_bits(status, cmdrdy=not self.eeprom.busy(False), v7=self.v7) & ~3 | alm | warng << 1
+        word = ml2_status_bits(status, cmdrdy=not self.eeprom.busy(False), bits_e_f=self._bits_e_f) & ~3 | alm | warng << 1
         sub = frame.message.sub
         resp = ml2.M2Response(ml2.Nop(), alarm, word, self.watchdog.peek(), None if sub is None else ml2.Nop(),
                               0 if sub is None or self.eeprom.busy(True) else _SUBRDY)
@@ -201,7 +204,7 @@ class Ml2Station(Station):
             return alarm, _CMDRDY | alm | warng << 1
         if status is not self._status_seen:
             self._status_seen = status
-            self._status_word = ml2_status_bits(status, cmdrdy=True, v7=self.v7) & ~3
+            self._status_word = ml2_status_bits(status, cmdrdy=True, bits_e_f=self._bits_e_f) & ~3
         return alarm, self._status_word | alm | warng << 1
 
     def _fast_receive(self, dg: bytes, source: Hashable, now: int) -> object:
@@ -359,8 +362,7 @@ class Ml2Station(Station):
         if mod == 0:
             return bytes((drive.monitor("U2-01") & 0xFF, drive.monitor("U2-02") & 0xFF)).ljust(10, b"\0"), Err.OK
         if mod == 1:
-            depth = 2 if self.v7 else 10
-            return bytes(hist[:depth]).ljust(10, b"\0"), Err.OK
+            return bytes(hist[:self.alm_rd_history]).ljust(10, b"\0"), Err.OK
         if not 0 <= index <= 9:  # mode 2: "Alarm Index + 1" selects U3-01 … U3-10
             return bytes(10), Err.DATA
         value = hist[index] if index < len(hist) else 0

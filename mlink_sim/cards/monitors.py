@@ -5,8 +5,9 @@
 * SI-T/V7 Table 4 (SEL REF: only 4 = terminal outputs; "5 to F Not used. The SI-T/V7 ignores the written
   data") and SI-T/V7 Table 5 (SEL MON: 1 = output frequency, not motor speed; 9, A, D–F not used).
 
-The tables themselves are data in :mod:`mlink_sim.wire.selections` (``SEL_REF_TABLES``, ``SEL_MON_TABLES``); SEL_MON
-code → monitor name reaches the card through :meth:`DriveLink.sel_mon_name`. Here the card resolves what only it
+The tables themselves are data in :mod:`mlink_sim.wire.selections` (``SEL_REF_TABLES``, ``SEL_MON_TABLES``), under
+the key of the card's profile (``CardProfile.selections``); SEL_REF code → item is read there by the station
+(``Station.select_refs``), SEL_MON code → monitor name reaches the card through :meth:`DriveLink.sel_mon_name`. Here the card resolves what only it
 knows: E/F read the MEMOBUS register set in F6-23/F6-24 at power-up (any parameter or monitor register, through
 the parameter store), 7/8 the drive's fault / minor-fault code (SI-T3 Tables 26/27, SI-T/V7 Tables 10/11), and
 U2/U3 the fault history that survives power cycles. Values travel as 16-bit two's complement.
@@ -19,26 +20,13 @@ manual says – no alarm.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from types import MappingProxyType
 from typing import TYPE_CHECKING
-
-from mlink_sim.wire.selections import SEL_REF_TABLES as _SEL_REF
-
-from .settings import CARD_NAMES
 
 if TYPE_CHECKING:
     from .drive_link import DriveLink
     from .paramstore import ParamStore
 
-__all__ = ["SEL_REF_TABLES", "sel_mon_value", "sel_mon_enabled", "sel_ref_item"]
-
-#: SEL_REF code -> reference item ("" = nothing selected / not used), by card id (:mod:`mlink_sim.wire.selections`).
-SEL_REF_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
-    {card: _SEL_REF[label] for card, label in CARD_NAMES.items()})
-
-
-def sel_ref_item(card: str, code: int) -> str:
-    return SEL_REF_TABLES[card][code & 0xF]
+__all__ = ["sel_mon_value", "sel_mon_enabled"]
 
 
 def sel_mon_enabled(drive: DriveLink, code: int) -> bool:

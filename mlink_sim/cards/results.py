@@ -1,4 +1,4 @@
-"""Command verdicts shared by the card profiles, with their code on each generation.
+"""Command verdicts shared by the card classes, with their code on each generation.
 
 MECHATROLINK-I/II report a refused command as a communications warning in the ALARM byte (SI-T3 Table 25,
 SI-T/V7 "Other Faults"): A.94 data setting warning, A.95 command warning – "Received commands are ignored".

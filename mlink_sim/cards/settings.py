@@ -18,12 +18,11 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
-from mlink_sim.params import ParamError, ParamTable, card_label, for_card
+from mlink_sim.params import ParamError, for_card
+from mlink_sim.profiles import CardProfile, lookup
+from mlink_sim.wire import Link
 
-__all__ = ["CardOptions", "CardSettings", "settings_for", "CARD_NAMES", "param_table"]
-
-#: Registry keys (``mlink_sim.cards.registry.CARDS``) and their labels in the manuals.
-CARD_NAMES: Mapping[str, str] = MappingProxyType({card: card_label(card) for card in ("si-t3", "si-et3", "si-t-v7")})
+__all__ = ["CardOptions", "CardSettings", "settings_for"]
 
 
 @dataclass(frozen=True)
@@ -85,16 +84,15 @@ class CardSettings:
         return (self.station if self.station is not None else 0x21) & 0xF
 
 
-def param_table(card: str) -> ParamTable:
-    """The parameter table a card uses (``mlink_sim.params.for_card``)."""
-    return for_card(CARD_NAMES[card])
+def _sizes(sizes: tuple[int, ...]) -> str:
+    return " or ".join(map(str, sizes))
 
 
-def _check_card(card: str) -> str:
-    if card not in CARD_NAMES:
-        known = ", ".join(CARD_NAMES)
-        raise ValueError(f"unknown option card {card!r} (known cards: {known})")
-    return card
+def _only(profile: CardProfile, link: Link) -> str:
+    """"MECHATROLINK-I (4 Mbps) carries 17-byte frames only (SI-T3 Table 29 note <3>)"."""
+    source = profile.sources.get(f"frames {link.name}")
+    return (f"{link.label} ({link.speed_mbps} Mbps) carries {_sizes(profile.frames[link.name])}-byte frames only"
+            + (f" ({source})" if source else ""))
 
 
 def settings_for(
@@ -107,7 +105,8 @@ def settings_for(
     link_speed_mbps: int | None = None,
     options: CardOptions | None = None,
 ) -> CardSettings:
-    """:class:`CardSettings` for *card* from the slave command line.
+    """:class:`CardSettings` for *card* (any spelling of a registered card) from the slave command line, by what its
+    profile says (:mod:`mlink_sim.profiles`: its links and frame sizes, whether switches set them).
 
     *station*: SI-T3 F6-20 (20H–3FH), SI-ET3 F6-20 (03H–EFH), SI-T/V7 switches S1-3/S2 (20H–3FH); 20H/3FH
     are accepted and make SI-T3/SI-T/V7 power up with AEr. *frame_size*: 17/32 (SI-T3, SI-T/V7) or 32/64
@@ -116,9 +115,9 @@ def settings_for(
     Raises :class:`ValueError` (or its subclass :class:`~mlink_sim.params.ParamError`) with a one-sentence
     message.
     """
-    _check_card(card)
-    label = CARD_NAMES[card]
-    table = param_table(card)
+    profile = lookup(card)
+    label = profile.label
+    table = for_card(profile)
     params: dict[str, int] = {}
     for text in param_assignments:
         p, raw = table.parse_assignment(text)
@@ -126,23 +125,30 @@ def settings_for(
     opts = options if options is not None else CardOptions()
     if isinstance(station, bool) or not isinstance(station, int):
         raise ValueError(f"{label}: the station address must be a whole number, not {station!r}")
+    links = [Link[name] for name in profile.links]  # the default first: F6-22 = 0 / S1-1 ON
+    speeds = {link.speed_mbps: link for link in links}
+    default_sizes = profile.frames[profile.default_link]  # the default first: F6-21 = 0 / S1-2 ON
+    if link_speed_mbps is not None and link_speed_mbps not in speeds:
+        allowed = " or ".join(f"{mbps}" for mbps in speeds)
+        setting = "S1-1: " if profile.set_by_switches else "F6-22: " if len(speeds) > 1 else ""
+        raise ValueError(f"{label}: link speed {link_speed_mbps} Mbps is not possible ({setting}{allowed} Mbps"
+                         f"{'' if len(speeds) > 1 else ' only'})")
+    link = links[0] if link_speed_mbps is None else speeds[link_speed_mbps]
 
-    if card == "si-t-v7":
-        if not 0x20 <= station <= 0x3F:
-            raise ValueError(
-                f"SI-T/V7: station {station:02X}H cannot be set with S1-3 and S2 (20H–3FH; 21H–3EH are valid)"
-            )
-        if frame_size not in (None, 17, 32):
-            raise ValueError(f"SI-T/V7: frame size {frame_size} is not possible (S1-2 selects 17 or 32 bytes)")
-        if link_speed_mbps not in (None, 4, 10):
-            raise ValueError(f"SI-T/V7: link speed {link_speed_mbps} Mbps is not possible (S1-1: 4 or 10 Mbps)")
-        s1_1 = link_speed_mbps != 4
-        s1_2 = frame_size != 17
-        if not s1_1 and s1_2:
-            if frame_size == 32:
-                raise ValueError("SI-T/V7: MECHATROLINK-I (4 Mbps) carries 17-byte frames only (V7 §3.4 S1-1 note)")
-            s1_2 = False
-        return CardSettings(params, s1_1_10mbps=s1_1, s1_2_32byte=s1_2, station=station, load=load, options=opts)
+    if profile.set_by_switches:  # V7 §3.4: S1-1 link speed, S1-2 frame size, S1-3 + S2 the station number
+        lo, hi = profile.addresses
+        if not lo & 0xF0 <= station <= hi | 0x0F:  # the tens digits of the valid range, any ones digit (S2)
+            raise ValueError(f"{label}: station {station:02X}H cannot be set with S1-3 and S2 "
+                             f"({lo & 0xF0:02X}H–{hi | 0x0F:02X}H; {lo:02X}H–{hi:02X}H are valid)")
+        every = tuple(sorted({size for sizes in profile.frames.values() for size in sizes}))
+        if frame_size not in (None, *every):
+            raise ValueError(f"{label}: frame size {frame_size} is not possible (S1-2 selects {_sizes(every)} bytes)")
+        sizes = profile.frames[link.name]
+        if frame_size is not None and frame_size not in sizes:
+            raise ValueError(f"{label}: {_only(profile, link)}")
+        size = sizes[0] if frame_size is None and link is not links[0] else frame_size or default_sizes[0]
+        return CardSettings(params, s1_1_10mbps=link is links[0], s1_2_32byte=size == default_sizes[0],
+                            station=station, load=load, options=opts)
 
     f6_20 = table.by_name("F6-20")
     if not f6_20.minimum <= station <= f6_20.maximum:
@@ -151,24 +157,18 @@ def settings_for(
             f"{f6_20.minimum:02X}H–{f6_20.maximum:02X}H"
         )
     params["F6-20"] = station
-    sizes = {32: 0, 17: 1} if card == "si-t3" else {64: 0, 32: 1}
     if frame_size is not None:
-        if frame_size not in sizes:
-            allowed = " or ".join(str(s) for s in sorted(sizes))
-            raise ValueError(f"{label}: frame size {frame_size} is not possible (F6-21 selects {allowed} bytes)")
-        params["F6-21"] = sizes[frame_size]
-    if card == "si-t3":
-        if link_speed_mbps not in (None, 4, 10):
-            raise ValueError(f"SI-T3: link speed {link_speed_mbps} Mbps is not possible (F6-22: 10 or 4 Mbps)")
+        if frame_size not in default_sizes:
+            raise ValueError(f"{label}: frame size {frame_size} is not possible (F6-21 selects "
+                             f"{_sizes(tuple(sorted(default_sizes)))} bytes)")
+        params["F6-21"] = default_sizes.index(frame_size)
+    if len(links) > 1:  # F6-22 selects the link
         if link_speed_mbps is not None:
-            params["F6-22"] = 1 if link_speed_mbps == 4 else 0
+            params["F6-22"] = links.index(link)
         f6_21 = params.get("F6-21", table.by_name("F6-21").default)
         f6_22 = params.get("F6-22", table.by_name("F6-22").default)
-        if f6_22 == 1 and f6_21 == 0:
-            raise ValueError(
-                "SI-T3: MECHATROLINK-I (F6-22 = 1, 4 Mbps) carries 17-byte frames only (SI-T3 Table 29 <3>); "
-                "use --frame-size 17"
-            )
-    elif link_speed_mbps not in (None, 100):
-        raise ValueError(f"SI-ET3: link speed {link_speed_mbps} Mbps is not possible (100 Mbps only)")
+        link, size = links[f6_22], default_sizes[f6_21]
+        if size not in profile.frames[link.name]:
+            raise ValueError(f"{label}: with F6-22 = {f6_22}, {_only(profile, link)}; use --frame-size "
+                             f"{profile.frames[link.name][0]}")
     return CardSettings(params, load=load, options=opts)

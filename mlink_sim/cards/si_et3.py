@@ -21,6 +21,7 @@ from collections.abc import Hashable, Mapping
 from types import MappingProxyType
 from typing import Any, ClassVar, Final
 
+from mlink_sim.profiles import CardProfile
 from mlink_sim.wire import (
     MAGIC, PROFILE_TYPE_INVERTER, CommAlm, Frame, Kind, Link, M3Cmd, Unknown, encode, ml3,
 )
@@ -125,16 +126,15 @@ def _echo_sub(sub: Any) -> Any:
 class SiEt3(Station):
     """SI-ET3 MECHATROLINK-III option card on an A1000-family drive."""
 
-    card: ClassVar[str] = "si-et3"
-    family: ClassVar[str] = "a1000"
     _cmd_wdt_at: ClassVar[int] = _WDT_AT
     handlers: ClassVar[Mapping[int, Handler]]
     sub_handlers: ClassVar[Mapping[int, SubHandler]]
 
-    def __init__(self, *, settings: CardSettings, now: int, eeprom: bytes | None = None) -> None:
+    def __init__(self, profile: CardProfile, *, settings: CardSettings, now: int, eeprom: bytes | None = None
+                 ) -> None:
         # the parameters spelled out: mypyc (docs/architecture.md, "Compiled cores (mypyc)") passes a **kwargs dict on
         # as one positional argument
-        super().__init__(settings=settings, now=now, eeprom=eeprom)
+        super().__init__(profile, settings=settings, now=now, eeprom=eeprom)
         self.alarms = Ml3Alarms()
         self._subcmd = False
         self._profile = 0

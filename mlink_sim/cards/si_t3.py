@@ -15,7 +15,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from types import MappingProxyType
-from typing import ClassVar
 
 from mlink_sim.wire import Link, M2Cmd
 
@@ -28,8 +27,6 @@ __all__ = ["SiT3", "MANUAL_TABLES"]
 class SiT3(Ml2Station):
     """SI-T3 MECHATROLINK-II option card on an A1000-family drive."""
 
-    card: ClassVar[str] = "si-t3"
-    family: ClassVar[str] = "a1000"
     handlers = MAIN_HANDLERS
     sub_handlers = MappingProxyType({code: handler for code, handler in SUB_HANDLERS.items()
                                      if code != M2Cmd.CONFIG})  # Table 6: no CONFIG sub-command

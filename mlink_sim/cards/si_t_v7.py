@@ -50,11 +50,9 @@ def _sub_command_only_in_32byte(handler: Handler) -> Handler:
 class SiTV7(Ml2Station):
     """SI-T/V7 MECHATROLINK-I/II interface unit on a VS-606V7 inverter."""
 
-    card: ClassVar[str] = "si-t-v7"
-    family: ClassVar[str] = "v7"
     prm_immediate: ClassVar[bool] = True
     has_cyc: ClassVar[bool] = False
-    v7: ClassVar[bool] = True
+    alm_rd_history: ClassVar[int] = 2  # ALM_RD mode 1: two history entries (SI-T/V7 ALM_RD)
     mfi_mask: ClassVar[int] = 0x1F  # Table 3: bits 2–6 = S3–S7, bit 7 not used
     sub_phases = V7_SUB_PHASES
     combinations = V7_COMBINATIONS

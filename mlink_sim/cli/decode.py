@@ -124,7 +124,7 @@ def _decode_pcap(path: str, selection: Any, names: FrameNames, as_json: bool, st
               "per line).")
 @click.option("--frame-size", type=click.Choice(["17", "32", "64"]), help="Reject other data sizes.")
 @click.option("--card", "cards", multiple=True, metavar="[ADDR=]CARD",
-              help="The card of a station (si-t3, si-et3, si-t/v7), for parameter names and units; ADDR= for one "
+              help="The card of a station (si-t3, si-et3, si-t-v7), for parameter names and units; ADDR= for one "
                    "station, repeatable. Default: the capture's notes, and the link (ML-III: SI-ET3, ML-I: "
                    "SI-T/V7).")
 @click.option("--pcap", "pcap", type=click.Path(dir_okay=False), metavar="FILE",

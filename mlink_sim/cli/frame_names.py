@@ -3,9 +3,10 @@ value in engineering units, and the names of the status bits, where the station'
 
 The card of a station comes from, in this order: ``--card ADDR=CARD``, ``--card CARD`` (every station), the
 capture's note ``station 21H: card SI-T3`` (the master writes one per station when it starts recording), and
-the link: MECHATROLINK-III is only the SI-ET3, MECHATROLINK-I only the SI-T/V7. A MECHATROLINK-II station of
-unknown card (SI-T3 or SI-T/V7) keeps its raw NO and data. The card picks the parameter table
-(:func:`mlink_sim.params.for_card`: the A1000 rows for SI-T3 / SI-ET3, the VS-606V7 n-numbers for SI-T/V7).
+the link (:func:`mlink_sim.profiles.default_for`: MECHATROLINK-III is taken for the SI-ET3, MECHATROLINK-I for the
+SI-T/V7). A MECHATROLINK-II station of unknown card (SI-T3 or SI-T/V7) keeps its raw NO and data. The card picks
+the parameter table (:func:`mlink_sim.params.for_card`: the A1000 rows for SI-T3 / SI-ET3, the VS-606V7 n-numbers
+for SI-T/V7).
 """
 
 from __future__ import annotations
@@ -16,18 +17,18 @@ from typing import Any
 from ..capture.text import card_of_note
 from ..master import status_bits
 from ..params import Param, ParamError, ParamTable, for_card
+from ..profiles import default_for, lookup
 from ..wire import Frame, Link, M2Alarm, describe
 
 __all__ = ["FrameNames", "parse_card"]
 
-_BY_LINK = {Link.ML3: "si-et3", Link.ML1: "si-t/v7"}
 #: A.94 / A.95: the answer's data is not the register's (SI-T3 Table 25)
 _REFUSALS_ML2 = (int(M2Alarm.DATA_SETTING_WARNING), int(M2Alarm.COMMAND_WARNING))
 
 
 def parse_card(text: str) -> tuple[int | None, str]:
-    """``--card``: ``"si-t3"`` (every station) or ``"0x22=si-t/v7"`` / ``"22H=SI-T/V7"``; ValueError with the
-    reason."""
+    """``--card``: ``"si-t3"`` (every station) or ``"0x22=si-t-v7"`` / ``"22H=SI-T/V7"`` (any spelling of a card);
+    the card as its key; ValueError with the reason."""
     from ..units import parse_address
 
     station: int | None = None
@@ -35,11 +36,7 @@ def parse_card(text: str) -> tuple[int | None, str]:
     if "=" in text:
         left, card = (part.strip() for part in text.split("=", 1))
         station = parse_address(left)
-    try:
-        for_card(card)
-    except ParamError as exc:
-        raise ValueError(str(exc)) from None
-    return station, card
+    return station, lookup(card).key
 
 
 class FrameNames:
@@ -59,7 +56,9 @@ class FrameNames:
             self.noted[found[0]] = found[1]
 
     def card_of(self, link: Link, station: int) -> str | None:
-        return self.cards.get(station) or self.card or self.noted.get(station) or _BY_LINK.get(link)
+        assumed = default_for(link)
+        return (self.cards.get(station) or self.card or self.noted.get(station)
+                or (assumed.key if assumed is not None else None))
 
     def table(self, link: Link, station: int) -> ParamTable | None:
         card = self.card_of(link, station)
@@ -67,7 +66,7 @@ class FrameNames:
             return None
         try:
             return for_card(card)
-        except ParamError:
+        except ParamError:  # a note of a card this process does not know
             return None
 
     def describe(self, frame: Frame) -> dict[str, Any]:

@@ -322,7 +322,7 @@ def validate_cmd(config_path: str) -> None:
                f"transmission cycle {format_ns(net.transmission_cycle)}, {len(config.timeline)} timeline step(s)")
     for st in config.station:
         assert st.link is not None
-        click.echo(f"  {st.address:02X}H {st.card:<8} {st.link.label:<17} {st.frame_size}-byte COM_TIM {st.com_tim}"
+        click.echo(f"  {st.address:02X}H {st.profile.label:<8} {st.link.label:<17} {st.frame_size}-byte COM_TIM {st.com_tim}"
                    f"{' sync' if st.sync else ' async'}{' subcmd' if st.subcmd else ''}"
                    f"{'  ' + st.endpoint if st.endpoint else ''}")
     for line in timeline_warnings(config, config_path):

@@ -4,8 +4,8 @@
 - ``HOST:PORT`` an endpoint (``[::1]:47001`` for IPv6; port 0 where a command listens: any free port);
 - ``DURATION`` a time with its unit, ``250us``, ``2ms``, ``30s`` (a bare number is seconds);
 - ``ML1|ML2|ML3`` a link, as the config's ``link`` field spells it, in any case;
-- ``CARD`` an option card, ``si-t3``, ``si-et3`` or ``si-t-v7`` as the config's ``card`` field spells it, in any
-  case;
+- ``CARD`` an option card by its key as the config's ``card`` field spells it (``si-t3``, ``si-et3``, ``si-t-v7``,
+  and any card registered with :func:`mlink_sim.profiles.register`), any spelling read as that key (``SI-T/V7``);
 - ``LIST`` a list of CPUs, ``0,2`` (``--cpus``).
 
 Output names a station the manuals' way, :func:`station_name` (``21H``)."""
@@ -17,11 +17,11 @@ from typing import Any
 
 import click
 
+from ..profiles import lookup, profiles
 from ..units import parse_address, parse_cpus, parse_duration_ns
 
-__all__ = ["ADDR", "LINK", "CARD", "Parsed", "Duration", "Seconds", "CPUS", "station_name", "CARDS", "LINKS"]
+__all__ = ["ADDR", "LINK", "CARD", "Card", "Parsed", "Duration", "Seconds", "CPUS", "station_name", "LINKS"]
 
-CARDS = ("si-t3", "si-et3", "si-t-v7")
 LINKS = ("ML1", "ML2", "ML3")
 
 
@@ -104,11 +104,32 @@ class _Spelled(click.Choice):
         return f"[{'|'.join(map(str, self.choices))}]"
 
 
+class Card(click.ParamType):
+    """``CARD``: a registered card (:mod:`mlink_sim.profiles`, read when the value is converted, so a card
+    registered after the command was made is taken), in any spelling; the value is its key (``si-t-v7``)."""
+
+    name = "CARD"
+
+    def get_metavar(self, param: Any, ctx: Any = None) -> str:
+        return "CARD"
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> str:
+        try:
+            return lookup(str(value)).key
+        except ValueError as exc:
+            self.fail(str(exc), param, ctx)
+
+    def shell_complete(self, ctx: Any, param: Any, incomplete: str) -> list[Any]:
+        from click.shell_completion import CompletionItem
+
+        return [CompletionItem(p.key) for p in profiles() if p.key.startswith(incomplete.lower())]
+
+
 #: ``ADDR`` options and arguments: ``21H``, ``0x21`` or ``33`` -> the address as an int
 ADDR = Parsed("ADDR", parse_address)
 #: ``--cpus`` options: ``0,2`` -> ``{0, 2}``
 CPUS = Parsed("LIST", parse_cpus, set)
 #: ``--link``: the config's spelling, any case; the value is ``ML1``, ``ML2`` or ``ML3``
 LINK = _Spelled(LINKS, case_sensitive=False)
-#: ``--card``: the config's spelling, any case; the value is lower case
-CARD = _Spelled(CARDS, case_sensitive=False)
+#: ``--card``: the config's spelling, any spelling read as it; the value is the card's key
+CARD = Card()

@@ -18,7 +18,7 @@ from typing import Any
 
 import click
 
-from ..operations import alarm_text, event_text, leds_text, request_of, station_text
+from ..operations import alarm_text, card_text, event_text, leds_text, request_of, station_text
 from .client import ask, endpoint, no_answer, refused, usage
 from .control_token import control_token as resolve_token
 from .control_token import control_token_options
@@ -116,7 +116,7 @@ def _row(f: dict[str, Any]) -> tuple[str, ...]:
     alarm = f.get("alarm")
     state = alarm_text(alarm) if alarm else "warn " + ", ".join(f["warnings"]) if f.get("warnings") else "ok"
     leds = leds_text(f.get("leds"))
-    return (station_text(f.get("address")), str(f.get("card") or ""), str(f.get("link") or ""),
+    return (station_text(f.get("address")), card_text(f.get("card")), str(f.get("link") or ""),
             f"P{f['phase']}" if f.get("phase") else "offline", direction, _num(f.get("reference_hz"), "Hz"),
             _num(f.get("output_hz"), "Hz"), _num(f.get("output_current_a"), "A", 1), _num(f.get("dc_bus_v"), "V", 0),
             _num(f.get("motor_speed_rpm"), "r/min", 0), _num(f.get("rtt_p99_us"), "us", 0), leds, state)

@@ -19,12 +19,14 @@ from ..aio.slave.server import HostedStation, SlaveServer
 from ..aio.slave.stations import StationSpec, build_station, spec_for
 from ..aio.transport.udp import BindError, loop_name, new_event_loop, stop_on_signals
 from ..config import ConfigError, load_config, parse_address, parse_duration_ns, parse_endpoint
+from ..operations import card_text
 from ..config.units import parse_arrival_poll
+from ..profiles import lookup, profiles
 from ..wire import Link
 from .capture_opts import capture_options, open_capture_or_exit
 from .control_token import control_token_options, endpoint_token
 from .inputs import InputError, check_stations
-from .params import ADDR, CARD, CARDS, LINK, Duration, station_name
+from .params import ADDR, CARD, LINK, Duration, station_name
 from .logs import configure_logging
 
 __all__ = ["slave_cmd", "station_specs_from_config"]
@@ -33,15 +35,14 @@ log = get_logger("mlink_sim.slave")
 
 
 def _check_link(card: str, link_name: str | None) -> None:
-    """``--link`` must be one the card speaks (SI-T3 Table 29 / F6-22, V7 switch S1-1: ML-I/II; SI-ET3: ML-III)."""
+    """``--link`` must be one the card speaks (its profile's links: SI-T3 Table 29 / F6-22, V7 switch S1-1:
+    ML-I/II; SI-ET3: ML-III)."""
     if link_name is None:
         return
-    from ..config import CARD_LINKS
-
-    links = CARD_LINKS[card]
-    if link_name.upper() not in {lk.name for lk in links}:
-        names = " or ".join(lk.name for lk in links)
-        raise InputError(f"--link {link_name}: {card} speaks {'/'.join(lk.label for lk in links)}; use --link {names}")
+    links = sorted(lookup(card).links)
+    if link_name.upper() not in links:
+        spoken = "/".join(Link[name].label for name in links)
+        raise InputError(f"--link {link_name}: {card} speaks {spoken}; use --link {' or '.join(links)}")
 
 
 def station_specs_from_config(
@@ -99,7 +100,8 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
     else:
         for st in info["stations"]:
             print(
-                f"mlink-sim slave ready: {st['card']} station {station_name(st['address'])} on {st['host']}:{st['port']} "
+                f"mlink-sim slave ready: {card_text(st['card'])} station {station_name(st['address'])} on "
+                f"{st['host']}:{st['port']} "
                 f"({st['link']}, {st['frame_size']}-byte frames, {loop_name(loop)})",
                 flush=True,
             )
@@ -147,7 +149,8 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
 
 
 @click.command("slave")
-@click.option("--card", type=CARD, metavar="CARD", help=f"Option card to emulate: {', '.join(CARDS)}.")
+@click.option("--card", type=CARD, help=f"Option card to emulate: {', '.join(p.key for p in profiles())} (as a config's "
+              "card field).")
 @click.option("--station", "station_text", type=ADDR, help="Station address, e.g. 21H or 0x21 (F6-20 / V7 switches).")
 @click.option("--listen", default="127.0.0.1:0", show_default=True, metavar="HOST:PORT",
               help="Where to listen (port 0: any free port).")

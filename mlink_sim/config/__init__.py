@@ -2,8 +2,6 @@
 
 from .load import ConfigError, load_config, parse_config, resolve_config_path, station_param_assignments
 from .model import (
-    CARD_FAMILY,
-    CARD_LINKS,
     Config,
     LoadConfig,
     NetworkConfig,
@@ -30,6 +28,4 @@ __all__ = [
     "parse_duration_ns",
     "format_ns",
     "check_cycle",
-    "CARD_FAMILY",
-    "CARD_LINKS",
 ]

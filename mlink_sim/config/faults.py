@@ -44,9 +44,9 @@ def check_fault_targets(step: Any, stations: Sequence[Any], where: str) -> None:
             if step.kind == "combination" and not st.subcmd:
                 raise ValueError(f"{where}.kind: a combination error pairs a main command with a sub-command "
                                  f"(SI-T3 Table 7, SI-ET3 Table 13), but {label} has subcmd = false")
-            if step.kind == "data-size" and st.card == "si-t-v7" and st.frame_size == 32 and not st.subcmd:
-                raise ValueError(f"{where}.kind: a 32-byte SI-T/V7 takes PRM_RD only as a sub-command (V7 §7.1), and "
-                                 f"{label} has subcmd = false")
+            if step.kind == "data-size" and st.profile.prm_as_subcommand and st.frame_size == 32 and not st.subcmd:
+                raise ValueError(f"{where}.kind: a 32-byte {st.profile.label} takes PRM_RD only as a sub-command "
+                                 f"({st.profile.sources['prm_as_subcommand']}), and {label} has subcmd = false")
     if step.do == "load" and step.torque:
         for st in stations:
             if st.load.kind == "fan":

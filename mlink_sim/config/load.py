@@ -11,7 +11,7 @@ from pydantic import ValidationError
 from ..examples import example_names, example_path
 from ..params import FAMILIES, ParamError
 from ..operations import OpError, check_speed
-from .model import CARD_FAMILY, Config, StationConfig
+from .model import Config, StationConfig
 
 __all__ = ["ConfigError", "load_config", "parse_config", "resolve_config_path", "station_param_assignments"]
 
@@ -32,6 +32,23 @@ def _loc(loc: tuple[Any, ...]) -> str:
     return out
 
 
+def _near(loc: tuple[Any, ...]) -> str:
+    """``; did you mean 'hz'?`` for an unknown field close to one its table has (``speed_hz``, ``hz``), else ''."""
+    import difflib
+
+    from .model import NetworkConfig, StationConfig, TimelineStep
+
+    models = {"network": NetworkConfig, "station": StationConfig, "timeline": TimelineStep}
+    model = models.get(str(loc[0])) if loc else None
+    if model is None or not isinstance(loc[-1], str):
+        return ""
+    names = [f.alias or n for n, f in model.model_fields.items()]
+    key = loc[-1]
+    within = sorted((n for n in names if key.endswith("_" + n) or key.startswith(n + "_")), key=len)  # speed_hz: hz
+    near = within[-1:] or difflib.get_close_matches(key, names, n=1, cutoff=0.6)
+    return f"; did you mean {near[0]!r}?" if near else ""
+
+
 def _format_validation(source: str, err: ValidationError) -> str:
     lines = []
     for e in err.errors(include_url=False):
@@ -40,7 +57,7 @@ def _format_validation(source: str, err: ValidationError) -> str:
         if msg.startswith("Value error, "):
             msg = msg[len("Value error, ") :]
         if e["type"] == "extra_forbidden":
-            msg = "unknown field (see docs/configuration.md for the fields)"
+            msg = "unknown field" + _near(tuple(e["loc"])) + " (see docs/configuration.md for the fields)"
         elif e["type"] == "missing":
             msg = "required field is missing"
         elif e["type"] == "literal_error":
@@ -58,7 +75,7 @@ def station_param_assignments(config: Config) -> dict[int, list[str]]:
 def _check_params(source: str, config: Config) -> None:
     problems = []
     for i, st in enumerate(config.station):
-        table = FAMILIES[CARD_FAMILY[st.card]]
+        table = FAMILIES[st.profile.family]
         for text in station_param_assignments(config)[st.address]:
             try:
                 table.parse_assignment(text)
@@ -72,7 +89,7 @@ def _check_params(source: str, config: Config) -> None:
         targets = config.station if step.station == "all" else [config.station_by_address(step.station)]
         for st in targets:
             try:
-                FAMILIES[CARD_FAMILY[st.card]].parse_assignment(f"{step.param}={step.value}")
+                FAMILIES[st.profile.family].parse_assignment(f"{step.param}={step.value}")
             except ParamError as exc:
                 problems.append(f"{source}: timeline[{i}].param: {exc} (station {st.address:02X}H, {st.card})")
                 break
@@ -91,7 +108,7 @@ def _check_speeds(source: str, config: Config) -> None:
         for st in targets:
             top, name = tops[st.address]
             if step.do == "set-param" and step.param is not None and step.value is not None:
-                table = FAMILIES[CARD_FAMILY[st.card]]
+                table = FAMILIES[st.profile.family]
                 param, raw = table.parse_assignment(f"{step.param}={step.value}")
                 if param.name == name:
                     tops[st.address] = (param.to_eng(raw), name)
@@ -105,12 +122,12 @@ def _check_speeds(source: str, config: Config) -> None:
 def max_frequency(st: StationConfig) -> tuple[float, str]:
     """The station's maximum output frequency in Hz as its parameters set it (A1000 E1-04, VS-606V7 n011) and that
     parameter: the bound of every frequency reference it is given."""
-    table = FAMILIES[CARD_FAMILY[st.card]]
+    table = FAMILIES[st.profile.family]
     values = table.defaults()
     for name, value in st.params.items():
         param, raw = table.parse_assignment(f"{name}={value}")
         values[param.name] = raw
-    name = "n011" if CARD_FAMILY[st.card] == "v7" else "E1-04"
+    name = st.profile.max_frequency
     return table.by_name(name).to_eng(values[name]), name
 
 

@@ -17,6 +17,7 @@ from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter
 from ..faults.spec import FAULT_ACTIONS
 from ..impair.spec import Impairment, parse_probability
 from ..operations import OPERATIONS, OpError, operation, parse_request
+from ..profiles import CardProfile, lookup, profiles
 from ..units import format_ns, parse_address, parse_duration_ns
 from ..wire.codes import CmdAlm, CommAlm, Link, M2Alarm
 from ..wire.drive_codes import SiT3DriveAlarm, SiT3DriveWarning, V7InverterAlarm, V7InverterWarning
@@ -25,8 +26,7 @@ from .faults import check_fault_step, check_fault_targets, fault_end_ns
 from .units import parse_arrival_poll
 
 __all__ = [
-    "CARD_LINKS",
-    "CARD_FAMILY",
+    "CardKey",
     "MAX_STATIONS",
     "LoadConfig",
     "StationConfig",
@@ -39,19 +39,6 @@ __all__ = [
     "check_alarm_name",
 ]
 
-#: Which links each card speaks (SI-T3 Table 29 / F6-22; V7 switch S1-1; SI-ET3 Table 28).
-CARD_LINKS: dict[str, tuple[Link, ...]] = {
-    "si-t3": (Link.ML1, Link.ML2),
-    "si-t-v7": (Link.ML1, Link.ML2),
-    "si-et3": (Link.ML3,),
-}
-#: Drive family behind each card.
-CARD_FAMILY = {"si-t3": "a1000", "si-et3": "a1000", "si-t-v7": "v7"}
-#: Station address ranges (SI-T3 Table 4 F6-20 21H–3EH; V7 §3.4 switches 21H–3EH; SI-ET3 Table 7 F6-20 03H–EFH).
-ADDRESS_RANGE = {"si-t3": (0x21, 0x3E), "si-t-v7": (0x21, 0x3E), "si-et3": (0x03, 0xEF)}
-#: Default frame size per card and link: F6-21 = 0 (SI-T3 32-byte, SI-ET3 64-byte); V7 S1-2 follows S1-1.
-DEFAULT_FRAME = {("si-t3", Link.ML2): 32, ("si-t3", Link.ML1): 17, ("si-t-v7", Link.ML2): 32,
-                 ("si-t-v7", Link.ML1): 17, ("si-et3", Link.ML3): 64}  # fmt: skip
 #: Stations one link carries: SI-T3 Table 29 "Maximum number of stations 30" (MECHATROLINK-I and -II; SI-T/V7 §9
 #: "Number of connectable stations 30 slaves max."), SI-ET3 Table 28 "Maximum number of stations 62".
 MAX_STATIONS = {Link.ML1: (30, "SI-T3 Table 29"), Link.ML2: (30, "SI-T3 Table 29"), Link.ML3: (62, "SI-ET3 Table 28")}
@@ -91,7 +78,24 @@ def _duration(value: Any) -> int:
     return parse_duration_ns(value)
 
 
+def _card(value: Any) -> str:
+    """A card in any spelling (``"SI-T/V7"``, ``"sitv7"``) -> its registry key (``"si-t-v7"``)."""
+    if not isinstance(value, str):
+        raise ValueError(f"expected an option card such as 'si-t3' (known cards: "
+                         f"{', '.join(p.key for p in profiles())}), got {value!r}")
+    return lookup(value).key
+
+
+def _registered_cards(schema: dict[str, Any]) -> None:
+    """The JSON schema of a card field: the cards registered when the schema is made (:mod:`mlink_sim.profiles`)."""
+    cards = profiles()
+    schema["enum"] = [p.key for p in cards]
+    schema["description"] = "option card, by its key: " + ", ".join(f"{p.key} ({p.label})" for p in cards)
+
+
 Address = Annotated[int, BeforeValidator(parse_address)]
+#: A station's ``card``: the key of a registered card (any spelling of one is read as its key).
+CardKey = Annotated[str, BeforeValidator(_card)]
 DurationNs = Annotated[int, BeforeValidator(_duration)]
 LinkField = Annotated[Link, BeforeValidator(_link)]
 
@@ -187,9 +191,10 @@ class StationConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     address: Address = Field(description="station address, e.g. 0x21 (F6-20 / V7 switches S1-3 + S2)")
-    card: Literal["si-t3", "si-et3", "si-t-v7"] = Field(description="option card: si-t3, si-et3 or si-t-v7")
+    card: CardKey = Field(description="option card, by its key", json_schema_extra=_registered_cards)
     link: LinkField | None = Field(
-        None, description="ML1/ML2/ML3 for this station (default: network.link, else ML3 for si-et3, ML2 otherwise)"
+        None, description="ML1/ML2/ML3 for this station (default: network.link, else the card's own: ML3 for si-et3, "
+        "ML2 for si-t3 and si-t-v7)"
     )
     name: str | None = Field(None, description="label shown in status lines and reports")
     frame_size: int | None = Field(None, description="data bytes: 17/32 (MECHATROLINK-I/II) or 32/64 (III)")
@@ -222,8 +227,13 @@ class StationConfig(BaseModel):
         return v
 
     @property
+    def profile(self) -> CardProfile:
+        """Its card's profile (:mod:`mlink_sim.profiles`)."""
+        return lookup(self.card)
+
+    @property
     def label(self) -> str:
-        return self.name or f"{self.card}@{self.address:02X}H"
+        return self.name or f"{self.profile.label}@{self.address:02X}H"
 
     def host_port(self, default_host: str) -> tuple[str, int]:
         return parse_endpoint(self.endpoint) if self.endpoint else (default_host, 0)
@@ -457,7 +467,7 @@ class Config(BaseModel):
 
     @model_validator(mode="after")
     def _consistency(self) -> Config:
-        links = [st.link or self.network.link or CARD_LINKS[st.card][-1] for st in self.station]
+        links = [st.link or self.network.link or Link[st.profile.default_link] for st in self.station]
         for link in sorted(set(links)):
             n, (limit, source) = links.count(link), MAX_STATIONS[link]
             if n > limit:
@@ -465,29 +475,30 @@ class Config(BaseModel):
         seen: dict[int, int] = {}
         for i, st in enumerate(self.station):
             where = f"station[{i}]"
+            profile = st.profile
             if st.link is None:
-                st.link = self.network.link or CARD_LINKS[st.card][-1]
+                st.link = self.network.link or Link[profile.default_link]
             link = st.link
             if st.address in seen:
                 raise ValueError(f"{where}.address: {st.address:02X}H is already used by station[{seen[st.address]}]")
             seen[st.address] = i
-            lo, hi = ADDRESS_RANGE[st.card]
+            lo, hi = profile.addresses
             if not lo <= st.address <= hi:
                 raise ValueError(
                     f"{where}.address: {st.address:02X}H is outside {st.card}'s range {lo:02X}H–{hi:02X}H"
                 )
-            if link not in CARD_LINKS[st.card]:
-                spoken = "/".join(lk.label for lk in CARD_LINKS[st.card])
+            if link.name not in profile.frames:
+                spoken = "/".join(Link[name].label for name in sorted(profile.links))
                 raise ValueError(f"{where}.link: {st.card} speaks {spoken}, not {link.label}")
             if st.frame_size is None:
-                st.frame_size = DEFAULT_FRAME[(st.card, link)]
+                st.frame_size = profile.frames[link.name][0]
             if st.frame_size not in link.data_sizes:
                 sizes = " or ".join(map(str, link.data_sizes))
                 raise ValueError(f"{where}.frame_size: {link.label} uses {sizes}-byte frames, got {st.frame_size}")
             if st.com_tim is None:
                 st.com_tim = DEFAULT_COM_TIM[link]
-            if st.subcmd is None:
-                st.subcmd = st.card == "si-t-v7" and st.frame_size == 32
+            if st.subcmd is None:  # on for a 32-byte card that takes PRM_RD/PRM_WR only as sub-commands (V7 §7.1)
+                st.subcmd = profile.prm_as_subcommand and st.frame_size == 32
             if st.subcmd and st.frame_size not in (32, 64) or st.subcmd and link is Link.ML1:
                 raise ValueError(f"{where}.subcmd: sub-commands need 32-byte MECHATROLINK-II or 64-byte III frames")
             why = check_cycle(link, st.frame_size, self.network.transmission_cycle)

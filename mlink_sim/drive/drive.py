@@ -571,6 +571,7 @@ class Drive:
         unknown names read 0).  See :mod:`mlink_sim.drive.monitors` for the units."""
         return read_monitor(self, name)
 
-    def sel_mon(self, card: str, code: int) -> int:
-        """Value of SEL_MON ``code`` for ``card`` ("SI-T3", "SI-ET3", "SI-T/V7"), signed int."""
-        return read_sel_mon(self, card, code)
+    def sel_mon(self, table: str, code: int) -> int:
+        """Value of SEL_MON ``code`` in the SEL_MON table *table* ("SI-T3", "SI-ET3", "SI-T/V7": a card profile's
+        ``selections``), signed int."""
+        return read_sel_mon(self, table, code)

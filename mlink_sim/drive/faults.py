@@ -208,8 +208,12 @@ V7_WARNING_CODES: Mapping[Fault, int] = MappingProxyType({
 del F
 
 
-def _is_v7(family: object) -> bool:
-    return getattr(family, "value", family) == "v7"
+#: The fault and minor fault codes of each drive family (by ``Family`` value): the A1000 family's SI-T3 Tables
+#: 26/27 (the SI-ET3 reports the same), the VS-606V7's SI-T/V7 Tables 10/11.
+_FAMILY_CODES: Mapping[str, tuple[Mapping[Fault, int], Mapping[Fault, int]]] = MappingProxyType({
+    "a1000": (SI_T3_FAULT_CODES, SI_T3_MINOR_CODES),
+    "v7": (V7_FAULT_CODES, V7_WARNING_CODES),
+})
 
 
 def fault_code(family: object, fault: Fault | None) -> int:
@@ -220,13 +224,11 @@ def fault_code(family: object, fault: Fault | None) -> int:
     """
     if fault is None:
         return 0
-    table = V7_FAULT_CODES if _is_v7(family) else SI_T3_FAULT_CODES
-    return table.get(fault, 0)
+    return _FAMILY_CODES[str(getattr(family, "value", family))][0].get(fault, 0)
 
 
 def minor_code(family: object, minor: Fault | None) -> int:
     """Minor fault code (SI-T3 Table 27 / SI-T/V7 Table 11); 0 when none or not in the table."""
     if minor is None:
         return 0
-    table = V7_WARNING_CODES if _is_v7(family) else SI_T3_MINOR_CODES
-    return table.get(minor, 0)
+    return _FAMILY_CODES[str(getattr(family, "value", family))][1].get(minor, 0)

@@ -228,20 +228,24 @@ def _sel_mon_readers(table: tuple[str, ...], family: dict[str, Callable[[DriveVi
     return tuple(special.get(name) or family.get(name, _zero) for name in table)
 
 
-_SEL_MON_READERS: dict[str, tuple[Callable[[DriveView], int], ...]] = {
-    card: _sel_mon_readers(table, _V7 if card == "SI-T/V7" else _A1000)
-    for card, table in SEL_MON_TABLES.items()
-}
+#: (SEL_MON table, family) -> its 16 readers, made on first use (:func:`sel_mon_readers`).
+_SEL_MON_READERS: dict[tuple[str, Family], tuple[Callable[[DriveView], int], ...]] = {}
 
 
-def sel_mon_readers(card: str) -> tuple[Callable[[DriveView], int], ...]:
-    """The 16 reader functions of ``card``'s SEL_MON table (call ``reader(drive)``)."""
-    return _SEL_MON_READERS.get(card, (_zero,) * 16)
+def sel_mon_readers(table: str, family: Family) -> tuple[Callable[[DriveView], int], ...]:
+    """The 16 reader functions (call ``reader(drive)``) of the SEL_MON table *table* (its key in
+    :data:`SEL_MON_TABLES`, a card profile's ``selections``: "SI-T3", "SI-ET3", "SI-T/V7") on a drive of *family*;
+    a table it does not know reads 0."""
+    readers = _SEL_MON_READERS.get((table, family))
+    if readers is None:
+        names = SEL_MON_TABLES.get(table, ("",) * 16)
+        readers = _sel_mon_readers(names, _V7 if family is Family.V7 else _A1000)
+        _SEL_MON_READERS[(table, family)] = readers
+    return readers
 
 
-def read_sel_mon(drive: DriveView, card: str, code: int) -> int:
-    """SEL_MON ``code`` (0..F) for ``card`` ("SI-T3", "SI-ET3", "SI-T/V7")."""
-    readers = _SEL_MON_READERS.get(card)
-    if readers is None or not 0 <= code <= 0xF:
+def read_sel_mon(drive: DriveView, table: str, code: int) -> int:
+    """SEL_MON ``code`` (0..F) of the SEL_MON table *table* ("SI-T3", "SI-ET3", "SI-T/V7")."""
+    if not 0 <= code <= 0xF:
         return 0
-    return readers[code](drive)
+    return sel_mon_readers(table, drive.family)[code](drive)

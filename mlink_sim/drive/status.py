@@ -41,11 +41,12 @@ class DriveStatus:
     stall_prevention: bool = False  # ramp held by stall prevention (accel or decel)
 
 
-def ml2_status_bits(st: DriveStatus, *, cmdrdy: bool = True, v7: bool = False) -> int:
+def ml2_status_bits(st: DriveStatus, *, cmdrdy: bool = True, bits_e_f: bool = True) -> int:
     """MECHATROLINK-II STATUS word (SI-T3 / SI-T/V7 STATUS field).
 
     ALM/WARNG reflect the drive only (communication alarms are the card's); ALM is not reported
-    while the fault reset signal is on (SI-T3 Table 16 note <2>).  ``v7``: bits E, F are unused.
+    while the fault reset signal is on (SI-T3 Table 16 note <2>).  ``bits_e_f`` False: bits E, F are unused (the
+    SI-T/V7, V7 §7.3; ``CardProfile.status_bits_e_f``).
     """
     w = 0
     if st.faulted and not st.fault_reset_input:
@@ -76,7 +77,7 @@ def ml2_status_bits(st: DriveStatus, *, cmdrdy: bool = True, v7: bool = False) -
         w |= 1 << 12
     if st.remote:
         w |= 1 << 13
-    if st.motor2 and not v7:
+    if st.motor2 and bits_e_f:
         w |= 1 << 14
     return w
 

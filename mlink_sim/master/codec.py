@@ -36,7 +36,7 @@ from ..wire import (
     ml3,
 )
 from ..wire.combinations import ML2_COMBINATIONS, ML3_COMBINATIONS, V7_COMBINATIONS, forbids
-from ..wire.drive_codes import SiT3DriveAlarm, SiT3DriveWarning, V7InverterAlarm, V7InverterWarning
+from ..wire.drive_codes import FAMILY_CODES, SiT3DriveWarning
 from .commands import Cmd, cmd_of
 from .plan import StationPlan
 from .types import Control
@@ -47,11 +47,11 @@ _NOT_CONNECTED_ML2 = {int(M2Cmd.INV_CTL), int(M2Cmd.SYNC_SET), int(M2Cmd.ALM_CLR
 _COMM_ALARMS_ML2 = {int(M2Alarm.WDT_ERROR), int(M2Alarm.COMM_ERROR)}
 _REFUSALS_ML2 = {int(M2Alarm.DATA_SETTING_WARNING), int(M2Alarm.COMMAND_WARNING)}
 _CARD_CODES = {int(m) for m in M2Alarm}
-# SI-T3: the drive's own reaction to a communication fault can be the most recent alarm in the ALARM byte and hide
-# E5H/E6H (Table 21): Table 26 faults E5 (39H, "SI-T3 Watchdog Timer Error") and bUS (22H), or Table 27 minor
-# faults E5 (31H) and bUS (15H) – all are communication faults the master recovers (Table 28 "E5").
-_DRIVE_COMM_FAULTS = {int(SiT3DriveAlarm.E5), int(SiT3DriveAlarm.BUS)}
-_DRIVE_COMM_MINORS = {int(SiT3DriveWarning.E5), int(SiT3DriveWarning.BUS)}
+#: The drive's own reaction to a communication fault can be the most recent alarm in the ALARM byte and hide E5H/E6H
+#: (SI-T3 Table 21): faults and minor faults E5 and bUS of the drive's code tables (SI-T3 Table 26 E5 39H, "SI-T3
+#: Watchdog Timer Error", and bUS 22H; Table 27 E5 31H and bUS 15H) are communication faults the master recovers
+#: (Table 28 "E5"). On the VS-606V7 they are E5H and E6H themselves (V7 Table 10), the card's own codes.
+_DRIVE_COMM = ("E5", "BUS")
 _CYC = int(SiT3DriveWarning.CYC)
 #: CONNECT answers meaning "these VER/COM_MOD/COM_TIM do not suit me": A.94 (SI-T3 Table 25) or CyC (Table 27) /
 #: CMD_ALM 1H or 9H (SI-ET3 "CMD_ALM" table).
@@ -115,7 +115,8 @@ def _enum_name(enum_type: Any, code: int) -> str:
 class Codec:
     """Builds command messages and reads responses for one station's generation."""
 
-    __slots__ = ("plan", "link", "cmd", "mod", "main_slot", "sub_slot", "v7", "combinations", "_nop")
+    __slots__ = ("plan", "link", "cmd", "mod", "main_slot", "sub_slot", "combinations", "prm_as_subcommand",
+                 "drive_alarms", "drive_warnings", "comm_faults", "comm_minors", "cyc", "_nop")
 
     def __init__(self, plan: StationPlan) -> None:
         self.plan = plan
@@ -125,8 +126,19 @@ class Codec:
         self.mod = ml3 if ml3_link else ml2
         self.main_slot = self.mod.COMMAND_MAIN
         self.sub_slot = self.mod.COMMAND_SUB
-        self.v7 = plan.is_v7
-        self.combinations = ML3_COMBINATIONS if ml3_link else V7_COMBINATIONS if self.v7 else ML2_COMBINATIONS
+        profile = plan.profile  # None: a card the plan does not name, no card's own rules
+        #: PRM_RD/PRM_WR go as sub-commands where sub-commands are on (V7 §7.1, CardProfile.prm_as_subcommand)
+        self.prm_as_subcommand = profile is not None and profile.prm_as_subcommand
+        config_sub = profile is not None and profile.config_subcommand  # V7 §7.2
+        self.combinations = ML3_COMBINATIONS if ml3_link else V7_COMBINATIONS if config_sub else ML2_COMBINATIONS
+        #: the drive's fault and minor fault codes (SI-T3 Tables 26/27, V7 Tables 10/11), by the card's drive family
+        alarms, warnings = FAMILY_CODES[plan.family]
+        self.drive_alarms: Any = alarms
+        self.drive_warnings: Any = warnings
+        self.comm_faults = frozenset(int(alarms[n]) for n in _DRIVE_COMM if n in alarms.__members__)
+        self.comm_minors = frozenset(int(warnings[n]) for n in _DRIVE_COMM if n in warnings.__members__)
+        #: the minor fault CyC, which hides a refused CONNECT's A.94 (SI-T3 Table 27); -1: the drive has none
+        self.cyc = int(warnings["CYC"]) if "CYC" in warnings.__members__ else -1
         self._nop = self.mod.Nop()
 
     # --- bodies ---------------------------------------------------------------------------------------------
@@ -234,11 +246,7 @@ class Codec:
         Tables 10/11) picked by STATUS.ALM."""
         if code in _CARD_CODES and not (code in _REFUSALS_ML2 and status & M2Status.ALM):
             return M2Alarm(code).name
-        if self.v7:
-            table: Any = V7InverterAlarm if status & M2Status.ALM else V7InverterWarning
-        else:
-            table = SiT3DriveAlarm if status & M2Status.ALM else SiT3DriveWarning
-        return _enum_name(table, code)
+        return _enum_name(self.drive_alarms if status & M2Status.ALM else self.drive_warnings, code)
 
     def _reply2(self, m: ml2.M2Response, sent_code: int | None) -> Reply:
         status = m.status
@@ -258,16 +266,16 @@ class Codec:
         comm = None
         if alarm in _COMM_ALARMS_ML2:
             comm = (alarm, M2Alarm(alarm).name)
-        elif not self.v7 and (alarm in _DRIVE_COMM_FAULTS if status & M2Status.ALM else
-                              alarm in _DRIVE_COMM_MINORS and status & M2Status.WARNG):
+        elif (alarm in self.comm_faults if status & M2Status.ALM else
+              alarm in self.comm_minors and status & M2Status.WARNG):
             comm = (alarm, self.alarm_name(alarm, status))
         code = ml2.RESPONSE_MAIN.code_of(m.body)
         warning = bool(status & M2Status.WARNG)
         # A CONNECT refused: its own error, or on the SI-T3 the minor fault CyC (33H, "SI-T3 Transmission Cycle
         # Error", Table 27), which as the lower warning code hides the A.94 (Table 21).
         refusal = error
-        if refusal is None and not self.v7 and alarm == _CYC and warning:
-            refusal = (_CYC, "CYC")
+        if refusal is None and alarm == self.cyc and warning:
+            refusal = (alarm, "CYC")
         return Reply(
             code=code,
             kind=cmd_of(self.link, code),

@@ -1,7 +1,7 @@
 """Parameters by name for the master's requests: ``prm_rd(0x21, "C1-01")`` and ``prm_wr(0x21, "C1-01", 5.0)``.
 
-The station's card picks the table (:func:`mlink_sim.params.for_card`: the A1000 rows for SI-T3 and SI-ET3, the
-VS-606V7 n-numbers for SI-T/V7; docs/parameters.md). A name is turned into its MEMOBUS register and a value in
+The station's card picks the table (its profile's, :func:`mlink_sim.params.for_card`: the A1000 rows for SI-T3 and
+SI-ET3, the VS-606V7 n-numbers for SI-T/V7; docs/parameters.md). A name is turned into its MEMOBUS register and a value in
 engineering units into the register's raw count by the table's scale, checked against the row's range; every
 problem raises :class:`~mlink_sim.master.types.ParamRequestError` before a request exists. A register given as a
 number keeps the raw API: PRM_RD returns the unsigned word, PRM_WR writes the int given.
@@ -9,8 +9,8 @@ number keeps the raw API: PRM_RD returns the unsigned word, PRM_WR writes the in
 
 from __future__ import annotations
 
-from ..params import Param, ParamError, ParamTable, card_label, for_card
-from ..wire import Link
+from ..params import Param, ParamError, ParamTable, for_card
+from ..profiles import default_for
 from .plan import StationPlan
 from .types import ParamRequestError, ParamValue
 
@@ -21,19 +21,16 @@ SIZES = (2, 4, 6, 8)
 
 
 def _where(plan: StationPlan) -> str:
-    return f"station {plan.address:02X}H ({card_label(plan.card) if plan.card else plan.link.label})"
+    profile = plan.profile
+    return f"station {plan.address:02X}H ({profile.label if profile is not None else plan.link.label})"
 
 
 def table_for(plan: StationPlan) -> ParamTable | None:
-    """The parameter table of *plan*'s card; an ML-III station without a card name is an SI-ET3, an ML-I one an
-    SI-T/V7 (the only cards on those links); None when the card is not known."""
-    card = plan.card or {Link.ML3: "si-et3", Link.ML1: "si-t/v7"}.get(plan.link, "")
-    if not card:
-        return None
-    try:
-        return for_card(card)
-    except ParamError:
-        return None
+    """The parameter table of *plan*'s card; a station without a card name is the card its link is taken for
+    (:func:`mlink_sim.profiles.default_for`: an SI-ET3 on ML-III, an SI-T/V7 on ML-I); None when the card is not
+    known (ML-II: SI-T3 or SI-T/V7)."""
+    profile = plan.profile or default_for(plan.link)
+    return None if profile is None else for_card(profile)
 
 
 def _register(plan: StationPlan, target: object, size: int) -> int:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..profiles import CardProfile, lookup
 from ..wire import ConnectVersion, Link, M2ComMod, M3ComMod, PROFILE_TYPE_INVERTER
 
 __all__ = ["StationPlan", "NetworkPlan", "TCYCLE_RANGE_NS"]
@@ -47,8 +48,9 @@ class StationPlan:
     """Generation of the network; must equal :attr:`NetworkPlan.link`."""
 
     data_size: int = 0
-    """Frame data size: 17 (ML-I), 17/32 (ML-II), 32/64 (ML-III). 0 = the card's factory setting: 17 on ML-I,
-    32 on ML-II (SI-T3 F6-21 = 0), 64 on ML-III (SI-ET3 Table 7, F6-21 default 0 = 64-byte)."""
+    """Frame data size: 17 (ML-I), 17/32 (ML-II), 32/64 (ML-III). 0 = the card's factory setting (its profile's
+    first size on the link); without a card named, 17 on ML-I, 32 on ML-II (SI-T3 F6-21 = 0), 64 on ML-III (SI-ET3
+    Table 7, F6-21 default 0 = 64-byte)."""
 
     com_tim: int = 0
     """CONNECT COM_TIM. ML-II/III: communication cycle in transmission cycles (1–32 / 1–255); ML-I: milliseconds
@@ -64,8 +66,10 @@ class StationPlan:
     """Informational label used in logs and views."""
 
     card: str = ""
-    """Informational card name ("si-t3", "si-et3", "si-t/v7"); picks the drive alarm-code table for names and
-    routes PRM_RD/PRM_WR to the sub-command on a 32-byte SI-T/V7 (V7 §7.1 PRM_RD note)."""
+    """The station's card, any spelling of a registered one (read as its key, "si-t-v7"; :mod:`mlink_sim.profiles`);
+    "" = not known. Its profile picks the drive code tables for names, the parameter table, the combination table,
+    the motor speed monitor and where PRM_RD/PRM_WR go (a 32-byte SI-T/V7 takes them only as sub-commands, V7
+    §7.1)."""
 
     et3_syncmode_table19: bool = False
     """ML-III only. SI-ET3 Table 19 reads COM_MOD.SYNCMODE 0 = synchronous, 1 = asynchronous – the reverse of
@@ -94,9 +98,14 @@ class StationPlan:
     def __post_init__(self) -> None:
         link = Link(self.link)
         object.__setattr__(self, "link", link)
+        sizes: tuple[int, ...] = ()
+        if self.card:
+            profile = lookup(self.card)  # ValueError listing the cards
+            object.__setattr__(self, "card", profile.key)
+            sizes = profile.frames.get(link.name, ())
         if not 0 <= self.address <= 0xFF:
             raise ValueError(f"station address {self.address} does not fit one byte (0–255)")
-        size = self.data_size or _DEFAULT_SIZE[link]
+        size = self.data_size or (sizes[0] if sizes else _DEFAULT_SIZE[link])
         object.__setattr__(self, "data_size", size)
         if size not in link.data_sizes:
             allowed = " or ".join(map(str, link.data_sizes))
@@ -139,8 +148,16 @@ class StationPlan:
         return self.data_size == (32 if self.link is not Link.ML3 else 64)
 
     @property
-    def is_v7(self) -> bool:
-        return "".join(ch for ch in self.card.lower() if ch.isalnum()) == "sitv7"
+    def profile(self) -> CardProfile | None:
+        """The profile of the card the plan names (:mod:`mlink_sim.profiles`), None when it names none. Looked up by
+        name: read it once, where a station's codec or record is made."""
+        return lookup(self.card) if self.card else None
+
+    @property
+    def family(self) -> str:
+        """The drive family of its card ("a1000", "v7"); a plan that names no card is read by the rules every
+        MECHATROLINK-II card shares and the A1000 family's drive codes (SI-T3 Tables 26/27)."""
+        return lookup(self.card).family if self.card else "a1000"
 
     @property
     def label(self) -> str:

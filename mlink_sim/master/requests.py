@@ -34,8 +34,8 @@ def build(st: Slave, body: Any, sub: bool | None, deadline_ns: int,
     send; the cycle encodes the frame itself when it sends it). *result_of*: the result the answer's body gives
     (:attr:`Request.result_of`)."""
     codec, plan = st.codec, st.plan
-    if sub is None:  # V7 §7.1 "PRM_RD can be used only in a sub-command": 32-byte SI-T/V7 PRM_RD/PRM_WR
-        sub = (plan.is_v7 and plan.subcmd and type(body) in codec.sub_slot.by_class
+    if sub is None:  # a card that takes PRM_RD/PRM_WR only as sub-commands (V7 §7.1; CardProfile.prm_as_subcommand)
+        sub = (codec.prm_as_subcommand and plan.subcmd and type(body) in codec.sub_slot.by_class
                and type(body) in codec.main_slot.by_class
                and codec.kind_of(codec.main_slot.code_of(body)) in (Cmd.PRM_RD, Cmd.PRM_WR))
     if sub and not plan.subcmd:

@@ -7,8 +7,10 @@ master had running is back at its phase, the master runs it again only when the 
 * with speed search (``StationPlan.speed_search``: A1000 b3-01 = 1, or a speed-search input), at once, with the
   search input (``StationPlan.search_input``, VS-606V7 n05x = 14/15) on until speed agree;
 * else once the motor stands still: |U1-05 motor speed| at or below ``StationPlan.standstill``, read in MON1
-  (SEL_MON code 1, SI-T3 Table 18 / SI-ET3 Table 22) on the A1000 cards. The SI-T/V7 has no motor speed monitor
-  (its Table 5 code 1 is the output frequency): the run is held until the application gives a run command again.
+  (SEL_MON code 1, SI-T3 Table 18 / SI-ET3 Table 22) on a card whose profile names its motor speed monitor
+  (``CardProfile.motor_speed``). The SI-T/V7 has none (its Table 5 code 1 is the output frequency), and a station
+  whose plan names no card is not relied on for it: the run is held until the application gives a run command
+  again.
 
 The application's latest command is the one resumed. The functions work on the core's per-station state
 (``run_held``, ``searching``, ``control``, ``ctl_body``) and report through ``emit``.
@@ -21,14 +23,23 @@ from dataclasses import replace
 from typing import Any
 
 from ..wire import M2Status
+from ..wire.selections import SEL_MON_TABLES
+from .plan import StationPlan
 from .types import Event, RunHeld, RunResumed
 
-__all__ = ["MOTOR_SPEED_CARDS", "begin", "watch", "command"]
-
-#: Cards whose SEL_MON code 1 is U1-05 motor speed (SI-T3 Table 18, SI-ET3 Table 22).
-MOTOR_SPEED_CARDS = frozenset({"si-t3", "si-et3"})
+__all__ = ["motor_code", "begin", "watch", "command"]
 
 Emit = Callable[[Event], None]
+
+
+def motor_code(plan: StationPlan) -> int:
+    """The SEL_MON code that selects the motor speed on the card *plan* names (U1-05 is code 1: SI-T3 Table 18,
+    SI-ET3 Table 22); -1 when its card has no such monitor (SI-T/V7 Table 5) or the plan names no card."""
+    profile = plan.profile
+    if profile is None:
+        return -1
+    table = SEL_MON_TABLES.get(profile.selections, ())
+    return table.index(profile.motor_speed) if profile.motor_speed in table else -1
 
 
 def _running(st: Any) -> bool:
@@ -36,8 +47,9 @@ def _running(st: Any) -> bool:
 
 
 def sees_motor(st: Any) -> bool:
-    """MON1 shows the motor speed: an A1000 card with SEL_MON MON1 = 1 (the master's default 41H)."""
-    return bool(st.sees_motor and st.control.sel_mon & 0x0F == 1)
+    """MON1 shows the motor speed: a card that has its monitor with SEL_MON MON1 set to it (the master's default
+    41H: MON1 = 1, U1-05 on the A1000 cards)."""
+    return bool(st.motor_code >= 0 and st.control.sel_mon & 0x0F == st.motor_code)
 
 
 def begin(st: Any, emit: Emit) -> None:

@@ -78,8 +78,8 @@ class Slave:
         #: after a recovery: the run command is held back (until standstill) or sent with the search input
         self.run_held = False
         self.searching = False
-        #: MON1 carries U1-05 motor speed (A1000 cards, SEL_MON 1: SI-T3 Table 18, SI-ET3 Table 22)
-        self.sees_motor = plan.card in restart.MOTOR_SPEED_CARDS
+        #: the SEL_MON code of the motor speed on its card (U1-05 = 1: SI-T3 Table 18, SI-ET3 Table 22); -1: none
+        self.motor_code = restart.motor_code(plan)
         self.reset_first = False
         self.hold_until = -1
         self.clear_rounds = 0

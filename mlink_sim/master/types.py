@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from ..params import ParamError
+from ..profiles import lookup
 from ..wire import CmdAlm, CommAlm, InvCmdStat, Link, M2Status
 
 if TYPE_CHECKING:
@@ -102,21 +103,22 @@ class Control:
 
 
 #: The status bits a response reports, by card: SI-T3 "STATUS Field" (MECHATROLINK-II STATUS, bits 0–F), SI-T/V7
-#: §7.3 "STATUS Field" (the same bits 0–D; E and F are not used), SI-ET3 "INVCMD_STAT" (the INV_CTL response's
-#: INVCMD_STAT, bits 0–13 and the SEL_MON statuses 24/25).
-_V7_UNUSED = M2Status.SEL_M | M2Status.ZERO_SERVO
+#: §7.3 "STATUS Field" (the same bits 0–D; E and F are not used: ``CardProfile.status_bits_e_f``), SI-ET3
+#: "INVCMD_STAT" (the INV_CTL response's INVCMD_STAT, bits 0–13 and the SEL_MON statuses 24/25).
+_BITS_E_F = M2Status.SEL_M | M2Status.ZERO_SERVO
 
 
 def status_bits(link: Link | str, status: int, card: str = "") -> tuple[str, ...]:
     """The names of the bits set in *status* (ML-I/II STATUS, ML-III INVCMD_STAT), in bit order, as the card's
-    manual names them (SI-T3 / SI-T/V7 "STATUS Field", SI-ET3 "INVCMD_STAT"); the SI-T/V7 has no bits E and F."""
+    manual names them (SI-T3 / SI-T/V7 "STATUS Field", SI-ET3 "INVCMD_STAT"); a card without bits E and F (the
+    SI-T/V7) shows neither. *card*: any spelling of a registered card, "" when not known."""
     flags: type[M2Status] | type[InvCmdStat]
     if (link if isinstance(link, Link) else Link[link]) is Link.ML3:
         flags = InvCmdStat
     else:
         flags = M2Status
-        if "".join(ch for ch in card.lower() if ch.isalnum()) == "sitv7":
-            status &= ~_V7_UNUSED
+        if card and not lookup(card).status_bits_e_f:
+            status &= ~_BITS_E_F
     return tuple(m.name for m in flags if m.name and m.value.bit_count() == 1 and status & m.value)
 
 
@@ -168,7 +170,7 @@ class StationView:
     recoveries: int
     last_error: str | None  #: why bring-up is stuck or recovery escalated, if it is
     link: str = "ML2"  #: the link's name (``Link`` member: "ML1", "ML2", "ML3")
-    card: str = ""  #: the card ("si-t3", "si-et3", "si-t/v7"; empty when the plan does not say)
+    card: str = ""  #: the card's key ("si-t3", "si-et3", "si-t-v7"; empty when the plan does not say)
     hz_per_count: float = 0.0  #: Hz of one count of ``output_freq`` (the drive's o1-03 / n035 units); 0 = unknown
 
     @property

@@ -12,7 +12,7 @@ from typing import Any
 from ..units import parse_address
 from .args import station_name
 
-__all__ = ["station_name", "station_text", "leds_text", "alarm_text", "event_text", "LED_MARKS"]
+__all__ = ["station_name", "station_text", "card_text", "leds_text", "alarm_text", "event_text", "LED_MARKS"]
 
 #: A LED's state -> the mark after its name: lit is the name alone, unlit ``-``, blinking ``*`` (SI-T3 Table 3,
 #: SI-ET3 Table 4, SI-T/V7 §3.3 "LED Indicators" name the states).
@@ -27,6 +27,16 @@ def station_text(value: Any) -> str:
         return station_name(parse_address(value))
     except ValueError:
         return str(value)
+
+
+def card_text(card: Any) -> str:
+    """A card as JSON names it (its key, ``"si-t-v7"``) as its manual does (``"SI-T/V7"``); an unknown one as it is."""
+    from ..profiles import lookup
+
+    try:
+        return lookup(str(card)).label
+    except ValueError:
+        return str(card or "")
 
 
 def leds_text(leds: Mapping[str, str] | None) -> str:

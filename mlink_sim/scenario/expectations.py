@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..config import CARD_FAMILY, Config, StationConfig, TimelineStep
+from ..config import Config, StationConfig, TimelineStep
 from ..drive import Drive, DriveCommand, DriveSettings, Family, LoadSpec, hz_to_ref
 from ..drive.activity import PARAM_ROLES, ramp_seconds
 from ..params import FAMILIES
@@ -67,7 +67,7 @@ def _label(step: TimelineStep, address: int) -> str:
 
 def _station(config: Config, st: StationConfig, steps: list[TimelineStep], index: dict[int, int],
              stops: dict[tuple[object, ...], float | None]) -> list[str]:
-    family = Family(CARD_FAMILY[st.card])
+    family = Family(st.profile.family)
     table = FAMILIES[family.value]
     values = station_values(st)
     settings = DriveSettings.from_params(family, values)

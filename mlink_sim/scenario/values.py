@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..config import CARD_FAMILY, Config, StationConfig
+from ..config import Config, StationConfig
 from ..drive import DriveSettings, Family
 from ..drive.monitors import hz_to_ref, ref_to_hz
 from ..params import FAMILIES
@@ -37,7 +37,7 @@ class SpeedScale:
 
 def station_values(st: StationConfig) -> dict[str, int]:
     """The station's parameter set: family defaults with the config's assignments applied (raw values)."""
-    table = FAMILIES[CARD_FAMILY[st.card]]
+    table = FAMILIES[st.profile.family]
     values = table.defaults()
     for name, value in st.params.items():
         param, raw = table.parse_assignment(f"{name}={value}")
@@ -47,7 +47,7 @@ def station_values(st: StationConfig) -> dict[str, int]:
 
 def drive_settings(st: StationConfig) -> DriveSettings:
     """The station's drive settings as its parameters make them (about a millisecond: not in the cycle)."""
-    return DriveSettings.from_params(Family(CARD_FAMILY[st.card]), station_values(st))
+    return DriveSettings.from_params(Family(st.profile.family), station_values(st))
 
 
 def speed_scale(st: StationConfig) -> SpeedScale:

@@ -51,8 +51,15 @@ class Link(enum.IntEnum):
     def label(self) -> str:
         return {Link.ML1: "MECHATROLINK-I", Link.ML2: "MECHATROLINK-II", Link.ML3: "MECHATROLINK-III"}[self]
 
+    @property
+    def speed_mbps(self) -> int:
+        """Transmission speed (SI-T3 Table 4 F6-22: 10 Mbps MECHATROLINK-II, 4 Mbps MECHATROLINK-I; SI-ET3 Table 28:
+        100 Mbps)."""
+        return _SPEEDS[self]
+
 
 _DATA_SIZES = {Link.ML1: (17,), Link.ML2: (17, 32), Link.ML3: (32, 64)}
+_SPEEDS = {Link.ML1: 4, Link.ML2: 10, Link.ML3: 100}
 
 
 class Kind(enum.IntEnum):
@@ -186,10 +193,6 @@ class CommAlm(enum.IntEnum):
     SYNC_NOT_RECEIVED = 0xA
     SYNC_INTERVAL_ERROR = 0xB
     WDT_ERROR = 0xC
-
-    @property
-    def is_alarm(self) -> bool:
-        return self >= 0x8
 
 
 class SubCmdAlm(enum.IntEnum):

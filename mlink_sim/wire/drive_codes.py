@@ -14,8 +14,10 @@ display (``oL1`` -> ``OL1``); ranges the manual lists as "CPF11 to CPF21" are gi
 from __future__ import annotations
 
 import enum
+from collections.abc import Mapping
+from types import MappingProxyType
 
-__all__ = ["SiT3DriveAlarm", "SiT3DriveWarning", "V7InverterAlarm", "V7InverterWarning"]
+__all__ = ["FAMILY_CODES", "SiT3DriveAlarm", "SiT3DriveWarning", "V7InverterAlarm", "V7InverterWarning"]
 
 
 class SiT3DriveAlarm(enum.IntEnum):
@@ -201,3 +203,11 @@ class V7InverterWarning(enum.IntEnum):
     OH3 = 0x22
     STP = 0x40
     STP2 = 0x41
+
+
+#: The (fault, minor fault) code tables a card reports, by its drive family (``CardProfile.family``): the A1000
+#: family's SI-T3 Tables 26/27 (the SI-ET3 reports the same codes), the VS-606V7's V7 Tables 10/11.
+FAMILY_CODES: Mapping[str, tuple[type[enum.IntEnum], type[enum.IntEnum]]] = MappingProxyType({
+    "a1000": (SiT3DriveAlarm, SiT3DriveWarning),
+    "v7": (V7InverterAlarm, V7InverterWarning),
+})

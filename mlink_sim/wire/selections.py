@@ -2,8 +2,9 @@
 
 INV_CTL carries SEL_REF1/2 and SEL_MON1/2 (INV_I/O 3/4 and 5/6 likewise), one 4-bit code per REF/MON word. The
 one source of these tables; the drive (:mod:`mlink_sim.drive.monitors`, the value of a monitor) and the cards
-(:mod:`mlink_sim.cards.monitors`, :mod:`mlink_sim.cards.drive_link`) read them, keyed by the card's name as the
-manuals write it (``"SI-T3"``, ``"SI-ET3"``, ``"SI-T/V7"``).
+(:mod:`mlink_sim.cards.monitors`, :mod:`mlink_sim.cards.drive_link`) read them, keyed as the manuals name the card
+(``"SI-T3"``, ``"SI-ET3"``, ``"SI-T/V7"``); a card's profile says which it uses (``CardProfile.selections``,
+:mod:`mlink_sim.profiles`).
 
 ================  =========================  =========================
 card              SEL_REF                    SEL_MON
@@ -29,10 +30,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from types import MappingProxyType
 
-__all__ = ["SEL_MON_TABLES", "SEL_REF_TABLES", "CARD_LABELS"]
-
-#: The card names the tables are keyed by (as the manuals write them).
-CARD_LABELS = ("SI-T3", "SI-ET3", "SI-T/V7")
+__all__ = ["SEL_MON_TABLES", "SEL_REF_TABLES"]
 
 _A1000_MON = ("", "U1-05", "U1-09", "", "U1-01", "U1-14", "U1-07", "ALARM", "WARNING",
               "U1-11", "U1-15", "U1-10", "U1-13", "", "F6-23", "F6-24")

@@ -148,7 +148,7 @@ local function alarm_name(code, status)
   return name or string.format("0x%02x", code)
 end
 
--- parameters by name: the card of a station from the preference mlink.cards ("si-t3", "22H=si-t/v7,0x21=si-t3"),
+-- parameters by name: the card of a station from the preference mlink.cards ("si-t3", "22H=si-t-v7,0x21=si-t3"),
 -- the capture's card notes ("station 21H: card SI-T3 ..."), or the link (T.link_card); the card picks the table
 local function card_key(text) return lower((string.gsub(text, "[^%w]", ""))) end
 local pref_cards, pref_all = {}, nil
@@ -380,8 +380,8 @@ local function register_ports()
 end
 
 mlink.prefs.cards = Pref.string("Cards of stations", "",
-  "The card of MECHATROLINK-II stations, for parameter names and units: si-t3 or si-t/v7 for all, or "
-  .. "22H=si-t/v7,0x21=si-t3 (ML-III is the SI-ET3, ML-I the SI-T/V7; a capture's card notes are read too)")
+  "The card of MECHATROLINK-II stations, for parameter names and units: si-t3 or si-t-v7 for all, or "
+  .. "22H=si-t-v7,0x21=si-t3 (ML-III is the SI-ET3, ML-I the SI-T/V7; a capture's card notes are read too)")
 
 function mlink.prefs_changed()
   register_ports()

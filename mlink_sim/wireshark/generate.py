@@ -20,7 +20,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from ..params import A1000, VS606V7, Param, ParamTable
+from ..params import FAMILIES, Param, ParamTable
+from ..profiles import BUILTIN, spelling
 from ..wire import codes, fcs, ml2, ml3
 from ..wire.drive_codes import SiT3DriveAlarm, SiT3DriveWarning
 from ..wire.frame import ENVELOPE, FCS_SIZE, HEADER_SIZE, MAGIC
@@ -213,11 +214,12 @@ def lua_tables() -> dict[str, Any]:
         "status_alm_bit": int(codes.M2Status.ALM),
         "status_warng_bit": int(codes.M2Status.WARNG),
         "crc_table": _crc_table(),
-        # parameters by name (docs/parameters.md): the card picks the table; ML-III is only the SI-ET3, ML-I only
-        # the SI-T/V7; an ML-II station's card comes from the preference mlink.cards or the capture's card note
-        "params": {"a1000": _params(A1000), "v7": _params(VS606V7)},
-        "card_family": {"sit3": "a1000", "siet3": "a1000", "sitv7": "v7"},
-        "link_card": {int(codes.Link.ML3): "siet3", int(codes.Link.ML1): "sitv7"},
+        # parameters by name (docs/parameters.md): the card picks its family's table; a station of unknown card is
+        # taken for the card its link assumes (ML-III: SI-ET3, ML-I: SI-T/V7); an ML-II station's card comes from the
+        # preference mlink.cards or the capture's card note. The package's cards (profiles.BUILTIN), any spelling.
+        "params": {family: _params(FAMILIES[family]) for family in sorted({p.family for p in BUILTIN})},
+        "card_family": {spelling(name): p.family for p in BUILTIN for name in (p.key, p.label)},
+        "link_card": {int(codes.Link[link]): spelling(p.key) for p in BUILTIN for link in p.assumed_on},
         "prm_commands": ["PRM_RD", "PRM_WR"],
         "refusals_ml2": [int(codes.M2Alarm.DATA_SETTING_WARNING), int(codes.M2Alarm.COMMAND_WARNING)],
         "substatus_errors": int(codes.M2SubStatus.SUBALM | codes.M2SubStatus.SUBWARNG),

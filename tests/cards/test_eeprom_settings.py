@@ -6,8 +6,9 @@ import json
 
 import pytest
 
-from mlink_sim.cards import CARDS, CardOptions, CardSettings, EepromError, EepromImage, create_card, settings_for
+from mlink_sim.cards import CardOptions, CardSettings, EepromError, EepromImage, create_card, settings_for
 from mlink_sim.params import ParamError
+from mlink_sim.profiles import profiles
 from mlink_sim.wire import Link, ml2, ml3
 
 from .helpers import MS, Master, station
@@ -86,7 +87,7 @@ def test_eeprom_out_of_range_value_is_skipped() -> None:
 def test_create_card_unknown_name_lists_the_cards() -> None:
     with pytest.raises(ValueError, match="si-t3, si-et3, si-t-v7"):
         create_card("si-x9", settings=CardSettings(), now=0)
-    assert set(CARDS) == {"si-t3", "si-et3", "si-t-v7"}
+    assert {p.key for p in profiles()} >= {"si-t3", "si-et3", "si-t-v7"}
 
 
 def test_settings_for_per_card() -> None:
@@ -189,7 +190,7 @@ def test_config_to_eeprom_busy_until_durable_then_completed_once(card: str) -> N
     from mlink_sim.wire import M2Status
 
     m = Master(station(card))
-    m.st.eeprom.enabled = True
+    m.st.persist_eeprom(True)  # what the slave server does when it writes the images
     m.connect()
     sub = card == "si-t-v7"
     mod = ml3 if m.ml3 else ml2
@@ -215,7 +216,7 @@ def test_config_to_eeprom_busy_until_durable_then_completed_once(card: str) -> N
     assert value == 55
     image = m.st.take_eeprom()
     assert image is not None and not ready(config())  # taken, not yet durable
-    m.st.eeprom_durable(m.st.eeprom.taken)
+    m.st.eeprom_durable(m.st.eeprom_generation)
     done = config()
     assert ready(done) and m.st.eeprom.generation == generation  # completed, not stored again
     assert m.st.take_eeprom() is None
@@ -224,7 +225,7 @@ def test_config_to_eeprom_busy_until_durable_then_completed_once(card: str) -> N
 
 
 def test_config_to_eeprom_completes_at_once_without_persistence() -> None:
-    """A bare core (no I/O layer, ``eeprom.enabled`` False) has nothing to wait for."""
+    """A bare core (no I/O layer, no ``persist_eeprom(True)``) has nothing to wait for."""
     from mlink_sim.wire import M2Status
 
     m = Master(station("si-t3"))

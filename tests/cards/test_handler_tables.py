@@ -12,12 +12,15 @@ from hypothesis import strategies as st
 
 from .helpers import module_source
 
-from mlink_sim.cards import CARDS, commands
+from mlink_sim.cards import commands, station_class
 from mlink_sim.cards.alarms import Ml3Alarms
 from mlink_sim.cards.phases import ML2_MAIN_PHASES, ML3_MAIN_PHASES, ML3_SUB_PHASES, V7_SUB_PHASES, Admit
 from mlink_sim.cards.si_et3 import cmd_stat
 from mlink_sim.drive import Drive, DriveSettings, Family, LoadSpec
+from mlink_sim.profiles import BUILTIN
 from mlink_sim.wire import M2Cmd, M3Cmd, ml2, ml3
+
+CARDS = {p.key: station_class(p) for p in BUILTIN}
 
 
 def _executed(phases) -> set[int]:

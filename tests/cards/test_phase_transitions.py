@@ -35,11 +35,11 @@ def test_illegal_phase_transitions_are_rejected_in_one_place(phase: int, event: 
 def test_every_phase_change_goes_through_the_table(card: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """CONNECT, SYNC_SET, a watchdog timer fault, a reception fault and DISCONNECT all take their transition from
     phases.next_phase (the station's only way to change its phase)."""
-    from mlink_sim.cards import base
+    from mlink_sim.cards import connection
 
     taken: list[tuple[int, PhaseEvent]] = []
-    real = base.next_phase
-    monkeypatch.setattr(base, "next_phase", lambda phase, event: taken.append((phase, event)) or real(phase, event))
+    real = connection.next_phase
+    monkeypatch.setattr(connection, "next_phase", lambda phase, event: taken.append((phase, event)) or real(phase, event))
     m = Master(station(card))
     m.connect(sync=False)
     m.sync_set()

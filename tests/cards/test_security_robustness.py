@@ -7,7 +7,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mlink_sim.cards import CARDS
+from mlink_sim.profiles import BUILTIN
 from mlink_sim.wire import Frame, Kind, Link, encode, ml2, ml3
 
 from .helpers import INTRUDER, MASTER, MS, Master, station
@@ -74,7 +74,7 @@ def test_aer_station_does_not_answer() -> None:
         assert snap.leds["RUN"] == ("on" if card == "si-t3" else "off")
 
 
-CARD_NAMES = sorted(CARDS)
+CARD_NAMES = sorted(p.key for p in BUILTIN)
 
 
 @pytest.mark.parametrize("card", CARD_NAMES)

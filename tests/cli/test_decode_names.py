@@ -30,9 +30,9 @@ def run(*args: str):
 def test_one_datagram_names_the_parameter_where_the_card_is_known() -> None:
     assert "PRM_WR(02H) C1-01 (0200H) = 1.0 s" in run(ET3_PRM_WR).stdout  # ML-III: SI-ET3, A1000 table
     assert "PRM_WR(02H) no=0x114 size=2 data=0a00" in run(V7_PRM_WR).stdout  # ML-II: SI-T3 or SI-T/V7?
-    assert "PRM_WR(02H) n020 (0114H) = 1.0 s" in run("--card", "si-t/v7", V7_PRM_WR).stdout
-    assert "n020 (0114H) = 1.0 s" in run("--card", "22H=SI-T-V7", V7_PRM_WR).stdout
-    assert "no=0x114" in run("--card", "0x21=si-t/v7", V7_PRM_WR).stdout  # another station's card
+    assert "PRM_WR(02H) n020 (0114H) = 1.0 s" in run("--card", "si-t-v7", V7_PRM_WR).stdout
+    assert "n020 (0114H) = 1.0 s" in run("--card", "22H=SI-T/V7", V7_PRM_WR).stdout
+    assert "no=0x114" in run("--card", "0x21=si-t-v7", V7_PRM_WR).stdout  # another station's card
 
 
 def test_json_gains_the_parameter_fields() -> None:

@@ -54,6 +54,17 @@ def test_stations_per_link_at_most_the_manuals_maximum(stations: str, message: s
     assert str(err.value) == f"net.toml: {message}"
 
 
+def test_a_card_is_read_in_any_spelling_as_its_key_and_the_schema_lists_the_cards() -> None:
+    """One spelling in the model: the key (mlink_sim.profiles); "SI-T/V7" and "sitv7" are read as it."""
+    from mlink_sim.config import StationConfig
+
+    text = BASE.replace('card = "si-t3"', 'card = "SI-T/V7"') + '[[station]]\naddress = 0x22\ncard = "sitv7"\n'
+    v7, other = parse_config(text).station
+    assert v7.card == other.card == "si-t-v7" and v7.label == "SI-T/V7@21H" and v7.subcmd  # V7 §7.1
+    schema = StationConfig.model_json_schema()["properties"]["card"]
+    assert schema["enum"][:3] == ["si-t3", "si-et3", "si-t-v7"] and "si-t-v7 (SI-T/V7)" in schema["description"]
+
+
 def test_defaults_follow_card_and_link() -> None:
     config = parse_config(BASE + '[[station]]\naddress = 0x23\ncard = "si-et3"\n')
     t3, et3 = config.station

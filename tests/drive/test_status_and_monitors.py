@@ -67,7 +67,7 @@ def test_motor2_bit_from_h1_16h():
     d.command(DriveCommand(multi_inputs=1 << 5), 0)  # S8
     assert d.status.motor2
     assert ml2_status_bits(d.status) & SELM and ml3_invcmd_stat_bits(d.status) & (1 << 12)
-    assert not ml2_status_bits(d.status, v7=True) & SELM
+    assert not ml2_status_bits(d.status, bits_e_f=False) & SELM
 
 
 def test_ope10_on_config_with_inconsistent_e1():

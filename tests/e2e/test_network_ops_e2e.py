@@ -192,7 +192,7 @@ def test_a_standalone_slaves_status(slave) -> None:
     r = run_cli("status", where)
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
-    assert lines[0].startswith("slave pid") and lines[2].split()[:4] == ["23H", "si-et3", "ML3", "P1"]
+    assert lines[0].startswith("slave pid") and lines[2].split()[:4] == ["23H", "SI-ET3", "ML3", "P1"]
     assert "R/E CON- LK1- LK2-" in lines[2]  # SI-ET3 Table 4: powered, no connection, no frames
     raw = json.loads(run_cli("status", where, "--json").stdout)
     assert [st["address"] for st in raw["stations"]] == ["0x23"]  # the slave's own status: the same figures

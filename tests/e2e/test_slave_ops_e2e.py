@@ -31,7 +31,7 @@ def test_param_get_and_set_by_name_on_a_standalone_slave(slave, tmp_path: Path) 
     other = run_cli("param", "get", where, "22H", "C1-01")
     assert other.returncode == 2 and "station 22H is not served by this slave (it serves 21H)" in other.stderr
     status = run_cli("status", where)
-    assert status.returncode == 0 and status.stdout.splitlines()[2].split()[:4] == ["21H", "si-t3", "ML2", "P1"]
+    assert status.returncode == 0 and status.stdout.splitlines()[2].split()[:4] == ["21H", "SI-T3", "ML2", "P1"]
 
 
 def test_an_a1000_name_on_a_vs606v7_names_its_own() -> None:

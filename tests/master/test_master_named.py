@@ -147,7 +147,7 @@ def test_si_t3_status_field_bits_by_name():
 
 def test_si_t_v7_status_field_has_no_bits_e_and_f():
     status = int(M2Status.RUNX | M2Status.SEL_M | M2Status.ZERO_SERVO)  # V7 §7.3: E and F not used
-    assert status_bits(Link.ML2, status, "si-t/v7") == ("RUNX",)
+    assert status_bits(Link.ML2, status, "si-t-v7") == ("RUNX",)
     assert status_bits(Link.ML2, status, "si-t3") == ("RUNX", "SEL_M", "ZERO_SERVO")
 
 

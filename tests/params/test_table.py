@@ -8,9 +8,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mlink_sim.params import A1000, CARDS, FAMILIES, VS606V7, Param, ParamError, ParamTable, for_card
+from mlink_sim.params import A1000, FAMILIES, VS606V7, Param, ParamError, ParamTable, for_card
+from mlink_sim.profiles import profiles
 
-ALL_TABLES = (*FAMILIES.values(), *CARDS.values())
+ALL_TABLES = (*FAMILIES.values(), *dict.fromkeys(for_card(p) for p in profiles()))
 ALL_PARAMS = [(table, row) for table in ALL_TABLES for row in table]
 
 

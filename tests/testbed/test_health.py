@@ -15,8 +15,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mlink_sim.cards import CARDS, create_card
+from mlink_sim.cards import create_card
 from mlink_sim.cards.settings import CardSettings
+from mlink_sim.profiles import BUILTIN
 from mlink_sim.testbed import health
 from mlink_sim.wire import Frame, Kind, Link, decode, encode, ml2, ml3
 from mlink_sim.wire.fcs import crc16_x25
@@ -52,7 +53,7 @@ def _card(name: str):
     return create_card(name, settings=CardSettings(), now=0)
 
 
-@pytest.mark.parametrize("name", sorted(CARDS))
+@pytest.mark.parametrize("name", sorted(p.key for p in BUILTIN))
 def test_a_cards_nop_answer_is_accepted_and_nothing_else(name):
     card = _card(name)
     link = card.link.name.lower()
@@ -133,7 +134,7 @@ class _Station(threading.Thread):
         self.sock.close()
 
 
-@pytest.mark.parametrize("name", sorted(CARDS))
+@pytest.mark.parametrize("name", sorted(p.key for p in BUILTIN))
 def test_probe_over_loopback_finds_the_link_and_size(capsys, name):
     with _Station(name) as server:
         code = health.main([f"127.0.0.1:{server.port}", "--station", f"{server.card.address:#04x}"])

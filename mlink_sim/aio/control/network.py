@@ -62,8 +62,8 @@ class NetworkOps:
         self.figures = NetworkFigures(session.config)
         self.scales = scales or {a: SpeedScale(f.settings) for a, f in self.figures.by_address.items()}
         #: each station's maximum output frequency and its parameter (E1-04 / n011): every speed's bound
-        self.tops = {a: (f.settings.max_freq_hz, "n011" if f.settings.family.value == "v7" else "E1-04")
-                     for a, f in self.figures.by_address.items()}
+        self.tops = {st.address: (self.figures.by_address[st.address].settings.max_freq_hz, st.profile.max_frequency)
+                     for st in session.config.station}
         self.plans = {sp.address: sp for m in session.masters.values() for sp in m.core.plan.stations}
         self.timeline: Any = None  #: the run's timeline (its steps, checks), once it runs
         self.impairments = ImpairmentOps(session, self._station_or_all)

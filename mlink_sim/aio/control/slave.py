@@ -68,7 +68,7 @@ class SlaveOps:
 
     def drive(self, station: int) -> dict[str, Any]:
         """The station's drive activity as of its last advance (reading it changes nothing)."""
-        return {"activity": self._hosted(station).station.drive.drive.activity().as_dict()}
+        return {"activity": self._hosted(station).station.drive_activity().as_dict()}
 
     # -- parameters, as the keypad -----------------------------------------------------------------------------
 

@@ -29,7 +29,6 @@ from typing import Any, Protocol, TypeVar
 
 
 from ..._log import get_logger
-from ...params import card_label
 from ...master import (
     AlarmCleared,
     AlarmRaised,
@@ -220,8 +219,9 @@ class Master:
             return
         now = self._now()
         for sp in self.core.plan.stations:
-            if sp.card:
-                note(now, card_note(sp.address, card_label(sp.card), f"({sp.link.label}, {sp.data_size}-byte)"))
+            profile = sp.profile
+            if profile is not None:
+                note(now, card_note(sp.address, profile.label, f"({sp.link.label}, {sp.data_size}-byte)"))
 
     @property
     def local_address(self) -> tuple[str, int]:
@@ -365,7 +365,7 @@ class Master:
         if self.faults is None:
             core, metrics = self.core, self.metrics
             self.faults = FaultStage(
-                [StationTraits(sp.address, "v7" if sp.is_v7 else "a1000", sp.subcmd) for sp in core.plan.stations],
+                [StationTraits(sp.address, sp.family, sp.subcmd) for sp in core.plan.stations],
                 healthy=lambda a, since: is_healthy(core.view(a), since),
                 on_recovery=getattr(metrics, "record_recovery", None),
                 on_unrecovered=getattr(metrics, "record_unrecovered", None))

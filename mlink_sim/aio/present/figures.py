@@ -39,7 +39,6 @@ from ...config import Config
 from ...drive.monitors import SEL_MON_TABLES, ref_to_hz
 from ...master.machine import CONNECTED as _CONNECTED
 from ...master.types import StationState
-from ...params import card_label
 from ...wire import CmdAlm, CommAlm, InvCmdStat, Link, M2Alarm, M2Status
 from ...scenario.values import drive_settings
 
@@ -132,7 +131,7 @@ class StationFigures:
         self.link: Link = st.link
         self.settings = drive_settings(st)  #: the drive's settings as the config's parameters make them
         self._poles = self.settings.pole_pairs
-        table = SEL_MON_TABLES.get(card_label(st.card), ("",) * 16)
+        table = SEL_MON_TABLES.get(st.profile.selections, ("",) * 16)
         self._monitors = tuple(_MONITOR_FIGURE.get(name) for name in table)  #: SEL_MON code -> figure or None
         self._ml3 = st.link is Link.ML3  # the SI-ET3's link, and only its
         self._colors = ({"R/E": "green", "CON": "green", "LK1": "green", "LK2": "green"} if self._ml3 else

@@ -95,7 +95,7 @@ NARROW = 100
 
 
 def station_cells(st: Any, view: Any, hz: float) -> tuple[str, ...]:
-    """One station's :data:`COLUMNS`: ``("21H", "si-t3", "ML2", "P3", "FWD", "30.00 Hz", "0.21 ms", "ok")``."""
+    """One station's :data:`COLUMNS`: ``("21H", "SI-T3", "ML2", "P3", "FWD", "30.00 Hz", "0.21 ms", "ok")``."""
     link: Link = st.link
     run_state = _RUN_STATE[run_direction(link, view.status)]
     if view.fault or view.alarm or view.comm_alm or view.cmd_alm:
@@ -108,7 +108,7 @@ def station_cells(st: Any, view: Any, hz: float) -> tuple[str, ...]:
         alarm = "ok"
     rtt = f"{view.rtt_ns / 1e6:.2f} ms" if view.rtt_ns is not None else "-"
     phase = f"P{view.phase}" if view.phase else view.state.value
-    return (station_name(st.address), st.card, link.name, phase, run_state, f"{hz:.2f} Hz", rtt, alarm)
+    return (station_name(st.address), st.profile.label, link.name, phase, run_state, f"{hz:.2f} Hz", rtt, alarm)
 
 
 def station_line(st: Any, view: Any, hz: float) -> str:

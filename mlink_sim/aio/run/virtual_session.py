@@ -124,7 +124,7 @@ class _VirtualWorker:
     async def drive_activity(self, station: int) -> Any:
         """The station's ``Drive.activity()`` (None while it is down), read on the card core itself."""
         core = self.session.fabric.station(station)
-        return None if core is None else core.drive.drive.activity()
+        return None if core is None else core.drive_activity()
 
 
 class VirtualSession(NetworkSession):

@@ -125,7 +125,7 @@ class Port:
         self.responses += 1
         if response != answer:  # a bug: counted as the card's internal error too (the report's counters)
             self.mispredicted += 1
-            station.counters.internal_errors += 1
+            station.record_internal_error()
             if self.mispredicted == 1:
                 _log.error("answer_mispredicted", station=f"{station.address:02X}H", sent=answer.hex(),
                            card=None if response is None else response.hex())

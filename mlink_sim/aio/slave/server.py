@@ -154,7 +154,7 @@ class SlaveServer:
             if self.state_dir is not None and hs.eeprom is None:
                 hs.eeprom = eeprom_path(self.state_dir, hs.station.card, hs.station.address)
             # a CONFIG to EEPROM completes once its image is durable (nothing to wait for without a file)
-            hs.station.eeprom.enabled = hs.eeprom is not None
+            hs.station.persist_eeprom(hs.eeprom is not None)
 
     # -- lifecycle --------------------------------------------------------------------------------------------
 
@@ -391,7 +391,7 @@ class SlaveServer:
         image = hs.station.take_eeprom()
         if image is None or hs.eeprom is None:
             return
-        self._pending_writes[hs.eeprom] = (hs, hs.station.eeprom.taken, image)  # a newer image supersedes a queued one
+        self._pending_writes[hs.eeprom] = (hs, hs.station.eeprom_generation, image)  # a newer image supersedes a queued one
         self._write_wakeup.set()
 
     async def _write_loop(self) -> None:

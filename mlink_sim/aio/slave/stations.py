@@ -65,7 +65,7 @@ def build_station(spec: StationSpec, state_dir: Path | None, now: int, *, eeprom
     unknown = sorted(set(spec.options or {}) - known)
     if unknown:
         raise ValueError(f"unknown card option(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})")
-    link_speed = {Link.ML1: 4, Link.ML2: 10}.get(spec.link) if spec.link is not None else None
+    link_speed = spec.link.speed_mbps if spec.link is not None else None
     settings = settings_for(
         spec.card,
         spec.address,

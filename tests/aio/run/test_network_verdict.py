@@ -90,7 +90,7 @@ def test_header_shows_elapsed_total_p99_missed_stalls_and_the_step() -> None:
     assert lines[0] == "unit  1.2/6.0 s  p99 1.234ms  missed 7  stalls 0  step 1s all stations: expect running"
     assert len(lines) == 5 and lines[1].startswith("  P1/P2/P3: phase") and " · ok: no alarm · " in lines[1] and lines[2].split() == [
         "ADDR", "CARD", "LINK", "PHASE", "RUN", "OUTPUT", "RTT", "STATE"]
-    assert lines[3].split() == ["21H", "si-t3", "ML2", "P3", "stop", "0.00", "Hz", "0.25", "ms", "ok"]
+    assert lines[3].split() == ["21H", "SI-T3", "ML2", "P3", "stop", "0.00", "Hz", "0.25", "ms", "ok"]
     assert [label for label, _ in STATUS_FIELDS] == ["", "p99", "missed", "stalls", "step"]
     m.record_stall("master", 5, 23_900_000, 11, True)  # host stalls as they come (metrics/stalls.py)
     assert render_lines(_info(m, total_s=None, p99_ns=None, step=None))[0] == (
