@@ -158,7 +158,7 @@ def test_replay_against_a_fresh_slave(tmp_path: Path) -> None:
     comments = [c for d in read_capture(recorded).datagrams for c in d.comments]
     assert "station 21H: phase 1 -> 3" in comments and "station 21H: phase 3 -> 1" in comments
     # the slave names its card, so a decode of its capture names the SI-T3's parameters without --card
-    assert "station 21H: card SI-T3 (MECHATROLINK-II, 32-byte)" in comments
+    assert "station 21H: card SI-T3 (MECHATROLINK-II, 32-byte), speed in 0.01 Hz counts" in comments
     writes = subprocess.run([*MLINK, "decode", "--pcap", str(recorded), "--command", "PRM_WR"],
                             capture_output=True, text=True, timeout=60)
     assert writes.returncode == 0 and "PRM_WR(02H) C1-02 (0201H) = " in writes.stdout, writes.stdout + writes.stderr
