@@ -16,7 +16,7 @@ import click
 from ..wire import M2Cmd, M3Cmd, WireError, decode, format_frame
 from .frame_names import FrameNames, parse_card
 
-__all__ = ["decode_cmd", "parse_hex"]
+__all__ = ["decode_cmd", "parse_hex", "card_names"]
 
 #: the command names ``--command`` takes (SI-T3 Tables 5/6, SI-ET3 Tables 11/12, V7 Tables 1/2)
 COMMANDS = frozenset(m.name for m in (*M2Cmd, *M3Cmd) if m.name)
@@ -37,7 +37,8 @@ def parse_hex(text: str) -> bytes:
     return bytes.fromhex(cleaned)
 
 
-def _names(cards: tuple[str, ...]) -> FrameNames:
+def card_names(cards: tuple[str, ...]) -> FrameNames:
+    """``--card`` values as the names of the stations' parameters (``[ADDR=]CARD``; a usage error for a bad one)."""
     by_station: dict[int, str] = {}
     every: str | None = None
     for text in cards:
@@ -203,7 +204,7 @@ def decode_cmd(hexdata: tuple[str, ...], as_json: bool, frame_size: str | None, 
                pcap: str | None, station: str | None, commands: tuple[str, ...], t_from: str | None,
                t_to: str | None, stats: bool) -> None:
     """Decode one datagram given as HEX (spaces and colons allowed), or a capture with --pcap FILE."""
-    names = _names(cards)
+    names = card_names(cards)
     if pcap is not None:
         if hexdata or frame_size:
             raise click.UsageError("give either HEX or --pcap FILE (and --frame-size only with HEX)")

@@ -46,7 +46,7 @@ def test_monitors_left_out_and_speed_bits_while_moving_only() -> None:
                    _rsp(ml2.InvCtlResponse(mon1=65505), status=rest)) == []  # a coasting motor after a stop
     agree = int(M2Status.AGREE)
     diffs = compare(_rsp(ml2.InvCtlResponse(), status=rest), _rsp(ml2.InvCtlResponse(), status=rest | agree))
-    assert diffs == ["status: recorded 68, live 580"]  # AGREE at rest is compared
+    assert diffs == ["status: recorded 68, live 580 (live only: AGREE)"]  # AGREE at rest is compared, by name
     assert compare(_rsp(ml2.InvCtlResponse(), status=rest), _rsp(ml2.InvCtlResponse(), status=rest | agree),
                    moving=True) == []  # right after a stop it is not
 
