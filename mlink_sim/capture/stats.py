@@ -10,7 +10,7 @@ then the round trip the master saw; a slave's socket for ``slave --capture``: it
   docs/wire-format.md §1); its **response time** is its time minus the command's. The figures are those of the
   command's main command (a sub-command travels in the same datagrams).
 * An answer is **late** when a newer command to its station was sent before it came: a MECHATROLINK master judges
-  an answer missing at the station's next slot (docs/master.md, "Cycles").
+  an answer missing at the station's next slot (docs/master.md, "Scheduling").
 * A command is **lost** when no answer to it is in the capture, unless it is within one transmission cycle of the
   end of that station's part of the capture (the recording ended before the answer could come: replay's rule).
 * A **gap** is the time between two consecutive commands to a station: its communication cycle as the wire saw it.
