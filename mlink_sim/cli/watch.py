@@ -100,17 +100,16 @@ class WatchScreen:
         self._console: Any = None
 
     def start(self) -> None:
-        if not self.tty:
-            return
-        from rich.console import Console
-        from rich.live import Live
+        """On a terminal, open the ``Live`` display (its console cut to *size* where given)."""
+        if self.tty:
+            from rich.console import Console
+            from rich.live import Live
 
-        width, height = self.size or (None, None)
-        self._console = Console(file=self.file, highlight=False, markup=False, emoji=False, width=width,
-                                height=height)
-        self._live = Live(console=self._console, auto_refresh=False, transient=False, vertical_overflow="crop",
-                          redirect_stdout=False, redirect_stderr=False)
-        self._live.start()
+            columns, rows = self.size or (None, None)
+            console = Console(file=self.file, width=columns, height=rows, highlight=False, markup=False, emoji=False)
+            self._live = Live(console=console, auto_refresh=False, vertical_overflow="crop")
+            self._console = console
+            self._live.start()
 
     def dimensions(self) -> tuple[int, int | None]:
         """Columns and rows to draw in (rows None off a terminal: every row, 120 columns)."""

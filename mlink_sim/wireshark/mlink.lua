@@ -2968,6 +2968,16 @@ end
 
 local function ms(seconds) return string.format("%9.3f", seconds * 1e3) end
 
+-- min, avg, p50, p99, max of a list of seconds, in ms (dashes for none); sorts the list
+local function figures(values)
+  if #values == 0 then return string.rep(string.format("%9s ", "-"), 5) end
+  table.sort(values)
+  local sum = 0
+  for _, v in ipairs(values) do sum = sum + v end
+  return table.concat({ ms(values[1]), ms(sum / #values), ms(percentile(values, 50)), ms(percentile(values, 99)),
+    ms(values[#values]) }, " ")
+end
+
 local function srt_tap(filter)
   local tap = Listener.new(nil, filter and filter ~= "" and ("mlink && (" .. filter .. ")") or "mlink")
   local per, stations, pending
@@ -3034,17 +3044,9 @@ local function srt_tap(filter)
     table.sort(keys)
     for _, key in ipairs(keys) do
       local r = per[key]
-      local t = r.times
-      table.sort(t)
-      local timing = string.rep(string.format("%9s ", "-"), 5)
-      if #t > 0 then
-        local sum = 0
-        for _, v in ipairs(t) do sum = sum + v end
-        timing = table.concat({ ms(t[1]), ms(sum / #t), ms(percentile(t, 50)), ms(percentile(t, 99)), ms(t[#t]) }, " ")
-      end
       local station, command = string.match(key, "^(%S+) (.+)$")
       lines[#lines + 1] = string.format("%-8s %-16s %9d %9d %5d %5d %s", station, command, r.cmd, r.rsp, r.lost,
-        r.late, timing)
+        r.late, figures(r.times))
     end
     lines[#lines + 1] = ""
     lines[#lines + 1] = string.format("%-8s %9s %9s %9s %9s %9s  %10s %15s", "station", "gap min", "avg", "p50", "p99",
@@ -3054,15 +3056,7 @@ local function srt_tap(filter)
     table.sort(addrs)
     for _, a in ipairs(addrs) do
       local st = stations[a]
-      local g = st.gaps
-      table.sort(g)
-      local gaps = string.rep(string.format("%9s ", "-"), 5)
-      if #g > 0 then
-        local sum = 0
-        for _, v in ipairs(g) do sum = sum + v end
-        gaps = table.concat({ ms(g[1]), ms(sum / #g), ms(percentile(g, 50)), ms(percentile(g, 99)), ms(g[#g]) }, " ")
-      end
-      lines[#lines + 1] = string.format("%02XH      %s  %10d %15d", a, gaps, st.fcs, st.seq)
+      lines[#lines + 1] = string.format("%02XH      %s  %10d %15d", a, figures(st.gaps), st.fcs, st.seq)
     end
     lines[#lines + 1] = string.rep("=", 100)
     return table.concat(lines, "\n")

@@ -7,7 +7,6 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
-import pyte
 import pytest
 
 from mlink_sim.capture import CaptureFile, Datagram
@@ -17,25 +16,15 @@ from mlink_sim.cli.speed_units import SpeedUnits
 from mlink_sim.cli.watch import WatchScreen, render
 from mlink_sim.wire import Frame, Kind, Link, M2Status, describe, encode, ml2
 
+from tests.aio.present.test_status_screen import _Terminal as StatusTerminal
+
 from .timed import T0, write_timed_capture
 
 A, B = ("192.0.2.1", 40000), ("192.0.2.33", 47001)
 
 
-class _Terminal(io.StringIO):
-    """What rich writes, fed to a pyte screen of *columns* x *rows*."""
-
-    def __init__(self, columns: int, rows: int) -> None:
-        super().__init__()
-        self.screen = pyte.Screen(columns, rows)
-        self.stream = pyte.Stream(self.screen)
-
-    def isatty(self) -> bool:
-        return True
-
-    def write(self, text: str) -> int:
-        self.stream.feed(text.replace("\n", "\r\n"))
-        return len(text)
+class _Terminal(StatusTerminal):
+    """The live status tests' pyte terminal, read line by line and by its reverse-video characters."""
 
     def lines(self) -> list[str]:
         return [line.rstrip() for line in self.screen.display]

@@ -1,6 +1,6 @@
-"""``--capture -``: the pcapng stream on stdout, read by ``decode --pcap -`` through a pipe (tshark reads it in
-tests/wireshark/test_stdin.py), live while the run goes, everything else the command prints on stderr; a terminal
-as stdout refused; a reader that goes away stops the capture, not the run."""
+"""``--capture -``: the pcapng stream on stdout, read by tshark (``tshark -r -``, the shipped dissector) and by
+``decode --pcap -`` through a pipe, live while the run goes, everything else the command prints on stderr; a
+terminal as stdout refused; a reader that goes away stops the capture, not the run."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from click.testing import CliRunner
 
 from mlink_sim.capture import CaptureWriter
 from mlink_sim.cli.decode import decode_cmd
+from mlink_sim.wireshark.generate import shipped_path
 
 from tests.capture.timed import write_timed_capture
 
@@ -27,6 +28,23 @@ def _summary_count(stderr: str) -> int:
     m = re.search(r"capture to stdout: (\d+) datagrams", stderr)
     assert m, stderr
     return int(m.group(1))
+
+
+@pytest.mark.e2e
+def test_tshark_reads_a_virtual_run_from_stdin(tshark: str) -> None:
+    up = subprocess.Popen(VIRTUAL, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    shark = subprocess.run([tshark, "-n", "-X", f"lua_script:{shipped_path()}", "-o", "udp.try_heuristic_first:TRUE",
+                            "-r", "-", "-Y", "mlink", "-T", "fields", "-e", "mlink.station", "-e", "mlink.cmd.name"],
+                           stdin=up.stdout, capture_output=True, text=True, timeout=300)
+    assert up.stdout is not None and up.stderr is not None
+    up.stdout.close()
+    err = up.stderr.read().decode()
+    assert up.wait(timeout=60) == 0, err
+    assert shark.returncode == 0, shark.stderr
+    rows = shark.stdout.splitlines()
+    assert len(rows) == _summary_count(err)  # every datagram the run recorded, and nothing else on stdout
+    assert {"0x21\tINV_CTL", "0x22\tINV_CTL", "0x23\tINV_CTL", "0x23\tPRM_WR"} <= set(rows)
+    assert "all checks held" in err and "== quickstart" in err  # the summary: on stderr
 
 
 @pytest.mark.e2e
@@ -117,10 +135,11 @@ def test_the_writer_streams_and_says_when_its_reader_went_away(tmp_path: Path) -
     assert w.stats.datagrams == 2 and w.stats.summary().startswith("capture to stdout: 2 datagrams")
     read_end, write_end = os.pipe()
     os.close(read_end)
-    w = CaptureWriter("-", stream=open(write_end, "wb", buffering=0), epoch_offset_ns=0).start(background=False)
-    for i in range(3):
-        w.record(i, b"\x4d" * 31, ("127.0.0.1", 1), ("127.0.0.1", 2))
-    w.flush()
-    stats = w.close()
+    with open(write_end, "wb", buffering=0) as stream:
+        w = CaptureWriter("-", stream=stream, epoch_offset_ns=0).start(background=False)
+        for i in range(3):
+            w.record(i, b"\x4d" * 31, ("127.0.0.1", 1), ("127.0.0.1", 2))
+        w.flush()
+        stats = w.close()
     assert stats.stopped == "the reader of the stream went away"
     assert "3 datagrams not recorded (the reader of the stream went away)" in stats.summary()
