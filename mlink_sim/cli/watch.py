@@ -88,8 +88,8 @@ def render(table: Any, width: int, height: int | None, source: str, now_ns: int 
 
 
 class WatchScreen:
-    """Where the screens go: a rich ``Live`` display on a terminal (*file* a terminal, or *size* given: tests),
-    else plain text every :data:`PLAIN_INTERVAL_S` and at the end."""
+    """Where the screens go: a rich ``Live`` display on a terminal (*file*; *size*, its columns and rows, where
+    they are not the terminal's own: tests), else plain text every :data:`PLAIN_INTERVAL_S` and at the end."""
 
     def __init__(self, file: TextIO | None = None, size: tuple[int, int] | None = None) -> None:
         self.file = file or sys.stdout
