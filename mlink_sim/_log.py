@@ -30,8 +30,9 @@ def _stdlib(name: str) -> Any:
 
 
 class _Logger:
-    """A structlog-style logger (``info``, ``warning``, ``bind`` …) choosing its output on each call until
-    structlog is configured, then following structlog's lazy proxy (which follows later reconfigurations)."""
+    """A structlog-style logger (``info``, ``warning``, ``bind`` …) choosing its output on each call: structlog's lazy
+    proxy (which follows later reconfigurations) while structlog is configured, the standard library's ``logging``
+    otherwise (before it is, and after ``structlog.reset_defaults()``)."""
 
     __slots__ = ("_name", "_ctx", "_target")
 
@@ -50,7 +51,8 @@ class _Logger:
         return _Logger(self._name, {**self._ctx, **values})
 
     def __getattr__(self, method: str) -> Any:
-        return getattr(self._target or self._resolve(), method)
+        target = self._target if structlog.is_configured() else None  # a reset configuration: the library's again
+        return getattr(target or self._resolve(), method)
 
 
 def get_logger(name: str, **initial: Any) -> Any:

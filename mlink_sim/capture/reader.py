@@ -4,13 +4,20 @@ Reads pcapng (python-pcapng's ``FileScanner``, which keeps the ``opt_comment`` o
 classic pcap (dpkt's ``pcap.Reader``), on the link types a capture of this traffic comes in: raw IP (mlink-sim's
 own files), Ethernet, Linux cooked (SLL, SLL2) and BSD loopback. Packets that are not UDP over IPv4/IPv6 are
 counted in :attr:`Capture.skipped`, not returned.
+
+A capture is read as a stream, from its first byte on (no seek): ``-`` reads standard input (``mlink-sim up …
+--capture - | mlink-sim decode --pcap -``), and ``follow=True`` keeps reading a file that is still being written
+(``--capture run.pcapng`` of a running network), waiting at its end for the next block instead of ending there.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import socket
-from collections.abc import Iterator
+import sys
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -104,20 +111,68 @@ def _pcap_frames(f: Any) -> Iterator[tuple[int, bytes, int, tuple[str, ...]]]:
         yield linktype, frame, round(ts * 1e9), ()
 
 
+class _Stream:
+    """A binary file read from its start: ``read`` and the ``tell`` python-pcapng asks for (a pipe has no position),
+    the first bytes given back after the format was told by them; with *wait* (a file still being written), a read
+    that meets the end waits for the rest, ``wait()`` saying whether to go on waiting."""
+
+    def __init__(self, raw: Any, wait: Callable[[], bool] | None = None, poll_s: float = 0.1) -> None:
+        self._raw, self._wait, self._poll_s = raw, wait, poll_s
+        self._head = b""
+        self._pos = 0
+
+    def peek_magic(self) -> bytes:
+        self._head = self._read(4)
+        return self._head
+
+    def _read(self, n: int) -> bytes:
+        data = self._raw.read(n) or b""
+        while len(data) < n and self._wait is not None and self._wait():
+            time.sleep(self._poll_s)
+            data += self._raw.read(n - len(data)) or b""
+        return data
+
+    def read(self, n: int) -> bytes:
+        head = self._head
+        if head:
+            self._head = head[n:]
+            data = head[:n] + (self._read(n - len(head)) if len(head) < n else b"")
+        else:
+            data = self._read(n)
+        self._pos += len(data)
+        return data
+
+    def tell(self) -> int:
+        return self._pos
+
+
 class CaptureFile:
     """The UDP datagrams of a capture file, read as they are iterated (a 100 MB capture is never held whole);
-    :attr:`skipped` counts the packets that are not UDP over IP. Iterating raises :class:`CaptureError`."""
+    :attr:`skipped` counts the packets that are not UDP over IP. Iterating raises :class:`CaptureError`.
 
-    def __init__(self, path: str | Path) -> None:
+    *path* ``-`` reads standard input (a pcapng or pcap stream). *follow*: the file is still being written; at its
+    end, wait for more (every 0.1 s) as long as *follow* returns True, then end there."""
+
+    def __init__(self, path: str | Path, follow: Callable[[], bool] | None = None) -> None:
         self.path = path
         self.skipped = 0
+        self.follow = follow
+
+    def _open(self) -> Any:
+        if str(self.path) == "-":
+            return contextlib.nullcontext(sys.stdin.buffer)
+        return open(self.path, "rb")
 
     def __iter__(self) -> Iterator[Datagram]:
-        path = self.path
+        path = "standard input" if str(self.path) == "-" else self.path
         try:
-            with open(path, "rb") as f:
-                magic = f.read(4)
-                f.seek(0)
+            with self._open() as raw:
+                if self.follow is None and raw.seekable():  # a whole file: read as it is, the fastest
+                    f, magic = raw, raw.read(4)
+                    raw.seek(0)
+                else:
+                    f = _Stream(raw, self.follow)
+                    magic = f.peek_magic()
                 if magic == _PCAPNG_MAGIC:
                     frames = _pcapng_frames(f)
                 elif magic in _PCAP_MAGICS:

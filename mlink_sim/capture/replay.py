@@ -19,17 +19,19 @@ drive model's clock, not the commands.
 from __future__ import annotations
 
 import dataclasses
+import re
 import select
 import socket
 import time
 from typing import Any
 
 from ..wire import WireError, decode, describe
+from ..wire.codes import InvCmdStat, M2Status, M2SubStatus
 from ..wire.frame import HEADER
 from .reader import Datagram
 
-__all__ = ["ReplayPlan", "ReplayResult", "VOLATILE", "MONITORS", "SETTLE_NS",
-           "plan_replay", "compare", "answer_moving", "run_replay", "scope"]
+__all__ = ["ReplayPlan", "ReplayResult", "Pacing", "VOLATILE", "MONITORS", "SETTLE_NS", "HINTS",
+           "plan_replay", "compare", "answer_moving", "run_replay", "scope", "hints_for"]
 
 #: left out of every comparison
 VOLATILE = ("rwdt",)
@@ -47,6 +49,18 @@ _COMM_WARNING, _WARNG = 0x96, 1 << 1  # ML-II ALARM A.96 (SI-T3 Table 23), STATU
 _RECEPTION_ALARMS = (0x9, 0xA, 0xB)
 #: after the drive was last seen turning, its monitors keep settling (current, torque) for this long
 SETTLE_NS = 1_000_000_000
+#: the status fields whose differing bits a difference names (SI-T3 "STATUS Field", "SUBSTATUS Field"; SI-ET3
+#: "INVCMD_STAT")
+_STATUS_FLAGS: dict[str, Any] = {"status": M2Status, "substatus": M2SubStatus, "main.invcmd_stat": InvCmdStat}
+#: a status bit whose difference a setting of the slave usually explains -> what to check
+HINTS = {
+    "REMOTE": "REMOTE differs: it is set while the drive takes its run command from the network, b1-02 = 3 on the "
+              "A1000 (with b1-01 = 3 for the reference; SI-T3 Table 4, SI-ET3 Table 7), n003 = 3 on the VS-606V7 "
+              "(n004 = 9 for the reference; SI-T/V7 section 6): was the slave started with the capture's settings "
+              "(mlink-sim slave … --param b1-01=3 --param b1-02=3)?",
+    "OPE": "OPE differs: one of the two drives has a parameter setting error (oPE) the other has not: the slave's "
+           "parameters (--param, its --state-dir) are not the capture's",
+}
 
 
 @dataclasses.dataclass
@@ -62,14 +76,33 @@ class ReplayPlan:
 @dataclasses.dataclass
 class ReplayResult:
     sent: int = 0
+    received: int = 0  #: answers that came (every one, compared or not)
     compared: int = 0
     equal: int = 0
     differences: list[str] = dataclasses.field(default_factory=list)
     transport_errors: int = 0
+    loops: int = 0  #: passes over the capture done
 
     @property
     def ok(self) -> bool:
         return not self.differences
+
+    @property
+    def hints(self) -> list[str]:
+        """What to check for the differences found (:func:`hints_for`)."""
+        return hints_for(self.differences)
+
+
+@dataclasses.dataclass(frozen=True)
+class Pacing:
+    """When each frame goes: at its offset in the capture divided by *speed* (None: as soon as the answer to the
+    one before came, or *grace_s* after it), and never less than *gap_ns* after the frame before (can.player's
+    ``--gap``); *spin_ns*: the last stretch before a frame is due is waited by polling, not by sleeping."""
+
+    speed: float | None = 1.0
+    gap_ns: int = 0
+    grace_s: float = 0.3
+    spin_ns: int = 200_000
 
 
 def _key(data: bytes) -> tuple[int, int, int] | None:
@@ -194,8 +227,27 @@ def compare(recorded: bytes, live: bytes, *, moving: bool = False, strict: bool 
             if mask is not None and isinstance(va, int) and isinstance(vb, int):
                 va, vb = va & ~mask, vb & ~mask
         if va != vb:
-            out.append(f"{key}: recorded {va!r}, live {vb!r}")
+            out.append(f"{key}: recorded {va!r}, live {vb!r}{_bits_differing(key, va, vb)}")
     return out
+
+
+def _bits_differing(key: str, recorded: Any, live: Any) -> str:
+    """`` (recorded only: AGREE, REMOTE; live only: RUNX)`` for a status field, by the manuals' bit names."""
+    flags = _STATUS_FLAGS.get(key)
+    if flags is None or not isinstance(recorded, int) or not isinstance(live, int):
+        return ""
+    parts = []
+    for label, mask in (("recorded only", recorded & ~live), ("live only", live & ~recorded)):
+        names = [m.name for m in flags if m.name and m.value.bit_count() == 1 and mask & m.value]
+        if names:
+            parts.append(f"{label}: {', '.join(names)}")
+    return f" ({'; '.join(parts)})" if parts else ""
+
+
+def hints_for(differences: list[str]) -> list[str]:
+    """The settings that explain the usual differences (:data:`HINTS`), for the status bits *differences* name."""
+    return [hint for bit, hint in HINTS.items()
+            if any(re.search(rf"(only: [^)]*\b{bit}\b)", line) for line in differences)]
 
 
 def _describe_cmd(data: bytes) -> str:
@@ -207,13 +259,9 @@ def _describe_cmd(data: bytes) -> str:
         return f"rejected command ({exc.reason.name})"
 
 
-def run_replay(plan: ReplayPlan, targets: dict[int, tuple[str, int]], *, grace_s: float = 0.3,
-               max_differences: int = 10, spin_ns: int = 200_000, speed: float | None = 1.0,
-               strict: bool = False) -> ReplayResult:
-    """Send every planned command to its station's slave (*targets*: station -> ``(host, port)``) at its original
-    offset divided by *speed* (None: each as soon as the answer to the one before came, or *grace_s* after it
-    when it does not come; a command the capture has no answer to is not waited for), collect the answers,
-    compare (*strict*: the monitors too). OSError when a host does not resolve."""
+def _open(targets: dict[int, tuple[str, int]]) -> tuple[socket.socket, dict[int, Any]]:
+    """One non-blocking UDP socket for every target, and each target's resolved address. OSError when a host
+    does not resolve."""
     resolved: dict[int, Any] = {}
     family = socket.AF_INET
     for station, (host, port) in targets.items():
@@ -221,8 +269,14 @@ def run_replay(plan: ReplayPlan, targets: dict[int, tuple[str, int]], *, grace_s
     sock = socket.socket(family, socket.SOCK_DGRAM)
     sock.bind(("::" if family == socket.AF_INET6 else "0.0.0.0", 0))
     sock.setblocking(False)
+    return sock, resolved
+
+
+def _play(plan: ReplayPlan, sock: socket.socket, resolved: dict[int, Any], pacing: Pacing,
+          result: ReplayResult) -> dict[tuple[int, int], bytes]:
+    """Send the planned commands once, as *pacing* says; the answers that came, by (station, cycle)."""
     answers: dict[tuple[int, int], bytes] = {}
-    result = ReplayResult()
+    speed, gap, spin_ns = pacing.speed, pacing.gap_ns, pacing.spin_ns
 
     def drain() -> None:
         while True:
@@ -235,36 +289,46 @@ def run_replay(plan: ReplayPlan, targets: dict[int, tuple[str, int]], *, grace_s
                 return
             key = _key(data)
             if key is not None and key[0] == 2:
+                result.received += 1
                 answers.setdefault((key[1], key[2]), data)
 
-    try:
-        t0 = time.monotonic_ns()
-        waiting: tuple[int, int] | None = None  #: speed None: the answer the next command waits for
-        for offset, station, cycle, data in plan.commands:
-            due = t0 + round(offset / speed) if speed is not None else time.monotonic_ns() + round(grace_s * 1e9)
-            while True:
-                drain()
-                if speed is None and (waiting is None or waiting in answers):
-                    break
-                left = due - time.monotonic_ns()
-                if left <= 0:
-                    break
-                if left > spin_ns:
-                    select.select([sock], [], [], (left - spin_ns) / 1e9)
-            try:
-                sock.sendto(data, resolved[station])
-                result.sent += 1
-            except OSError:
-                result.transport_errors += 1
-            waiting = (station, cycle) if (station, cycle) in plan.recorded else None
-        end = time.monotonic() + grace_s
-        while time.monotonic() < end:
-            select.select([sock], [], [], max(0.0, end - time.monotonic()))
+    t0 = time.monotonic_ns()
+    last_sent = t0 - gap
+    waiting: tuple[int, int] | None = None  #: speed None: the answer the next command waits for
+    for offset, station, cycle, data in plan.commands:
+        due = t0 + round(offset / speed) if speed is not None else time.monotonic_ns() + round(pacing.grace_s * 1e9)
+        due = max(due, last_sent + gap)
+        while True:
             drain()
-    finally:
-        sock.close()
+            now = time.monotonic_ns()
+            if speed is None and (waiting is None or waiting in answers) and now >= last_sent + gap:
+                break
+            left = due - now
+            if left <= 0:
+                break
+            if left > spin_ns:
+                select.select([sock], [], [], (left - spin_ns) / 1e9)
+        try:
+            sock.sendto(data, resolved[station])
+            result.sent += 1
+        except OSError:
+            result.transport_errors += 1
+        last_sent = time.monotonic_ns()
+        waiting = (station, cycle) if (station, cycle) in plan.recorded else None
+    end = time.monotonic() + pacing.grace_s
+    while time.monotonic() < end:
+        select.select([sock], [], [], max(0.0, end - time.monotonic()))
+        drain()
+    return answers
+
+
+def _compare_all(plan: ReplayPlan, answers: dict[tuple[int, int], bytes], result: ReplayResult, *,
+                 max_differences: int, strict: bool) -> None:
+    """Compare each command's live answer with the recorded one (see :func:`compare`) into *result*."""
     last_moving: dict[int, int] = {}
     for offset, station, cycle, data in plan.commands:
+        if len(result.differences) > max_differences:
+            return
         recorded = plan.recorded.get((station, cycle))
         live = answers.get((station, cycle))
         if any(x is not None and answer_moving(x) for x in (recorded, live)):
@@ -287,5 +351,27 @@ def run_replay(plan: ReplayPlan, targets: dict[int, tuple[str, int]], *, grace_s
             result.differences.append(f"{where}: {'; '.join(diffs)}")
         elif diffs:
             result.differences.append("…")
-            break
+
+
+def run_replay(plan: ReplayPlan, targets: dict[int, tuple[str, int]], *, pacing: Pacing | None = None,
+               max_differences: int = 10, strict: bool = False, check: bool = True, loops: int = 1,
+               result: ReplayResult | None = None) -> ReplayResult:
+    """Send every planned command to its station's slave (*targets*: station -> ``(host, port)``) as *pacing*
+    says (a command the capture has no answer to is not waited for), *loops* times (0: until interrupted, each
+    pass from the capture's start), collect the answers and, with *check*, compare them (*strict*: the monitors
+    too). *result* is filled as the passes go (a caller interrupted between two reads what was done). OSError
+    when a host does not resolve."""
+    pacing = pacing or Pacing()
+    result = result if result is not None else ReplayResult()
+    sock, resolved = _open(targets)
+    try:
+        while loops == 0 or result.loops < loops:
+            answers = _play(plan, sock, resolved, pacing, result)
+            if check:
+                _compare_all(plan, answers, result, max_differences=max_differences, strict=strict)
+            result.loops += 1
+            if check and len(result.differences) > max_differences:
+                break
+    finally:
+        sock.close()
     return result

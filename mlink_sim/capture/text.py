@@ -1,5 +1,5 @@
-"""A capture as text, one line (or one JSON object) per datagram, or counts per station and command:
-``mlink-sim decode --pcap`` (its filters: :class:`Selection`)."""
+"""A capture as text, one line (or one JSON object) per datagram: ``mlink-sim decode --pcap`` (its filters:
+:class:`Selection`, which :func:`select_items` applies; the figures per station and command: :mod:`.stats`)."""
 
 from __future__ import annotations
 
@@ -11,16 +11,26 @@ from typing import Any, Protocol
 from ..wire import Frame, Kind, WireError, decode, describe, format_line
 from .reader import Datagram
 
-__all__ = ["datagram_lines", "datagram_records", "datagram_stats", "Names", "Selection", "station_of", "card_note", "card_of_note", "stations_of_note"]
+__all__ = ["datagram_lines", "datagram_records", "select_items", "Item", "Names", "Selection", "station_of", "card_note",
+           "card_of_note", "speed_of_note", "stations_of_note"]
 
 _CARD_NOTE = re.compile(r"^station ([0-9A-F]{2})H: card (\S+)")
+_SPEED_NOTE = re.compile(r"speed in ([0-9.]+(?:[eE][-+]?\d+)?) Hz counts")
 _NOTE_STATION = re.compile(r"station (?:([0-9A-Fa-f]{2})H|0x([0-9A-Fa-f]{1,2}))\b")
 
 
-def card_note(station: int, card: str, detail: str = "") -> str:
+def card_note(station: int, card: str, detail: str = "", hz_per_count: float = 0.0) -> str:
     """The note that tells a reader of the capture which card *station* is: ``station 21H: card SI-T3 …``
-    (``mlink-sim decode`` names its parameters by it)."""
-    return f"station {station:02X}H: card {card}{(' ' + detail) if detail else ''}"
+    (``mlink-sim decode`` names its parameters by it), and, with *hz_per_count*, the units of its INV_CTL speed
+    reference and output frequency (``…, speed in 0.01 Hz counts``: the drive's o1-03 / n035 as it was set)."""
+    speed = f", speed in {hz_per_count:.9g} Hz counts" if hz_per_count > 0 else ""
+    return f"station {station:02X}H: card {card}{(' ' + detail) if detail else ''}{speed}"
+
+
+def speed_of_note(text: str) -> float | None:
+    """The Hz of one speed count a :func:`card_note` names, None when it names none."""
+    m = _SPEED_NOTE.search(text)
+    return float(m.group(1)) if m and card_of_note(text) else None
 
 
 def card_of_note(text: str) -> tuple[int, str] | None:
@@ -72,7 +82,9 @@ class Selection:
 
 
 @dataclass
-class _Item:
+class Item:
+    """One datagram of a capture as a :class:`Selection` sees it, decoded, with the notes to show with it."""
+
     index: int
     t_ns: int
     datagram: Datagram
@@ -87,7 +99,9 @@ def _command_names(d: dict[str, Any]) -> set[str]:
     return {d["main"]["command"], *([d["sub"]["command"]] if "sub" in d else [])}
 
 
-def _select(datagrams: Iterable[Datagram], sel: Selection, names: Names | None) -> Iterator[_Item]:
+def select_items(datagrams: Iterable[Datagram], sel: Selection, names: Names | None) -> Iterator[Item]:
+    """The datagrams of *sel* (``shown``) and those carrying notes about its station, decoded (``describe``, with
+    *names*' additions); times since the first datagram of the capture."""
     t0 = None
     for index, d in enumerate(datagrams, 1):
         t0 = d.ts_ns if t0 is None else t0
@@ -97,7 +111,7 @@ def _select(datagrams: Iterable[Datagram], sel: Selection, names: Names | None) 
                 names.learn(comment)
         if (sel.from_ns is not None and t_ns < sel.from_ns) or (sel.to_ns is not None and t_ns > sel.to_ns):
             continue
-        item = _Item(index, t_ns, d, sel.station is None or station_of(d.data) == sel.station, [])
+        item = Item(index, t_ns, d, sel.station is None or station_of(d.data) == sel.station, [])
         if item.shown:
             try:
                 item.frame = decode(d.data)
@@ -126,7 +140,7 @@ def datagram_records(datagrams: Iterable[Datagram], station: int | None = None, 
     capture's comments. A note about the selected station recorded on another station's datagram comes as a
     dict of its own: ``index``, ``t``, ``comments``, ``note_only`` true."""
     sel = selection or Selection(station=station)
-    for item in _select(datagrams, sel, names):
+    for item in select_items(datagrams, sel, names):
         d = item.datagram
         t = round(item.t_ns / 1e9, 6)
         if not item.shown:
@@ -151,7 +165,7 @@ def datagram_lines(datagrams: Iterable[Datagram], station: int | None = None, *,
     station recorded on another station's datagram: ``t  # note``). Times count from the first datagram of the
     capture."""
     sel = selection or Selection(station=station)
-    for item in _select(datagrams, sel, names):
+    for item in select_items(datagrams, sel, names):
         d = item.datagram
         stamp = f"{item.t_ns / 1e9:11.6f}"
         if item.shown:
@@ -163,29 +177,3 @@ def datagram_lines(datagrams: Iterable[Datagram], station: int | None = None, *,
             stamp = ""
         for comment in item.notes:
             yield f"{stamp:11}  # {comment}", True
-
-
-def datagram_stats(datagrams: Iterable[Datagram], selection: Selection | None = None) -> dict[str, Any]:
-    """Counts of the *selection*'s datagrams: ``stations`` = {"21H": {"INV_CTL": {"cmd": n, "rsp": n}, …}} (main
-    commands, and sub-commands other than NOP as ``"sub PRM_RD"``), ``datagrams``, ``rejected``."""
-    stations: dict[str, dict[str, dict[str, int]]] = {}
-    total = rejected = 0
-    for item in _select(datagrams, selection or Selection(), None):
-        if not item.shown:
-            continue
-        total += 1
-        station = station_of(item.datagram.data)
-        if item.described is None:
-            rejected += 1
-            continue
-        kind = "cmd" if item.described["kind"] == "command" else "rsp"
-        per = stations.setdefault(f"{station:02X}H", {})
-        keys = [item.described["main"]["command"]]
-        sub = item.described.get("sub")
-        if sub is not None and sub["command"] != "NOP":
-            keys.append("sub " + sub["command"])
-        for key in keys:
-            counts = per.setdefault(key, {"cmd": 0, "rsp": 0})
-            counts[kind] += 1
-    return {"datagrams": total, "rejected": rejected,
-            "stations": {k: dict(sorted(v.items())) for k, v in sorted(stations.items())}}

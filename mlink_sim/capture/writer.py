@@ -25,6 +25,11 @@ microsecond (the file's resolution, pcapng's default ``if_tsresol``).
 
 The file is bounded: once it holds ``max_bytes``, the last datagram written carries a comment saying so and the
 rest of the run is counted in :attr:`CaptureStats.not_recorded`, never written.
+
+A *stream* instead of a file (``--capture -``: standard output, for ``| wireshark -k -i -`` or ``| mlink-sim watch
+-``) gets the same blocks as they are written, every ``flush_s``: a pcapng stream is the file read from its start,
+so a reader that joins at the first byte sees a valid capture at every flush. When the reader goes away (a closed
+pipe) the writer stops, says so once, and counts the rest as not recorded; the run goes on.
 """
 
 from __future__ import annotations
@@ -61,20 +66,23 @@ _popleft = deque.popleft
 class CaptureStats:
     """What a capture holds so far."""
 
-    path: str
+    path: str  #: the file, or ``-`` for standard output
     datagrams: int = 0
     notes: int = 0
     bytes: int = 0
     not_recorded: int = 0  #: datagrams after the size bound was reached
     max_bytes: int = 0
     writer_cpu_s: float = 0.0  #: CPU time of the writer thread (turning the queue into the file)
+    stopped: str = ""  #: why the writer stopped before the bound (the reader of the stream went away, a full disk)
 
     def summary(self) -> str:
-        text = f"capture {self.path}: {self.datagrams} datagrams, {self.notes} notes, {self.bytes} bytes"
+        where = "to stdout" if self.path == "-" else self.path
+        text = f"capture {where}: {self.datagrams} datagrams, {self.notes} notes, {self.bytes} bytes"
         if self.datagrams:
             text += f", writer {self.writer_cpu_s * 1e6 / self.datagrams:.1f} us CPU per datagram"
         if self.not_recorded:
-            text += f"; {self.not_recorded} datagrams not recorded (--capture-max {self.max_bytes} bytes reached)"
+            why = self.stopped or f"--capture-max {self.max_bytes} bytes reached"
+            text += f"; {self.not_recorded} datagrams not recorded ({why})"
         return text
 
 
@@ -134,15 +142,20 @@ class CaptureWriter:
     """A pcapng file being written off the hot path. ``start()``, then :meth:`record`/:meth:`note` from the hot
     path, ``close()`` at the end (flushes everything recorded before it). ``start(background=False)`` writes
     without a thread: the driver calls :meth:`flush` at points of its choosing (the virtual clock, every 250 ms of
-    simulated time)."""
+    simulated time).
+
+    *stream*: write to this binary file object (unbuffered: each write goes out as it is made) instead of
+    creating *path*, which then only names it (``-``: standard output); ``close()`` closes it, so that its reader
+    sees the end of the capture."""
 
     def __init__(self, path: str | Path, *, max_bytes: int = 100_000_000, epoch_offset_ns: int | None = None,
-                 flush_s: float = 0.25) -> None:
+                 flush_s: float = 0.25, stream: BinaryIO | None = None) -> None:
         self.path = Path(path)
+        self._stream = stream
         self.max_bytes = max_bytes
         self.epoch_offset_ns = (time.time_ns() - time.monotonic_ns()) if epoch_offset_ns is None else epoch_offset_ns
         self.flush_s = flush_s
-        self.stats = CaptureStats(str(self.path), max_bytes=max_bytes)
+        self.stats = CaptureStats(str(path), max_bytes=max_bytes)
         self._queue: deque[tuple[int, Any, Any, Any]] = deque()
         append = self._queue.append
 
@@ -173,15 +186,21 @@ class CaptureWriter:
 
     # ------------------------------------------------------------------ life cycle
     def start(self, *, background: bool = True) -> CaptureWriter:
-        """Open the file (OSError when it cannot be created); start the writer thread unless *background* is
-        False (then :meth:`flush` writes, in the caller's thread)."""
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed in close(); one write per chunk
+        """Open the file (OSError when it cannot be created), or take the stream; start the writer thread unless
+        *background* is False (then :meth:`flush` writes, in the caller's thread)."""
+        if self._stream is not None:
+            self._file = self._stream
+        else:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._file = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed in close(); one write per chunk
         shb = pcapng.SectionHeaderBlockLE(opts=[
             pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_SHB_USERAPPL, data=b"mlink-sim"),
             pcapng.PcapngOptionLE(code=pcapng.PCAPNG_OPT_ENDOFOPT)])
         pcapng.Writer(self._blocks, snaplen=_SNAPLEN, linktype=LINKTYPE_RAW, shb=shb)  # writes the SHB and IDB
-        self._flush_blocks()
+        try:
+            self._flush_blocks()
+        except OSError as exc:  # a stream whose reader is already gone: as on any later write
+            self._write_failed(exc)
         if background:
             self._thread = threading.Thread(target=self._run, name="mlink-capture", daemon=True)
             self._thread.start()
@@ -200,7 +219,10 @@ class CaptureWriter:
                 self.stats.notes += len(self._pending)
                 log.warning("capture_notes_unwritten", notes=len(self._pending), reason="no datagram to attach to")
                 self._pending.clear()
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError as exc:  # a stream whose reader went away
+                self._write_failed(exc)
             self._file = None
         return self.stats
 
@@ -237,7 +259,10 @@ class CaptureWriter:
 
     def _write_failed(self, exc: Exception) -> None:
         if not self._full:
-            log.error("capture_write_failed", path=str(self.path), error=f"{type(exc).__name__}: {exc}")
+            gone = isinstance(exc, BrokenPipeError)
+            self.stats.stopped = "the reader of the stream went away" if gone else f"{type(exc).__name__}: {exc}"
+            log.error("capture_write_failed", path=self.stats.path, error=f"{type(exc).__name__}: {exc}",
+                      why=self.stats.stopped)
         self._full = True
 
     def _drain(self, final: bool = False) -> None:

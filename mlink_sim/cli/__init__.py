@@ -24,7 +24,8 @@ SHORT_HELP = {
     "examples": "List the shipped example networks; 'examples copy NAME' copies one to edit.",
     "probe": "Send a NOP to a station; exit 0 only on a valid answer (health checks).",
     "decode": "Decode a datagram given as hex, or every datagram of a capture (--pcap).",
-    "replay": "Send a capture's master frames to live slaves and compare their answers.",
+    "replay": "Send a capture's master frames to live slaves and compare their answers, or only send (--no-compare).",
+    "watch": "Show a capture's frames live, one line per station and command (a pcapng stream: --capture -).",
     "proxy": "Forward datagrams between a master and slaves through loss, delay and corruption.",
     "control": "Send an operation to a running network, slave or proxy (run, set-param, impair, fault …).",
     "param": "Read or write a station's drive parameter by name, on a running network or slave (get, set).",
@@ -74,10 +75,11 @@ def _register_optional() -> None:
     from .report import report_cmd
     from .slave import slave_cmd
     from .web import web_cmd
+    from .watch import watch_cmd
     from .wireshark import wireshark_cmd
 
     for cmd in (slave_cmd, up_cmd, master_cmd, probe_cmd, validate_cmd, replay_cmd, wireshark_cmd, proxy_cmd,
-                control_cmd, param_cmd, status_cmd, examples_cmd, report_cmd, web_cmd):
+                control_cmd, param_cmd, status_cmd, examples_cmd, report_cmd, web_cmd, watch_cmd):
         _add(cmd)
     try:
         from .compose import compose_cmd

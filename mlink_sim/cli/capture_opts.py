@@ -1,8 +1,11 @@
-"""``--capture FILE.pcapng`` and ``--capture-max SIZE``, shared by ``up``, ``master`` and ``slave``."""
+"""``--capture FILE.pcapng`` and ``--capture-max SIZE``, shared by ``up``, ``master`` and ``slave``; ``--capture -``
+writes the pcapng stream to standard output (:func:`claim_stdout`)."""
 
 from __future__ import annotations
 
+import os
 import re
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -10,7 +13,7 @@ import click
 
 from .params import Parsed
 
-__all__ = ["capture_options", "parse_size", "open_capture_or_exit"]
+__all__ = ["capture_options", "parse_size", "open_capture_or_exit", "claim_stdout"]
 
 _UNITS = {"": 1, "b": 1, "k": 10**3, "kb": 10**3, "m": 10**6, "mb": 10**6, "g": 10**9, "gb": 10**9,
           "kib": 2**10, "mib": 2**20, "gib": 2**30}
@@ -34,18 +37,37 @@ def capture_options(fn: Any) -> Any:
                       help="The capture stops growing at this size (the rest is counted, not written).")(fn)
     return click.option("--capture", "capture_path", type=click.Path(dir_okay=False, path_type=Path),
                         help="Record every datagram sent and received to this pcapng file (Wireshark: "
-                             "'mlink-sim wireshark --install').")(fn)
+                             "'mlink-sim wireshark --install'); '-': a live pcapng stream on stdout (| wireshark -k "
+                             "-i -, | mlink-sim watch -), everything else the command prints goes to stderr.")(fn)
 
 
 def open_capture_or_exit(command: str, path: Path | None, max_bytes: int, *, background: bool = True) -> Any:
-    """A started CaptureWriter (None without --capture); exit 2 with one line when the file cannot be created.
-    *background*: False on the virtual clock, whose session writes the capture in place (``CaptureWriter.flush``)."""
+    """A started CaptureWriter (None without --capture); exit 2 with one line when the file cannot be created, or
+    for ``-`` when stdout is a terminal. *background*: False on the virtual clock, whose session writes the capture
+    in place (``CaptureWriter.flush``)."""
     if path is None:
         return None
     from ..capture import CaptureWriter
 
+    if str(path) == "-":
+        if sys.stdout.isatty():
+            click.echo(f"mlink-sim {command}: --capture - writes a binary pcapng stream: pipe it (| wireshark -k -i -, "
+                       "| tshark -r -, | mlink-sim watch -) or give a file name", err=True)
+            raise SystemExit(2)
+        return CaptureWriter("-", max_bytes=max_bytes, stream=claim_stdout()).start(background=background)
     try:
         return CaptureWriter(path, max_bytes=max_bytes).start(background=background)
     except OSError as exc:
         click.echo(f"mlink-sim {command}: cannot write the capture {path}: {exc.strerror or exc}", err=True)
         raise SystemExit(2) from None
+
+
+def claim_stdout() -> Any:
+    """Standard output for a binary stream of this process's own: the stream gets a duplicate of file descriptor 1
+    (unbuffered, not inherited by child processes), and descriptor 1 becomes a duplicate of 2, so that whatever else
+    the process and its children print to stdout (the live status, the summary, notices) goes to stderr and never
+    into the stream."""
+    sys.stdout.flush()
+    fd = os.dup(1)
+    os.dup2(2, 1)
+    return open(fd, "wb", buffering=0)

@@ -1,4 +1,5 @@
-"""``mlink-sim replay FILE --to HOST:PORT``: the capture's master frames against a live slave, answers compared."""
+"""``mlink-sim replay FILE --to HOST:PORT``: the capture's master frames against a live slave, answers compared, or
+only sent (``--no-compare``, as python-can's ``can.player``), once or ``--loop``-ed, at least ``--gap`` apart."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from typing import Any
 
 import click
 
-from .params import ADDR, Seconds
+from .params import ADDR, Duration, Seconds
 
 __all__ = ["replay_cmd"]
 
@@ -58,6 +59,43 @@ def _targets(texts: tuple[str, ...]) -> tuple[tuple[str, int] | None, dict[int, 
     return default, per_station
 
 
+def _loops(text: str) -> int:
+    """``--loop [N]``: N passes (N >= 1), or 0 (``--loop`` alone, ``forever``): until Ctrl-C."""
+    if text.strip().lower() in ("", "0", "forever"):
+        return 0
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if n < 1:
+        raise click.BadParameter(f"expected a number of passes (1 or more) or nothing (until Ctrl-C), got {text!r}",
+                                 param_hint="--loop")
+    return n
+
+
+def _report(result: Any, check: bool, strict: bool, interrupted: bool) -> int:
+    """Print what was done and compared; the exit status (an interrupted replay ends with its signal's)."""
+    from ..capture.replay import scope
+
+    passes = f" in {result.loops} pass(es)" if result.loops != 1 else ""
+    cut = " (interrupted)" if interrupted else ""
+    if not check:
+        click.echo(f"{result.sent} frames sent{passes}{cut}, {result.received} answers received; not compared "
+                   "(--no-compare)")
+        return 130 if interrupted else 0
+    click.echo(scope(strict))
+    if result.ok:
+        click.echo(f"{result.sent} frames sent{passes}{cut}, {result.compared} answers compared, all equal")
+        return 130 if interrupted else 0
+    click.echo(f"{result.sent} frames sent{passes}{cut}, {result.compared} answers compared, {result.equal} equal; "
+               "differences:")
+    for line in result.differences:
+        click.echo(f"  {line}")
+    for hint in result.hints:
+        click.echo(f"hint: {hint}")
+    return 130 if interrupted else 1
+
+
 @click.command("replay")
 @click.argument("capture_path", metavar="FILE", type=click.Path(dir_okay=False))
 @click.option("--to", "targets", required=True, multiple=True, metavar="[ADDR=]HOST:PORT",
@@ -71,20 +109,34 @@ def _targets(texts: tuple[str, ...]) -> tuple[tuple[str, int] | None, dict[int, 
               help="1: the capture's own timing; 2: twice as fast; max: each frame as soon as the answer to the "
                    "one before came. Away from 1 a slave may warn of the reception timing, which is not "
                    "compared.")
+@click.option("--gap", "gap", default=None, type=Duration("ms"), metavar="DURATION",
+              help="At least this long between two frames sent (as can.player's --gap), e.g. 5ms; a gap longer "
+                   "than the capture's cycle is a reception failure to a slave in phase 3.")
+@click.option("--loop", "loop", default=None, is_flag=False, flag_value="forever", metavar="[N]",
+              help="Play the capture N times, each pass from its start; --loop alone: until Ctrl-C.")
+@click.option("--compare/--no-compare", "check", default=True, show_default=True,
+              help="--no-compare: only send the frames (as can.player), reading the answers without judging them; "
+                   "exit 0.")
 @click.option("--strict", is_flag=True,
               help="Compare the output frequency and the monitors too (they sample the drive model at the instant "
                    "each command arrives, so they differ where the timing does).")
 @click.option("--max-differences", default=10, show_default=True, type=click.IntRange(1, 10_000),
               help="How many differences to print before stopping the comparison.")
 def replay_cmd(capture_path: str, targets: tuple[str, ...], stations: tuple[int, ...], grace: float,
-               speed: float | None, strict: bool, max_differences: int) -> None:
-    """Send the master's frames of FILE on their original timing (or --speed) to the slaves (--to) and compare
-    their answers with the recorded ones; it prints what it compares (the RWDT, reception-timing warnings, and
-    unless --strict the output frequency and monitors are left out; docs/capture.md). Exit 0 when every
-    answer is equal, 1 with the first differences."""
+               speed: float | None, gap: str | None, loop: str | None, check: bool, strict: bool,
+               max_differences: int) -> None:
+    """Send the master's frames of FILE on their original timing (or --speed, --gap) to the slaves (--to) and
+    compare their answers with the recorded ones; it prints what it compares (the RWDT, reception-timing warnings,
+    and unless --strict the output frequency and monitors are left out; docs/capture.md), and names the status
+    bits that differ with the setting that usually explains them. --no-compare only sends; --loop repeats. Exit 0
+    when every answer is equal, 1 with the first differences."""
     from ..capture import CaptureError, read_capture
-    from ..capture.replay import plan_replay, run_replay, scope
+    from ..capture.replay import Pacing, ReplayResult, plan_replay, run_replay
+    from ..units import parse_duration_ns
+
     default, per_station = _targets(targets)
+    loops = 1 if loop is None else _loops(loop)
+    gap_ns = 0 if gap is None else parse_duration_ns(gap, default_unit="ms")
     wanted = list(stations) or None
     try:
         plan = plan_replay(read_capture(capture_path).datagrams, wanted)
@@ -101,18 +153,20 @@ def replay_cmd(capture_path: str, targets: tuple[str, ...], stations: tuple[int,
     span = plan.commands[-1][0] / 1e9
     names = ", ".join(f"{s:02X}H to {h}:{p}" for s, (h, p) in where.items())  # type: ignore[misc]
     pace = "as fast as answers come" if speed is None else f"{span / speed:.1f} s at speed {speed:g}"
-    click.echo(f"replaying {len(plan.commands)} frames ({span:.1f} s recorded, {pace}): {names}", err=True)
+    if gap_ns:
+        pace += f", at least {gap} apart"
+    times = "" if loops == 1 else (", until Ctrl-C" if loops == 0 else f", {loops} times")
+    click.echo(f"replaying {len(plan.commands)} frames ({span:.1f} s recorded, {pace}{times}): {names}", err=True)
+    result = ReplayResult()
     try:
-        result = run_replay(plan, where, grace_s=grace, max_differences=max_differences,  # type: ignore[arg-type]
-                            speed=speed, strict=strict)
+        run_replay(plan, where, pacing=Pacing(speed=speed, gap_ns=gap_ns, grace_s=grace),  # type: ignore[arg-type]
+                   max_differences=max_differences, strict=strict, check=check, loops=loops, result=result)
     except OSError as exc:
         click.echo(f"mlink-sim replay: {exc.strerror or exc}", err=True)
         sys.exit(2)
-    click.echo(scope(strict))
-    if result.ok:
-        click.echo(f"{result.sent} frames sent, {result.compared} answers compared, all equal")
-        return
-    click.echo(f"{result.sent} frames sent, {result.compared} answers compared, {result.equal} equal; differences:")
-    for line in result.differences:
-        click.echo(f"  {line}")
-    sys.exit(1)
+    except SystemExit as exc:  # Ctrl-C / SIGTERM (cli.main's handlers): say what was done, then end as the signal
+        if exc.code not in (130, 143):
+            raise
+        _report(result, check, strict, True)
+        sys.exit(exc.code)
+    sys.exit(_report(result, check, strict, False))

@@ -6,7 +6,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from ..examples import example_names, example_path
 from ..params import FAMILIES, ParamError
@@ -38,7 +38,8 @@ def _near(loc: tuple[Any, ...]) -> str:
 
     from .model import NetworkConfig, StationConfig, TimelineStep
 
-    models = {"network": NetworkConfig, "station": StationConfig, "timeline": TimelineStep}
+    models: dict[str, type[BaseModel]] = {"network": NetworkConfig, "station": StationConfig,
+                                          "timeline": TimelineStep}
     model = models.get(str(loc[0])) if loc else None
     if model is None or not isinstance(loc[-1], str):
         return ""

@@ -48,6 +48,15 @@ field("fcs_computed", ProtoField.uint16("mlink.fcs.computed", "FCS computed", ba
 field("fcs_status", ProtoField.uint8("mlink.fcs.status", "FCS status", base.DEC, fcs_status_names))
 field("param", ProtoField.string("mlink.param", "Parameter"))
 field("param_value", ProtoField.string("mlink.param.value", "Value"))
+-- the exchange, as a request/response protocol's dissector gives it (dns.response_in, dns.time): a response is
+-- matched to its command by master, link, station and cycle (a response echoes its command's cycle)
+field("response_in", ProtoField.framenum("mlink.response_in", "Response in", base.NONE, frametype.RESPONSE))
+field("response_to", ProtoField.framenum("mlink.response_to", "Response to", base.NONE, frametype.REQUEST))
+field("time", ProtoField.relative_time("mlink.time", "Response time"))
+field("late", ProtoField.bool("mlink.late", "Late (after the station's next command)"))
+field("gap", ProtoField.relative_time("mlink.gap", "Time since the station's previous command"))
+field("speed_ref_hz", ProtoField.double("mlink.speed_ref.hz", "Speed reference (Hz)"))
+field("output_freq_hz", ProtoField.double("mlink.output_freq.hz", "Output frequency (Hz)"))
 
 -- bit fields: { {mask, name}, ... } under a parent of `width` bits
 local function bit_fields(prefix, bits, width)
@@ -113,7 +122,11 @@ local ef_alarm = ProtoExpert.new("mlink.alarm.raised", "Alarm or warning reporte
   expert.severity.WARN)
 local ef_unknown = ProtoExpert.new("mlink.unknown", "Command code without a layout", expert.group.UNDECODED,
   expert.severity.NOTE)
-mlink.experts = { ef_bad_fcs, ef_size, ef_header, ef_alarm, ef_unknown }
+local ef_late = ProtoExpert.new("mlink.late.answer", "Answer after the station's next command", expert.group.SEQUENCE,
+  expert.severity.WARN)
+local ef_sequence = ProtoExpert.new("mlink.sequence.bad", "Cycle number out of sequence", expert.group.SEQUENCE,
+  expert.severity.WARN)
+mlink.experts = { ef_bad_fcs, ef_size, ef_header, ef_alarm, ef_unknown, ef_late, ef_sequence }
 
 local function crc16_x25(tvb, n)
   local crc = 0xFFFF
@@ -172,11 +185,100 @@ local function parse_cards(text)
   end
 end
 
+-- INV_CTL's speed in Hz: the station's units (o1-03 / n035) from its card note ("…, speed in 0.01 Hz counts"),
+-- else the default both drives share: o1-03 = 0 (A1000, SI-T3 Table 4 / SI-ET3 Table 7) and n035 = 0
+-- (VS-606V7), 0.01 Hz per count (docs/drive-model.md, "Units of the reference")
+local DEFAULT_HZ_PER_COUNT = 0.01
+local noted_hz = {}
+
 local function learn_cards()
   if comment_field == nil then return end
   for _, fi in ipairs({ comment_field() }) do
-    local station, card = string.match(tostring(fi.value), "^station (%x%x)H: card (%S+)")
-    if station then noted[tonumber(station, 16)] = card_key(card) end
+    local text = tostring(fi.value)
+    local station, card = string.match(text, "^station (%x%x)H: card (%S+)")
+    if station then
+      noted[tonumber(station, 16)] = card_key(card)
+      local hz = string.match(text, "speed in ([%d%.eE+-]+) Hz counts")
+      if hz then noted_hz[tonumber(station, 16)] = tonumber(hz) end
+    end
+  end
+end
+
+local function speed_hz(root, range, station, raw, f)
+  local per = noted_hz[station]
+  local source = per and "the capture's note" or "default: o1-03 = 0 / n035 = 0"
+  per = per or DEFAULT_HZ_PER_COUNT
+  local hz = math.abs(raw) * per
+  local item = root:add(f, range, hz)
+  item:set_text(string.format("%s: %.2f Hz (%g Hz per count, %s)", f == F.speed_ref_hz and "Speed reference"
+    or "Output frequency", hz, per, source))
+  item:set_generated()
+end
+
+-- the exchanges, kept from the first pass (frame numbers: what every later pass and the statistic read)
+local exchanges = {}    -- frame -> { station, link, kind, command, t, tcycle, rt, to, late, gap, seq_bad }
+local commands_at = {}  -- "master|link|station|cycle" -> frame of the command
+local answer_of = {}    -- command frame -> response frame
+local last_command = {} -- "master|link|station" -> { cycle, t, first }: its latest command, the first one's cycle
+
+local function exchange(pinfo, link, kind, station, cycle, tcycle, command)
+  local n = pinfo.number
+  local x = exchanges[n]
+  if x ~= nil or pinfo.visited then return x end
+  local is_cmd = kind == 1
+  local master = is_cmd and (tostring(pinfo.src) .. ":" .. pinfo.src_port)
+    or (tostring(pinfo.dst) .. ":" .. pinfo.dst_port)
+  local who = string.format("%s|%d|%d", master, link, station)
+  local key = who .. "|" .. cycle
+  x = { station = station, link = link, kind = kind, command = command, t = pinfo.rel_ts, tcycle = tcycle }
+  if is_cmd then
+    local last = last_command[who]
+    if last ~= nil then
+      x.gap = pinfo.rel_ts - last.t
+      x.seq_bad = cycle <= last.cycle
+    end
+    last_command[who] = { cycle = cycle, t = pinfo.rel_ts, first = last and last.first or cycle }
+    commands_at[key] = n
+  else
+    local cmd = commands_at[key]
+    local last = last_command[who]
+    if cmd ~= nil and answer_of[cmd] == nil then
+      answer_of[cmd] = n
+      x.to = cmd
+      x.rt = pinfo.rel_ts - exchanges[cmd].t
+      x.late = last.cycle ~= cycle
+    elseif last ~= nil and cycle >= last.first then  -- a second answer, or one to a cycle never commanded
+      x.seq_bad = true
+    end
+  end
+  exchanges[n] = x
+  return x
+end
+
+-- seconds (a difference of pinfo.rel_ts, the time since the first packet: a double, good to the nanosecond) as an
+-- NSTime
+local function nstime(seconds)
+  local whole = math.floor(seconds)
+  return NSTime.new(whole, math.floor((seconds - whole) * 1e9 + 0.5))
+end
+
+local function add_exchange(root, tvb, pinfo, x)
+  if x == nil then return end
+  local envelope = tvb(4, 4)
+  if x.kind == 1 then
+    local rsp = answer_of[pinfo.number]
+    if rsp then root:add(F.response_in, envelope, rsp):set_generated() end
+    if x.gap then root:add(F.gap, envelope, nstime(x.gap)):set_generated() end
+    if x.seq_bad then root:add_proto_expert_info(ef_sequence, "Cycle number not above the station's previous "
+      .. "command's") end
+  elseif x.seq_bad then
+    root:add_proto_expert_info(ef_sequence, "An answer to a cycle no command had, or a second answer")
+  elseif x.to then
+    root:add(F.response_to, envelope, x.to):set_generated()
+    root:add(F.time, envelope, nstime(x.rt)):set_generated()
+    local late = root:add(F.late, envelope, x.late)
+    late:set_generated()
+    if x.late then late:add_proto_expert_info(ef_late, "Answer after the station's next command") end
   end
 end
 
@@ -194,7 +296,7 @@ local function param_text(row, raw)
 end
 
 -- returns, for a PRM_RD / PRM_WR body, what naming its parameter needs once the frame's refusal bits are known
-local function dissect_body(tree, range, gen, slot, code, label)
+local function dissect_body(tree, range, gen, slot, code, label, station)
   local layout = T.bodies[gen][slot][code]
   local names = T.gen_commands[gen]
   local sub = tree:add(F[string.lower(label)], range)
@@ -209,6 +311,9 @@ local function dissect_body(tree, range, gen, slot, code, label)
     local name, off, size = f[1], f[2], f[3]
     local item = sub:add_le(BODY[name], range(off, size))
     if BODY_BITS[name] then add_bits(item, range(off, size), BODY_BITS[name]) end
+    if names[code] == "INV_CTL" and (name == "speed_ref" or name == "output_freq") then
+      speed_hz(sub, range(off, size), station, range(off, size):le_uint(), F[name .. "_hz"])
+    end
     if prm then
       if name == "no" then prm.no, prm.no_range = range(off, size):le_uint(), range(off, size)
       elseif name == "size" then prm.size = range(off, size):le_uint()
@@ -296,9 +401,9 @@ local function dissect(tvb, pinfo, tree)
       root:add(F.subcode, range)
       root:add(F.subcmd_name, range, names[subcode] or string.format("0x%02x", subcode)):set_generated()
     elseif name == "main" then
-      main_prm = dissect_body(root, range, gen, is_cmd and "cmd_main" or "rsp_main", code, "Main")
+      main_prm = dissect_body(root, range, gen, is_cmd and "cmd_main" or "rsp_main", code, "Main", station)
     elseif name == "sub" then
-      sub_prm = dissect_body(root, range, gen, is_cmd and "cmd_sub" or "rsp_sub", subcode, "Sub")
+      sub_prm = dissect_body(root, range, gen, is_cmd and "cmd_sub" or "rsp_sub", subcode, "Sub", station)
     elseif name == "status" then
       status = range:le_uint()
       add_bits(root:add_le(F.status, range), range, STATUS_BITS)
@@ -346,9 +451,16 @@ local function dissect(tvb, pinfo, tree)
   if main_param then info = info .. " " .. main_param end
   if subcode ~= nil then info = info .. " / " .. (names[subcode] or string.format("0x%02x", subcode)) end
   if sub_param then info = info .. " " .. sub_param end
-  info = info .. string.format(" cycle %d", tvb(4, 4):le_uint())
+  local cycle = tvb(4, 4):le_uint()
+  info = info .. string.format(" cycle %d", cycle)
   if #notes > 0 then info = info .. " [" .. table.concat(notes, ", ") .. "]" end
   pinfo.cols.info = info
+  if good then
+    add_exchange(root, tvb, pinfo, exchange(pinfo, link, kind, station, cycle, tvb(8, 4):le_uint(),
+      names[code] or string.format("%02XH", code)))
+  elseif not pinfo.visited then
+    exchanges[pinfo.number] = { station = station, link = link, kind = kind, fcs_bad = true }
+  end
   return len
 end
 
@@ -390,3 +502,130 @@ end
 
 register_ports()
 mlink:register_heuristic("udp", heuristic)
+
+function mlink.init()
+  exchanges, commands_at, answer_of, last_command, noted_hz = {}, {}, {}, {}, {}
+end
+
+-- The MECHATROLINK response-time statistic (tshark -z mlink,srt[,FILTER]; Wireshark: Statistics > MECHATROLINK
+-- Response Times): per station and command the commands, responses, lost and late answers and the response time
+-- (min, avg, p50, p99, max); per station the gaps between its commands and the FCS and sequence errors, as
+-- mlink-sim decode --pcap FILE --stats counts them (docs/capture.md)
+local function percentile(sorted, p)
+  local rank = math.max(1, math.ceil(p / 100 * #sorted))
+  return sorted[rank]
+end
+
+local function ms(seconds) return string.format("%9.3f", seconds * 1e3) end
+
+-- min, avg, p50, p99, max of a list of seconds, in ms (dashes for none); sorts the list
+local function figures(values)
+  if #values == 0 then return string.rep(string.format("%9s ", "-"), 5) end
+  table.sort(values)
+  local sum = 0
+  for _, v in ipairs(values) do sum = sum + v end
+  return table.concat({ ms(values[1]), ms(sum / #values), ms(percentile(values, 50)), ms(percentile(values, 99)),
+    ms(values[#values]) }, " ")
+end
+
+local function srt_tap(filter)
+  local tap = Listener.new(nil, filter and filter ~= "" and ("mlink && (" .. filter .. ")") or "mlink")
+  local per, stations, pending
+  local function reset()
+    per, stations, pending = {}, {}, {}
+  end
+  reset()
+  tap.reset = reset
+  local function station_of(x)
+    local st = stations[x.station]
+    if st == nil then
+      st = { gaps = {}, fcs = 0, seq = 0, last_t = 0 }
+      stations[x.station] = st
+    end
+    return st
+  end
+  local function row(x, command)
+    local key = string.format("%02XH %s", x.station, command)
+    local r = per[key]
+    if r == nil then
+      r = { cmd = 0, rsp = 0, late = 0, lost = 0, times = {} }
+      per[key] = r
+    end
+    return r
+  end
+  function tap.packet(pinfo)
+    local x = exchanges[pinfo.number]
+    if x == nil then return end
+    local st = station_of(x)
+    if x.fcs_bad then
+      st.fcs = st.fcs + 1
+      return
+    end
+    st.last_t = math.max(st.last_t, x.t)
+    if x.kind == 1 then
+      row(x, x.command).cmd = row(x, x.command).cmd + 1
+      if x.gap then st.gaps[#st.gaps + 1] = x.gap end
+      if x.seq_bad then st.seq = st.seq + 1 end
+      pending[pinfo.number] = x
+    else
+      local command = x.to and exchanges[x.to].command or x.command
+      local r = row(x, command)
+      r.rsp = r.rsp + 1
+      if x.seq_bad then st.seq = st.seq + 1 end
+      if x.to then
+        r.times[#r.times + 1] = x.rt
+        if x.late then r.late = r.late + 1 end
+        pending[x.to] = nil
+      end
+    end
+  end
+  local function text()
+    for _, x in pairs(pending) do  -- unanswered, unless within a cycle of the end of its station's capture
+      if stations[x.station].last_t - x.t >= x.tcycle / 1e9 then
+        local r = row(x, x.command)
+        r.lost = r.lost + 1
+      end
+    end
+    local lines = { string.rep("=", 100), "MECHATROLINK response times (mlink-sim), ms",
+      string.format("%-8s %-16s %9s %9s %5s %5s %9s %9s %9s %9s %9s", "station", "command", "commands",
+        "responses", "lost", "late", "min", "avg", "p50", "p99", "max") }
+    local keys = {}
+    for key in pairs(per) do keys[#keys + 1] = key end
+    table.sort(keys)
+    for _, key in ipairs(keys) do
+      local r = per[key]
+      local station, command = string.match(key, "^(%S+) (.+)$")
+      lines[#lines + 1] = string.format("%-8s %-16s %9d %9d %5d %5d %s", station, command, r.cmd, r.rsp, r.lost,
+        r.late, figures(r.times))
+    end
+    lines[#lines + 1] = ""
+    lines[#lines + 1] = string.format("%-8s %9s %9s %9s %9s %9s  %10s %15s", "station", "gap min", "avg", "p50", "p99",
+      "max", "FCS errors", "sequence errors")
+    local addrs = {}
+    for a in pairs(stations) do addrs[#addrs + 1] = a end
+    table.sort(addrs)
+    for _, a in ipairs(addrs) do
+      local st = stations[a]
+      lines[#lines + 1] = string.format("%02XH      %s  %10d %15d", a, figures(st.gaps), st.fcs, st.seq)
+    end
+    lines[#lines + 1] = string.rep("=", 100)
+    return table.concat(lines, "\n")
+  end
+  return tap, text
+end
+
+register_stat_cmd_arg("mlink,srt", function(arg)
+  local filter = string.match(arg or "", "^mlink,srt,(.+)$")
+  local tap, text = srt_tap(filter)
+  function tap.draw() print(text()) end
+end)
+
+if gui_enabled() then
+  register_menu("MECHATROLINK Response Times", function()
+    local win = TextWindow.new("MECHATROLINK response times (mlink-sim)")
+    local tap, text = srt_tap(nil)
+    function tap.draw() win:set(text()) end
+    win:set_atclose(function() tap:remove() end)
+    retap_packets()
+  end, MENU_STAT_GENERIC)
+end

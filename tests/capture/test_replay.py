@@ -46,7 +46,7 @@ def test_monitors_left_out_and_speed_bits_while_moving_only() -> None:
                    _rsp(ml2.InvCtlResponse(mon1=65505), status=rest)) == []  # a coasting motor after a stop
     agree = int(M2Status.AGREE)
     diffs = compare(_rsp(ml2.InvCtlResponse(), status=rest), _rsp(ml2.InvCtlResponse(), status=rest | agree))
-    assert diffs == ["status: recorded 68, live 580"]  # AGREE at rest is compared
+    assert diffs == ["status: recorded 68, live 580 (live only: AGREE)"]  # AGREE at rest is compared, by name
     assert compare(_rsp(ml2.InvCtlResponse(), status=rest), _rsp(ml2.InvCtlResponse(), status=rest | agree),
                    moving=True) == []  # right after a stop it is not
 
@@ -158,7 +158,7 @@ def test_replay_against_a_fresh_slave(tmp_path: Path) -> None:
     comments = [c for d in read_capture(recorded).datagrams for c in d.comments]
     assert "station 21H: phase 1 -> 3" in comments and "station 21H: phase 3 -> 1" in comments
     # the slave names its card, so a decode of its capture names the SI-T3's parameters without --card
-    assert "station 21H: card SI-T3 (MECHATROLINK-II, 32-byte)" in comments
+    assert "station 21H: card SI-T3 (MECHATROLINK-II, 32-byte), speed in 0.01 Hz counts" in comments
     writes = subprocess.run([*MLINK, "decode", "--pcap", str(recorded), "--command", "PRM_WR"],
                             capture_output=True, text=True, timeout=60)
     assert writes.returncode == 0 and "PRM_WR(02H) C1-02 (0201H) = " in writes.stdout, writes.stdout + writes.stderr

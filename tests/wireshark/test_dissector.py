@@ -46,12 +46,16 @@ def check_envelope(layer: dict[str, Any] | None, data: bytes) -> dict[str, Any] 
     return d
 
 
+#: what the dissector adds to a body beside its fields: the parameter by name, INV_CTL's speed in Hz
+_ADDED = ("mlink.param", "mlink.param.value", "mlink.speed_ref.hz", "mlink.output_freq.hz")
+
+
 def _body_values(tree: Any) -> dict[str, str]:
     """The body fields of a ``mlink.main``/``mlink.sub`` subtree (an empty body is shown as "")."""
     if not isinstance(tree, dict):
         return {}
     return {k.removeprefix("mlink."): v for k, v in tree.items()
-            if k.startswith("mlink.") and not k.endswith("_tree") and k not in ("mlink.param", "mlink.param.value")}
+            if k.startswith("mlink.") and not k.endswith("_tree") and k not in _ADDED}
 
 
 def check_fields(layer: dict[str, Any], d: dict[str, Any]) -> None:
@@ -69,6 +73,11 @@ def check_fields(layer: dict[str, Any], d: dict[str, Any]) -> None:
         for k, v in expected.items():
             got = shown[k].replace(":", "") if isinstance(v, str) else _int(shown[k])
             assert got == v, (region, k, got, v)
+        if body["command"] == "INV_CTL":  # in Hz by the default units (no note names them): 0.01 Hz per count
+            tree = layer[f"mlink.{region}"]
+            for k in ("speed_ref", "output_freq"):
+                if k in body:
+                    assert float(tree[f"mlink.{k}.hz"]) == pytest.approx(body[k] * 0.01), k
     for key in ("wdt", "rwdt", "alarm", "status", "substatus"):
         if key in d:
             assert _int(layer[f"mlink.{key}"]) == d[key], key

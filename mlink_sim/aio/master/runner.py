@@ -212,8 +212,9 @@ class Master:
         self._note = both
 
     def note_cards(self) -> None:
-        """Tell a capture which card each station is (``station 21H: card SI-T3 (MECHATROLINK-II, 32-byte)``):
-        ``mlink-sim decode`` names the parameters of a MECHATROLINK-II station by it. Nothing without a capture."""
+        """Tell a capture which card each station is (``station 21H: card SI-T3 (MECHATROLINK-II, 32-byte), speed in
+        0.01 Hz counts``): ``mlink-sim decode`` names the parameters of a MECHATROLINK-II station by it, and gives
+        INV_CTL's speed in Hz by the units the plan knows (o1-03 / n035). Nothing without a capture."""
         note = self._note
         if note is None:
             return
@@ -221,7 +222,8 @@ class Master:
         for sp in self.core.plan.stations:
             profile = sp.profile
             if profile is not None:
-                note(now, card_note(sp.address, profile.label, f"({sp.link.label}, {sp.data_size}-byte)"))
+                note(now, card_note(sp.address, profile.label, f"({sp.link.label}, {sp.data_size}-byte)",
+                                    sp.hz_per_count))
 
     @property
     def local_address(self) -> tuple[str, int]:

@@ -32,6 +32,7 @@ from typing import Any
 
 from ..._log import get_logger
 from ...capture.text import card_note
+from ...drive.monitors import ref_to_hz
 from ...jsonable import to_jsonable
 from ...metrics.stalls import WORKER_STALL_NS, StallLog
 from ...faults.plant import PlantFaults
@@ -369,14 +370,16 @@ class SlaveServer:
         fut.add_done_callback(done)
 
     def _note_cards(self) -> None:
-        """Tell a capture which card each station is (``station 21H: card SI-T3 (MECHATROLINK-II, 32-byte)``), as the
-        master does: ``mlink-sim decode`` and the dissector name a MECHATROLINK-II station's parameters by it."""
+        """Tell a capture which card each station is (``station 21H: card SI-T3 (MECHATROLINK-II, 32-byte), speed in
+        0.01 Hz counts``), as the master does: ``mlink-sim decode`` and the dissector name a MECHATROLINK-II
+        station's parameters by it, and give INV_CTL's speed in Hz by the drive's units (o1-03 / n035) at power-up."""
         if self._capture is None:
             return
         now = time.monotonic_ns()
         for hs in self.stations:
             st = hs.station
-            self._capture.note(now, card_note(st.address, st.label, f"({st.link.label}, {st.data_size}-byte)"))
+            self._capture.note(now, card_note(st.address, st.label, f"({st.link.label}, {st.data_size}-byte)",
+                                              ref_to_hz(st.drive.settings, 1)))
 
     def _note_phases(self, now: int) -> None:
         for hs in self.stations:
