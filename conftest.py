@@ -1,0 +1,25 @@
+"""The examples of README.md and docs/*.md as tests (tests/docs/examples.py; CONTRIBUTING.md, "Examples in the
+docs"): ``pytest README.md docs`` runs them, ``--docs-update`` writes what their commands printed into the pages."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.docs.examples import SYBIL, UPDATE, apply_edits
+
+pytest_collect_file = SYBIL.pytest()
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--docs-update", action="store_true",
+                     help="write what the docs' console commands printed into the pages where it does not have "
+                          "their shape (CONTRIBUTING.md, 'Examples in the docs')")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    UPDATE["on"] = bool(config.getoption("--docs-update"))
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    for page in apply_edits():
+        print(f"\ndocs: rewrote the outputs of {page}")
