@@ -213,6 +213,8 @@ def _sh(example: Example) -> None:
     for command in commands_of(block.source):
         command.text = _adjusted(command.text, block.options)
         run = shell.run(command)
+        if run.status is None:  # a server serving, as in a terminal of its own (tests/docs/shell.py)
+            continue
         if command.background or command.until_ctrl_c:
             ok = command.background or run.proc.returncode in (0, 130)
             assert ok, f"{command.text!r} ended with {run.proc.returncode} after Ctrl-C:\n{run.output()}"
@@ -223,16 +225,20 @@ def _sh(example: Example) -> None:
 def _console(example: Example) -> None:
     block: Block = example.parsed
     shell = _page(example).shell
-    lines = block.source.splitlines(keepends=True)
     failures, rewritten = [], []
     for command in console_of(block.source):
-        typed = command.text
+        typed = "\n".join(command.typed)
         command.text = _adjusted(command.text, block.options)
         expected = command.output
 
         def shown(printed: list[str], expected: list[str] = expected) -> bool:
             return bool(expected) and shapes.holds(shapes.align(expected, [shell.to_page(p) for p in printed]))
 
+        if command.background:  # its lines are its own terminal's; the page shows those of the commands after it
+            assert not expected, f"{typed}: a command left running (&) shows no output on the page"
+            shell.run(command)
+            rewritten.append((typed, []))
+            continue
         key = command.text if _CACHEABLE.fullmatch(command.text) else None
         if key in _PRINTED:
             printed = _PRINTED[key]
@@ -243,20 +249,14 @@ def _console(example: Example) -> None:
                 _PRINTED[key] = printed
         steps = shapes.align(expected, printed)
         if not shapes.holds(steps):
-            failures.append(f"$ {typed}\n{shapes.diff(steps)}")
+            failures.append(f"{typed}\n{shapes.diff(steps)}")
         rewritten.append((typed, shapes.rewrite(steps)))
     if failures and UPDATE["on"]:
-        text = "".join(f"$ {typed}\n" + "".join(f"{line}\n" for line in out) for typed, out in rewritten)
-        if not _continued(lines):
-            _edit(example, block.start, block.start + len(block.source), text)
-            return
+        text = "".join(f"{typed}\n" + "".join(f"{line}\n" for line in out) for typed, out in rewritten)
+        _edit(example, block.start, block.start + len(block.source), text)
+        return
     assert not failures, "what the commands printed does not have the page's shape (- the page, + printed):\n" + \
         "\n".join(failures)
-
-
-def _continued(lines: list[str]) -> bool:
-    """Whether a console block has commands continued over lines (the update writes each command on one)."""
-    return any(line.startswith("$ ") and line.rstrip().endswith("\\") for line in lines)
 
 
 _EVALUATORS = {"python": _python, "console": _console, "sh": _sh}

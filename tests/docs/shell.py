@@ -63,6 +63,7 @@ class Command:
     background: bool = False
     until_ctrl_c: bool = False
     output: list[str] = field(default_factory=list)  #: what a console block shows it print
+    typed: list[str] = field(default_factory=list)  #: a console block's lines of the command, as they stand
 
 
 def _split_comment(line: str) -> tuple[str, str]:
@@ -116,6 +117,7 @@ def console_of(source: str) -> list[Command]:
                 out[-1].text += " " + text.strip().removesuffix("\\").rstrip()
             else:
                 out.append(_command(text.removesuffix("\\").rstrip(), comment))
+            out[-1].typed.append(raw)
             continuing = text.endswith("\\")
             continue
         if not out:
