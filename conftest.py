@@ -11,13 +11,16 @@ pytest_collect_file = SYBIL.pytest()
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
-    parser.addoption("--docs-update", action="store_true",
-                     help="write what the docs' console commands printed into the pages where it does not have "
-                          "their shape (CONTRIBUTING.md, 'Examples in the docs')")
+    parser.addoption("--docs-update", nargs="?", const="shapes", default=None, choices=("shapes", "figures"),
+                     help="write what the docs' console commands printed into the pages: where it does not have "
+                          "their shape, or (=figures) every line, its figures too (CONTRIBUTING.md, 'Examples in "
+                          "the docs')")
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    UPDATE["on"] = bool(config.getoption("--docs-update"))
+    mode = config.getoption("--docs-update")
+    UPDATE["on"] = mode is not None
+    UPDATE["figures"] = mode == "figures"
 
 
 def pytest_sessionfinish(session: pytest.Session) -> None:

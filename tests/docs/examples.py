@@ -30,7 +30,6 @@ from __future__ import annotations
 import ast
 import contextlib
 import re
-import shlex
 import shutil
 import subprocess
 import sys
@@ -49,8 +48,9 @@ from tests.docs.shell import REPO, Shell, commands_of, console_of
 
 __all__ = ["SYBIL", "PAGES", "EDITS", "UPDATE", "apply_edits"]
 
-#: ``--docs-update``: console outputs that do not hold are rewritten from what the commands printed
-UPDATE = {"on": False}
+#: ``--docs-update``: console outputs that do not hold are rewritten from what the commands printed;
+#: ``--docs-update=figures``: every console output, its figures too
+UPDATE = {"on": False, "figures": False}
 #: the rewrites of one session: page -> [(start, end, text)]
 EDITS: dict[str, list[tuple[int, int, str]]] = {}
 STATE = "__docs_page__"  #: the page's state in its Sybil namespace
@@ -196,15 +196,16 @@ def _pytest_file(example: Example, page: Page, source: str) -> None:
 
 def _adjusted(text: str, options: dict[str, str]) -> str:
     """*text* with the marker's options added to each ``mlink-sim up`` / ``master`` in it."""
-    extra = []
-    if "clock" in options:
-        extra += ["--clock", options["clock"]]
-    if "duration" in options:
-        extra += ["--duration", options["duration"]]
-    if not extra:
+    added = {"--clock": options.get("clock"), "--duration": options.get("duration")}
+
+    def add(match: re.Match[str]) -> str:
+        command = match.group(1).rstrip()
+        extra = [f"{option} {value}" for option, value in added.items() if value and option not in command.split()]
+        return " ".join([command, *extra])
+
+    if not any(added.values()):
         return text
-    return re.sub(r"(mlink-sim (?:up|master) (?:[^|&;]*?))(?=\s*(?:\||&&|;|$))",
-                  lambda m: m.group(1).rstrip() + " " + shlex.join(extra), text)
+    return re.sub(r"(mlink-sim (?:up|master) (?:[^|&;]*?))(?=\s*(?:\||&&|;|$))", add, text)
 
 
 def _sh(example: Example) -> None:
@@ -250,8 +251,8 @@ def _console(example: Example) -> None:
         steps = shapes.align(expected, printed)
         if not shapes.holds(steps):
             failures.append(f"{typed}\n{shapes.diff(steps)}")
-        rewritten.append((typed, shapes.rewrite(steps)))
-    if failures and UPDATE["on"]:
+        rewritten.append((typed, shapes.rewrite(steps, figures=UPDATE["figures"])))
+    if (failures and UPDATE["on"]) or UPDATE["figures"]:
         text = "".join(f"{typed}\n" + "".join(f"{line}\n" for line in out) for typed, out in rewritten)
         _edit(example, block.start, block.start + len(block.source), text)
         return

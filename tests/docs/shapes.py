@@ -82,8 +82,9 @@ def align(documented: list[str], printed: list[str]) -> list[Step]:
     pats = [Pattern(line) for line in _trim(documented)]
     out = _trim(printed)
     n, m = len(pats), len(out)
-    miss = 1.001  # a documented line left out costs a little more than a printed one: keep the doc's lines
-    # best[i][j]: the score of aligning pats[i:] with out[j:]: +1 per matched line, minus each line left unmatched
+    # best[i][j]: the score of aligning pats[i:] with out[j:]: the most documented lines matched first (HIT each),
+    # then the fewest lines left unmatched (a documented one costs a little more than a printed one)
+    hit, miss = 1000.0, 1.001
     best = [[0.0] * (m + 1) for _ in range(n + 1)]
     for i in range(n, -1, -1):
         for j in range(m, -1, -1):
@@ -98,7 +99,7 @@ def align(documented: list[str], printed: list[str]) -> list[Step]:
             if j < m:
                 options.append(best[i][j + 1] - 1)
                 if p.matches(out[j]):
-                    options.append(best[i + 1][j + 1] + 1)
+                    options.append(best[i + 1][j + 1] + hit)
             best[i][j] = max(options)
     steps: list[Step] = []
     i = j = 0
@@ -116,7 +117,7 @@ def align(documented: list[str], printed: list[str]) -> list[Step]:
                 steps.append(Step("gap", doc=p.text))
                 i += 1
             continue
-        if j < m and p.matches(out[j]) and best[i][j] == best[i + 1][j + 1] + 1:
+        if j < m and p.matches(out[j]) and best[i][j] == best[i + 1][j + 1] + hit:
             steps.append(Step("match", doc=p.text, printed=out[j]))
             i, j = i + 1, j + 1
         elif j < m and best[i][j] == best[i][j + 1] - 1:
@@ -148,12 +149,16 @@ def diff(steps: list[Step]) -> str:
     return "\n".join(out)
 
 
-def rewrite(steps: list[Step]) -> list[str]:
-    """The documented output made to hold: every line that holds and every ``…`` kept as written, a line nothing
-    matches dropped, a printed line nothing stands for written in."""
+def rewrite(steps: list[Step], figures: bool = False) -> list[str]:
+    """The documented output made to hold: every line that holds and every ``…`` kept as written (with *figures*,
+    a line that holds is written as printed unless it has a ``…`` of its own), a line nothing matches dropped, a
+    printed line nothing stands for written in."""
     out: list[str] = []
     for s in steps:
-        if s.kind in ("match", "gap"):
+        if s.kind == "match" and figures and ELLIPSIS not in (s.doc or ""):
+            assert s.printed is not None
+            out.append(s.printed)
+        elif s.kind in ("match", "gap"):
             assert s.doc is not None
             out.append(s.doc)
         elif s.kind == "extra":

@@ -167,8 +167,8 @@ class Shell:
     def __init__(self, workdir: Path) -> None:
         self.workdir = workdir
         (workdir / "configs").symlink_to(REPO / "configs")
-        self.env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}", "PYTHONUNBUFFERED": "1",
-                    "COLUMNS": "200"}
+        # HOME is the page's folder: what a command keeps there (the dissector: ~/.local/lib/wireshark) stays there
+        self.env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}", "PYTHONUNBUFFERED": "1", "HOME": str(workdir)}
         self.addresses: dict[str, str] = {}  #: the page's address -> the one its server printed
         self.control: str | None = None  #: the control endpoint started last (``HOST:PORT`` in a command)
         self.running: list[Run] = []
@@ -211,7 +211,16 @@ class Shell:
                 learn.append((f"localhost:{port}", kind))
             return f"{option} 127.0.0.1:0" if option != "--web" or host else f"{option} 0"
 
+        def endpoint0(match: re.Match[str]) -> str:
+            station, port = match.group(1), match.group(2)
+            if port == "0":
+                return match.group(0)
+            name = f"{int(station[2:], 16) if station.lower().startswith('0x') else int(station.rstrip('hH'), 16):02X}H"
+            learn.append((f"127.0.0.1:{port}", f"station {name}"))
+            return f"--endpoint {station}=127.0.0.1:0"
+
         text = re.sub(r"(--listen|--control|--web)[ =](?:((?:\d{1,3}\.){3}\d{1,3}|localhost):)?(\d+)\b", port0, text)
+        text = re.sub(r"--endpoint[ =](\w+)=(?:\d{1,3}\.){3}\d{1,3}:(\d+)\b", endpoint0, text)
         return text, learn
 
     # ---------------------------------------------------------------------------------------------- running
@@ -242,8 +251,9 @@ class Shell:
         pending = dict(learn)
         while pending and time.monotonic() < end:
             for doc, kind in list(pending.items()):
+                ready = _READY.get(kind) or re.compile(rf"slave ready: .* {kind} on ({_ADDR})")
                 for line in run.lines:
-                    found = _READY[kind].search(line)
+                    found = ready.search(line)
                     if found:
                         self.addresses[doc] = found.group(1).replace("localhost", "127.0.0.1")
                         if kind == "control":
