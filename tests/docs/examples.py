@@ -21,8 +21,8 @@ reader of the source does:
 * ``<!-- example: sketch -->``: a fragment on purpose (its text says "sketch"): a Python block is compiled and its
   imports run, nothing else.
 * ``<!-- example: clock=virtual -->``, ``<!-- example: duration=2s -->``: each ``mlink-sim up`` or ``master`` of the
-  block runs with ``--clock virtual`` / ``--duration 2s`` added, so that a scenario of seconds takes a fraction of
-  one. Options combine, separated by blanks.
+  block runs with ``--clock virtual`` (unless it has a clock) / ``--duration 2s`` (in place of its own), so that a
+  run of seconds or minutes takes a fraction of one. Options combine, separated by blanks.
 """
 
 from __future__ import annotations
@@ -200,6 +200,8 @@ def _adjusted(text: str, options: dict[str, str]) -> str:
 
     def add(match: re.Match[str]) -> str:
         command = match.group(1).rstrip()
+        if added["--duration"]:  # the marker's duration in place of the command's own
+            command = re.sub(r"\s--duration[ =]\S+", "", command)
         extra = [f"{option} {value}" for option, value in added.items() if value and option not in command.split()]
         return " ".join([command, *extra])
 
