@@ -205,7 +205,7 @@ class Shell:
                 return match.group(0)
             kind = {"--control": "control", "--web": "web"}.get(option) or (
                 "listen-slave" if slave else "listen-proxy" if "proxy" in words[:3] else "web")
-            page_host = "127.0.0.1" if host in ("0.0.0.0", "127.0.0.1", "localhost", "") else host
+            page_host = "127.0.0.1" if host in (None, "0.0.0.0", "127.0.0.1", "localhost") else host
             learn.append((f"{page_host}:{port}", kind))
             if kind == "web":
                 learn.append((f"localhost:{port}", kind))
