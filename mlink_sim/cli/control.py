@@ -77,6 +77,8 @@ def _command(op: Operation) -> click.Command:
         if shared["control_token"] is not None or shared["control_token_file"] is not None:
             token = resolve_token(shared["control_token"], shared["control_token_file"])
         args = {name: value for name, value in values.items() if value is not None}
+        if _name_in_station_place(op, args):
+            args["name"] = args.pop("station")
         request = usage(request_of(op.name, **args))
         station = _station(op, args)
         reply = ask(where, request, timeout, token, station=station)
@@ -91,6 +93,18 @@ def _command(op: Operation) -> click.Command:
 
     return click.Command(op.name, callback=callback, params=[*_params(op), *_shared_params()], help=_help(op),
                          short_help=op.summary)
+
+
+def _name_in_station_place(op: Operation, args: dict[str, Any]) -> bool:
+    """``heal loss-21H-1``: an operation whose one positional argument is an optional station and which takes a
+    ``name`` takes the name in the station's place (a name never reads as a station: mlink_sim.impair.names)."""
+    from ..impair import check_name
+
+    positional = [a for a in op.args if a.cli and a.kind.cli == "argument"]
+    given = args.get("station")
+    return (len(positional) == 1 and positional[0].name == "station" and not positional[0].required
+            and any(a.name == "name" for a in op.args) and isinstance(given, str) and "name" not in args
+            and check_name(given) is None)
 
 
 def _station(op: Operation, args: dict[str, Any]) -> int | None:

@@ -16,6 +16,7 @@ from typing import Any
 
 from ...cards.parameters import keypad_read, keypad_write
 from ...cards.results import Err
+from ...impair import Names
 from ...operations import OpError, fault_of, station_name
 from ...params import ParamError
 from ..present.figures import snapshot_figures, station_key
@@ -32,6 +33,7 @@ class SlaveOps:
         self.server = server
         self.endpoint: ControlServer | None = None  #: the endpoint serving them (its refused requests are counted)
         self._releases: set[asyncio.TimerHandle] = set()
+        self._names = Names()  #: the drive faults' made names (load-21H-1, …)
 
     def handlers(self) -> dict[str, Handler]:
         return {"status": self.status, "get-param": self.get_param, "set-param": self.set_param,
@@ -103,8 +105,9 @@ class SlaveOps:
 
     # -- drive faults -------------------------------------------------------------------------------------------
 
-    def fault(self, station: int | None = None, **fields: Any) -> dict[str, Any]:
-        """A drive fault on *station* (every station: None); with ``for`` released by itself after that long."""
+    def fault(self, station: int | None = None, name: str | None = None, **fields: Any) -> dict[str, Any]:
+        """A drive fault on *station* (every station: None); with ``for`` released by itself after that long. Its
+        name is answered (given, or made as ``load-21H-1``); ``release`` takes its handle."""
         spec = fault_of(fields)
         targets = [self._hosted(station)] if station is not None else list(self.server.stations)
         now = time.monotonic_ns()
@@ -117,7 +120,9 @@ class SlaveOps:
             if spec.for_ns is not None:
                 timer = asyncio.get_running_loop().call_later(spec.for_ns / 1e9, self._release_later, address, handle)
                 self._releases.add(timer)
-        return {"fault": spec.as_fields(), "describe": spec.describe, "handles": handles,
+        if name is None:
+            name = self._names.new(spec.action, "all" if station is None else station_name(station))
+        return {"name": name, "fault": spec.as_fields(), "describe": spec.describe, "handles": handles,
                 **({"handle": next(iter(handles.values()))} if len(handles) == 1 else {})}
 
     def _release_later(self, address: int, handle: int) -> None:

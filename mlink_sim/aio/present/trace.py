@@ -80,7 +80,7 @@ class TraceSampler:
         self._tasks: list[asyncio.Task[Any]] = []
         self._settled: set[tuple[int, str]] = set()  # (id(episode), event) already written
         self._snapshots: dict[int, dict[str, Any]] = {}  # the card cores' figures (virtual clock)
-        self._impairments: dict[tuple[int | None, str], str] = {}  # (station, group) -> its description
+        self._impairments: dict[tuple[int | None, str], str] = {}  # (station, name) -> "NAME: what"
         self._last_impairment: tuple[Any, ...] = ()
         #: the card cores are in this process (virtual clock): their snapshots are read at each sample
         workers = session.net.workers
@@ -158,16 +158,17 @@ class TraceSampler:
 
         return {name: wrap(name, op) if name in ACTING_OPS else op for name, op in handlers.items()}
 
-    def _on_impairment(self, event: str, station: int | None, group: str, describe: str) -> None:
-        """An impairment began or ended on *station*'s path: one row, though the layer calls once per direction."""
-        key = (station, group)
+    def _on_impairment(self, event: str, station: int | None, name: str, describe: str) -> None:
+        """An impairment began or ended on *station*'s path: one row (``NAME: what``), though the layer calls once
+        per direction."""
+        key = (station, name)
         if event == "start":
-            self._impairments[key] = describe or group
-        seen = (event, station, group, asyncio.get_running_loop().time())
+            self._impairments[key] = f"{name}: {describe}" if describe else name
+        seen = (event, station, name, asyncio.get_running_loop().time())
         if seen == self._last_impairment:
             return
         self._last_impairment = seen
-        self.action(f"impair-{event}", self._impairments.get(key, group), station)
+        self.action(f"impair-{event}", self._impairments.get(key, name), station)
 
     def _episodes(self, t0: float) -> None:
         """``fault`` / ``fault-end`` / ``recovered`` / ``unrecovered`` rows of the masters' fault episodes, each
@@ -178,11 +179,12 @@ class TraceSampler:
                 continue
             for ep in stage.log.episodes:
                 key = station_key(ep.station)
+                what = f"{ep.name}: {ep.what}" if ep.name else ep.what
                 for event, ns, detail in (
-                        ("fault", ep.start_ns, ep.what), ("fault-end", ep.end_ns, ep.what),
+                        ("fault", ep.start_ns, what), ("fault-end", ep.end_ns, what),
                         ("recovered", ep.recovered_ns,
-                         f"{ep.what}: healthy {(ep.recovery_ns or 0) / 1e6:.1f} ms after its end"),
-                        ("unrecovered", 0 if ep.gave_up else None, f"{ep.what}: not healthy again")):
+                         f"{what}: healthy {(ep.recovery_ns or 0) / 1e6:.1f} ms after its end"),
+                        ("unrecovered", 0 if ep.gave_up else None, f"{what}: not healthy again")):
                     mark = (id(ep), event)
                     if ns is None or mark in self._settled:
                         continue

@@ -28,6 +28,7 @@ from ...jsonable import to_jsonable
 from ...master import MasterCore, NetworkPlan
 from ...faults import FaultStage
 from ...faults.plant import PlantFaults
+from ...operations import OpError
 from ..virtual.fabric import Fabric, FabricPort, VirtualCycle
 from ..slave.faults import apply_drive_fault, release_drive_fault
 from ..timing.heap import settle_heap
@@ -114,11 +115,18 @@ class _VirtualWorker:
             asyncio.get_running_loop().call_later(fault.for_ns / 1e9, self._release, station, handle)
         return handle
 
+    async def release_drive_fault(self, station: int, handle: int) -> None:
+        """End the drive fault *handle* of *station* now (``heal``)."""
+        self._release(station, handle)
+
     def _release(self, station: int, handle: int) -> None:
         fabric = self.session.fabric
         core = fabric.station(station)
         if core is not None:
-            release_drive_fault({station: core}, self.session.plants, station, handle, fabric.clock.now)
+            try:
+                release_drive_fault({station: core}, self.session.plants, station, handle, fabric.clock.now)
+            except OpError:  # released already (healed before its for ran out)
+                return
             fabric.rearm(station)
 
     async def drive_activity(self, station: int) -> Any:
