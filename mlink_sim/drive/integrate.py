@@ -76,7 +76,7 @@ class IntegratorState:
     __slots__ = (
         # state
         "m", "q", "dir", "out", "fout", "w", "T", "I", "P", "E", "V", "theta",
-        "hold_acc", "hold_dec", "tlimited", "steady", "dyn",
+        "hold_acc", "hold_dec", "tlimited", "held", "steady", "dyn",
         # inputs, set by the drive: mains on, run allowed, target magnitude and direction, ramp rate and jerk
         # limits (accel A, Js at the start, Je at the end; decel D, Jds, Jde), torque mode 0 speed /
         # 1 limit / 2 control and its value (N m)
@@ -98,6 +98,9 @@ class IntegratorState:
         self.T = self.I = self.P = 0.0
         self.dir = 1
         self.out = self.hold_acc = self.hold_dec = self.tlimited = self.steady = False
+        #: the holds (REGULATION bits of drive.activity) turned on since the drive last took them: a hold goes on
+        #: and off every few milliseconds around its level, within one advance
+        self.held = 0
         self.dyn: frozenset[Fault] = frozenset()  # Uv / ov minors found by the integrator
         self.mains, self.run = True, False
         self.mt = 0.0
@@ -351,6 +354,8 @@ def substep(x: IntegratorState, h: float) -> int:
         ha, hd = I1 >= acc_lvl, V >= dec_lvl
         if ha != x.hold_acc or hd != x.hold_dec or limited != x.tlimited:
             x.hold_acc, x.hold_dec, x.tlimited = ha, hd, limited
+            if ha or hd or limited:
+                x.held |= (1 if ha else 0) | (2 if hd else 0) | (4 if limited else 0)
         if not x.run and m1 == 0.0 and q == 0.0:
             changed = True  # stop completed: baseblock
         if x.ss_hi is not None and not changed:

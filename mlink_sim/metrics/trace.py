@@ -39,7 +39,7 @@ __all__ = ["TRACE_COLUMNS", "FIGURE_COLUMNS", "PLOT_COLUMNS", "ACTION_EVENTS", "
 FIGURE_COLUMNS: tuple[str, ...] = (
     "address", "name", "card", "link", "phase", "connected", "alarm_code", "alarm_name", "warnings", "leds",
     "running", "direction", "reference_hz", "output_hz", "output_current_a", "dc_bus_v", "motor_speed_rpm",
-    "rtt_p50_us", "rtt_p99_us", "missed", "late",
+    "regulation", "rtt_us", "rtt_p50_us", "rtt_p99_us", "missed", "late",
 )
 #: The header of a trace.
 TRACE_COLUMNS: tuple[str, ...] = ("t_s", "kind", *FIGURE_COLUMNS, "event", "detail")

@@ -11,6 +11,7 @@ fault's ``for``).
 from __future__ import annotations
 
 import asyncio
+import json
 import time
 from typing import Any
 
@@ -19,7 +20,7 @@ from ...cards.results import Err
 from ...impair import Names
 from ...operations import OpError, fault_of, station_name
 from ...params import ParamError
-from ..present.figures import snapshot_figures, station_key
+from ..present.figures import REGULATION_WINDOW_NS, snapshot_figures, station_key
 from ..slave.faults import apply_drive_fault, release_drive_fault
 from .endpoint import ControlServer, Encoded, Handler
 
@@ -53,7 +54,10 @@ class SlaveOps:
     def status(self, since: int = 0) -> dict[str, Any]:
         """The process and every station's figures from its own snapshot (no RTT: only a master measures it)."""
         cpu = self.server.cpu()
-        stations = [snapshot_figures(_jsonable(hs.station.snapshot())) for hs in self.server.stations]
+        regulation = self._regulation()
+        stations = [snapshot_figures({**_jsonable(hs.station.snapshot()),
+                                      "regulation": regulation.get(station_key(hs.station.address), 0)})
+                    for hs in self.server.stations]
         return {"pid": cpu["pid"], "wall_s": cpu["wall_s"], "cpu_pct": cpu["cpu_pct"], "stations": stations,
                 "events": [], "seq": since}
 
@@ -61,9 +65,19 @@ class SlaveOps:
         refused = self.endpoint.token.refused if self.endpoint is not None else 0
 
         async def build() -> Encoded:
-            return Encoded(await self.server.stats_text(since, control_refused=refused))
+            text = await self.server.stats_text(since, control_refused=refused)
+            # the drives' regulation states beside the snapshots (a JSON object's last '}' closes it)
+            return Encoded(f'{text[:-1]},"regulation":{json.dumps(self._regulation(), separators=(",", ":"))}}}')
 
         return build()
+
+    def _regulation(self) -> dict[str, int]:
+        """Each station's drive regulation over the :data:`REGULATION_WINDOW_NS` before now, where not 0
+        (:meth:`mlink_sim.drive.Drive.regulation`: stall prevention, the torque limit)."""
+        since = time.monotonic_ns() - REGULATION_WINDOW_NS
+        codes = {station_key(hs.station.address): hs.station.drive.drive.regulation(since)
+                 for hs in self.server.stations}
+        return {key: code for key, code in codes.items() if code}
 
     def cpu(self) -> dict[str, Any]:
         return {k: v for k, v in self.server.cpu().items() if k != "ok"}

@@ -34,7 +34,7 @@ from typing import Any
 from ..._log import get_logger
 from ...metrics.trace import TraceWriter
 from ...operations import OPERATIONS, leds_text
-from .figures import NetworkFigures, station_key
+from .figures import REGULATION_OF, NetworkFigures, station_key
 
 __all__ = ["TraceSampler", "DEFAULT_INTERVAL_NS", "SNAPSHOT_EVERY_S", "ACTING_OPS"]
 
@@ -53,8 +53,11 @@ SLICE = 8
 ACTING_OPS = frozenset(op.name for op in OPERATIONS.values() if op.acts)
 
 _HEAD = itemgetter("address", "name", "card", "link", "phase", "connected")
-_TAIL = itemgetter("running", "direction", "reference_hz", "output_hz", "output_current_a", "dc_bus_v",
-                   "motor_speed_rpm", "rtt_p50_us", "rtt_p99_us", "missed", "late")
+_DRIVE = itemgetter("running", "direction", "reference_hz", "output_hz", "output_current_a", "dc_bus_v",
+                    "motor_speed_rpm")
+_TAIL = itemgetter("rtt_us", "rtt_p50_us", "rtt_p99_us", "missed", "late")
+#: The ``regulation`` column of each figure's value (``("stall-decel",)`` -> ``stall-decel``; null: empty), made once.
+_REGULATION_TEXT: dict[tuple[str, ...] | None, str] = {None: "", **{names: "|".join(names) for names in REGULATION_OF}}
 
 
 def _row(t: float, fig: dict[str, Any]) -> tuple[Any, ...]:
@@ -63,7 +66,7 @@ def _row(t: float, fig: dict[str, Any]) -> tuple[Any, ...]:
     leds = fig["leds"]
     return (t, "sample", *_HEAD(fig), "" if alarm is None else alarm["code"] or "",
             "" if alarm is None else alarm["name"], "|".join(fig["warnings"]),
-            leds_text(leds), *_TAIL(fig), "", "")
+            leds_text(leds), *_DRIVE(fig), _REGULATION_TEXT[fig["regulation"]], *_TAIL(fig), "", "")
 
 
 class TraceSampler:
@@ -73,6 +76,7 @@ class TraceSampler:
         self.session = session
         self.writer = writer
         self.interval_s = interval_ns / 1e9
+        self._interval_ns = interval_ns
         self.figures = NetworkFigures(session.config)  # once: each station's constants (too slow to make per sample)
         self._addresses = list(self.figures.by_address)
         self._t0: float | None = None  # the loop time of the timeline's 0 s, once it is known (start)
@@ -238,6 +242,7 @@ class TraceSampler:
         (the drive's reference, DC bus, motor speed and fault, the LEDs, the warnings), without turning the whole
         snapshot into JSON as a worker's ``stats`` does."""
         out = self._snapshots
+        since = fabric.clock.now - self._interval_ns  # the regulation since the last sample
         for address in addresses:
             core = fabric.station(address)
             if core is None:  # a killed station, until it powers up again
@@ -247,7 +252,8 @@ class TraceSampler:
             d = snap.drive
             out[address] = {"drive": {"reference_hz": d.reference_hz, "dc_bus_v": d.dc_bus_v,
                                       "motor_rpm": d.motor_rpm, "fault": d.fault},
-                            "leds": snap.leds, "led_colors": snap.led_colors, "warnings": list(snap.warnings)}
+                            "leds": snap.leds, "led_colors": snap.led_colors, "warnings": list(snap.warnings),
+                            "regulation": core.drive.drive.regulation(since)}
 
     async def _snapshot_loop(self) -> None:
         """The slave workers' snapshots, refreshed every :data:`SNAPSHOT_EVERY_S` (one query at a time)."""

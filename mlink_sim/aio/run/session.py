@@ -385,9 +385,12 @@ class NetworkSession:
         wall = self.snapshots_at - self._wall0
         for name, reply in stats.items():
             self.metrics.record_cpu(name, reply.get("cpu_s", 0.0), reply.get("wall_s", wall) or wall)
+            regulation = reply.get("regulation")
             for key, snap in reply.get("stations", {}).items():
                 if not isinstance(snap, dict):
                     continue
+                if isinstance(regulation, dict):  # the drive's regulation states, beside the snapshots
+                    snap["regulation"] = regulation.get(key, 0)
                 self.slave_snapshots[int(key, 16)] = snap
                 if isinstance(counters := snap.get("counters"), dict):
                     self.metrics.record_slave_counters(int(key, 16), flatten_counters(counters))

@@ -33,6 +33,7 @@ from ..virtual.fabric import Fabric, FabricPort, VirtualCycle
 from ..slave.faults import apply_drive_fault, release_drive_fault
 from ..timing.heap import settle_heap
 from ..master.runner import Master, MetricsSink, NullMetrics
+from ..present.figures import REGULATION_WINDOW_NS
 from .netapi import NetworkApi, build_plans
 from .session import NetworkSession, flatten_counters
 from ..slave.stations import build_station, spec_for
@@ -225,11 +226,13 @@ class VirtualSession(NetworkSession):
 
     # ------------------------------------------------------------------ figures
     async def refresh_slave_stats(self) -> None:
-        """The stations' counters and snapshots, read from the card cores in this process."""
+        """The stations' counters and snapshots, read from the card cores in this process, with each drive's
+        regulation over the :data:`~mlink_sim.aio.present.figures.REGULATION_WINDOW_NS` before now."""
         for address, node in self.fabric.nodes.items():
             if node.station is not None:
                 self.metrics.record_slave_counters(address, flatten_counters(node.station.counters.as_dict()))
-                self.slave_snapshots[address] = to_jsonable(node.station.snapshot())
+                snap = self.slave_snapshots[address] = to_jsonable(node.station.snapshot())
+                snap["regulation"] = node.station.drive.drive.regulation(self.clock.now - REGULATION_WINDOW_NS)
 
     def _clock_s(self) -> float:
         return self.clock.now / 1e9
