@@ -173,11 +173,11 @@ class StationTrace:
             if state not in states and t - span[1] > BRIDGE_S:
                 self._close(state)
         for state in states:
-            span = self._open.get(state)
-            if span is None:
+            seen = self._open.get(state)
+            if seen is None:
                 self._open[state] = [t, t]
             else:
-                span[1] = t
+                seen[1] = t
 
     def close_bands(self) -> None:
         for state in list(self._open):
