@@ -214,11 +214,12 @@ def tail_folded(bins: Sequence[Sequence[int]], keep: float = 0.999, room: int = 
 def _rtt(report: Mapping[str, Any], trace: Trace | None = None) -> str:
     rtt = report.get("rtt", {})
     bins, folded = tail_folded(rtt.get("bins") or [])
+    over_time = _rtt_over_time(trace)
+    width = _HALF if over_time else 860  # side by side: each at half the width, its text as large
     chart = bar_chart(f"Round trips, all stations ({rtt.get('count', 0)})", bins, x_label="round trip",
-                      label_of=format_ns)
+                      label_of=format_ns, width=width)
     if not bins and rtt.get("count"):
         chart = '<p class="muted">This report has no histogram bins (written by an older version).</p>'
-    over_time = _rtt_over_time(trace)
     chart = f'<div class="pair"><div>{chart}</div><div>{over_time}</div></div>' if over_time else chart
     if folded:
         chart += f'<p class="muted">{_e(folded)}</p>'
@@ -234,6 +235,7 @@ def _rtt(report: Mapping[str, Any], trace: Trace | None = None) -> str:
 
 
 _RTT_LINES = 8  # stations drawn one line each at most; more: the worst of them at each moment
+_HALF = 540  # the width of each of two plots side by side
 
 
 def _rtt_over_time(trace: Trace | None) -> str:
@@ -257,7 +259,7 @@ def _rtt_over_time(trace: Trace | None) -> str:
         series = [Series(f"worst of {len(stations)} stations", xs, [worst[x] for x in xs])]
     spans = [sp for a, _ in stations for sp in _fault_spans(trace, a, only_own=True)]
     return line_chart("Round trips over time (each station's latest)", series, y_label="µs", x_label=TIME_LABEL,
-                      spans=spans, x_range=trace.span)
+                      spans=spans, x_range=trace.span, width=_HALF)
 
 
 def _fault_spans(trace: Trace, address: str, *, only_own: bool = False) -> list[Span]:
@@ -338,13 +340,14 @@ def _traces(trace: Trace | None) -> str:
         label = f"{int(address, 16):02X}H"
         label += f" ({st.name})" if st.name and st.name != label else ""
         thinned = f" (every {st.stride}th of {st.samples} samples)" if st.stride > 1 else ""
-        out.append(f"<h3 id=\"station-{_e(address)}\">Station {_e(label)}{_e(thinned)}</h3>")
+        out.append(f"<section class=\"station-plots\"><h3 id=\"station-{_e(address)}\">Station {_e(label)}"
+                   f"{_e(thinned)}</h3>")
         for plot in STATION_PLOTS:
             series = [Series(sr["label"], st.t, st.series[sr["key"]], sr["color"], dash=bool(sr.get("dash")))
                       for sr in plot["series"]]
             out.append(line_chart(f"{label}: {plot['title']}", series, y_label=plot["unit"], x_label=TIME_LABEL,
                                   marks=marks, spans=spans, x_range=x_range))
-        out.append(_legend(marks, more, spans))
+        out.append(_legend(marks, more, spans) + "</section>")
     return "".join(out)
 
 

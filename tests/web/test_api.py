@@ -103,7 +103,7 @@ def test_the_event_stream_delivers_status_and_the_networks_events(http: Http) ->
     messages = http.events(lambda ms: {name for name, _ in ms} >= {"status", "event"}
                            and sum(name == "status" for name, _ in ms) >= 3)
     for name, data in messages:
-        component({"status": "Status", "event": "Event", "error": "Error"}[name]).validate(data)
+        component({"status": "Status", "event": "Event", "error": "Error", "history": "History"}[name]).validate(data)
     kinds = {data["kind"] for name, data in messages if name == "event"}
     assert "phase" in kinds  # the bring-up's phase changes come first
     assert [d["stations"][0]["name"] for n, d in messages if n == "status"][0] == "21H"
