@@ -14,10 +14,10 @@ from typing import Any
 __all__ = ["STATION_PLOTS", "MARKS", "BANDS", "REGULATION_BANDS", "BRIDGE_S", "TIME_LABEL", "BEFORE_ZERO",
            "mark_kind", "vocabulary"]
 
-#: A station's plots, in order: what each shows, its unit and its series (a figure of docs/control.md "Station
-#: figures", its label and colour; ``dash``: drawn dashed, ``axis``: the plot's second axis, on the right).
+#: A station's plots, in order: what each shows, its unit and its series (a station figure of
+#: docs/control.md, "Station figures"; its label and colour; ``dash``: drawn dashed).
 STATION_PLOTS: tuple[dict[str, Any], ...] = (
-    {"id": "hz", "title": "frequency", "unit": "Hz", "zero": True,
+    {"id": "hz", "title": "frequency", "unit": "Hz",
      "series": ({"key": "reference_hz", "label": "reference Hz", "color": "#8c959f", "dash": True},
                 {"key": "output_hz", "label": "output Hz", "color": "#1f6feb"})},
     {"id": "current", "title": "output current", "unit": "A",
@@ -55,8 +55,8 @@ BEFORE_ZERO = "bring-up"
 
 
 def mark_kind(event: str, detail: str = "") -> str | None:
-    """The :data:`MARKS` kind of a trace's action row (*event*, *detail*: docs/report.md "action rows"), or None
-    for one that is not marked (a fault's end is a band's edge, an unrecovered station a row of the faults table)."""
+    """The :data:`MARKS` kind of a trace's action row (*event*, *detail*: docs/report.md, "Traces"), or None for one
+    that is not marked (a fault's end is a band's edge, an unrecovered station a row of the faults table)."""
     if event == "check":
         return "check-ok" if detail.startswith("ok") else "check-fail"
     if event in ("step", "control"):

@@ -16,7 +16,8 @@ from typing import Final
 
 from .activity import DriveActivity, read_activity
 from .faults import Fault, minor_code
-from .integrate import CHANGED, IntegratorState, begin_search, ol1_trip_ahead, steady_to, substep
+from .integrate import (CHANGED, NEVER_HELD, IntegratorState, begin_search, held_since, note_held, ol1_trip_ahead, steady_to,
+                        substep)
 from .monitors import read_monitor, read_sel_mon
 from .motor import LoadSpec, vf_voltage
 from .settings import DriveSettings, Family, StopMethod, _ref_to_hz
@@ -32,7 +33,6 @@ INF = math.inf
 QUIET_FOREVER: Final = 1 << 61
 _EF_DELAY_NS = 500_000_000  # A1000 "EF": forward and reverse both on for longer than 0.5 s
 _ALARMS = (StopMethod.ALARM_ONLY, StopMethod.ALARM_RUN_D1_04, StopMethod.ALARM_RAMP)
-_NEVER: Final = -(1 << 62)  # a regulation state never on
 
 
 @dataclass(frozen=True, slots=True)
@@ -101,7 +101,7 @@ class Drive:
         self._fast = False
         self._use2 = False
         #: when each regulation state (activity.REGULATION: stall-accel, stall-decel, torque-limit) was last on
-        self._held_at = [_NEVER, _NEVER, _NEVER]
+        self._held_at = [NEVER_HELD, NEVER_HELD, NEVER_HELD]
         #: Bumped whenever the drive becomes steady or stops being steady: while it is steady and this number
         #: is unchanged, no output or monitor of the drive changes (only the oL1 thermal state moves).
         self.steady_epoch = 0
@@ -416,29 +416,13 @@ class Drive:
                 self._event_at = None
                 self._recompute()
         if x.held or x.hold_acc or x.hold_dec or x.tlimited:
-            self._note_held()
-
-    def _note_held(self) -> None:
-        """The regulation states on during the last advance, or on now, were on at :attr:`now`."""
-        x = self._x
-        bits = x.held | (1 if x.hold_acc else 0) | (2 if x.hold_dec else 0) | (4 if x.tlimited else 0)
-        x.held = 0
-        at, t = self._held_at, self._t
-        if bits & 1:
-            at[0] = t
-        if bits & 2:
-            at[1] = t
-        if bits & 4:
-            at[2] = t
+            note_held(x, self._held_at, self._t)
 
     def regulation(self, since_ns: int) -> int:
         """The regulation states (:data:`~.activity.REGULATION` bits) the drive was in at some time from *since_ns*
-        to :attr:`now`: stall prevention during acceleration (the current limit) or deceleration (the DC bus
-        regulation), the torque limit; one on at the last advance is on still (a steady drive is not advanced).
-        Reading it changes nothing (docs/drive-model.md, "Activity")."""
-        at, x = self._held_at, self._x
-        return ((1 if x.hold_acc or at[0] >= since_ns else 0) | (2 if x.hold_dec or at[1] >= since_ns else 0)
-                | (4 if x.tlimited or at[2] >= since_ns else 0))
+        to :attr:`now` (:func:`~.integrate.held_since`). Reading it changes nothing (docs/drive-model.md,
+        "Activity")."""
+        return held_since(self._x, self._held_at, since_ns)
 
     def _after_substep(self, result: int) -> None:
         if result == CHANGED:

@@ -34,6 +34,7 @@ integrated step (``python -m benchmarks.micro.drive``).  The determinism tests
 from __future__ import annotations
 
 import math
+from typing import Final
 
 from .faults import Fault
 from .motor import LoadSpec, MotorConstants
@@ -50,6 +51,9 @@ __all__ = [
     "ol1_trip_ahead",
     "steady_to",
     "substep",
+    "NEVER_HELD",
+    "note_held",
+    "held_since",
 ]
 
 INF = math.inf
@@ -463,3 +467,29 @@ def restart_watch(x: IntegratorState, h: float, i: float) -> bool:
     else:
         begin_search(x, x.ss_start, ss.wait_s)
     return True
+
+
+# ---------------------------------------------------------------------------------------------- regulation
+#: The time a regulation state was last on, for one never on.
+NEVER_HELD: Final = -(1 << 62)
+
+
+def note_held(x: IntegratorState, at: list[int], t: int) -> None:
+    """The holds on during the last advance (:attr:`IntegratorState.held`) or on now were on at *t*: *at* is the
+    time each of stall-accel, stall-decel, torque-limit (drive.activity.REGULATION) was last on."""
+    bits = x.held | (1 if x.hold_acc else 0) | (2 if x.hold_dec else 0) | (4 if x.tlimited else 0)
+    x.held = 0
+    if bits & 1:
+        at[0] = t
+    if bits & 2:
+        at[1] = t
+    if bits & 4:
+        at[2] = t
+
+
+def held_since(x: IntegratorState, at: list[int], since: int) -> int:
+    """The REGULATION bits of the holds on at some time from *since* on (*at*: :func:`note_held`'s times): stall
+    prevention during acceleration (the current limit) or deceleration (the DC bus regulation), the torque limit;
+    one on at the last advance is on still (a steady drive is not advanced)."""
+    return ((1 if x.hold_acc or at[0] >= since else 0) | (2 if x.hold_dec or at[1] >= since else 0)
+            | (4 if x.tlimited or at[2] >= since else 0))

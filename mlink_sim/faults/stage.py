@@ -59,6 +59,11 @@ class StationTraits:
     subcmd: bool = False  #: CONNECT with SUBCMD = 1 (32-byte MECHATROLINK-II, 64-byte III)
 
 
+#: Each master-side fault's slots in a station's state: its episode, and what keeps it in force.
+_SLOTS = {"silence": ("silence_ep", "silence_until"), "skip-cycles": ("skip_ep", "skip"),
+          "freeze-wdt": ("freeze_ep", "freeze_until"), "bad-command": ("bad_ep", "bad")}
+
+
 class _State:
     __slots__ = ("traits", "silence_until", "silence_ep", "skip", "skip_ep", "freeze_until", "freeze_ep",
                  "frozen", "bad", "bad_ep", "watch", "answers")
@@ -161,18 +166,11 @@ class FaultStage:
         for address, st in self._st.items():
             if station is not None and address != station:
                 continue
-            if wanted is None or "silence" in wanted:
-                self._close(st.silence_ep, now)
-                st.silence_until = st.silence_ep = None
-            if wanted is None or "skip-cycles" in wanted:
-                self._close(st.skip_ep, now)
-                st.skip = st.skip_ep = None
-            if wanted is None or "freeze-wdt" in wanted:
-                self._close(st.freeze_ep, now)
-                st.freeze_until = st.freeze_ep = None
-            if wanted is None or "bad-command" in wanted:
-                self._close(st.bad_ep, now)
-                st.bad = st.bad_ep = None
+            for action, (episode, holds) in _SLOTS.items():
+                if wanted is None or action in wanted:
+                    self._close(getattr(st, episode), now)
+                    setattr(st, episode, None)
+                    setattr(st, holds, None)
         self._refresh()
 
     def busy(self, station: int) -> bool:
