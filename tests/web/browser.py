@@ -126,7 +126,7 @@ def _docs_shots(out: Path) -> int:
     if isinstance(found, str):
         print(found, file=sys.stderr)
         return 2
-    net, url = up_with_web()
+    net, url = up_with_web(realtime=True)  # the cycle held against the browser beside it
     try:
         http = Http(url)
         wait_for(lambda: all(row["phase"] == 3 for row in stations(http)), 30, "every station in phase 3")

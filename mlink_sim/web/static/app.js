@@ -99,7 +99,7 @@ function plotOptions(el, series, axes, hooks) {
     legend: { live: false },
     scales: { x: { time: false } },
     series: [{ label: state.vocab.time_label }, ...series],
-    axes: [timeAxis(), ...axes.map((a) => ({ values: compact, ...a }))],
+    axes: [timeAxis(), ...axes.map((a) => ({ values: compact, space: 18, ...a }))],  // a label every 18 px at least
     hooks: hooks || {},
   };
 }
