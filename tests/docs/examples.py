@@ -1,5 +1,5 @@
 """Every example of README.md and docs/*.md run as a test, with Sybil (https://sybil.readthedocs.io): one test per
-fenced block, in the page's order, each page in a working folder of its own (:mod:`tests.docs.shell`).
+fenced block, in the page's order, each page in a working folder and a home of its own (:mod:`tests.docs.shell`).
 
 What each block does, by its language (CONTRIBUTING.md, "Examples in the docs"):
 
@@ -28,7 +28,6 @@ reader of the source does:
 from __future__ import annotations
 
 import ast
-import contextlib
 import re
 import shutil
 import subprocess
@@ -44,9 +43,9 @@ from sybil.parsers.markdown import SkipParser
 from sybil.parsers.markdown.lexers import FencedCodeBlockLexer
 
 from tests.docs import shapes
-from tests.docs.shell import REPO, Shell, commands_of, console_of
+from tests.docs.shell import REPO, Shell, at_home, commands_of, console_of
 
-__all__ = ["SYBIL", "PAGES", "EDITS", "UPDATE", "apply_edits"]
+__all__ = ["SYBIL", "PAGES", "EDITS", "UPDATE", "STATE", "Page", "apply_edits"]
 
 #: ``--docs-update``: console outputs that do not hold are rewritten from what the commands printed;
 #: ``--docs-update=figures``: every console output, its figures too
@@ -74,10 +73,15 @@ class Block:
 
 @dataclass
 class Page:
-    """What the blocks of one page share: its working folder and its shell."""
+    """What the blocks of one page share: its temporary folder (its working folder and home in it) and its
+    shell."""
 
-    workdir: Path
+    root: Path
     shell: Shell
+
+    @property
+    def workdir(self) -> Path:
+        return self.shell.workdir
 
 
 def _options(text: str, fence: int) -> dict[str, str]:
@@ -123,8 +127,8 @@ class BlockParser:
 
 
 def _setup(namespace: dict[str, Any]) -> None:
-    workdir = Path(tempfile.mkdtemp(prefix="mlink-docs-"))
-    namespace[STATE] = Page(workdir, Shell(workdir))
+    root = Path(tempfile.mkdtemp(prefix="mlink-docs-"))
+    namespace[STATE] = Page(root, Shell(root))
 
 
 def _teardown(namespace: dict[str, Any]) -> None:
@@ -132,7 +136,7 @@ def _teardown(namespace: dict[str, Any]) -> None:
     try:
         bad = page.shell.close()
     finally:
-        shutil.rmtree(page.workdir, ignore_errors=True)
+        shutil.rmtree(page.root, ignore_errors=True)
     assert not bad, "\n".join(bad)
 
 
@@ -176,12 +180,13 @@ def _python(example: Example) -> None:
     tree = ast.parse(padded, example.path)
     if "sketch" in block.options:
         imports = [node for node in tree.body if isinstance(node, ast.Import | ast.ImportFrom)]
-        exec(compile(ast.Module(imports, []), example.path, "exec"), {"__name__": "__main__"})
+        with at_home(page.root, page.workdir):
+            exec(compile(ast.Module(imports, []), example.path, "exec"), {"__name__": "__main__"})
         return
     if _is_pytest_file(tree):
         _pytest_file(example, page, source)
         return
-    with contextlib.chdir(page.workdir):
+    with at_home(page.root, page.workdir):
         exec(compile(tree, example.path, "exec"), {"__name__": "__main__"})
 
 

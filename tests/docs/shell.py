@@ -1,5 +1,6 @@
 """The shell a page's commands run in, as a reader runs them: one working folder per page (``configs/`` in it, as
-in the repository), the commands through ``bash`` with the package's ``mlink-sim`` first on ``PATH``, output and
+in the repository) and a home of its own, so that nothing a command writes lands outside the page's temporary
+folder; the commands through ``bash`` with the package's ``mlink-sim`` first on ``PATH``, output and
 errors on one stream as a terminal shows them.
 
 What a reader types and a test cannot take as it stands is turned into what the test can run, and back:
@@ -18,18 +19,20 @@ What a reader types and a test cannot take as it stands is turned into what the 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import re
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["Command", "Shell", "Run", "commands_of", "console_of", "WATCH_S"]
+__all__ = ["Command", "Shell", "Run", "commands_of", "console_of", "home_of", "at_home", "HOME_VARIABLES", "WATCH_S"]
 
 REPO = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
@@ -161,14 +164,55 @@ class Run:
         return "\n".join(self.lines)
 
 
-class Shell:
-    """The shell of one page (module docstring)."""
+#: the variables that name where a program keeps a user's files, as :func:`home_of` sets them
+HOME_VARIABLES = ("HOME", "XDG_CONFIG_HOME", "XDG_DATA_HOME", "XDG_STATE_HOME", "XDG_CACHE_HOME",
+                  "XDG_RUNTIME_DIR", "TMPDIR")
 
-    def __init__(self, workdir: Path) -> None:
-        self.workdir = workdir
-        (workdir / "configs").symlink_to(REPO / "configs")
-        # HOME is the page's folder: what a command keeps there (the dissector: ~/.local/lib/wireshark) stays there
-        self.env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}", "PYTHONUNBUFFERED": "1", "HOME": str(workdir)}
+
+def home_of(root: Path) -> dict[str, str]:
+    """A home of its own under *root* (``root/home``, its XDG folders, ``root/tmp``): a page's commands keep what
+    they keep for a user there (``mlink-sim wireshark --install``: ``~/.local/lib/wireshark/plugins``), never in
+    the home of whoever runs the tests."""
+    home, tmp = root / "home", root / "tmp"
+    folders = {"HOME": home, "XDG_CONFIG_HOME": home / ".config", "XDG_DATA_HOME": home / ".local" / "share",
+               "XDG_STATE_HOME": home / ".local" / "state", "XDG_CACHE_HOME": home / ".cache",
+               "XDG_RUNTIME_DIR": root / "run", "TMPDIR": tmp}
+    for folder in folders.values():
+        folder.mkdir(parents=True, exist_ok=True, mode=0o700)
+    return {name: str(folder) for name, folder in folders.items()}
+
+
+@contextlib.contextmanager
+def at_home(root: Path, workdir: Path) -> Iterator[None]:
+    """This process with :func:`home_of` *root* as its environment's home and *workdir* as its working folder, for
+    a Python block run in it; then as it was."""
+    saved = {name: os.environ.get(name) for name in HOME_VARIABLES}
+    saved_tempdir = tempfile.tempdir
+    os.environ.update(home_of(root))
+    tempfile.tempdir = None  # gettempdir() asks TMPDIR again
+    try:
+        with contextlib.chdir(workdir):
+            yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+        tempfile.tempdir = saved_tempdir
+
+
+class Shell:
+    """The shell of one page (module docstring): its commands run in ``root/work`` with ``root/home`` as their
+    home (:func:`home_of`)."""
+
+    def __init__(self, root: Path) -> None:
+        self.root = root
+        self.workdir = root / "work"
+        self.workdir.mkdir()
+        (self.workdir / "configs").symlink_to(REPO / "configs")
+        self.env = {**os.environ, **home_of(root), "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}",
+                    "PYTHONUNBUFFERED": "1"}
         self.addresses: dict[str, str] = {}  #: the page's address -> the one its server printed
         self.control: str | None = None  #: the control endpoint started last (``HOST:PORT`` in a command)
         self.running: list[Run] = []
