@@ -3,9 +3,12 @@ docs"): ``pytest README.md docs`` runs them, ``--docs-update`` writes what their
 
 from __future__ import annotations
 
-import pytest
+from collections.abc import Generator
 
-from tests.docs.examples import SYBIL, UPDATE, apply_edits
+import pytest
+from sybil.integration.pytest import SybilItem
+
+from tests.docs.examples import SYBIL, UPDATE, apply_edits, summary, tally
 
 pytest_collect_file = SYBIL.pytest()
 
@@ -26,3 +29,18 @@ def pytest_configure(config: pytest.Config) -> None:
 def pytest_sessionfinish(session: pytest.Session) -> None:
     for page in apply_edits():
         print(f"\ndocs: rewrote the outputs of {page}")
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Generator[None, pytest.TestReport,
+                                                                                           pytest.TestReport]:
+    report = yield
+    if isinstance(item, SybilItem) and (report.when == "call" or not report.passed):
+        tally(item.nodeid, item.example, report.outcome)
+    return report
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    line = summary()
+    if line is not None:
+        terminalreporter.write_line(line)

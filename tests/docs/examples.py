@@ -33,6 +33,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,7 +46,7 @@ from sybil.parsers.markdown.lexers import FencedCodeBlockLexer
 from tests.docs import shapes
 from tests.docs.shell import REPO, Shell, at_home, commands_of, console_of
 
-__all__ = ["SYBIL", "PAGES", "EDITS", "UPDATE", "STATE", "Page", "apply_edits"]
+__all__ = ["SYBIL", "PAGES", "EDITS", "UPDATE", "STATE", "Page", "apply_edits", "tally", "summary"]
 
 #: ``--docs-update``: console outputs that do not hold are rewritten from what the commands printed;
 #: ``--docs-update=figures``: every console output, its figures too
@@ -268,6 +269,31 @@ def _console(example: Example) -> None:
 
 
 _EVALUATORS = {"python": _python, "console": _console, "sh": _sh}
+
+# ------------------------------------------------------------------------------------------------ the tally
+
+#: what became of the session's examples: test id -> (the block's language, passed | skipped | failed)
+OUTCOMES: dict[str, tuple[str, str]] = {}
+
+
+def tally(nodeid: str, example: Example, outcome: str) -> None:
+    """Count one phase's *outcome* of *example* (a marker is not an example); a failure or a skip stands."""
+    if isinstance(example.parsed, Block) and OUTCOMES.get(nodeid, ("", "passed"))[1] == "passed":
+        OUTCOMES[nodeid] = (example.parsed.language, outcome)
+
+
+def summary() -> str | None:
+    """The session's examples by kind and what ran: ``docs: 105 examples, 82 ran and held, …``."""
+    if not OUTCOMES:
+        return None
+    outcomes = Counter(outcome for _, outcome in OUTCOMES.values())
+    kinds = Counter(language for language, _ in OUTCOMES.values())
+    ran = Counter(language for language, outcome in OUTCOMES.values() if outcome != "skipped")
+    by_kind = ", ".join(f"{language} {n} ({ran[language]} ran)"
+                        for language, n in sorted(kinds.items(), key=lambda kv: (-kv[1], kv[0])))
+    return (f"docs: {len(OUTCOMES)} examples, {outcomes['passed']} ran and held, {outcomes['failed']} failed, "
+            f"{outcomes['skipped']} marked not to run here; by kind: {by_kind}")
+
 
 #: the pages whose examples run: the README and the manual
 PAGES = frozenset([REPO / "README.md", *(REPO / "docs").glob("*.md")])
