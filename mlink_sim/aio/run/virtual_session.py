@@ -31,6 +31,7 @@ from ...faults.plant import PlantFaults
 from ..virtual.fabric import Fabric, FabricPort, VirtualCycle
 from ..slave.faults import apply_drive_fault, release_drive_fault
 from ..timing.heap import settle_heap
+from ..timing.slack import Slack
 from ..master.runner import Master, MetricsSink, NullMetrics
 from .netapi import NetworkApi, build_plans
 from .session import NetworkSession, flatten_counters
@@ -185,6 +186,10 @@ class VirtualSession(NetworkSession):
         self.net.faults = self
         settle_heap(collect=False)  # as the real-time session, without the collection (docs/performance.md)
         cycle.start()
+
+    def _new_slack(self) -> Slack:
+        """Always open: simulated cycles take no wall time, so nothing beside them can delay an answer."""
+        return Slack(always=True)
 
     def _capture_flusher(self, period_ns: int) -> Any:
         """The cycle callback that writes the capture in place every :data:`CAPTURE_FLUSH_NS` of simulated time
