@@ -110,30 +110,27 @@ def round_of(case: Case) -> list[Command]:
     sub-command. PRM_WR writes C1-01 (n019 on the SI-T/V7) 5.0 s, so that each CONFIG has a value to apply."""
     v7 = case.card == "si-t-v7"
     reg = 0x0113 if v7 else 0x0200  # n019 / C1-01 (SI-T/V7 §7.1, SI-T3 Table 8: register 0200H)
+    connect: Any
+    id_rd: Any
     if case.card == "si-et3":
+        ml: Any = ml3
         subs = case.size == 64
-        out = [Command("CONNECT", ml3.Connect(0x30, 0x80 if subs else 0, 1, 0x20)), Command("SYNC_SET", ml3.SyncSet()),
-               Command("PRM_RD", ml3.PrmRd(reg, 2)), Command("PRM_WR", ml3.PrmWr(reg, 2, _word(50))),
-               Command("CONFIG", ml3.Config(0)), Command("ALM_RD", ml3.AlmRd(0, 0)), Command("ALM_CLR", ml3.AlmClr(0)),
-               Command("ID_RD", ml3.IdRd(0x01, 0, 4)), Command("INV_CTL", ml3.InvCtl())]
-        if subs:
-            out += [Command(f"INV_CTL+{name}", ml3.InvCtl(), sub) for name, sub in (
-                ("NOP", ml3.Nop()), ("PRM_RD", ml3.PrmRd(reg, 2)), ("PRM_WR", ml3.PrmWr(reg, 2, _word(60))),
-                ("ALM_RD", ml3.AlmRd(0, 0)), ("INV_IO", ml3.InvIo(0, 0, 0x41, 0x41)))]
-        out += [Command("CONFIG(EEPROM)", ml3.Config(1), until_ready=True), Command("DISCONNECT", ml3.Disconnect())]
-        return out
-    subs = case.size == 32
-    out = [Command("CONNECT", ml2.Connect(0x21, 0x80 if subs else 0, 1)), Command("SYNC_SET", ml2.SyncSet()),
-           Command("PRM_RD", ml2.PrmRd(reg, 2)), Command("PRM_WR", ml2.PrmWr(reg, 2, _word(50))),
-           Command("CONFIG", ml2.Config(0)), Command("ALM_RD", ml2.AlmRd(0, 0)), Command("ALM_CLR", ml2.AlmClr(0)),
-           Command("ID_RD", ml2.IdRd(0x00, 0, 8)), Command("INV_CTL", ml2.InvCtl())]
+        connect, id_rd = ml3.Connect(0x30, 0x80 if subs else 0, 1, 0x20), ml3.IdRd(0x01, 0, 4)
+    else:
+        ml = ml2
+        subs = case.size == 32
+        connect, id_rd = ml2.Connect(0x21, 0x80 if subs else 0, 1), ml2.IdRd(0x00, 0, 8)
+    out = [Command("CONNECT", connect), Command("SYNC_SET", ml.SyncSet()), Command("PRM_RD", ml.PrmRd(reg, 2)),
+           Command("PRM_WR", ml.PrmWr(reg, 2, _word(50))), Command("CONFIG", ml.Config(0)),
+           Command("ALM_RD", ml.AlmRd(0, 0)), Command("ALM_CLR", ml.AlmClr(0)), Command("ID_RD", id_rd),
+           Command("INV_CTL", ml.InvCtl())]
     if subs:
-        out += [Command(f"INV_CTL+{name}", ml2.InvCtl(), sub) for name, sub in (
-            ("NOP", ml2.Nop()), ("PRM_RD", ml2.PrmRd(reg, 2)), ("PRM_WR", ml2.PrmWr(reg, 2, _word(60))),
-            ("ALM_RD", ml2.AlmRd(0, 0)), ("INV_IO", ml2.InvIo(0, 0, 0x41, 0x41)))]
+        out += [Command(f"INV_CTL+{name}", ml.InvCtl(), sub) for name, sub in (
+            ("NOP", ml.Nop()), ("PRM_RD", ml.PrmRd(reg, 2)), ("PRM_WR", ml.PrmWr(reg, 2, _word(60))),
+            ("ALM_RD", ml.AlmRd(0, 0)), ("INV_IO", ml.InvIo(0, 0, 0x41, 0x41)))]
         if v7:  # the CONFIG sub-command (SI-T/V7 §7.2)
             out.append(Command("INV_CTL+CONFIG", ml2.InvCtl(), ml2.Config(0)))
-    out += [Command("CONFIG(EEPROM)", ml2.Config(1), until_ready=True), Command("DISCONNECT", ml2.Disconnect())]
+    out += [Command("CONFIG(EEPROM)", ml.Config(1), until_ready=True), Command("DISCONNECT", ml.Disconnect())]
     return out
 
 
