@@ -52,6 +52,7 @@ from ..transport import mmsg
 from ..transport.impaired import ImpairedSocket
 from ..transport.ports import BurstPort, DatagramPort, bursts
 from ..transport.tapped import tap
+from ..timing.slack import AnswersIn
 from ..timing.ticker import CycleTimer
 from ..transport.udp import bound_socket, close_watched
 
@@ -134,12 +135,8 @@ class Master:
         self.faults: FaultStage | None = None
         self._closed = False
         self._log = get_logger(__name__).bind(component="master", link=core.plan.link.name)
-        #: called once a cycle, when the cycle's answers are in (the work beside the cycle may run then:
-        #: :mod:`mlink_sim.aio.timing.slack`); None: nobody asks
-        self.answers_in: Callable[[], None] | None = None
-        self._awaiting = 0  # answers of this cycle still to come
-        self._silent = 0  # stations that did not answer in the cycles before: not waited for
-        self._told = True  # answers_in was called for this cycle
+        #: tells its hook once a cycle when the cycle's answers are in (the work beside the cycle may run then)
+        self.answers_in = AnswersIn()
 
     @staticmethod
     def _now() -> int:
@@ -451,32 +448,9 @@ class Master:
         self._pump()
         if faults is not None and faults.watching:
             faults.after_cycle(now_ns)
-        self._expect(len(out))
+        self.answers_in.expect(len(out))
 
     on_cycle = _on_cycle  #: the cycle callback, for a shared clock
-
-    def _expect(self, sent: int) -> None:
-        """This cycle's *sent* commands were sent: their answers are awaited, but those of the stations that did not
-        answer the cycle before (a station gone or held up is not waited for; one that comes back answers early
-        once); :meth:`_answered` tells :attr:`answers_in` when they are in."""
-        left = self._awaiting
-        if not self._told:
-            self._silent += left  # the last cycle's answers that did not come
-        elif left < 0:
-            self._silent = max(0, self._silent + left)  # more came than were awaited: stations back
-        self._awaiting = sent - self._silent
-        self._told = False
-        if self._awaiting <= 0:
-            self._answered(0)
-
-    def _answered(self, n: int) -> None:
-        """*n* answers were read: once this cycle's are in, :attr:`answers_in` hears of it (once a cycle)."""
-        self._awaiting -= n
-        if self._awaiting <= 0 and not self._told:
-            self._told = True
-            hook = self.answers_in
-            if hook is not None:
-                hook()
 
     def read_responses(self, limit: int = _READ_BURST) -> None:
         """Hand the datagrams waiting on the socket (at most *limit*) to the core, each stamped as it is read:
@@ -508,7 +482,7 @@ class Master:
                 on_response(data, _mono())
                 n += 1
         if n:
-            self._answered(n)
+            self.answers_in.answered(n)
 
     def _deliver_all(self, datagrams: list[bytes], now: int) -> None:
         """:meth:`deliver` of each of one read's answers (the faults' path of :meth:`read_responses`)."""

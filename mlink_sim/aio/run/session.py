@@ -338,12 +338,12 @@ class NetworkSession:
                     opened(clock)
 
             for master in masters:
-                master.answers_in = one_in
+                master.answers_in.hook = one_in
             return
         for master in masters:
             timer = master.timer
             if timer is not None:
-                master.answers_in = lambda timer=timer: opened(timer)
+                master.answers_in.hook = lambda timer=timer: opened(timer)
 
     async def bring_up(self, timeout: float) -> list[str]:
         """Wait until every station is at its target phase or *timeout* s passed; returns (and records in

@@ -9,6 +9,7 @@ the clock's next wake-up is further off than the step takes.
 
     slack = Slack()
     slack.open(until_ns)          # the masters: this cycle's answers are in; free until the clock's next wake-up
+                                  # (each master's AnswersIn says when its own are)
     step = Step()                 # one kind of step: how long it takes
     await slack.wait(step.need_ns)
     with step:                    # a step of beside-the-cycle work, inside a slack it fits in
@@ -26,9 +27,10 @@ from __future__ import annotations
 
 import asyncio
 import time
+from collections.abc import Callable
 from typing import Final
 
-__all__ = ["Slack", "Step", "MAX_WAIT_S", "MARGIN_NS"]
+__all__ = ["Slack", "Step", "AnswersIn", "MAX_WAIT_S", "MARGIN_NS"]
 
 #: A step waits for a slack at most this long, then runs (a cycle whose answers never all come)
 MAX_WAIT_S: Final = 0.05
@@ -112,3 +114,39 @@ class Step:
         took = time.monotonic_ns() - self._t0
         decayed = self.need_ns - (self.need_ns >> 4)
         self.need_ns = min(MOST_NEED_NS, took if took > decayed else decayed)
+
+
+class AnswersIn:
+    """When a master's cycle has its answers: :meth:`expect` after the cycle's commands went, :meth:`answered` for
+    each read; :attr:`hook` is called once a cycle, when they are in. The answers of the stations that did not
+    answer the cycle before are not waited for (a station gone or held up); one that comes back answers early once,
+    and is waited for again from then on."""
+
+    __slots__ = ("hook", "_awaiting", "_silent", "_told")
+
+    def __init__(self) -> None:
+        self.hook: Callable[[], None] | None = None  #: None: nobody asks
+        self._awaiting = 0  # answers of this cycle still to come
+        self._silent = 0  # stations that did not answer in the cycles before: not waited for
+        self._told = True  # the hook was called for this cycle
+
+    def expect(self, sent: int) -> None:
+        """This cycle's *sent* commands were sent: their answers are awaited (but the silent stations')."""
+        left = self._awaiting
+        if not self._told:
+            self._silent += left  # the last cycle's answers that did not come
+        elif left < 0:
+            self._silent = max(0, self._silent + left)  # more came than were awaited: stations back
+        self._awaiting = sent - self._silent
+        self._told = False
+        if self._awaiting <= 0:
+            self.answered(0)
+
+    def answered(self, n: int) -> None:
+        """*n* answers were read: once this cycle's are in, :attr:`hook` hears of it (once a cycle)."""
+        self._awaiting -= n
+        if self._awaiting <= 0 and not self._told:
+            self._told = True
+            hook = self.hook
+            if hook is not None:
+                hook()

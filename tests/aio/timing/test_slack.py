@@ -73,12 +73,12 @@ def _master() -> Master:
 def test_a_master_says_once_a_cycle_that_its_answers_are_in() -> None:
     master = _master()
     told: list[int] = []
-    master.answers_in = lambda: told.append(1)
-    master._expect(3)
-    master._answered(2)
+    master.answers_in.hook = lambda: told.append(1)
+    master.answers_in.expect(3)
+    master.answers_in.answered(2)
     assert told == []
-    master._answered(1)
-    master._answered(1)  # a late answer of another cycle: told once only
+    master.answers_in.answered(1)
+    master.answers_in.answered(1)  # a late answer of another cycle: told once only
     assert told == [1]
 
 
@@ -87,18 +87,18 @@ def test_a_station_that_stopped_answering_is_not_waited_for() -> None:
     waits for it again."""
     master = _master()
     told: list[int] = []
-    master.answers_in = lambda: told.append(1)
-    master._expect(3)
-    master._answered(2)
+    master.answers_in.hook = lambda: told.append(1)
+    master.answers_in.expect(3)
+    master.answers_in.answered(2)
     assert told == []
-    master._expect(3)
-    master._answered(2)
+    master.answers_in.expect(3)
+    master.answers_in.answered(2)
     assert told == [1]
-    master._expect(3)
-    master._answered(3)  # it is back: told after two, then one more came
+    master.answers_in.expect(3)
+    master.answers_in.answered(3)  # it is back: told after two, then one more came
     assert told == [1, 1]
-    master._expect(3)
-    master._answered(2)
+    master.answers_in.expect(3)
+    master.answers_in.answered(2)
     assert told == [1, 1]
-    master._answered(1)
+    master.answers_in.answered(1)
     assert told == [1, 1, 1]
