@@ -5,10 +5,12 @@ The targets (ratios in one run, on the machine the run names):
 
 1. 62 ML-III stations @ 1 ms for 60 s: missed ≤ the floor's missed + 0.05 percentage points; RTT p99 ≤ 2 × the
    floor's p99;
-2. 30 ML-II stations @ 1 ms for 60 s: the same bounds;
-3. 8 ML-III stations @ 250 µs for 30 s: cycle lateness p99 ≤ 50 µs; missed ≤ the floor's + 0.05 points;
-4. CPU per exchange (master and workers, all costs in) ≤ 2 × the floor's, in each of the cells above;
-5. the 1 ms knee, the most ML-III stations at 1 ms with missed ≤ floor + 0.05 points (every smaller cell of the
+2. 62 ML-III stations @ 500 µs for 30 s: the same bounds;
+3. 30 ML-II stations @ 1 ms for 60 s: the same bounds;
+4. 8 ML-III stations @ 250 µs for 30 s: cycle lateness p99 ≤ 50 µs; missed ≤ the floor's + 0.05 points;
+5. CPU per exchange (master and workers, all costs in) ≤ 1.3 × the floor's at 62 ML-III @ 1 ms, ≤ 2 × in each of
+   the other cells above (:data:`TARGETS`);
+6. the 1 ms knee, the most ML-III stations at 1 ms with missed ≤ floor + 0.05 points (every smaller cell of the
    run holding too), reaches 62 (cells of 15, 30 and 45 stations, 30 s each, and the 62 of target 1).
 
 The knee's cells last 30 s, in three turns like the 250 µs cell, because of the host's stalls. Under real-time
@@ -32,15 +34,18 @@ from typing import Any
 
 from mlink_sim.config import format_ns, parse_duration_ns
 
-__all__ = ["CELLS", "by_turn", "floor_saturation", "verdicts", "knee"]
+__all__ = ["CELLS", "TARGETS", "by_turn", "floor_saturation", "verdicts", "knee"]
 
+#: (link, stations, cycle, duration, CPU factor): the targets' cells, each with its bound on CPU per exchange (× the
+#: floor's); a 250 µs cell is judged by its clock's lateness, the others by their RTT p99
+TARGETS = (("ML3", 62, "1ms", "60s", 1.3), ("ML3", 62, "500us", "30s", 2.0), ("ML2", 30, "1ms", "60s", 2.0),
+           ("ML3", 8, "250us", "30s", 2.0))
 #: (link, stations, cycle, duration): the targets' cells, then the knee's
-CELLS = (("ML3", 62, "1ms", "60s"), ("ML2", 30, "1ms", "60s"), ("ML3", 8, "250us", "30s"),
-         ("ML3", 15, "1ms", "30s"), ("ML3", 30, "1ms", "30s"), ("ML3", 45, "1ms", "30s"))
+CELLS = tuple(t[:4] for t in TARGETS) + (("ML3", 15, "1ms", "30s"), ("ML3", 30, "1ms", "30s"),
+                                         ("ML3", 45, "1ms", "30s"))
 MISSED_MARGIN = 0.0005  # 0.05 percentage points
 RTT_FACTOR = 2.0
 LATENESS_NS = 50_000
-CPU_FACTOR = 2.0
 KNEE_GOAL = 62
 
 
@@ -176,11 +181,11 @@ def verdicts(cells: list[Any]) -> tuple[str, list[dict[str, Any]]]:
         return True
 
     judged = []
-    for link, n, cycle, dur in CELLS[:3]:
+    for link, n, cycle, dur, factor in TARGETS:
         c = _cell(cells, link, n, cycle)
         if failed(c, f"{n} {link} @ {cycle}, {dur}"):
             continue
-        judged.append(c)
+        judged.append((c, factor))
         ref = c.ref
         if c.cycle_ns == 250_000:
             floor_late = ref["lateness_p99_ns"]
@@ -189,14 +194,14 @@ def verdicts(cells: list[Any]) -> tuple[str, list[dict[str, Any]]]:
                 "" if floor_late <= LATENESS_NS else f"the floor breaks it too; {bounded_by(c)}")
         row(c, "missed ≤ floor + 0.05 points", _pct(c.missed_rate), _pct(ref["missed_rate"]),
             _pct(_missed_limit(ref)), _missed_ok(c), _missed_why(c))
-        if c.cycle_ns == 1_000_000:
+        if c.cycle_ns != 250_000:
             limit = RTT_FACTOR * ref["rtt_p99_ns"]
             row(c, "RTT p99 ≤ 2 × floor p99", format_ns(c.rtt_p99_ns), format_ns(ref["rtt_p99_ns"]),
                 format_ns(int(limit)), c.rtt_p99_ns <= limit)
-    for c in judged:
+    for c, factor in judged:
         fl = c.ref["cpu_per_exchange_us"]
-        row(c, "CPU per exchange ≤ 2 × floor", f"{c.cpu_per_exchange_us:.1f} µs", f"{fl:.1f} µs",
-            f"{CPU_FACTOR * fl:.1f} µs", 0 < c.cpu_per_exchange_us <= CPU_FACTOR * fl)
+        row(c, f"CPU per exchange ≤ {factor:g} × floor", f"{c.cpu_per_exchange_us:.1f} µs", f"{fl:.1f} µs",
+            f"{factor * fl:.1f} µs", 0 < c.cpu_per_exchange_us <= factor * fl)
     best, run = knee(cells)
     if run:
         steps = ", ".join(f"{c.stations}: {_pct(c.missed_rate)} vs {_pct(c.ref['missed_rate']) if c.ref else '—'}"

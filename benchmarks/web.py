@@ -8,7 +8,12 @@ server in a process of its own (``mlink-sim web``, as ``up --web`` starts it). T
 
 * **closed**: the web server runs, nobody looks (it asks the network nothing);
 * **open**: a page is open, played by a client process that reads ``GET /api/events`` (the page's only traffic once
-  loaded: the status ten times a second and the events; the page does not poll).
+  loaded: the status ten times a second and the events; the page does not poll);
+* **trace** (with ``--trace``): the page closed, the network's trace sampled as ``--trace FILE.csv`` samples it (every
+  station every 10 ms, the slaves' snapshots every half second) into a file in the run's temporary directory.
+
+The target (docs/web.md, "What the page costs the network"): in each arm no answer late or missed, and its RTT p99
+within 1.1 × the closed arm's; the run prints a verdict line per arm.
 
 Figures per arm: the answers read, the late answers (the master's count of answers that came after their answer
 window), the missed exchanges (answers missing) and the RTT p99 of every answer read in the arm's turns; for the
@@ -19,6 +24,7 @@ Run from the repository's root, on a quiet machine:
     python -m benchmarks.web                                  # both networks, 30 s per arm (~3 min)
     python -m benchmarks.web --networks quickstart --duration 10s
     python -m benchmarks.web --json web.json                  # the figures as JSON too
+    python -m benchmarks.web --networks ml3-62-1ms --trace    # a traced arm beside the page's two
 
 Ctrl-C or SIGTERM ends the run (exit 130 / 143, nothing written); the web server and the page's client die with it.
 """
@@ -39,12 +45,14 @@ from typing import Any
 from mlink_sim.aio.control.endpoint import ControlServer
 from mlink_sim.aio.control.events import RunLog
 from mlink_sim.aio.control.network import NetworkOps
+from mlink_sim.aio.present.trace import TraceSampler
 from mlink_sim.aio.run.session import NetworkSession
 from mlink_sim.aio.run.supervisor import die_with_parent, resolve_workers
 from mlink_sim.aio.run.webproc import WebProcess
 from mlink_sim.config import format_ns, load_config, parse_duration_ns
 from mlink_sim.examples import example_path
 from mlink_sim.metrics.histogram import LatencyHistogram
+from mlink_sim.metrics.trace import TraceWriter
 
 from benchmarks.bench import Interrupted, measuring, watching_rtt, write_config
 from benchmarks.common import child_env, module_command, write_atomically
@@ -54,6 +62,7 @@ __all__ = ["NETWORKS", "Arm", "main"]
 
 NETWORKS = ("quickstart", "ml3-62-1ms")
 SETTLE_S = 1.0  #: after bring-up, and after a page opens, before a turn counts
+P99_FACTOR = 1.1  #: the target: an arm's RTT p99 within this factor of the closed arm's
 
 
 @dataclass
@@ -115,14 +124,16 @@ class Page:
         return (int(out[-2]), float(out[-1])) if len(out) >= 2 else (0, 0.0)
 
 
-async def _network(path: Path, duration_s: float, rt: bool) -> tuple[dict[str, Any], list[Arm]]:
+async def _network(path: Path, duration_s: float, rt: bool, trace: Path | None = None
+                   ) -> tuple[dict[str, Any], list[Arm]]:
+    """The arms of one network; *trace*: where the trace arm writes its trace (None: no trace arm)."""
     config = load_config(path)
     n = len(config.station)
     session = await NetworkSession.open(config, path, workers=resolve_workers("auto", n), restart_slaves=False,
                                         realtime=rt)
     web = WebProcess(("127.0.0.1", 0))
     server: ControlServer | None = None
-    arms = {"closed": Arm("closed"), "open": Arm("open")}
+    arms = {"closed": Arm("closed"), "open": Arm("open"), **({"trace": Arm("trace")} if trace is not None else {})}
     try:
         masters = list(session.masters.values())  # the control endpoint and the web server as up --web opens them
         log = RunLog(masters[0].now_ns)
@@ -141,6 +152,11 @@ async def _network(path: Path, duration_s: float, rt: bool) -> tuple[dict[str, A
                 if page is not None:
                     await page.open()
                     await asyncio.sleep(SETTLE_S)
+                sampler = None
+                if arm.name == "trace" and trace is not None:
+                    sampler = TraceSampler(session, TraceWriter(trace))
+                    sampler.start(asyncio.get_running_loop().time())
+                    await asyncio.sleep(SETTLE_S)
                 late0, missed0 = _counts(session)
                 t0 = time.monotonic()
 
@@ -158,6 +174,8 @@ async def _network(path: Path, duration_s: float, rt: bool) -> tuple[dict[str, A
                     count, seconds = await page.close()
                     arm.status_messages += count
                     arm.page_seconds += seconds
+                if sampler is not None:
+                    await sampler.close()
     finally:
         await web.stop()
         if server is not None:
@@ -188,11 +206,32 @@ def _page(url: str) -> int:
     return 0
 
 
+def _label(arm: str) -> str:
+    return "traced" if arm == "trace" else f"page {arm}"
+
+
+def verdicts(arms: list[Arm]) -> list[tuple[str, bool, str]]:
+    """Each arm against the closed one: ``(arm, met, figures)`` by the target (module docstring)."""
+    closed = next((a for a in arms if a.name == "closed"), None)
+    base = closed.rtt.percentile(99.0) if closed is not None and closed.rtt.count else None
+    out = []
+    for arm in arms:
+        p99 = arm.rtt.percentile(99.0) if arm.rtt.count else None
+        clean = arm.late == 0 and arm.missed == 0
+        ratio = p99 / base if p99 is not None and base else None
+        ok = clean and ratio is not None and ratio <= P99_FACTOR
+        why = (f"{arm.late} late, {arm.missed} missed, RTT p99 "
+               + ("–" if ratio is None else f"{ratio:.2f} × the closed arm's"))
+        out.append((arm.name, ok, why))
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.web", description=__doc__.split("\n\n")[0])
     ap.add_argument("--networks", default=",".join(NETWORKS), help=f"comma-separated: {', '.join(NETWORKS)}")
     ap.add_argument("--duration", default="30s", help="each arm's time on each network (in turns of at most 10 s)")
     ap.add_argument("--realtime", action="store_true", help="as mlink-sim up --realtime (root)")
+    ap.add_argument("--trace", action="store_true", help="a third arm: the network traced as --trace samples it")
     ap.add_argument("--json", type=Path, default=None, help="write the figures here")
     ap.add_argument("--page", metavar="URL", help=argparse.SUPPRESS)  # the open page's client process
     args = ap.parse_args()
@@ -208,7 +247,9 @@ def main() -> int:
         return 2
 
     def work(loop: asyncio.AbstractEventLoop, tmp: Path) -> list[tuple[dict[str, Any], list[Arm]]]:
-        return [loop.run_until_complete(_network(_config(tmp, n), duration_s, args.realtime)) for n in networks]
+        return [loop.run_until_complete(_network(_config(tmp, n), duration_s, args.realtime,
+                                                 tmp / f"{n}.trace.csv" if args.trace else None))
+                for n in networks]
 
     try:
         results = measuring("web", work)
@@ -224,11 +265,16 @@ def main() -> int:
             f = arm.figures()
             p99 = "–" if f["rtt_p99_ns"] is None else format_ns(f["rtt_p99_ns"])
             page = f", the page got {f['status_per_s']} status/s" if arm.name == "open" else ""
-            print(f"  page {arm.name:<6} {f['answers']:>8} answers, {f['late']:>5} late, {f['missed']:>5} missed, "
-                  f"RTT p99 {p99}{page}")
+            print(f"  {_label(arm.name):<11} {f['answers']:>8} answers, {f['late']:>5} late, {f['missed']:>5} "
+                  f"missed, RTT p99 {p99}{page}")
+        for name, ok, why in verdicts(arms):
+            print(f"  {_label(name):<11} {'met' if ok else 'not met'}: {why} (target: none late or missed, p99 ≤ "
+                  f"{P99_FACTOR} × the closed arm's)")
     if args.json is not None:
         write_atomically(args.json, json.dumps({"duration_s": duration_s, "realtime": args.realtime, "networks": [
-            {**meta, "arms": [a.figures() for a in arms]} for meta, arms in results]}, indent=1))
+            {**meta, "arms": [a.figures() for a in arms],
+             "verdicts": [{"arm": n, "met": ok, "figures": why} for n, ok, why in verdicts(arms)]}
+            for meta, arms in results]}, indent=1))
     return 0
 
 

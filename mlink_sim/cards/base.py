@@ -13,6 +13,13 @@ profile (:mod:`mlink_sim.profiles`: its key and label, parameter table, drive fa
 EEPROM timing (:class:`~mlink_sim.cards.eeprom.EepromWriteBack`): when the I/O layer persists the images
 (:meth:`Station.persist_eeprom`), a CONFIG that stores to EEPROM is completed only once :meth:`Station.eeprom_durable`
 confirms its image; until then the card answers with CMDRDY = 0 and executes nothing else.
+
+The answer first (docs/timing.md, "When each command is answered"): ``receive`` returns the answer and leaves the
+work that does not change it for :meth:`Station.finish`, which the I/O layer calls once the answer is sent: the log
+lines of the command (phase changes, connections, refusals), the values CONFIG_MOD = 1 stores, the drive settings a
+written parameter will take at CONFIG (built ahead, so that CONFIG only applies them) and, on a card whose PRM_WR takes
+effect at once (SI-T/V7), the drive taking the written value. Every other entry point (``receive``, ``poll``,
+``snapshot``, ``take_eeprom``) finishes what is left first, so nothing depends on the I/O layer calling it.
 """
 
 from __future__ import annotations
@@ -34,6 +41,7 @@ from .connection import DEFAULT_TCYCLE_NS, Connection
 from .drive_link import DriveLink, Fault
 from .eeprom import EepromImage, EepromWriteBack, power_up
 from .monitors import sel_mon_value
+from .parameters import prepare_settings, reconfigure
 from .paramstore import ParamStore
 from .prediction import Prediction, offer
 from .reception import FailureKind, ReceptionMonitor
@@ -82,6 +90,12 @@ class Station(Connection):
         self.label = profile.label  #: as the manual names the card ("SI-T/V7")
         self.options = settings.options
         self.counters = StationCounters()
+        self._later = []
+        self.unfinished = False  #: the commands answered since the last finish() left work for it
+        self._prepare_due = False  # a PRM_WR changed the pending values: finish() builds the settings CONFIG takes
+        self._prepared: tuple[int, Any] | None = None  # (ParamStore.version, DriveSettings or why none) for CONFIG
+        self._reconfigure_due = False  # a value in effect at once (SI-T/V7 PRM_WR): finish() gives it to the drive
+        self._save_due = ""  # why the values in effect are to be stored (CONFIG_MOD = 1): finish() lists them
         self._log0 = _LOG.bind(card=self.card)
         table = for_card(profile)
         boot = power_up(self.card, table, eeprom, settings.params, self._log0)
@@ -166,17 +180,48 @@ class Station(Connection):
     # -- the Station API --------------------------------------------------------------------------
     def receive(self, datagram: bytes, source: Hashable, now: int) -> bytes | None:
         """One datagram from *source* at *now*: the response datagram, or None (not for this station,
-        ignored or malformed). Never raises."""
+        ignored or malformed). What the command leaves for after its answer waits for :meth:`finish`. Never
+        raises."""
         try:
+            if self.unfinished:
+                self._finish()
             return self._receive(datagram, source, now)
         except Exception:  # noqa: BLE001 - the station must keep answering its master
             self._internal_error("receive")
             return None
 
+    def finish(self) -> None:
+        """The work the commands answered since the last call left for after their answers (the module docstring):
+        the I/O layer calls it once their answers are sent. Never raises."""
+        if not self.unfinished:
+            return
+        try:
+            self._finish()
+        except Exception:  # noqa: BLE001 - the station must keep answering its master
+            self._internal_error("finish")
+
+    def _finish(self) -> None:
+        self.unfinished = False
+        if self._reconfigure_due:  # the drive takes the values PRM_WR put in effect (SI-T/V7): before anything else
+            self._reconfigure_due = False
+            reconfigure(self, self._now)
+        if self._prepare_due:
+            self._prepare_due = False
+            self._prepared = prepare_settings(self)
+        if self._save_due:  # the values in effect when the command was taken: no command came in between
+            reason, self._save_due = self._save_due, ""
+            self.saved_params = self.store.overrides()
+            self._note("info", "eeprom_dirty", {"reason": reason, "params": len(self.saved_params)})
+        if self._later:
+            self._write_notes()
+        self.unfinished = False
+
     def poll(self, now: int) -> None:
         """Let time pass: silence detection and the drive. Cheap; never raises."""
         self._steady_cycle = -1
         try:
+            if self.unfinished:
+                self._finish()
             if now > self._now:
                 self._now = now
             self.drive.advance(now)
@@ -204,7 +249,7 @@ class Station(Connection):
         returns it: what the last call returned holds until the next call. Never raises."""
         try:
             cycle, source = self._steady_cycle, self._source
-            if cycle < 0 or source is None or self.eeprom.wait is not None:
+            if cycle < 0 or source is None or self.eeprom.wait is not None or self._reconfigure_due:
                 return None
             pred = offer(self._prediction, source, self._fast_cmd, self._cmd_wdt_at, cycle, self.drive.quiet_until(),
                          self.reception, self.watchdog, self._answer, now)
@@ -241,6 +286,7 @@ class Station(Connection):
     def take_eeprom(self) -> bytes | None:
         """The EEPROM image to persist, when CONFIG_MOD = 1 or a fault-history change asks for it; its generation
         is :attr:`eeprom_generation` (for :meth:`eeprom_durable`)."""
+        self.finish()
         if not self.eeprom.take():
             return None
         return EepromImage(self.card, self.saved_params, self._history).to_bytes()
@@ -262,6 +308,7 @@ class Station(Connection):
         return self.drive.drive.activity()
 
     def snapshot(self) -> StationSnapshot:
+        self.finish()
         leds, colors = self._leds()
         code, name, warnings, cmd_alm = self._alarm_view()  # code: an int (an M2Alarm loses its enum compiled)
         return StationSnapshot(
@@ -329,6 +376,8 @@ class Station(Connection):
         non-owner's is (:meth:`_status_reply`); any other command, CONNECT included, is counted in
         ``foreign_source`` and dropped. Never raises."""
         try:
+            if self.unfinished:
+                self._finish()
             frame = decode(datagram, kind=Kind.COMMAND)
             if not self._addressed(frame):
                 return None
@@ -401,7 +450,7 @@ class Station(Connection):
         key = tuple(sorted(fields.items()))
         if key != self._last_refused:
             self._last_refused = key
-            self._log.info("connect_refused", **fields)
+            self._note("info", "connect_refused", fields)
 
     # -- helpers of the generations --------------------------------------------------------------------
     def _outputs(self, sel_mon: int) -> tuple[int, int, int, int]:

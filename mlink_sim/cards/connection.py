@@ -9,6 +9,10 @@ alarms, the point where the drive declares bUS "After establishing initial commu
 (SI-T3 Table 28). A station released by a connection loss is admitted "as from phase 1": only CONNECT binds it
 to a new master, nothing else that writes is executed. A NOP with no (or a NOP) sub-command is a read-only
 status query from anyone but the connected master, in phase 2/3 and after a loss alike.
+
+The answer first (docs/timing.md, "When each command is answered"): what a command logs (a phase change, a connection,
+a reception failure, a refused CONNECT …) is kept as a record (:meth:`Connection._note`) and written once the answer
+is out (:meth:`~mlink_sim.cards.base.Station.finish`): formatting a log line takes longer than answering.
 """
 
 from __future__ import annotations
@@ -64,6 +68,9 @@ class Connection(abc.ABC):
     _foreign_logged: set[str]
     _log0: Any
     _log: Any
+    #: the log records of the commands answered since the last ``finish()``: (logger, level, event, fields)
+    _later: list[tuple[Any, str, str, dict[str, Any]]]
+    unfinished: bool
 
     # -- hooks -----------------------------------------------------------------------------------
     @abc.abstractmethod
@@ -162,18 +169,31 @@ class Connection(abc.ABC):
         self._phase_event(PhaseEvent.WDT_ERROR)
         self._incident("wdt_error", level="warning", master_count=self.watchdog.master)
 
+    def _note(self, level: str, event: str, fields: dict[str, Any]) -> None:
+        """Log *event* at *level* with *fields* once the answer is out (``Station.finish``), bound as the station is
+        now (its phase)."""
+        self._later.append((self._log, level, event, fields))
+        self.unfinished = True
+
+    def _write_notes(self) -> None:
+        """Write the log records kept by :meth:`_note`, oldest first."""
+        later = self._later
+        self._later = []
+        for logger, level, event, fields in later:
+            getattr(logger, level)(event, **fields)
+
     def _incident(self, event: str, level: str = "info", **fields: Any) -> None:
         """Log a repeatable incident, bounded (see ``_LOG_FIRST``); ``occurrence`` numbers it."""
         n = self._incidents[event] = self._incidents.get(event, 0) + 1
         if n <= _LOG_FIRST or n & (n - 1) == 0:
-            getattr(self._log, level)(event, occurrence=n, **fields)
+            self._note(level, event, {"occurrence": n, **fields})
 
     def _foreign(self, source: Hashable) -> None:
         self.counters.foreign_source += 1
         key = repr(source)
         if key not in self._foreign_logged and len(self._foreign_logged) < _MAX_LOGGED_SOURCES:
             self._foreign_logged.add(key)
-            self._log.warning("foreign_source_ignored", source=key, connected=repr(self._source))
+            self._note("warning", "foreign_source_ignored", {"source": key, "connected": repr(self._source)})
 
     def record_internal_error(self) -> int:
         """Count an internal error of this station (``counters.internal_errors``): a bug, in the card or in the I/O
@@ -192,7 +212,7 @@ class Connection(abc.ABC):
         if names != self._history:
             self._history = names
             self.eeprom.changed()
-            self._log.info("eeprom_dirty", reason="fault history", history=list(names))
+            self._note("info", "eeprom_dirty", {"reason": "fault history", "history": list(names)})
 
     # -- phases ----------------------------------------------------------------------------------------
     def _phase_event(self, event: PhaseEvent) -> None:

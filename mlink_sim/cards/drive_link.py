@@ -89,8 +89,14 @@ class DriveLink:
             self._restored.clear()
         self.drive.command(cmd, now)
 
-    def reconfigure(self, values: Mapping[str, int], now: int) -> None:
-        self.drive.reconfigure(DriveSettings.from_params(self.family, values), now)
+    def settings_for(self, values: Mapping[str, int]) -> DriveSettings:
+        """The drive settings *values* (raw, by name) give; ``KeyError`` / ``ValueError`` for values the drive cannot
+        take."""
+        return DriveSettings.from_params(self.family, values)
+
+    def apply(self, settings: DriveSettings, now: int) -> None:
+        """The drive takes *settings* (CONFIG; oPE while they are inconsistent)."""
+        self.drive.reconfigure(settings, now)
 
     def trip(self, fault: Fault, stop: int, now: int) -> None:
         self.drive.trip(fault, StopMethod(stop), now)

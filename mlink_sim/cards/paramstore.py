@@ -32,13 +32,14 @@ _WORDS = {n: struct.Struct(f"<{n}H") for n in (1, 2, 3, 4)}
 class ParamStore:
     """Active (in effect) and pending (written, not yet CONFIGed) parameter values of one card."""
 
-    __slots__ = ("table", "active", "pending", "immediate")
+    __slots__ = ("table", "active", "pending", "immediate", "version")
 
     def __init__(self, table: ParamTable, values: Mapping[str, int], *, immediate: bool) -> None:
         self.table = table
         self.active: dict[str, int] = dict(values)
         self.pending: dict[str, int] = {}
         self.immediate = immediate  #: SI-T/V7: PRM_WR takes effect without CONFIG
+        self.version = 0  #: +1 at every change of the active or pending values (what settings built ahead were for)
 
     def value(self, name: str) -> int:
         """The most recently written value of a settable parameter."""
@@ -86,6 +87,7 @@ class ParamStore:
             self.active.update(changes)
         else:
             self.pending.update(changes)
+        self.version += 1
         return Err.OK, changes
 
     def apply(self) -> bool:
@@ -93,7 +95,14 @@ class ParamStore:
         changed = any(self.active.get(k) != v for k, v in self.pending.items())
         self.active.update(self.pending)
         self.pending.clear()
+        self.version += 1
         return changed
+
+    def enter(self, name: str, raw: int) -> None:
+        """*raw* in effect for *name* at once, a value written and not yet applied dropped (the drive's keypad)."""
+        self.pending.pop(name, None)
+        self.active[name] = raw
+        self.version += 1
 
     def overrides(self) -> dict[str, int]:
         """Active values that differ from the table default (what CONFIG_MOD = 1 saves)."""

@@ -32,7 +32,7 @@ def _cell(link, n, cycle_ns, **kw):
 
 
 def _good(link, n, cycle_ns, **kw):
-    figures = {"missed_rate": 0.0007, "rtt_p99_ns": 700_000, "lateness_p99_ns": 30_000, "cpu_per_exchange_us": 35.0}
+    figures = {"missed_rate": 0.0007, "rtt_p99_ns": 700_000, "lateness_p99_ns": 30_000, "cpu_per_exchange_us": 25.0}
     return _cell(link, n, cycle_ns, **{**figures, **kw})
 
 
@@ -42,29 +42,32 @@ def _all_good():
 
 
 def test_targets_cover_the_capacity_cells() -> None:
-    assert [c[:3] for c in targets.CELLS[:3]] == [
-        ("ML3", 62, "1ms"), ("ML2", 30, "1ms"), ("ML3", 8, "250us")]
-    assert [c[3] for c in targets.CELLS[:3]] == ["60s", "60s", "30s"]
+    assert [c[:3] for c in targets.CELLS[:4]] == [
+        ("ML3", 62, "1ms"), ("ML3", 62, "500us"), ("ML2", 30, "1ms"), ("ML3", 8, "250us")]
+    assert [c[3] for c in targets.CELLS[:4]] == ["60s", "30s", "60s", "30s"]
+    assert [t[4] for t in targets.TARGETS] == [1.3, 2.0, 2.0, 2.0]
 
 
-def test_all_five_targets_met() -> None:
+def test_all_six_targets_met() -> None:
     text, rows = targets.verdicts(_all_good())
     assert all(r["met"] for r in rows), rows
     bounds = [(r["target"].split(",")[0], r["bound"]) for r in rows]
     assert bounds == [
         ("62 ML3 @ 1ms", "missed ≤ floor + 0.05 points"), ("62 ML3 @ 1ms", "RTT p99 ≤ 2 × floor p99"),
+        ("62 ML3 @ 500us", "missed ≤ floor + 0.05 points"), ("62 ML3 @ 500us", "RTT p99 ≤ 2 × floor p99"),
         ("30 ML2 @ 1ms", "missed ≤ floor + 0.05 points"), ("30 ML2 @ 1ms", "RTT p99 ≤ 2 × floor p99"),
         ("8 ML3 @ 250us", "lateness p99 ≤ 50 µs"), ("8 ML3 @ 250us", "missed ≤ floor + 0.05 points"),
-        ("62 ML3 @ 1ms", "CPU per exchange ≤ 2 × floor"), ("30 ML2 @ 1ms", "CPU per exchange ≤ 2 × floor"),
-        ("8 ML3 @ 250us", "CPU per exchange ≤ 2 × floor"), ("1 ms knee (ML3)", "reaches 62 stations")]
-    assert text.splitlines()[-1] == "10 of 10 bounds met"
+        ("62 ML3 @ 1ms", "CPU per exchange ≤ 1.3 × floor"), ("62 ML3 @ 500us", "CPU per exchange ≤ 2 × floor"),
+        ("30 ML2 @ 1ms", "CPU per exchange ≤ 2 × floor"), ("8 ML3 @ 250us", "CPU per exchange ≤ 2 × floor"),
+        ("1 ms knee (ML3)", "reaches 62 stations")]
+    assert text.splitlines()[-1] == "13 of 13 bounds met"
 
 
 def test_not_met_says_what_bounds_it() -> None:
     cells = _all_good()
     cells[0].missed_rate, cells[0].cpu_master, cells[0].cpu_slaves = 0.0138, 99.0, 97.0  # 62 @ 1 ms
     cells[0].cpu_per_exchange_us, cells[0].notes = 48.0, ["3 station(s) not up"]
-    cells[2].lateness_p99_ns = 206_000  # 8 @ 250 µs, the floor at 2 µs
+    cells[3].lateness_p99_ns = 206_000  # 8 @ 250 µs, the floor at 2 µs
     _, rows = targets.verdicts(cells)
     missed = rows[0]
     assert (missed["measured"], missed["floor"], missed["limit"], missed["met"]) == ("1.38 %", "0.05 %", "0.10 %",
@@ -75,7 +78,7 @@ def test_not_met_says_what_bounds_it() -> None:
     late = next(r for r in rows if r["bound"] == "lateness p99 ≤ 50 µs")
     assert late["met"] is False and "floor breaks it too" not in late["verdict"]
     cpu = next(r for r in rows if r["bound"].startswith("CPU") and r["target"].startswith("62"))
-    assert (cpu["measured"], cpu["floor"], cpu["limit"], cpu["met"]) == ("48.0 µs", "20.0 µs", "40.0 µs", False)
+    assert (cpu["measured"], cpu["floor"], cpu["limit"], cpu["met"]) == ("48.0 µs", "20.0 µs", "26.0 µs", False)
     knee = rows[-1]
     assert (knee["measured"], knee["met"]) == ("45", False) and "at 62:" in knee["verdict"]
 
@@ -84,9 +87,9 @@ def test_a_missed_bound_not_met_gives_each_turn_beside_the_floor_s() -> None:
     """An excess in one turn of six (a host event the floor's turns did not meet) reads differently from one spread
     over all six (the simulator's own): the verdict lists both sides' answers not back within a cycle per turn."""
     cells = _all_good()
-    cells[1].missed_rate, cells[1].missed_by_turn = 0.0015, [30, 30, 990, 30, 30, 30]  # 30 ML-II @ 1 ms
-    cells[1].floor_batched["missed_by_turn"] = [30, 30, 30, 30, 30, 30]
-    cells[1].stalls_by_turn = [[0, 0, 0, 0]] * 2 + [[32, 31_000_000, 1, 4_000_000]] + [[1, 1_200_000, 0, 0]] * 3
+    cells[2].missed_rate, cells[2].missed_by_turn = 0.0015, [30, 30, 990, 30, 30, 30]  # 30 ML-II @ 1 ms
+    cells[2].floor_batched["missed_by_turn"] = [30, 30, 30, 30, 30, 30]
+    cells[2].stalls_by_turn = [[0, 0, 0, 0]] * 2 + [[32, 31_000_000, 1, 4_000_000]] + [[1, 1_200_000, 0, 0]] * 3
     _, rows = targets.verdicts(cells)
     row = next(r for r in rows if r["target"].startswith("30 ML2") and r["bound"].startswith("missed"))
     assert row["verdict"].startswith(
@@ -108,7 +111,7 @@ def test_a_missed_bound_not_met_weighs_the_logged_stalls_against_the_excess(held
     the cell is over its limit (0.15 % of 1,800,000 due against the floor's 0.05 % + 0.05 points: 900): a host
     event that the logs caught, or an excess they do not explain."""
     cells = _all_good()
-    cell = cells[1]  # 30 ML-II @ 1 ms, 60 s
+    cell = cells[2]  # 30 ML-II @ 1 ms, 60 s
     cell.missed_rate, cell.due, cell.missed_by_turn = 0.0015, 1_800_000, [30, 30, 990, 30, 30, 30]
     cell.stalls_by_turn = [[0, 0, 0, 0, n] for n in held]
     _, rows = targets.verdicts(cells)
@@ -163,9 +166,9 @@ def test_the_floor_with_the_simulators_own_system_calls_is_the_reference() -> No
 
 def test_failed_or_missing_cells_are_reported_not_judged() -> None:
     cells = _all_good()
-    cells[1].status = "failed: OSError: boom"
-    cells[2].floor = cells[2].floor_batched = None
-    _, rows = targets.verdicts(cells[:3])
+    cells[2].status = "failed: OSError: boom"
+    cells[3].floor = cells[3].floor_batched = None
+    _, rows = targets.verdicts(cells[:4])
     assert [r["verdict"] for r in rows if r["target"].startswith("30")] == ["failed: OSError: boom"]
     assert [r["verdict"] for r in rows if r["target"].startswith("8")] == ["no floor measured"]
 

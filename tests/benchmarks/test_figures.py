@@ -54,7 +54,7 @@ def test_targets_say_when_the_floor_itself_is_saturated() -> None:
     text, rows = targets.verdicts([cell])
     assert "floor saturated at 62 ML3 @ 1ms, 60s: the floor itself misses 68.80 % (2,559,692 of 3,720,000" in text
     assert text.splitlines()[-1].endswith("bounds met")
-    judged = [r for r in rows if r["target"].startswith("62 ML3")]
+    judged = [r for r in rows if r["target"].startswith("62 ML3 @ 1ms")]
     assert len(judged) == 3 and all(r["floor_saturated"] for r in judged)  # missed, RTT, CPU per exchange
     cell.floor_batched["missed_rate"] = 0.0004  # within the margin: carries the load
     text, rows = targets.verdicts([cell])

@@ -25,8 +25,10 @@ def station(card: str, *, station: int = 0x21, frame_size: int | None = None, pa
 class Master:
     """Sends one command per communication cycle: cycle numbers, WDT counts and time advance together."""
 
-    def __init__(self, st: Station, *, tcycle_ns: int = 1 * MS, source: Hashable = MASTER, now: int = 0) -> None:
+    def __init__(self, st: Station, *, tcycle_ns: int = 1 * MS, source: Hashable = MASTER, now: int = 0,
+                 finish: bool = True) -> None:
         self.st = st
+        self.finish = finish  #: have the card finish after each answer (the I/O layer's part); False: never
         self.link = st.link
         self.size = st.data_size
         self.tcycle_ns = tcycle_ns
@@ -58,10 +60,14 @@ class Master:
         return ((self.count & 0xF) << 4 | self.slave_echo) if wdt is None else wdt
 
     def send(self, body: Any, sub: Any = None, *, step: bool = True, **kw: Any) -> Frame | None:
-        """Advance one cycle (time, cycle number, WDT count), send, decode the answer."""
+        """Advance one cycle (time, cycle number, WDT count), send, decode the answer; the card finishes what the
+        command left for after its answer (``Station.finish``), as the I/O layer has it do (unless made with
+        ``finish=False``)."""
         if step:
             self.tick()
         raw = self.st.receive(encode(self.command(body, sub, **kw)), self.source, self.now)
+        if self.finish:
+            self.st.finish()  # what the I/O layer does once the answer is sent
         if raw is None:
             self.last = None
             return None

@@ -256,11 +256,13 @@ def encode_reply(reply: Reply) -> list[bytes]:
 
 
 async def query_control(host: str, port: int, op: str = "stats", timeout: float = 1.0, token: str | None = None,
+                        decode: Callable[[bytes], Awaitable[Any]] | None = None,
                         **fields: Any) -> dict[str, Any] | None:
     """Ask a control endpoint (a slave process's stats endpoint, a run's or a proxy's ``--control``) the operation
     *op* (*fields* go into the request, and *token* where the endpoint has one): its JSON reply (put together from
     its parts where it came in several), or None when it does not answer in time (an endpoint answers no request
-    without its token)."""
+    without its token). *decode*: what reads the reply's JSON, when it is not ``json.loads`` at once (the master
+    reads a slave's stats in a cycle's slack: :meth:`~mlink_sim.aio.run.session.NetworkSession.refresh_slave_stats`)."""
     if token is not None:
         fields["token"] = token
     loop = asyncio.get_running_loop()
@@ -288,7 +290,7 @@ async def query_control(host: str, port: int, op: str = "stats", timeout: float 
     try:
         ep.sendto(json.dumps({"op": op, **fields}).encode(), (host, port))
         data = await asyncio.wait_for(fut, timeout)
-        reply = json.loads(data)
+        reply = json.loads(data) if decode is None else await decode(data)
         return reply if isinstance(reply, dict) else None
     except (TimeoutError, ValueError):
         return None

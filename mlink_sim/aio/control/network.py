@@ -31,6 +31,7 @@ from ...operations import OpError, check_speed, station_name
 from ...scenario.values import SpeedScale
 from ...units import format_ns
 from ..present.figures import NetworkFigures, station_key
+from ..timing.slack import Step
 from .endpoint import Encoded, Handler
 from .events import RunLog
 from .faults import FaultOps, ImpairmentOps
@@ -40,7 +41,8 @@ __all__ = ["NetworkOps", "SNAPSHOT_EVERY_S", "STATIONS_PER_STEP", "FAULT_RESET_S
 log = get_logger("mlink_sim.control")
 
 SNAPSHOT_EVERY_S = 1.0  #: the slaves' snapshots (DC bus, the cards' LEDs) are refreshed this often at most
-#: a status of more stations is built and encoded this many at a time, the loop free in between: the figures of
+#: the status is built and encoded this many stations at a time, each step in a cycle's slack (the cycle's answers
+#: in, the clock's next wake-up further off than the step takes: :mod:`mlink_sim.aio.timing.slack`): the figures of
 #: many stations and their JSON together would hold the cycle (docs/performance.md, "The status")
 STATIONS_PER_STEP = 4
 FAULT_RESET_S = 0.05  #: how long ``fault-reset`` holds the fault reset of the cyclic command
@@ -70,6 +72,7 @@ class NetworkOps:
         self.faults = FaultOps(session, self._station_or_all)
         self._refreshed = float("-inf")
         self._refreshing: asyncio.Task[None] | None = None
+        self._step = Step()  #: how long a step of the status takes (what it asks the slack for)
 
     def handlers(self) -> dict[str, Handler]:
         """Operation name -> handler, for every operation a network serves."""
@@ -93,33 +96,38 @@ class NetworkOps:
                 "timeline": [{"at_s": step.at / 1e9, "describe": step.describe}
                              for step in sorted(config.timeline, key=lambda s: s.at)]}
 
-    def status(self, since: int = 0) -> Any:
+    def status(self, since: int = 0) -> Awaitable[Encoded]:
         """The figures of every station, the network's elapsed time, step and host stalls, and the events after
-        *since*. The slaves' snapshots are refreshed in the background (the first status waits for them)."""
+        *since*, built :data:`STATIONS_PER_STEP` stations at a time, each step in a cycle's slack. The slaves'
+        snapshots are refreshed in the background (the first status waits for them)."""
         session = self.session
         refreshing = self._refresh_snapshots()
         first = refreshing is not None and not session.slave_snapshots and session.worker_list
-        if not first and len(self.figures.by_address) <= STATIONS_PER_STEP:  # one step: as it is
-            return self._status(since, self.figures.stations(session.net, session.metrics,
-                                                             session.slave_snapshots or None))
+        slack = session.slack
 
-        async def later() -> Encoded:
+        async def build() -> Encoded:
             if first:
                 assert refreshing is not None
                 await asyncio.shield(refreshing)
-            self.figures.rtt.step(session.metrics)
+            step = self._step
+            await slack.wait(step.need_ns)
+            with step:
+                self.figures.rtt.step(session.metrics)
             parts: list[str] = []
             addresses = list(self.figures.by_address)
             for i in range(0, len(addresses), STATIONS_PER_STEP):
-                await asyncio.sleep(0)  # the cycle's callbacks run in between
-                rows = [self.figures.station(a, session.net, session.slave_snapshots or None)
-                        for a in addresses[i:i + STATIONS_PER_STEP]]
-                parts.append(json.dumps(rows, separators=(",", ":"))[1:-1])
-            head = json.dumps({"ok": True, **self._status(since, [])}, separators=(",", ":"))
-            # the first '"stations":[]' is the key's: inside a JSON string a quote is always escaped
-            return Encoded(head.replace('"stations":[]', '"stations":[' + ",".join(parts) + "]", 1))
+                await slack.wait(step.need_ns)
+                with step:
+                    rows = [self.figures.station(a, session.net, session.slave_snapshots or None)
+                            for a in addresses[i:i + STATIONS_PER_STEP]]
+                    parts.append(json.dumps(rows, separators=(",", ":"))[1:-1])
+            await slack.wait(step.need_ns)
+            with step:
+                head = json.dumps({"ok": True, **self._status(since, [])}, separators=(",", ":"))
+                # the first '"stations":[]' is the key's: inside a JSON string a quote is always escaped
+                return Encoded(head.replace('"stations":[]', '"stations":[' + ",".join(parts) + "]", 1))
 
-        return later()
+        return build()
 
     def _status(self, since: int, stations: list[dict[str, Any]]) -> dict[str, Any]:
         session, timeline = self.session, self.timeline

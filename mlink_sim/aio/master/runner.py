@@ -52,6 +52,7 @@ from ..transport import mmsg
 from ..transport.impaired import ImpairedSocket
 from ..transport.ports import BurstPort, DatagramPort, bursts
 from ..transport.tapped import tap
+from ..timing.slack import AnswersIn
 from ..timing.ticker import CycleTimer
 from ..transport.udp import bound_socket, close_watched
 
@@ -134,6 +135,8 @@ class Master:
         self.faults: FaultStage | None = None
         self._closed = False
         self._log = get_logger(__name__).bind(component="master", link=core.plan.link.name)
+        #: tells its hook once a cycle when the cycle's answers are in (the work beside the cycle may run then)
+        self.answers_in = AnswersIn()
 
     @staticmethod
     def _now() -> int:
@@ -445,6 +448,7 @@ class Master:
         self._pump()
         if faults is not None and faults.watching:
             faults.after_cycle(now_ns)
+        self.answers_in.expect(len(out))
 
     on_cycle = _on_cycle  #: the cycle callback, for a shared clock
 
@@ -459,21 +463,26 @@ class Master:
         clean = faults is None or not faults.active
         on_response = self.core.on_response if clean else self.deliver
         burst = self._burst
+        n = 0
         if burst is not None:  # recvmmsg: what is waiting in one call, each batch stamped with the time it was read
             on_batch = self.core.on_responses if clean else self._deliver_all
             for batch in mmsg.drain(burst.recv_burst, limit, self._on_error):
                 on_batch(batch, _mono())
-            return
-        recv = sock.recv
-        for _ in range(limit):
-            try:
-                data = recv(4096)
-            except BlockingIOError:
-                return
-            except OSError as exc:
-                self._on_error(exc)
-                continue
-            on_response(data, _mono())
+                n += len(batch)
+        else:
+            recv = sock.recv
+            for _ in range(limit):
+                try:
+                    data = recv(4096)
+                except BlockingIOError:
+                    break
+                except OSError as exc:
+                    self._on_error(exc)
+                    continue
+                on_response(data, _mono())
+                n += 1
+        if n:
+            self.answers_in.answered(n)
 
     def _deliver_all(self, datagrams: list[bytes], now: int) -> None:
         """:meth:`deliver` of each of one read's answers (the faults' path of :meth:`read_responses`)."""

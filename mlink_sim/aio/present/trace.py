@@ -13,9 +13,10 @@ values and one list append; everything that can be is done once (the column gett
 second (``RttPercentiles``), the slaves' snapshots (DC bus, motor speed where the monitors do not carry them, the
 LEDs) every :data:`SNAPSHOT_EVERY_S` from the slave workers of ``mlink-sim up`` (read from the card cores at each
 sample on the virtual clock, where that is a read in this process). The stations are sampled :data:`SLICE` at a
-time, the loop free between two slices. Rows go through the writer's bounded buffer,
-flushed about once a second and at the end (:class:`~mlink_sim.metrics.trace.TraceWriter`): memory stays bounded
-however long the run.
+time, each slice in a cycle's slack (the cycle's answers in, the clock's next wake-up further off than a slice
+takes: :mod:`mlink_sim.aio.timing.slack`), so that sampling delays no answer. Rows go through the writer's bounded
+buffer (:class:`~mlink_sim.metrics.trace.TraceWriter`), written :data:`FLUSH_ROWS` at a time in the slice's step,
+the rest about once a second and at the end: memory stays bounded however long the run.
 
 Touches: the trace file (through the writer); reads the session's views, metrics, snapshots and fault stages.
 """
@@ -34,6 +35,7 @@ from typing import Any
 from ..._log import get_logger
 from ...metrics.trace import TraceWriter
 from ...operations import OPERATIONS, leds_text
+from ..timing.slack import Step
 from .figures import REGULATION_OF, NetworkFigures, station_key
 
 __all__ = ["TraceSampler", "DEFAULT_INTERVAL_NS", "SNAPSHOT_EVERY_S", "ACTING_OPS"]
@@ -44,10 +46,14 @@ log = get_logger("mlink_sim.trace")
 DEFAULT_INTERVAL_NS = 10_000_000
 #: How often the slave workers' snapshots are asked for on the wall clock (``{"op": "stats"}``, paced by the worker).
 SNAPSHOT_EVERY_S = 0.5
-#: The rows are flushed, the RTT figures and the fault episodes looked at, about this often (the run's clock).
+#: The rows left in the buffer are flushed, the RTT figures and the fault episodes looked at, about this often (the
+#: run's clock).
 FLUSH_EVERY_S = 1.0
 #: Stations sampled in one go before the loop is let go (about 0.2 ms of figures).
 SLICE = 8
+#: The rows are written to the file once this many are buffered, in the step of the slice that made them: the
+#: CSV of a second's rows at once would hold the loop for milliseconds.
+FLUSH_ROWS = 64
 #: Control operations that change the run (:data:`mlink_sim.operations.OPERATIONS` that act): each request is an
 #: ``action`` row (``control``); the others only read.
 ACTING_OPS = frozenset(op.name for op in OPERATIONS.values() if op.acts)
@@ -198,9 +204,9 @@ class TraceSampler:
 
     # ------------------------------------------------------------------ sampling
     async def _sample_loop(self, t0: float) -> None:
-        """Sample every station each interval, :data:`SLICE` stations at a time with the loop free between two
-        slices (each row carries its slice's own time), so that a large network never holds the cycle for the
-        whole time its figures take (docs/performance.md, "Live status and traces")."""
+        """Sample every station each interval, :data:`SLICE` stations at a time, each slice in a cycle's slack
+        (each row carries its slice's own time), so that a large network never holds the cycle for the time its
+        figures take and no answer waits behind them (docs/performance.md, "Live status and traces")."""
         loop = asyncio.get_running_loop()
         session, figures, writer = self.session, self.figures, self.writer
         net, metrics, station = session.net, session.metrics, figures.station
@@ -209,26 +215,34 @@ class TraceSampler:
         fabric = session.fabric if self._local else None
         snapshots = self._snapshots if fabric is not None else session.slave_snapshots
         per_flush = max(1, round(FLUSH_EVERY_S / interval))
-        k = 0
+        slack, step, other = session.slack, Step(), Step()
+        k = buffered = 0
         figures.rtt.step(metrics)
         while True:
             try:
-                for i, part in enumerate(slices):
-                    if i:
-                        await asyncio.sleep(0)
-                    if fabric is not None:
-                        self._read_cores(fabric, part)
-                    t = round(loop.time() - t0, 6)
-                    writer.add_many([_row(t, station(a, net, snapshots)) for a in part])
+                for part in slices:
+                    await slack.wait(step.need_ns)
+                    with step:
+                        if fabric is not None:
+                            self._read_cores(fabric, part)
+                        t = round(loop.time() - t0, 6)
+                        writer.add_many([_row(t, station(a, net, snapshots)) for a in part])
+                        buffered += len(part)
+                        if buffered >= FLUSH_ROWS:
+                            writer.flush()
+                            buffered = 0
             except Exception as exc:  # noqa: BLE001 - a figure that cannot be read ends the trace, not the run
                 session.problems.append(f"trace: sampling stopped at {loop.time() - t0:g} s: {exc}")
                 log.warning("trace_stopped", error=str(exc))
                 return
             k += 1
             if k % per_flush == 0:
-                figures.rtt.step(metrics)
-                self._episodes(t0)
-                writer.flush()
+                await slack.wait(other.need_ns)
+                with other:
+                    figures.rtt.step(metrics)
+                    self._episodes(t0)
+                    writer.flush()
+                    buffered = 0
             # the next instant on the schedule t0 + k·interval; instants the loop was too late for are skipped
             due = t0 + k * interval
             now = loop.time()

@@ -33,6 +33,7 @@ from ..control.network import NetworkOps
 from ..control.timeline import TimelineRunner, sleep_until
 from ..present.status import LiveStatus, StatusInfo, WorstP99, render_lines
 from ..present.trace import DEFAULT_INTERVAL_NS, TraceSampler
+from ..timing.slack import Slack
 from .session import EndpointError, NetworkSession
 from .supervisor import resolve_workers
 from .verdict import SIGNAL_EXIT, Verdict, print_summary
@@ -266,7 +267,7 @@ async def _timeline(run: _Run, session: NetworkSession, runner: TimelineRunner, 
     frame = _framer(config, session, runner.timeline, runner.ops.scales, t0, length)
     if status is not None:
         status.start()
-        tasks.append(loop.create_task(_status_loop(status, frame)))
+        tasks.append(loop.create_task(_status_loop(status, frame, session.slack)))
     end = loop.create_task(sleep_until(t0 + length / 1e9)) if length is not None else None
     waiters = {stopper} | ({end} if end else set())
     if end is None and not config.timeline:
@@ -418,7 +419,9 @@ def _framer(config: Config, session: NetworkSession, timeline: Timeline, scales:
     return frame
 
 
-async def _status_loop(status: LiveStatus, frame: Callable[[int | None], list[str]]) -> None:
+async def _status_loop(status: LiveStatus, frame: Callable[[int | None], list[str]], slack: Slack) -> None:
+    """A frame every ``status.interval``, drawn in a cycle's slack (it starts when the cycle's answers are in)."""
     while True:
         await asyncio.sleep(status.interval)
+        await slack.wait()
         status.show(frame(status.width))

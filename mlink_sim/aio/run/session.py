@@ -17,6 +17,7 @@ run directory; real-time scheduling where asked.
 from __future__ import annotations
 
 import asyncio
+import json
 import socket
 import tempfile
 import time
@@ -32,6 +33,7 @@ from ...metrics.stalls import StallLog
 from ...wire import Link
 from ..master.runner import Master
 from ..timing.heap import settle_heap
+from ..timing.slack import MARGIN_NS, Slack, Step
 from ..timing.realtime import MASTER_PRIORITY, apply, pin
 from ..timing.realtime import cpu_plan as rt_cpu_plan
 from ..timing.realtime import format_cpus as rt_format_cpus
@@ -41,9 +43,12 @@ from ..control.endpoint import query_control
 from .netapi import NetworkApi, build_plans
 from .supervisor import Worker, WorkerError, WorkerSpec, plan_workers
 
-__all__ = ["NetworkSession", "EndpointError", "flatten_counters"]
+__all__ = ["NetworkSession", "EndpointError", "flatten_counters", "SNAPSHOTS_PER_STEP"]
 
 log = get_logger("mlink_sim.session")
+
+#: the slaves' station snapshots taken into the figures this many at a time, each step in a cycle's slack
+SNAPSHOTS_PER_STEP = 8
 
 
 class EndpointError(ValueError):
@@ -87,6 +92,11 @@ class NetworkSession:
         self.net: NetworkApi | None = None
         self._clock: CycleTimer | None = None
         self._cycle_callbacks: list[Any] = []
+        #: the time between a cycle's last answer and the clock's next wake-up: the status, the trace and the
+        #: slaves' snapshots run their steps in it (:mod:`mlink_sim.aio.timing.slack`)
+        self.slack = self._new_slack()
+        self._stats_step = Step()  #: how long a step of reading the slaves' stats takes
+        self._answers_due = 0  # masters whose answers of this cycle are still to come (a shared clock)
         self.started_wall = datetime.now(UTC)
         self._cpu0 = time.process_time()
         self._wall0 = time.monotonic()
@@ -288,6 +298,7 @@ class NetworkSession:
             master.record_lateness = not self.masters
             self.masters[link] = master
         self._cycle_callbacks = [m.on_cycle for m in self.masters.values()]
+        self._watch_answers()
         self._route_impairments()
         if clock is not None:
             readers = [m.read_one for m in self.masters.values()]
@@ -302,8 +313,37 @@ class NetworkSession:
         self.net.faults = self
 
     def _on_cycle(self, cycle: int, deadline_ns: int, now_ns: int, skipped: int) -> None:
+        self._answers_due = len(self._cycle_callbacks)
         for on_cycle in self._cycle_callbacks:
             on_cycle(cycle, deadline_ns, now_ns, skipped)
+
+    def _new_slack(self) -> Slack:
+        """The slack of this session's cycles (the virtual clock's is always open)."""
+        return Slack()
+
+    def _watch_answers(self) -> None:
+        """Open :attr:`slack` once every master has this cycle's answers, until the clock's next wake-up."""
+        masters = list(self.masters.values())
+        slack = self.slack
+
+        def opened(timer: CycleTimer) -> None:
+            slack.open(timer.next_deadline_ns - timer.spin_ns - MARGIN_NS)
+
+        if self._clock is not None:  # one clock for every link: the slack opens once the last of them has its own
+            clock = self._clock
+
+            def one_in() -> None:
+                self._answers_due -= 1
+                if self._answers_due == 0:
+                    opened(clock)
+
+            for master in masters:
+                master.answers_in.hook = one_in
+            return
+        for master in masters:
+            timer = master.timer
+            if timer is not None:
+                master.answers_in.hook = lambda timer=timer: opened(timer)
 
     async def bring_up(self, timeout: float) -> list[str]:
         """Wait until every station is at its target phase or *timeout* s passed; returns (and records in
@@ -369,11 +409,20 @@ class NetworkSession:
 
     # ------------------------------------------------------------------ figures
     async def refresh_slave_stats(self) -> None:
-        """The slaves' counters and CPU time into :attr:`metrics`, their stations' snapshots into :attr:`slave_snapshots`."""
+        """The slaves' counters and CPU time into :attr:`metrics`, their stations' snapshots into
+        :attr:`slave_snapshots`: each reply read, and its stations taken :data:`SNAPSHOTS_PER_STEP` at a time, in a
+        cycle's slack (:attr:`slack`: a 31-station reply is about 27 kB of JSON)."""
         stats: dict[str, Any] = {}
+        slack, step = self.slack, self._stats_step
+
+        async def decode(data: bytes) -> Any:
+            await slack.wait(step.need_ns)
+            with step:
+                return json.loads(data)
+
         async def one(w: Worker) -> None:
             if w.alive and w.control_port:
-                reply = await query_control("127.0.0.1", w.control_port, "stats", timeout=1.0,
+                reply = await query_control("127.0.0.1", w.control_port, "stats", timeout=1.0, decode=decode,
                                             since=self.metrics.stalls.origin_ns)
                 if reply:
                     stats[f"worker:{w.spec.index}"] = reply
@@ -386,14 +435,16 @@ class NetworkSession:
         for name, reply in stats.items():
             self.metrics.record_cpu(name, reply.get("cpu_s", 0.0), reply.get("wall_s", wall) or wall)
             regulation = reply.get("regulation")
-            for key, snap in reply.get("stations", {}).items():
-                if not isinstance(snap, dict):
-                    continue
-                if isinstance(regulation, dict):  # the drive's regulation states, beside the snapshots
-                    snap["regulation"] = regulation.get(key, 0)
-                self.slave_snapshots[int(key, 16)] = snap
-                if isinstance(counters := snap.get("counters"), dict):
-                    self.metrics.record_slave_counters(int(key, 16), flatten_counters(counters))
+            snaps = [(key, snap) for key, snap in reply.get("stations", {}).items() if isinstance(snap, dict)]
+            for i in range(0, len(snaps), SNAPSHOTS_PER_STEP):
+                await slack.wait(step.need_ns)
+                with step:
+                    for key, snap in snaps[i:i + SNAPSHOTS_PER_STEP]:
+                        if isinstance(regulation, dict):  # the drive's regulation states, beside the snapshots
+                            snap["regulation"] = regulation.get(key, 0)
+                        self.slave_snapshots[int(key, 16)] = snap
+                        if isinstance(counters := snap.get("counters"), dict):
+                            self.metrics.record_slave_counters(int(key, 16), flatten_counters(counters))
 
     def reset_metrics(self) -> None:
         """Start the master-side figures afresh (e.g. after bring-up, to measure the steady state only). The

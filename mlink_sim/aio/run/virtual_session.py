@@ -32,6 +32,7 @@ from ...operations import OpError
 from ..virtual.fabric import Fabric, FabricPort, VirtualCycle
 from ..slave.faults import apply_drive_fault, release_drive_fault
 from ..timing.heap import settle_heap
+from ..timing.slack import Slack
 from ..master.runner import Master, MetricsSink, NullMetrics
 from ..present.figures import REGULATION_WINDOW_NS
 from .netapi import NetworkApi, build_plans
@@ -194,6 +195,10 @@ class VirtualSession(NetworkSession):
         self.net.faults = self
         settle_heap(collect=False)  # as the real-time session, without the collection (docs/performance.md)
         cycle.start()
+
+    def _new_slack(self) -> Slack:
+        """Always open: simulated cycles take no wall time, so nothing beside them can delay an answer."""
+        return Slack(always=True)
 
     def _capture_flusher(self, period_ns: int) -> Any:
         """The cycle callback that writes the capture in place every :data:`CAPTURE_FLUSH_NS` of simulated time

@@ -10,7 +10,10 @@ is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it
 * :class:`Port`: one station as its socket sees it. :meth:`Port.serve` hands a read's datagrams to the card
   (``Station.receive``) and collects the answers. More than *keep* datagrams from one source in one read means
   the worker fell that many cycles behind: the oldest are counted as ``SUPERSEDED`` drops and only the newest
-  *keep* are answered (``SlaveServer._keep_behind`` says why, and how "absorb" sizes it).
+  *keep* are answered (``SlaveServer._keep_behind`` says why, and how "absorb" sizes it). Once the answers are
+  sent, :meth:`Port.after_send` has the card finish what its commands left for after their answers
+  (``Station.finish``: log lines, settings built ahead; docs/timing.md, "When each command is answered") and hands
+  an EEPROM image it made to the server: nothing of that is between a command and its answer.
 * :class:`Bus`: the stations of one shared socket. :meth:`Bus.serve` groups a read by station byte (each
   station's datagrams in arrival order, the stations in the order they first appear) and serves each group
   through that station's :class:`Port`. A read with one datagram per station (every cycle's, unless the worker
@@ -24,8 +27,8 @@ is for is the envelope's station byte (byte 3, docs/wire-format.md), and what it
   code), so that the cards' time is no longer between the master's commands and their answers; once the read's
   answers are sent, :meth:`Bus.settle` hands those datagrams to their cards (``receive``, at the read's time), counts
   any answer of theirs that differs from the one sent in :attr:`Port.mispredicted` (and in the card's
-  ``internal_errors``: it would be a bug, and it is logged), and takes every served card's
-  next prediction. In a read with several commands for a station, the prediction is moved on from one to the next
+  ``internal_errors``: it would be a bug, and it is logged), has every card that took a command of the read finish
+  what it left (:meth:`Port.after_send`), and takes every served card's next prediction. In a read with several commands for a station, the prediction is moved on from one to the next
   (``Prediction.advance``), so a backlog is answered ahead as a cycle is; where it stops holding (or a station has
   none), the card takes the commands answered so far, then the next one in the chain, and the prediction it offers
   right after answers the rest ahead again (:meth:`Bus._serve_backlog`). Whatever else reaches a card between
@@ -95,8 +98,6 @@ class Port:
                 n += 1
         if n:
             self.responses += n
-        if self.station.eeprom_pending:
-            self.on_eeprom(self.hosted)
 
     def serve_one(self, data: bytes, addr: Any, now: int, out: Batch) -> None:
         """One datagram for this station, taken by its card at *now*: a read with one for it, or a backlog's
@@ -106,7 +107,13 @@ class Port:
         if response is not None:
             out.append((response, addr))
             self.responses += 1
-        if self.station.eeprom_pending:
+
+    def after_send(self) -> None:
+        """Once the answers of a read are sent: the card finishes what its commands left for after their answers
+        (``Station.finish``), and an EEPROM image it made goes to the server (*on_eeprom*)."""
+        station = self.station
+        station.finish()
+        if station.eeprom_pending:
             self.on_eeprom(self.hosted)
 
     def serve_untrusted(self, data: bytes, addr: Any, now: int, out: Batch) -> None:
@@ -129,8 +136,6 @@ class Port:
             if self.mispredicted == 1:
                 _log.error("answer_mispredicted", station=f"{station.address:02X}H", sent=answer.hex(),
                            card=None if response is None else response.hex())
-        if station.eeprom_pending:
-            self.on_eeprom(self.hosted)
 
     def forget(self) -> None:
         """Drop the card's prediction: something other than a read reached the card."""
@@ -149,6 +154,7 @@ class Bus:
         self._now: int = 0  # the last read's stamp
         self._sent_ahead: list[tuple[Port, bytes, Any, bytes]] = []  # the last read's, until settle()
         self._served: list[Port] = []  # the ports whose card took (or, after settle, takes) a command of the last read
+        self._untrusted: list[Port] = []  # the ports whose card took a datagram of another source in the last read
 
     def serve(self, batch: Batch) -> Batch:
         """The answers to one read of the shared socket, in the order the stations first appear in it (a backlog's
@@ -216,6 +222,7 @@ class Bus:
                 self.unaddressed += 1
             else:
                 port.serve_untrusted(data, addr, now, out)
+                self._untrusted.append(port)
 
     def _serve_backlog(self, port: Port, items: Batch, now: int, out: Batch) -> bool:
         """A station's commands of one read (at most *keep*), in order: as many as its prediction answers ahead
@@ -274,7 +281,9 @@ class Bus:
 
     def settle(self) -> None:
         """After the last read's answers went out: the commands answered ahead go to their cards, at the read's
-        time (:meth:`Port.settle`), and every card that took a command in the read offers its next prediction."""
+        time (:meth:`Port.settle`), every card that took a datagram in the read finishes what it left for after its
+        answer (:meth:`Port.after_send`), and every card that took a command in the read offers its next
+        prediction."""
         now = self._now
         sent_ahead = self._sent_ahead
         if sent_ahead:
@@ -285,8 +294,14 @@ class Bus:
         served = self._served
         if served:
             for port in served:
+                port.after_send()
                 port.pred = port.station.prediction(now)
             served.clear()
+        untrusted = self._untrusted
+        if untrusted:
+            for port in untrusted:
+                port.after_send()
+            untrusted.clear()
 
     @property
     def mispredicted(self) -> int:

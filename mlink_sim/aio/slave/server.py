@@ -1,6 +1,7 @@
 """The slave side over UDP: one datagram endpoint per hosted station, feeding the sans-I/O card cores.
 
-The server only moves bytes and keeps time: ``datagram -> station.receive(data, addr, now) -> sendto``. Each
+The server only moves bytes and keeps time: ``datagram -> station.receive(data, addr, now) -> sendto``, then
+``station.finish()`` (what the command left for after its answer: docs/timing.md, "When each command is answered"). Each
 station's socket is read in batches; a backlog beyond eight commands per source is superseded
 (``SlaveServer._port``, :mod:`mlink_sim.aio.slave.bus`). A 1 ms housekeeping tick calls ``station.poll(now)`` for
 stations whose deadline has come (silence detection, drive). EEPROM images the cards hand over (``take_eeprom``)
@@ -24,6 +25,7 @@ import os
 import resource
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -41,7 +43,8 @@ from .bus import Bus, Port, due
 from .state import atomic_write, eeprom_path, remove_stale_temps
 from ..transport.tapped import tap
 from ..transport.udp import BatchEndpoint, open_batch_endpoint
-from ..timing.realtime import yield_after_send
+from ..timing.realtime import background_thread, yield_after_send
+from ..timing.slack import Slack, Step
 
 __all__ = ["HostedStation", "SlaveServer"]
 
@@ -58,10 +61,13 @@ _BURST = 64  # datagrams read per wake-up of a station's socket at most (a share
 _RCVBUF = 1 << 20
 _STALLS_REPORTED = 256  # recent stalls in each stats reply (the session keeps them by time)
 _COMPACT = (",", ":")  # json.dumps separators of the control replies
-_STATS_PACE_S = 0.001  #: the worker's sleep between two stations of a stats reply (SlaveServer._reply_stats)
+_STATS_PACE_S = 0.001  #: the longest wait for a slack between two stations of a stats reply (SlaveServer.stats_text)
 #: … for this long at most: the rest without a pause, so that the reply stays well inside the 1 s a query waits
 #: (``query_control``) on a loaded host too (docs/performance.md, "A worker's stats reply")
 _STATS_PACED_S = 0.3
+#: after a read's answers are sent (and the cards settled), the worker's loop is free this long for the work beside
+#: the commands (a stats reply's steps): half the shortest transmission cycle (SI-ET3 Table 28, 250 µs)
+_SLACK_NS = _MIN_CYCLE_NS // 2
 
 
 def _cpu_seconds() -> float:
@@ -142,6 +148,9 @@ class SlaveServer:
         self._tick: asyncio.TimerHandle | None = None
         self._pending_writes: dict[Path, tuple[HostedStation, int, bytes]] = {}
         self._writer: asyncio.Task[None] | None = None
+        #: the thread that writes the EEPROM images, in the background (realtime.background_thread): at the loop's
+        #: real-time priority it would hold the worker's CPU while the commands of the cycle wait
+        self._writes: ThreadPoolExecutor | None = None
         self._write_wakeup = asyncio.Event()
         self._started_wall = time.monotonic()
         self._started_cpu = _cpu_seconds()
@@ -151,6 +160,9 @@ class SlaveServer:
         self._phases = {id(hs): hs.station.phase for hs in stations}
         self._cores = [hs.station for hs in stations]  #: the card cores, for the tick's scan (``bus.due``)
         self.plants = PlantFaults()  #: drive faults in force (a slave's ``fault`` operation)
+        #: the time after a read's answers went, where a stats reply's steps run (:mod:`mlink_sim.aio.timing.slack`)
+        self.slack = Slack(max_wait_s=_STATS_PACE_S)
+        self._stats_step = Step()
         for hs in stations:
             if self.state_dir is not None and hs.eeprom is None:
                 hs.eeprom = eeprom_path(self.state_dir, hs.station.card, hs.station.address)
@@ -256,7 +268,7 @@ class SlaveServer:
         """The batch handler of one station's own socket: the answers go back on it (one ``sendto``, or a burst
         after a backlog)."""
         port = self._port(hs)
-        serve, allow = port.serve, self.allow
+        serve, after_send, allow, slack = port.serve, port.after_send, self.allow, self.slack
 
         def on_batch(batch: list[tuple[bytes, Any]]) -> None:
             out: list[tuple[bytes, Any]] = []
@@ -269,11 +281,15 @@ class SlaveServer:
             if batch:
                 serve(batch, out)
             endpoint = hs.endpoint
-            if endpoint is not None and out:
-                if len(out) == 1:  # the common case: one command, one answer
-                    endpoint.sendto(*out[0])
-                else:
-                    endpoint.send_burst(out)
+            try:
+                if endpoint is not None and out:
+                    if len(out) == 1:  # the common case: one command, one answer
+                        endpoint.sendto(*out[0])
+                    else:
+                        endpoint.send_burst(out)
+            finally:
+                after_send()  # what the commands left for after their answers (Station.finish)
+                slack.open(time.monotonic_ns() + _SLACK_NS)
 
         return on_batch
 
@@ -293,7 +309,7 @@ class SlaveServer:
         their predictions answered (:meth:`Bus.settle <mlink_sim.aio.slave.bus.Bus.settle>`)."""
         bus = Bus([self._port(hs) for hs in group], time.monotonic_ns)
         self._buses.append(bus)
-        serve, settle, allow = bus.serve, bus.settle, self.allow
+        serve, settle, allow, slack = bus.serve, bus.settle, self.allow, self.slack
         first = group[0]  # its endpoint is the group's (set once the socket is bound)
 
         pause = yield_after_send()  # the master reads its answers before the settle (realtime.yield_after_send)
@@ -313,6 +329,7 @@ class SlaveServer:
                         pause()
             finally:
                 settle()
+                slack.open(time.monotonic_ns() + _SLACK_NS)
 
         return on_batch
 
@@ -337,6 +354,7 @@ class SlaveServer:
                 hs.endpoint.read_pending()
             self._forget(hs)
             st.poll(now)
+            st.finish()  # what the poll found (a reception failure, bUS) is logged now
             self._collect_eeprom(hs)
         if self._capture is not None:
             self._note_phases(now)
@@ -404,8 +422,10 @@ class SlaveServer:
             self._write_wakeup.clear()
             while self._pending_writes:
                 path, (hs, generation, data) = self._pending_writes.popitem()
+                if self._writes is None:
+                    self._writes = ThreadPoolExecutor(1, "eeprom", initializer=background_thread)
                 try:
-                    await loop.run_in_executor(None, atomic_write, path, data)
+                    await loop.run_in_executor(self._writes, atomic_write, path, data)
                 except OSError as exc:
                     self.write_errors += 1
                     log.error("eeprom_write_failed", path=str(path), error=str(exc))
@@ -416,6 +436,8 @@ class SlaveServer:
                 self._forget(hs)
                 hs.station.eeprom_durable(generation, ok=ok)  # written, fsync'd, renamed: the CONFIG may complete
             if self._closing:
+                if self._writes is not None:
+                    self._writes.shutdown(wait=False)
                 return
 
     # -- control ----------------------------------------------------------------------------------------------
@@ -447,18 +469,23 @@ class SlaveServer:
 
     async def stats_text(self, since: int = 0, **extra: Any) -> str:
         """:meth:`stats` (and *extra* fields) as the JSON text of a reply (``"ok": true`` first), built one station
-        at a time, the worker sleeping :data:`_STATS_PACE_S` between two (the loop answers the bursts meanwhile, and
-        the CPU is free for the master), for :data:`_STATS_PACED_S` at most: built at once, the stats of many
+        at a time, each in the slack after a read's answers went (:attr:`slack`; at most :data:`_STATS_PACE_S`
+        later where no commands come), for :data:`_STATS_PACED_S` at most: built at once, the stats of many
         stations would hold the worker's loop for milliseconds and make answers late (docs/performance.md, "A
         slave's stats"). Each station's figures are its own at one instant; the stations' instants lie up to that
         long apart."""
         head = json.dumps({"ok": True, **self._stats_head(since), **extra}, separators=_COMPACT)
         parts = []
         paced_until = time.monotonic() + _STATS_PACED_S
+        step = self._stats_step
         for hs in list(self.stations):
-            key, snap = self._station_stats(hs)
-            parts.append(f'"{key}":{json.dumps(snap, separators=_COMPACT)}')
-            await asyncio.sleep(_STATS_PACE_S if time.monotonic() < paced_until else 0)
+            if time.monotonic() < paced_until:
+                await self.slack.wait(step.need_ns)
+            else:
+                await asyncio.sleep(0)
+            with step:
+                key, snap = self._station_stats(hs)
+                parts.append(f'"{key}":{json.dumps(snap, separators=_COMPACT)}')
         return f'{head[:-1]},"stations":{{{",".join(parts)}}}}}'
 
     def _poll_stats(self) -> dict[str, int]:

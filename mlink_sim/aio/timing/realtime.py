@@ -23,7 +23,9 @@ Four requests, each granted or refused on its own and reported in one line:
   service or a process started by hand has no cpuset of its own, so it places itself.
 
 Besides, under ordinary scheduling too: :func:`yield_after_send`, the one ``os.sched_yield`` a process makes right
-after it sent what wakes another process.
+after it sent what wakes another process; and :func:`background_thread`, the scheduling of a thread that works
+beside the loop (an EEPROM image's write): a thread inherits its creator's ``SCHED_FIFO``, and at the loop's own
+priority it would hold the CPU until it blocks, while the loop's commands wait.
 
 Nothing here raises: a refusal (no ``CAP_SYS_NICE``, ``RLIMIT_MEMLOCK``, a container without the capability, no
 access to ``/dev/cpu_dma_latency``) is reported and the run goes on with ordinary scheduling.
@@ -41,7 +43,7 @@ from collections.abc import Callable
 
 from ...units import format_cpus, parse_cpus
 
-__all__ = ["yield_after_send", "MASTER_PRIORITY", "WORKER_PRIORITY", "PM_QOS_PATH", "allowed_cpus", "cpu_plan", "format_cpus",
+__all__ = ["yield_after_send", "background_thread", "MASTER_PRIORITY", "WORKER_PRIORITY", "PM_QOS_PATH", "allowed_cpus", "cpu_plan", "format_cpus",
            "parse_cpus", "apply", "pin", "withdraw", "unplace_child", "hold_wakeup_latency", "wakeup_latency_held",
            "wakeup_latency_limit", "release_wakeup_latency"]
 
@@ -80,6 +82,22 @@ def yield_after_send() -> Callable[[], None] | None:
     it too, between two cycles of a catch-up after a stall, and the arrival poll between two empty reads, for the
     same reason (docs/timing.md, "The catch-up yields")."""
     return getattr(os, "sched_yield", None)
+
+
+def background_thread() -> None:
+    """Make the calling thread a background one: ``SCHED_IDLE`` (ordinary scheduling where that is refused), so that
+    the event loop's thread preempts it the moment a datagram or its clock wakes it (a thread pool's
+    ``initializer``). Linux schedules threads one by one (``sched_setscheduler`` of 0 is the calling thread); a
+    thread the loop's real-time thread starts inherits its ``SCHED_FIFO`` priority, and at the same priority on the
+    same CPU the loop waits until the thread blocks. Nothing raises."""
+    for policy in (getattr(os, "SCHED_IDLE", None), getattr(os, "SCHED_OTHER", None)):
+        if policy is None:
+            continue
+        try:
+            os.sched_setscheduler(0, policy, os.sched_param(0))
+            return
+        except OSError:
+            continue
 
 
 def cpu_plan(cpus: set[int] | None = None) -> tuple[set[int], set[int]]:

@@ -186,6 +186,7 @@ class Fabric:
         clock = self.clock
         now = clock.now
         response = station.receive(data, port.name, now)
+        station.finish()  # what the command left for after its answer (no other work waits on simulated time)
         if station.eeprom_pending:
             self._save(node, station)
         armed = node.armed
@@ -239,6 +240,7 @@ class Fabric:
         due = station.next_deadline()
         if due is not None and due <= now:
             station.poll(now)
+            station.finish()
             if station.eeprom_pending:
                 self._save(node, station)
             due = station.next_deadline()

@@ -86,7 +86,7 @@ def test_the_station_byte_picks_the_station_and_the_stations_keep_their_first_or
 def test_a_read_with_one_datagram_per_station_is_served_in_its_order() -> None:
     """The common read (each station's command of one cycle, served in one pass): the stations in arrival order,
     each answer to its datagram's source, a datagram for no station here counted, the answers counted per station,
-    an EEPROM image handed over after the read that left it."""
+    an EEPROM image handed over once the answers of the read that left it are sent (settle), not before."""
     taken: list[Any] = []
     ports = [_port(a, eeprom=taken) for a in (0x21, 0x22, 0x23)]
     bus = Bus(ports)
@@ -95,6 +95,8 @@ def test_a_read_with_one_datagram_per_station_is_served_in_its_order() -> None:
     assert _answered(bus.serve(batch)) == [(0x23, 1, SOURCE), (0x21, 1, OTHER), (0x22, 1, SOURCE)]
     assert [p.hosted.responses for p in ports] == [1, 1, 1]
     assert bus.unaddressed == 1
+    assert taken == []
+    bus.settle()
     assert taken == [ports[1].hosted]
 
 
@@ -117,14 +119,18 @@ def test_a_backlog_beyond_keep_per_source_is_superseded() -> None:
 
 
 def test_an_eeprom_image_the_card_holds_after_a_read_is_handed_over() -> None:
-    """docs/cards.md, "EEPROM": the worker writes the image the card hands over (``take_eeprom``); the read that
-    left one pending calls *on_eeprom* with its hosted station, a read that left none does not."""
+    """docs/cards.md, "EEPROM": the worker writes the image the card hands over (``take_eeprom``); once the answers
+    of a read that left one pending are sent (``after_send``) *on_eeprom* has its hosted station, not before; a read
+    that left none does not call it."""
     taken: list[Any] = []
     port = _port(0x21, eeprom=taken)
     port.serve([(_nop(0x21, 1), SOURCE)], [])
+    port.after_send()
     assert taken == []
     port.station.eeprom.dirty = True  # what a CONFIG to EEPROM (or a fault-history change) leaves behind
     port.serve([(_nop(0x21, 2), SOURCE)], [])
+    assert taken == []
+    port.after_send()
     assert taken == [port.hosted]
 
 
