@@ -32,7 +32,8 @@ def _params(op: Operation) -> list[click.Parameter]:
             continue
         kind = arg.kind
         if kind.cli == "argument":
-            out.append(click.Argument([arg.python], required=arg.required, metavar=kind.metavar))
+            metavar = kind.metavar + ("|NAME" if arg.name == "station" and _takes_a_name_there(op) else "")
+            out.append(click.Argument([arg.python], required=arg.required, metavar=metavar))
         elif kind.cli == "flag":
             out.append(click.Option([arg.option, arg.python], is_flag=True, default=None, help=arg.help))
         elif kind.cli == "switch":  # one flag per choice, the default first: --forward / --reverse
@@ -49,7 +50,10 @@ def _params(op: Operation) -> list[click.Parameter]:
 
 def _help(op: Operation) -> str:
     who = ", ".join(ANSWERED_BY[e] for e in ENDPOINTS if e in op.endpoints)
-    args = "\n".join(f"  {a.kind.metavar:<18} {a.help}" for a in op.args if a.cli and a.kind.cli == "argument")
+    named = _takes_a_name_there(op)
+    args = "\n".join(f"  {a.kind.metavar + ('|NAME' if named else ''):<18} {a.help}"
+                     + (" Or the name of an impairment or a fault in force: that one." if named else "")
+                     for a in op.args if a.cli and a.kind.cli == "argument")
     cites = f"\n\n({op.cites})" if op.cites else ""
     return f"{op.summary}\n\nAnswered by {who}." + (f"\n\n\b\n{args}" if args else "") + cites
 
@@ -77,6 +81,8 @@ def _command(op: Operation) -> click.Command:
         if shared["control_token"] is not None or shared["control_token_file"] is not None:
             token = resolve_token(shared["control_token"], shared["control_token_file"])
         args = {name: value for name, value in values.items() if value is not None}
+        if _name_in_station_place(op, args):
+            args["name"] = args.pop("station")
         request = usage(request_of(op.name, **args))
         station = _station(op, args)
         reply = ask(where, request, timeout, token, station=station)
@@ -91,6 +97,23 @@ def _command(op: Operation) -> click.Command:
 
     return click.Command(op.name, callback=callback, params=[*_params(op), *_shared_params()], help=_help(op),
                          short_help=op.summary)
+
+
+def _takes_a_name_there(op: Operation) -> bool:
+    """``heal loss-21H-1``: an operation whose one positional argument is an optional station and which takes a
+    ``name`` takes the name in the station's place (a name never reads as a station: mlink_sim.impair.names)."""
+    positional = [a for a in op.args if a.cli and a.kind.cli == "argument"]
+    return (len(positional) == 1 and positional[0].name == "station" and not positional[0].required
+            and any(a.name == "name" for a in op.args))
+
+
+def _name_in_station_place(op: Operation, args: dict[str, Any]) -> bool:
+    """The station argument given is a name (:func:`_takes_a_name_there`)."""
+    from ..impair import check_name
+
+    given = args.get("station")
+    return (_takes_a_name_there(op) and isinstance(given, str) and "name" not in args
+            and check_name(given) is None)
 
 
 def _station(op: Operation, args: dict[str, Any]) -> int | None:

@@ -102,12 +102,12 @@ async def _serve(links: list[Any], spec: Any, seed: int, control_addr: tuple[str
     server = ControlServer(ImpairmentOps(proxy).handlers(), "proxy", token=token)
     try:
         await proxy.start()
-        if spec is not None:
-            proxy.impair(None, spec)
+        named = proxy.impair(None, spec) if spec is not None else None
         where = None if control_addr is None else await server.start(*control_addr)
         for link in proxy.links:
             print(f"mlink-sim proxy: {link.listen[0]}:{link.listen[1]} -> {link.to[0]}:{link.to[1]}", flush=True)
-        print(f"mlink-sim proxy ready: seed {seed}; impair: {spec.describe() if spec else 'none'}; control: "
+        print(f"mlink-sim proxy ready: seed {seed}; impair: {f'{named} ({spec.describe()})' if spec else 'none'}; "
+              "control: "
               + (f"{where[0]}:{where[1]}" if where else "off"), flush=True)
         await stop.wait()
     finally:

@@ -287,6 +287,8 @@ class TimelineStep(BaseModel):
     torque: float | None = Field(None, description="load: N·m of constant load torque added")
     inertia: float | None = Field(None, description="load: kg·m² of inertia added")
     within: DurationNs | None = Field(None, description="recovered: the longest recovery time, e.g. '50ms'")
+    name: str | None = Field(None, description="impair and the faults: its name (docs/faults.md, \"Names\"; default: "
+                             "made, e.g. 'loss-21H-1'); heal: only the impairment or fault of this name")
 
     @field_validator("alarm")
     @classmethod

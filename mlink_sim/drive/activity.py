@@ -20,7 +20,7 @@ from .faults import Fault
 from .integrate import IntegratorState
 from .settings import DriveSettings, Family
 
-__all__ = ["DriveActivity", "PARAM_ROLES", "ramp_seconds", "read_activity"]
+__all__ = ["DriveActivity", "PARAM_ROLES", "REGULATION", "regulation_names", "ramp_seconds", "read_activity"]
 
 #: Setting -> parameter name, per family (docs/drive-model.md sections 3 and 5). ``None``: the drive has no
 #: parameter for it (the VS-606V7's decel stall level and speed-agree width are fixed).
@@ -40,6 +40,25 @@ PARAM_ROLES: dict[Family, dict[str, str | None]] = {
         "stop_method": "n005", "agree_width": None,
     },
 }
+
+
+#: The states in which the drive's own regulation holds its output (:meth:`mlink_sim.drive.Drive.regulation`, one bit
+#: each): (bit, name, what it is, the parameters behind it: A1000 / VS-606V7). The A1000's "stall prevention" is the
+#: first two: a current limit while accelerating, a DC-bus regulation while decelerating (docs/drive-model.md
+#: section 5).
+REGULATION: tuple[tuple[int, str, str, str], ...] = (
+    (1, "stall-accel", "current limit: stall prevention during acceleration holds the ramp at the stall current",
+     "L3-01, L3-02 / n093"),
+    (2, "stall-decel", "DC bus regulation: stall prevention during deceleration holds the ramp while the DC bus is at "
+     "its stall level", "L3-04 / n092"),
+    (4, "torque-limit", "torque limit: the torque held at the network's torque limit, or a torque reference applied",
+     "F6-06, d5-01"),
+)
+
+
+def regulation_names(code: int) -> tuple[str, ...]:
+    """The names of the :data:`REGULATION` states in *code* (``2`` -> ``("stall-decel",)``)."""
+    return tuple(name for bit, name, _, _ in REGULATION if code & bit)
 
 
 def ramp_seconds(delta_hz: float, time_s: float, max_hz: float, s_start: float = 0.0, s_end: float = 0.0) -> float:

@@ -16,7 +16,8 @@ from typing import Final
 
 from .activity import DriveActivity, read_activity
 from .faults import Fault, minor_code
-from .integrate import CHANGED, IntegratorState, begin_search, ol1_trip_ahead, steady_to, substep
+from .integrate import (CHANGED, NEVER_HELD, IntegratorState, begin_search, held_since, note_held, ol1_trip_ahead, steady_to,
+                        substep)
 from .monitors import read_monitor, read_sel_mon
 from .motor import LoadSpec, vf_voltage
 from .settings import DriveSettings, Family, StopMethod, _ref_to_hz
@@ -63,7 +64,7 @@ class Drive:
         "family", "settings", "load", "_x", "_events", "_remote_override", "_sub", "_t", "_cmd",
         "_fault", "_fault_stop", "_history", "_latched", "_cond", "_ope", "_stop_alarm", "_d104", "_ef_since",
         "_event_at", "_status", "_skey", "_slast", "steady_epoch", "_ref_hz", "_remote", "_net_run", "_net_ref",
-        "_aim", "_aim_at", "_aim_from", "_fault_at", "_fast", "_use2",
+        "_aim", "_aim_at", "_aim_from", "_fault_at", "_fast", "_use2", "_held_at",
     )
 
     def __init__(self, family: Family, settings: DriveSettings, load: LoadSpec, *, now: int = 0,
@@ -99,6 +100,8 @@ class Drive:
         self._fault_at = 0
         self._fast = False
         self._use2 = False
+        #: when each regulation state (activity.REGULATION: stall-accel, stall-decel, torque-limit) was last on
+        self._held_at = [NEVER_HELD, NEVER_HELD, NEVER_HELD]
         #: Bumped whenever the drive becomes steady or stops being steady: while it is steady and this number
         #: is unchanged, no output or monitor of the drive changes (only the oL1 thermal state moves).
         self.steady_epoch = 0
@@ -412,6 +415,14 @@ class Drive:
             if ev is not None and self._t == ev and self._event_at == ev:
                 self._event_at = None
                 self._recompute()
+        if x.held or x.hold_acc or x.hold_dec or x.tlimited:
+            note_held(x, self._held_at, self._t)
+
+    def regulation(self, since_ns: int) -> int:
+        """The regulation states (:data:`~.activity.REGULATION` bits) the drive was in at some time from *since_ns*
+        to :attr:`now` (:func:`~.integrate.held_since`). Reading it changes nothing (docs/drive-model.md,
+        "Activity")."""
+        return held_since(self._x, self._held_at, since_ns)
 
     def _after_substep(self, result: int) -> None:
         if result == CHANGED:

@@ -34,6 +34,7 @@ integrated step (``python -m benchmarks.micro.drive``).  The determinism tests
 from __future__ import annotations
 
 import math
+from typing import Final
 
 from .faults import Fault
 from .motor import LoadSpec, MotorConstants
@@ -50,6 +51,9 @@ __all__ = [
     "ol1_trip_ahead",
     "steady_to",
     "substep",
+    "NEVER_HELD",
+    "note_held",
+    "held_since",
 ]
 
 INF = math.inf
@@ -76,7 +80,7 @@ class IntegratorState:
     __slots__ = (
         # state
         "m", "q", "dir", "out", "fout", "w", "T", "I", "P", "E", "V", "theta",
-        "hold_acc", "hold_dec", "tlimited", "steady", "dyn",
+        "hold_acc", "hold_dec", "tlimited", "held", "steady", "dyn",
         # inputs, set by the drive: mains on, run allowed, target magnitude and direction, ramp rate and jerk
         # limits (accel A, Js at the start, Je at the end; decel D, Jds, Jde), torque mode 0 speed /
         # 1 limit / 2 control and its value (N m)
@@ -98,6 +102,9 @@ class IntegratorState:
         self.T = self.I = self.P = 0.0
         self.dir = 1
         self.out = self.hold_acc = self.hold_dec = self.tlimited = self.steady = False
+        #: the holds (REGULATION bits of drive.activity) turned on since the drive last took them: a hold goes on
+        #: and off every few milliseconds around its level, within one advance
+        self.held = 0
         self.dyn: frozenset[Fault] = frozenset()  # Uv / ov minors found by the integrator
         self.mains, self.run = True, False
         self.mt = 0.0
@@ -351,6 +358,8 @@ def substep(x: IntegratorState, h: float) -> int:
         ha, hd = I1 >= acc_lvl, V >= dec_lvl
         if ha != x.hold_acc or hd != x.hold_dec or limited != x.tlimited:
             x.hold_acc, x.hold_dec, x.tlimited = ha, hd, limited
+            if ha or hd or limited:
+                x.held |= (1 if ha else 0) | (2 if hd else 0) | (4 if limited else 0)
         if not x.run and m1 == 0.0 and q == 0.0:
             changed = True  # stop completed: baseblock
         if x.ss_hi is not None and not changed:
@@ -458,3 +467,29 @@ def restart_watch(x: IntegratorState, h: float, i: float) -> bool:
     else:
         begin_search(x, x.ss_start, ss.wait_s)
     return True
+
+
+# ---------------------------------------------------------------------------------------------- regulation
+#: The time a regulation state was last on, for one never on.
+NEVER_HELD: Final = -(1 << 62)
+
+
+def note_held(x: IntegratorState, at: list[int], t: int) -> None:
+    """The holds on during the last advance (:attr:`IntegratorState.held`) or on now were on at *t*: *at* is the
+    time each of stall-accel, stall-decel, torque-limit (drive.activity.REGULATION) was last on."""
+    bits = x.held | (1 if x.hold_acc else 0) | (2 if x.hold_dec else 0) | (4 if x.tlimited else 0)
+    x.held = 0
+    if bits & 1:
+        at[0] = t
+    if bits & 2:
+        at[1] = t
+    if bits & 4:
+        at[2] = t
+
+
+def held_since(x: IntegratorState, at: list[int], since: int) -> int:
+    """The REGULATION bits of the holds on at some time from *since* on (*at*: :func:`note_held`'s times): stall
+    prevention during acceleration (the current limit) or deceleration (the DC bus regulation), the torque limit;
+    one on at the last advance is on still (a steady drive is not advanced)."""
+    return ((1 if x.hold_acc or at[0] >= since else 0) | (2 if x.hold_dec or at[1] >= since else 0)
+            | (4 if x.tlimited or at[2] >= since else 0))

@@ -34,6 +34,9 @@ class Episode:
     notes: list[str] = field(default_factory=list)
     healthy_since: int | None = None  #: start of the current run of healthy polls
     healthy_polls: int = 0
+    name: str = ""  #: the fault's name (docs/faults.md, "Names"), once the control plane gave it one
+    #: what the fault did to the station's datagrams while it was in force (the report's ``injected`` keys)
+    injected: dict[str, int] = field(default_factory=dict)
 
     @property
     def recovery_ns(self) -> int | None:
@@ -45,7 +48,8 @@ class Episode:
     def as_dict(self) -> dict[str, object]:
         """The episode as JSON (a control reply, the plugin's host)."""
         return {"station": self.station, "what": self.what, "start_ns": self.start_ns, "end_ns": self.end_ns,
-                "recovered_ns": self.recovered_ns, "recovery_ns": self.recovery_ns, "notes": list(self.notes)}
+                "recovered_ns": self.recovered_ns, "recovery_ns": self.recovery_ns, "notes": list(self.notes),
+                "name": self.name, "injected": dict(self.injected)}
 
 
 class RecoveryLog:

@@ -59,6 +59,11 @@ class StationTraits:
     subcmd: bool = False  #: CONNECT with SUBCMD = 1 (32-byte MECHATROLINK-II, 64-byte III)
 
 
+#: Each master-side fault's slots in a station's state: its episode, and what keeps it in force.
+_SLOTS = {"silence": ("silence_ep", "silence_until"), "skip-cycles": ("skip_ep", "skip"),
+          "freeze-wdt": ("freeze_ep", "freeze_until"), "bad-command": ("bad_ep", "bad")}
+
+
 class _State:
     __slots__ = ("traits", "silence_until", "silence_ep", "skip", "skip_ep", "freeze_until", "freeze_ep",
                  "frozen", "bad", "bad_ep", "watch", "answers")
@@ -146,22 +151,26 @@ class FaultStage:
     def begin(self, station: int, fault: FaultSpec, now: int, end_ns: int | None = None) -> Episode:
         """A fault applied elsewhere (a drive fault on the slave side) begins at *now*: measure its recovery."""
         self._state(station)
-        self._count(station, "drive_faults")
-        return self.log.begin(station, fault.describe, now, end_ns)
+        ep = self.log.begin(station, fault.describe, now, end_ns)
+        self._count(station, "drive_faults", ep)
+        return ep
 
     def end(self, episode: Episode, now: int) -> None:
         """The fault of *episode* ended at *now* (a drive fault whose end the caller applied)."""
         self.log.end(episode, now)
 
-    def clear(self, station: int | None, now: int) -> None:
-        """End every master-side fault of *station* (None: of every station) at *now*."""
+    def clear(self, station: int | None, now: int, actions: Iterable[str] | None = None) -> None:
+        """End every master-side fault of *station* (None: of every station) at *now*; of the *actions* only
+        (``"silence"``, ``"skip-cycles"``, ``"freeze-wdt"``, ``"bad-command"``) if given."""
+        wanted = None if actions is None else set(actions)
         for address, st in self._st.items():
             if station is not None and address != station:
                 continue
-            for ep in (st.silence_ep, st.skip_ep, st.freeze_ep, st.bad_ep):
-                self._close(ep, now)
-            st.silence_until = st.freeze_until = st.skip = st.bad = None
-            st.silence_ep = st.skip_ep = st.freeze_ep = st.bad_ep = None
+            for action, (episode, holds) in _SLOTS.items():
+                if wanted is None or action in wanted:
+                    self._close(getattr(st, episode), now)
+                    setattr(st, episode, None)
+                    setattr(st, holds, None)
         self._refresh()
 
     def busy(self, station: int) -> bool:
@@ -200,7 +209,7 @@ class FaultStage:
                 first = cycle
                 st.skip = (count, first)
             if (cycle - first) & 0xFFFFFFFF < count:
-                self._count(station, "skips")
+                self._count(station, "skips", st.skip_ep)
                 return None
             st.skip = None  # the first command after the skipped cycles: the fault's end
             if st.skip_ep is not None:
@@ -217,7 +226,7 @@ class FaultStage:
                 if wdt is not None:
                     if st.frozen is None:
                         st.frozen = (wdt - 1) & 0xF  # it stops: the first frozen command repeats the last count
-                    self._count(station, "wdt_freezes")
+                    self._count(station, "wdt_freezes", st.freeze_ep)
                     datagram = frames.set_wdt_count(datagram, st.frozen)
         if st.bad is not None and frames.is_cyclic(datagram):
             datagram = self._bad(st, datagram, now)
@@ -240,7 +249,7 @@ class FaultStage:
         until = st.silence_until
         if until is not None:
             if now < until:
-                self._count(station, "silences")
+                self._count(station, "silences", st.silence_ep)
                 return None
             st.silence_until = st.silence_ep = None
             self._refresh()
@@ -257,7 +266,7 @@ class FaultStage:
         st.bad = st.bad_ep = None
         replaced = frames.bad_command(datagram, fault.kind, subcmd=st.traits.subcmd, family=st.traits.family)
         st.watch = (cycle_of(datagram), "after" if fault.kind == "phase" else "this", ep)
-        self._count(st.traits.address, "bad_commands")
+        self._count(st.traits.address, "bad_commands", ep)
         self.log.end(ep, now)
         return replaced
 
@@ -288,6 +297,8 @@ class FaultStage:
     def _refresh(self) -> None:
         self.active = any(st.busy for st in self._st.values())
 
-    def _count(self, station: int, what: str) -> None:
+    def _count(self, station: int, what: str, episode: Episode | None) -> None:
         counts = self._counts.setdefault(station, {})
         counts[what] = counts.get(what, 0) + 1
+        if episode is not None:
+            episode.injected[what] = episode.injected.get(what, 0) + 1

@@ -42,10 +42,10 @@ DEFAULT_HOLD_NS = 1_000_000
 
 
 class PathState:
-    """One path (a station, one direction): its random generator, its datagram interval, per-stage state and
-    the injected counters of its station."""
+    """One path (a station, one direction): its random generator, its datagram interval, per-stage state, the
+    injected counters of its station and (:attr:`tally`) those of the fault whose stage runs now."""
 
-    __slots__ = ("station", "direction", "rng", "last_ns", "interval_ns", "scratch", "_counts")
+    __slots__ = ("station", "direction", "rng", "last_ns", "interval_ns", "scratch", "tally", "_counts")
 
     def __init__(self, seed: int, station: int, direction: Direction, counts: Counter[str]) -> None:
         self.station = station
@@ -54,10 +54,16 @@ class PathState:
         self.last_ns: int | None = None
         self.interval_ns = 0  #: time between the last two datagrams of this path
         self.scratch: dict[Any, Any] = {}  #: per-stage state (the Gilbert–Elliott chain's state)
+        #: the counters of the fault the running stage belongs to (the layer sets it before each stage)
+        self.tally: Counter[str] | None = None
         self._counts = counts
 
     def count(self, kind: str, n: int = 1) -> None:
+        """Count *n* of *kind* injected: for the station and for the fault whose stage runs."""
         self._counts[kind] += n
+        tally = self.tally
+        if tally is not None:
+            tally[kind] += n
 
     def enter(self, now: int) -> None:
         if self.last_ns is not None and now > self.last_ns:

@@ -2,9 +2,12 @@
 
 From a run report (docs/report.md) and, where there is one, its trace (:mod:`mlink_sim.metrics.trace`): the
 verdict; each check with the station's figures at that moment (its last trace sample at or before the check's
-time); the ``--assert`` bounds; the RTT histogram (the report's ``rtt.bins``) and the per-station round trips;
-per station its reference and output frequency, output current and DC bus voltage over time, with the actions
-marked and the faults shaded; the faults injected against their recovery times; the host stalls; the actions.
+time); the ``--assert`` bounds; the RTT histogram (the report's ``rtt.bins``) beside the round trips over time, and
+the per-station round trips; per station its reference and output frequency (signed: a reverse run below 0 Hz),
+output current and DC bus voltage over time, with the actions and checks as numbered marks listed under the plots,
+and the faults and the drive's regulation (stall prevention, the torque limit) shaded, in the plotting vocabulary
+the live page shares (:mod:`mlink_sim.plots`); the faults injected against their recovery times; the host stalls;
+the actions.
 
 Self-contained: inline CSS and inline SVG (:mod:`mlink_sim.metrics.svg`, why no script: there), no ``src`` or
 ``href`` that leaves the file, so it opens from disk, from a CI's artifacts or a mail with no network. Text from
@@ -14,14 +17,16 @@ the report and the trace is escaped. Written atomically (:func:`write_html`).
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Mapping, Sequence
 from html import escape
 from typing import Any
 
 from .._files import write_atomically
+from ..plots import BANDS, BEFORE_ZERO, MARKS, STATION_PLOTS, TIME_LABEL, mark_kind
 from ..units import format_ns
 from .svg import Mark, Series, Span, bar_chart, line_chart
-from .trace import Trace
+from .trace import StationTrace, Trace
 
 __all__ = ["render_html", "write_html", "verdict_of", "check_moments", "tail_folded"]
 
@@ -37,8 +42,18 @@ text-align:left;vertical-align:top}th{background:#f5f5f5}td.n{text-align:right;f
 .ok{color:#1d6e1a;font-weight:600}.bad{color:#a11b10;font-weight:600}.muted{color:#777;fill:#777}
 svg.plot{max-width:100%;height:auto;margin:4px 0;font-size:11px}svg .axes line{stroke:#999}
 svg .grid{stroke:#eee}svg text{fill:#333}svg .plot-title{font-weight:600;font-size:12px}
+svg text.mark-n{fill:#fff;font-weight:700;font-size:9px}
 .scroll{overflow-x:auto}code{font-size:12px}
+.pair{display:grid;grid-template-columns:1fr 1fr;gap:8px}@media (max-width:800px){.pair{grid-template-columns:1fr}}
+ol.marks{list-style:none;padding:0;margin:4px 0 12px;columns:2 360px;font-size:12px}
+ol.marks li{break-inside:avoid;margin:1px 0}
+.n{display:inline-block;min-width:16px;padding:0 3px;border-radius:8px;color:#fff;font-size:10px;font-weight:700;
+text-align:center;margin-right:4px}.sw{display:inline-block;width:12px;height:10px;margin:0 3px 0 10px;opacity:.6}
+.n,.sw,svg{-webkit-print-color-adjust:exact;print-color-adjust:exact}
+@media print{.pair{grid-template-columns:1fr}h3{break-after:avoid}svg.plot{break-inside:avoid}}
 """
+#: Numbered marks drawn per station at most; the rest are in the actions table.
+MAX_MARKS = 99
 
 #: Figures shown beside a check (trace columns) and their headings.
 _AT_CHECK = (("phase", "phase"), ("running", "run"), ("direction", "dir"), ("reference_hz", "ref Hz"),
@@ -97,7 +112,7 @@ def render_html(report: Mapping[str, Any], trace: Trace | None = None) -> str:
         _overview(report),
         _checks(report, trace),
         _assertions(report),
-        _rtt(report),
+        _rtt(report, trace),
         _traces(trace),
         _faults(report, trace),
         _stalls(report),
@@ -196,15 +211,18 @@ def tail_folded(bins: Sequence[Sequence[int]], keep: float = 0.999, room: int = 
             f"The last bar holds the {n} round trip(s) from {format_ns(tail[0][0])} to {format_ns(tail[-1][1])}.")
 
 
-def _rtt(report: Mapping[str, Any]) -> str:
+def _rtt(report: Mapping[str, Any], trace: Trace | None = None) -> str:
     rtt = report.get("rtt", {})
     bins, folded = tail_folded(rtt.get("bins") or [])
+    over_time = _rtt_over_time(trace)
+    width = _HALF if over_time else 860  # side by side: each at half the width, its text as large
     chart = bar_chart(f"Round trips, all stations ({rtt.get('count', 0)})", bins, x_label="round trip",
-                      label_of=format_ns)
-    if folded:
-        chart += f'<p class="muted">{_e(folded)}</p>'
+                      label_of=format_ns, width=width)
     if not bins and rtt.get("count"):
         chart = '<p class="muted">This report has no histogram bins (written by an older version).</p>'
+    chart = f'<div class="pair"><div>{chart}</div><div>{over_time}</div></div>' if over_time else chart
+    if folded:
+        chart += f'<p class="muted">{_e(folded)}</p>'
     rows = []
     for key, st in sorted(report.get("station", {}).items()):
         h = st.get("rtt", {})
@@ -216,27 +234,95 @@ def _rtt(report: Mapping[str, Any]) -> str:
                       "WDT errors", "alarms"), rows, numeric=range(1, 11)))
 
 
-def _marks(trace: Trace, address: str) -> tuple[list[Mark], list[Span]]:
-    """The actions on *address* (or on every station) as marks, the faults in force as spans."""
-    marks: list[Mark] = []
+_RTT_LINES = 8  # stations drawn one line each at most; more: the worst of them at each moment
+_HALF = 540  # the width of each of two plots side by side
+
+
+def _rtt_over_time(trace: Trace | None) -> str:
+    """Each station's latest round trip over the run (the trace's ``rtt_us``), faults and impairments shaded; over
+    :data:`_RTT_LINES` stations, the worst at each moment."""
+    if trace is None or not trace.stations:
+        return ""
+    stations = sorted(trace.stations.items())
+    if len(stations) <= _RTT_LINES:
+        series = [Series(f"{int(a, 16):02X}H", st.t, st.series["rtt_us"]) for a, st in stations]
+    else:
+        steps = [(st.t[-1] - st.t[0]) / (len(st.t) - 1) for _, st in stations if len(st.t) > 1]
+        step = max(steps) if steps and max(steps) > 0 else 1.0
+        worst: dict[float, float] = {}
+        for _, st in stations:
+            for t, v in zip(st.t, st.series["rtt_us"], strict=True):
+                if v is not None:
+                    k = round(round(t / step) * step, 6)
+                    worst[k] = max(worst.get(k, v), v)
+        xs = sorted(worst)
+        series = [Series(f"worst of {len(stations)} stations", xs, [worst[x] for x in xs])]
+    spans = [sp for a, _ in stations for sp in _fault_spans(trace, a, only_own=True)]
+    return line_chart("Round trips over time (each station's latest)", series, y_label="µs", x_label=TIME_LABEL,
+                      spans=spans, x_range=trace.span, width=_HALF)
+
+
+def _fault_spans(trace: Trace, address: str, *, only_own: bool = False) -> list[Span]:
+    """The faults and impairments in force on *address* (and, unless *only_own*, on every station) as spans."""
     spans: list[Span] = []
-    open_: dict[tuple[str, str], list[float]] = {}
+    open_: dict[tuple[str, str], list[tuple[float, str]]] = {}
     end = trace.span[1] if trace.span else 0.0
+    color, what = BANDS["fault"]["color"], BANDS["fault"]["label"]
     for a in trace.actions:
-        if a["address"] not in ("", address):
+        if a["address"] != address and (only_own or a["address"] != ""):
             continue
         ev = a["event"]
         if ev in _FAULT_START:
-            open_.setdefault((_FAULT_START[ev], a["address"]), []).append(a["t_s"])
+            open_.setdefault((_FAULT_START[ev], a["address"]), []).append((a["t_s"], a["detail"]))
         elif ev in _FAULT_START.values() and open_.get((ev, a["address"])):
-            t0 = open_[(ev, a["address"])].pop(0)
-            spans.append(Span(t0, a["t_s"], f"{ev.replace('-end', '')} {t0:g}–{a['t_s']:g} s"))
-        if ev in ("step", "control", "fault", "impair-start", "recovered", "unrecovered"):
-            color = {"recovered": "#2ca02c", "unrecovered": "#d62728", "fault": "#d62728"}.get(ev, "#888")
-            marks.append(Mark(a["t_s"], f"{a['t_s']:g} s {ev}: {a['detail']}", color))
-    for (ev, _), starts in open_.items():
-        spans.extend(Span(t0, end, f"{ev.replace('-end', '')} from {t0:g} s (not ended)") for t0 in starts)
-    return marks, spans
+            t0, detail = open_[(ev, a["address"])].pop(0)
+            spans.append(Span(t0, a["t_s"], f"{what}: {detail}, {t0:g}–{a['t_s']:g} s", color))
+    for starts in open_.values():
+        spans.extend(Span(t0, end, f"{what}: {detail}, from {t0:g} s (not ended)", color) for t0, detail in starts)
+    return spans
+
+
+def _marks(trace: Trace, address: str) -> tuple[list[Mark], int]:
+    """The actions and checks on *address* (or on every station) as marks numbered in time order; how many more
+    there were than :data:`MAX_MARKS`."""
+    marks: list[Mark] = []
+    more = 0
+    for a in trace.actions:
+        if a["address"] not in ("", address):
+            continue
+        kind = mark_kind(a["event"], a["detail"])
+        if kind is None:
+            continue
+        if len(marks) == MAX_MARKS:
+            more += 1
+            continue
+        label = f"{_when(a['t_s'])}  {_mark_text(a['event'], a['detail'])}"
+        marks.append(Mark(a["t_s"], label, MARKS[kind]["color"], len(marks) + 1, kind))
+    return marks, more
+
+
+_CHECK = re.compile(r"(ok|FAIL) (?:[\d.]+s (?:station [0-9A-F]{2}H|all stations): )?(.*)", re.S)
+_STEP = re.compile(r"[\d.]+s (.*)", re.S)
+
+
+def _mark_text(event: str, detail: str) -> str:
+    """What a numbered mark stands for, without what its place says already (its time, its station)."""
+    if event == "check" and (m := _CHECK.fullmatch(detail)):
+        what, _, seen = m.group(2).partition(": ")
+        return f"{'held' if m.group(1) == 'ok' else 'FAILED'}: {what}" + (f" ({seen})" if seen else "")
+    if event == "step" and (m := _STEP.fullmatch(detail)):
+        return m.group(1)
+    return f"{event}: {detail}"
+
+
+def _regulation_spans(st: StationTrace) -> list[Span]:
+    return [Span(t0, t1, f"{BANDS[state]['label']}, {t0:g}–{t1:g} s", BANDS[state]["color"], state)
+            for t0, t1, state in st.bands if state in BANDS]
+
+
+def _when(t: float) -> str:
+    """A trace time as the page writes it; before the timeline's 0 s: said to be bring-up."""
+    return f"{t:g} s" + (f" ({BEFORE_ZERO})" if t < 0 else "")
 
 
 def _traces(trace: Trace | None) -> str:
@@ -244,24 +330,40 @@ def _traces(trace: Trace | None) -> str:
         return ""
     if not trace.stations:
         return "<h2>Stations over time</h2><p class=\"muted\">The trace has no samples.</p>"
-    out = [f"<h2>Stations over time</h2><p class=\"muted\">From the trace <code>{_e(trace.path)}</code>; dashed "
-           "lines: actions (hover for what), shaded: faults and impairments in force.</p>"]
+    out = [f"<h2>Stations over time</h2><p class=\"muted\">From the trace <code>{_e(trace.path)}</code>. Numbered: "
+           "the actions and checks, listed under each station's plots; shaded: faults and impairments in force and "
+           "the drive's own regulation (stall prevention, the torque limit). A reverse run is below 0 Hz.</p>"]
     x_range = trace.span
     for address, st in sorted(trace.stations.items()):
-        marks, spans = _marks(trace, address)
+        marks, more = _marks(trace, address)
+        spans = _fault_spans(trace, address) + _regulation_spans(st)
         label = f"{int(address, 16):02X}H"
         label += f" ({st.name})" if st.name and st.name != label else ""
         thinned = f" (every {st.stride}th of {st.samples} samples)" if st.stride > 1 else ""
-        out.append(f"<h3 id=\"station-{_e(address)}\">Station {_e(label)}{_e(thinned)}</h3>")
-        s = st.series
-        out.append(line_chart(f"{label}: frequency", [Series("reference Hz", st.t, s["reference_hz"]),
-                                                      Series("output Hz", st.t, s["output_hz"])],
-                              y_label="Hz", marks=marks, spans=spans, x_range=x_range))
-        out.append(line_chart(f"{label}: output current", [Series("current A", st.t, s["output_current_a"])],
-                              y_label="A", marks=marks, spans=spans, x_range=x_range))
-        out.append(line_chart(f"{label}: DC bus", [Series("DC bus V", st.t, s["dc_bus_v"])],
-                              y_label="V", marks=marks, spans=spans, x_range=x_range))
+        out.append(f"<section class=\"station-plots\"><h3 id=\"station-{_e(address)}\">Station {_e(label)}"
+                   f"{_e(thinned)}</h3>")
+        for plot in STATION_PLOTS:
+            series = [Series(sr["label"], st.t, st.series[sr["key"]], sr["color"], dash=bool(sr.get("dash")))
+                      for sr in plot["series"]]
+            out.append(line_chart(f"{label}: {plot['title']}", series, y_label=plot["unit"], x_label=TIME_LABEL,
+                                  marks=marks, spans=spans, x_range=x_range))
+        out.append(_legend(marks, more, spans) + "</section>")
     return "".join(out)
+
+
+def _legend(marks: Sequence[Mark], more: int, spans: Sequence[Span]) -> str:
+    """What each number and each shade of a station's plots is, as text, so that it prints."""
+    items = "".join(f'<li data-n="{m.number}" data-kind="{_e(m.kind)}"><span class="n" style="background:'
+                    f'{m.color}">{m.number}</span>{_e(m.label)}</li>' for m in marks)
+    out = f'<ol class="marks">{items}</ol>' if items else ""
+    if more:
+        out += f'<p class="muted">{more} more action(s) and check(s): the actions table below.</p>'
+    shades = [b for b in dict.fromkeys(sp.band for sp in spans) if b in BANDS]
+    if shades:
+        out += '<p class="bands">shaded:' + "".join(
+            f'<span class="sw" style="background:{BANDS[b]["color"]}"></span>{_e(BANDS[b]["label"])}'
+            for b in shades) + "</p>"
+    return out
 
 
 def _faults(report: Mapping[str, Any], trace: Trace | None) -> str:
@@ -329,8 +431,9 @@ def _stalls(report: Mapping[str, Any]) -> str:
 def _actions(trace: Trace | None) -> str:
     if trace is None or not trace.actions:
         return ""
-    rows = [(f"{a['t_s']:.3f} s", f"{int(a['address'], 16):02X}H" if a["address"] else "all", _e(a["event"]),
-             _e(a["detail"])) for a in trace.actions]
+    rows = [(f"{a['t_s']:.3f} s" + (f" ({BEFORE_ZERO})" if a["t_s"] < 0 else ""),
+             f"{int(a['address'], 16):02X}H" if a["address"] else "all", _e(a["event"]), _e(a["detail"]))
+            for a in trace.actions]
     more = (f"<p class=\"muted\">{trace.actions_dropped} more action(s) in the trace are not shown.</p>"
             if trace.actions_dropped else "")
     return "<h2>Actions</h2>" + _table(("at", "station", "event", "what"), rows, numeric=(0,)) + more

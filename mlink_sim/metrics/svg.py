@@ -5,15 +5,17 @@ Static SVG rather than a JavaScript plotting library: the report is a CI artifac
 each of them, prints, and needs no library vendored into every file. A plot is one ``<svg>`` element with its
 axes, ticks, a legend and a ``<title>`` per series (the browser shows it on hover).
 
-Two kinds: :func:`line_chart` (series over time, with marks and shaded spans for actions) and :func:`bar_chart`
-(the RTT histogram's bins).
+Two kinds: :func:`line_chart` (series over time, with numbered marks for actions and checks and shaded spans for
+faults and the drive's regulation: mlink_sim.plots, the vocabulary the live page shares) and :func:`bar_chart` (the
+RTT histogram's bins). A mark's number is printed in the plot, and the page lists what each number is, so a printed
+or archived report needs no hover.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from html import escape
 
 __all__ = ["Series", "Mark", "Span", "line_chart", "bar_chart", "nice_ticks", "PALETTE"]
@@ -32,25 +34,31 @@ class Series:
     ys: Sequence[float | None]
     color: str = ""
     points: bool = False  #: dots instead of a line (events such as host stalls)
+    dash: bool = False  #: a dashed line (a reference beside what follows it)
 
 
 @dataclasses.dataclass(frozen=True)
 class Mark:
-    """A vertical line at *x* (an action: a step, a fault), labelled on hover."""
+    """A vertical line at *x* (an action, a check, a fault), with its *number* printed at its top (None: none) and
+    its *label* on hover."""
 
     x: float
     label: str
     color: str = "#888"
+    number: int | None = None
+    kind: str = ""  #: its mlink_sim.plots.MARKS kind (``data-kind`` of its element)
 
 
 @dataclasses.dataclass(frozen=True)
 class Span:
-    """A shaded band from *x0* to *x1* (a fault in force)."""
+    """A shaded band from *x0* to *x1* (a fault in force, the drive's regulation), of *band* (mlink_sim.plots.BANDS;
+    ``data-band`` of its element)."""
 
     x0: float
     x1: float
     label: str
     color: str = "#f4c7c3"
+    band: str = "fault"
 
 
 def nice_ticks(lo: float, hi: float, count: int = 5) -> list[float]:
@@ -110,14 +118,14 @@ def line_chart(title: str, series: Sequence[Series], *, y_label: str, x_label: s
         a, b = px(max(sp.x0, x0)), px(min(sp.x1, x1))
         if b >= a:
             out.append(f'<rect x="{a}" y="{_TOP}" width="{max(b - a, 1.0)}" height="{ph}" fill="{sp.color}" '
-                       f'opacity="0.6"><title>{escape(sp.label)}</title></rect>')
+                       f'opacity="0.6" class="band" data-band="{escape(sp.band)}"><title>{escape(sp.label)}</title>'
+                       "</rect>")
     out.append(_axes(width, height, [(py(v), _fmt(v)) for v in yt],
                      [(px(v), _fmt(v)) for v in nice_ticks(x0, x1, 8) if x0 <= v <= x1], x_label, y_label))
-    for m in marks:
-        if x0 <= m.x <= x1:
-            x = px(m.x)
-            out.append(f'<line x1="{x}" y1="{_TOP}" x2="{x}" y2="{_TOP + ph}" stroke="{m.color}" '
-                       f'stroke-dasharray="3,3"><title>{escape(m.label)}</title></line>')
+    if y0 < 0 < y1:
+        out.append(f'<line x1="{_LEFT}" y1="{py(0.0)}" x2="{width - _RIGHT}" y2="{py(0.0)}" class="zero" '
+                   'stroke="#777" stroke-width="1"/>')
+    out.extend(_marks([m for m in marks if x0 <= m.x <= x1], px, _TOP + ph))
     for i, s in enumerate(series):
         color = s.color or PALETTE[i % len(PALETTE)]
         label = escape(s.label)
@@ -128,11 +136,36 @@ def line_chart(title: str, series: Sequence[Series], *, y_label: str, x_label: s
             continue
         for run in _runs(s.xs, s.ys):
             pts = " ".join(f"{px(x)},{py(y)}" for x, y in run)
-            out.append(f'<polyline fill="none" stroke="{color}" stroke-width="1.5" class="series" points="{pts}">'
-                       f"<title>{label}</title></polyline>")
+            dash = ' stroke-dasharray="5,4"' if s.dash else ""
+            out.append(f'<polyline fill="none" stroke="{color}" stroke-width="1.5"{dash} class="series" '
+                       f'points="{pts}"><title>{label}</title></polyline>')
     out.append(_legend([(s.label, s.color or PALETTE[i % len(PALETTE)]) for i, s in enumerate(series)], width))
     out.append("</svg>")
     return "".join(out)
+
+
+_MARK_ROWS = 3  # rows the numbered circles are staggered over where they would overlap
+_MARK_R = 7
+
+
+def _marks(marks: Sequence[Mark], px: Callable[[float], float], bottom: float) -> list[str]:
+    """Each mark as a line with its number in a circle at its top; circles closer than two radii move down a row."""
+    out = []
+    last: list[float] = [-1e9] * _MARK_ROWS
+    for m in sorted(marks, key=lambda m: m.x):
+        x = px(m.x)
+        row = next((r for r in range(_MARK_ROWS) if x - last[r] >= 2 * _MARK_R + 1), _MARK_ROWS - 1)
+        last[row] = x
+        y = _TOP + _MARK_R + 1 + row * (2 * _MARK_R + 2)
+        label = escape(m.label)
+        number = "" if m.number is None else (
+            f'<circle cx="{x}" cy="{y}" r="{_MARK_R}" fill="{m.color}"/>'
+            f'<text x="{x}" y="{y + 3}" text-anchor="middle" class="mark-n">{m.number}</text>')
+        out.append(f'<g class="mark" data-kind="{escape(m.kind)}" data-n="{"" if m.number is None else m.number}">'
+                   f"<title>{label}</title>"
+                   f'<line x1="{x}" y1="{_TOP}" x2="{x}" y2="{bottom}" stroke="{m.color}" stroke-width="1" '
+                   f'opacity="0.8"/>{number}</g>')
+    return out
 
 
 def bar_chart(title: str, bins: Sequence[Sequence[int]], *, x_label: str, y_label: str = "count",

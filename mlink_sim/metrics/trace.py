@@ -19,8 +19,9 @@ last flush (:func:`read_trace` skips a torn last line). A trace is a stream, not
 through ``write_atomically``.
 
 :func:`read_trace` reads a trace back for the HTML report in bounded memory: at most ``max_points`` samples per
-station are kept (every 2nd, 4th … once there are more), the actions up to :data:`MAX_ACTIONS`, and each station's
-full figures at the moments asked for (the checks' times).
+station are kept (every 2nd, 4th … once there are more), the actions up to :data:`MAX_ACTIONS`, each station's
+bands of regulation (from every sample, up to :data:`MAX_BANDS`) and each station's full figures at the moments
+asked for (the checks' times).
 """
 
 from __future__ import annotations
@@ -31,7 +32,9 @@ import os
 from collections.abc import Iterable, Mapping, Sequence
 from typing import IO, Any
 
-__all__ = ["TRACE_COLUMNS", "FIGURE_COLUMNS", "PLOT_COLUMNS", "ACTION_EVENTS", "MAX_ACTIONS", "TraceWriter",
+from ..plots import BRIDGE_S
+
+__all__ = ["TRACE_COLUMNS", "FIGURE_COLUMNS", "PLOT_COLUMNS", "ACTION_EVENTS", "MAX_ACTIONS", "MAX_BANDS", "TraceWriter",
            "Trace", "StationTrace", "TraceError", "read_trace"]
 
 #: A station's figures in a ``sample`` row, in order: the station figures of ``aio/present/figures.py`` flattened (the
@@ -39,13 +42,15 @@ __all__ = ["TRACE_COLUMNS", "FIGURE_COLUMNS", "PLOT_COLUMNS", "ACTION_EVENTS", "
 FIGURE_COLUMNS: tuple[str, ...] = (
     "address", "name", "card", "link", "phase", "connected", "alarm_code", "alarm_name", "warnings", "leds",
     "running", "direction", "reference_hz", "output_hz", "output_current_a", "dc_bus_v", "motor_speed_rpm",
-    "rtt_p50_us", "rtt_p99_us", "missed", "late",
+    "regulation", "rtt_us", "rtt_p50_us", "rtt_p99_us", "missed", "late",
 )
 #: The header of a trace.
 TRACE_COLUMNS: tuple[str, ...] = ("t_s", "kind", *FIGURE_COLUMNS, "event", "detail")
 #: The numeric figures :func:`read_trace` keeps per sample for the plots.
 PLOT_COLUMNS: tuple[str, ...] = ("reference_hz", "output_hz", "output_current_a", "dc_bus_v", "motor_speed_rpm",
-                                 "phase")
+                                 "phase", "rtt_us")
+#: :func:`read_trace` keeps this many bands of the drive's regulation per station; more are counted.
+MAX_BANDS = 2_000
 #: The ``event`` of an ``action`` row.
 ACTION_EVENTS: dict[str, str] = {
     "step": "a timeline action began (its description)",
@@ -64,6 +69,7 @@ MAX_ACTIONS = 5_000
 _T, _KIND, _ADDRESS = 0, 1, 2
 _EVENT, _DETAIL = len(TRACE_COLUMNS) - 2, len(TRACE_COLUMNS) - 1
 _PLOT_INDEX = tuple(TRACE_COLUMNS.index(c) for c in PLOT_COLUMNS)
+_REGULATION = TRACE_COLUMNS.index("regulation")
 _BLANK_FIGURES = ("",) * (len(FIGURE_COLUMNS) - 1)  # an action row's figures after its address
 
 
@@ -149,6 +155,41 @@ class StationTrace:
         default_factory=lambda: {c: [] for c in PLOT_COLUMNS})
     stride: int = 1
     samples: int = 0  #: samples in the file
+    #: ``(start, end, state)``: where the drive's regulation held it (a ``regulation`` state; every sample, not the
+    #: thinned ones), a gap under :data:`mlink_sim.plots.BRIDGE_S` bridged
+    bands: list[tuple[float, float, str]] = dataclasses.field(default_factory=list)
+    bands_dropped: int = 0
+    _open: dict[str, list[float]] = dataclasses.field(default_factory=dict, repr=False)  # state -> [start, last]
+
+    @property
+    def regulating(self) -> bool:
+        """A band is open (its state seen lately)."""
+        return bool(self._open)
+
+    def regulated(self, t: float, text: str) -> None:
+        """The sample at *t* had the regulation *text* (``stall-decel|torque-limit``; empty: none)."""
+        states = text.split("|") if text else ()
+        for state, span in list(self._open.items()):
+            if state not in states and t - span[1] > BRIDGE_S:
+                self._close(state)
+        for state in states:
+            seen = self._open.get(state)
+            if seen is None:
+                self._open[state] = [t, t]
+            else:
+                seen[1] = t
+
+    def close_bands(self) -> None:
+        for state in list(self._open):
+            self._close(state)
+        self.bands.sort()
+
+    def _close(self, state: str) -> None:
+        start, end = self._open.pop(state)
+        if len(self.bands) < MAX_BANDS:
+            self.bands.append((start, end, state))
+        else:
+            self.bands_dropped += 1
 
 
 @dataclasses.dataclass
@@ -219,6 +260,8 @@ def read_trace(path: str | os.PathLike[str], *, max_points: int = 2000,
                     st = stations[address] = StationTrace(address, row[_ADDRESS + 1])
                 first = t if first is None else first
                 end = t
+                if row[_REGULATION] or st.regulating:
+                    st.regulated(t, row[_REGULATION])
                 times = wanted.get(address)
                 if times is not None:
                     i = nxt[address]
@@ -245,6 +288,8 @@ def read_trace(path: str | os.PathLike[str], *, max_points: int = 2000,
         for moment in times[nxt.get(address, 0):]:
             if address in last:
                 at[(address, moment)] = dict(zip(TRACE_COLUMNS, last[address], strict=True))
+    for st in stations.values():
+        st.close_bands()
     actions.sort(key=lambda a: a["t_s"])
     span = None if first is None or end is None else (first, end)
     return Trace(path, stations, actions, dropped, at, span, torn)

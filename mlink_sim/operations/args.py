@@ -17,11 +17,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..faults.spec import FAULT_ACTIONS
+from ..impair.names import check_name
 from ..units import parse_address, parse_duration_ns
 
 __all__ = ["ERROR_KINDS", "OpError", "Kind", "Arg", "check_speed", "station_name", "KINDS", "STATION", "STATIONS",
            "HZ", "DIRECTION", "PARAM", "VALUE", "FLAG", "SINCE", "TEXT", "PROBABILITY", "DURATION", "NUMBER",
-           "COUNT", "HANDLE", "LINK_DIRECTION", "NAME", "IMPAIRMENT", "FAULT", "FAULT_ACTION", "FAULT_KIND"]
+           "COUNT", "HANDLE", "LINK_DIRECTION", "NAME", "FAULT_NAME", "IMPAIRMENT", "FAULT", "FAULT_ACTION",
+           "FAULT_KIND"]
 
 #: The kinds of a refusal, in the order of the HTTP statuses the web API answers them with (400, 404, 404, 422,
 #: 409, 409; docs/control.md, "Errors").
@@ -179,6 +181,16 @@ def _duration(name: str, value: Any) -> str:
     return f"{ns}ns"
 
 
+def _fault_name(name: str, value: Any) -> str:
+    """The name of an impairment or a fault (:func:`mlink_sim.impair.names.check_name`: never a station)."""
+    if not isinstance(value, str):
+        raise _bad(name, "a name such as 'lossy-link'", value)
+    why = check_name(value.strip())
+    if why is not None:
+        raise OpError("bad_request", f"{name}: {why}")
+    return value.strip()
+
+
 def _spec(name: str, value: Any) -> str:
     if not isinstance(value, str) or not value.strip():
         raise _bad(name, "a spec such as 'loss=10%,for=2s' or 'silence,for=200ms'", value)
@@ -204,6 +216,9 @@ FLAG = Kind("flag", "", "true or false", {"type": "boolean"}, _flag, cli="flag")
 SINCE = Kind("since", "N", "an event number: the events after it", {"type": "integer", "minimum": 0}, _whole(0))
 TEXT = Kind("text", "TEXT", "text", {"type": "string"}, _text)
 NAME = Kind("name", "NAME", "a name", {"type": "string"}, _text, cli="argument")
+FAULT_NAME = Kind("fault-name", "NAME", "a name of an impairment or a fault: a letter, then letters, digits, '-', "
+                  "'_' or '.' (not a station)", {"type": "string", "pattern": r"^[A-Za-z][A-Za-z0-9_.-]{0,39}$",
+                                                 "examples": ["loss-21H-1"]}, _fault_name)
 PROBABILITY = Kind("probability", "P", "a probability per datagram, 0…1 or a percentage such as 5%",
                    {"type": ["number", "string"], "examples": ["5%"]}, _given)
 DURATION = Kind("duration", "DURATION", "a duration such as 200ms or 2s (a bare number is seconds)",
@@ -224,7 +239,7 @@ FAULT_KIND = Kind("fault-kind", "phase|combination|data-size", "which command a 
 
 #: Every kind, by name.
 KINDS: dict[str, Kind] = {k.name: k for k in (STATION, STATIONS, HZ, DIRECTION, LINK_DIRECTION, PARAM, VALUE, FLAG,
-                                              SINCE, TEXT, NAME, PROBABILITY, DURATION, NUMBER, COUNT, HANDLE,
+                                              SINCE, TEXT, NAME, FAULT_NAME, PROBABILITY, DURATION, NUMBER, COUNT, HANDLE,
                                               IMPAIRMENT, FAULT, FAULT_ACTION, FAULT_KIND)}
 
 

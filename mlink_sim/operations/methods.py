@@ -125,27 +125,28 @@ class NetworkOperations:
         return self._perform("kill-slave", station=station)
 
     @_summary("impair")
-    def impair(self, station: Station = "all", spec: str | None = None, *, loss: float | str | None = None,
-               burst: float | None = None, delay: float | str | None = None, jitter: float | str | None = None,
+    def impair(self, station: Station = "all", spec: str | None = None, *, name: str | None = None,
+               loss: float | str | None = None, burst: float | None = None, delay: float | str | None = None, jitter: float | str | None = None,
                duplicate: float | str | None = None, reorder: float | str | None = None,
                corrupt: float | str | None = None, direction: str | None = None,
                for_: float | str | None = None) -> dict[str, Any]:
         """Give the impairment as text (``impair(0x21, "loss=10%,for=2s")``) or as its fields (``impair(0x21,
-        loss=0.1, for_=2.0)``; durations: a number of seconds or text with a unit)."""
-        return self._perform("impair", station=station, spec=spec, loss=loss, burst=burst, delay=delay,
+        loss=0.1, for_=2.0)``; durations: a number of seconds or text with a unit). The reply's ``name`` is what
+        :meth:`heal` takes."""
+        return self._perform("impair", station=station, spec=spec, name=name, loss=loss, burst=burst, delay=delay,
                              jitter=jitter, duplicate=duplicate, reorder=reorder, corrupt=corrupt,
                              direction=direction, for_=for_)
 
     @_summary("heal")
-    def heal(self, station: Station = "all") -> int:
-        """Returns how many impairments ended."""
-        return int(self._perform("heal", station=station)["ended"])
+    def heal(self, station: Station = "all", name: str | None = None) -> int:
+        """Returns how many impairments and faults ended (``heal(name="loss-21H-1")``: that one)."""
+        return int(self._perform("heal", station=station, name=name)["ended"])
 
     @_summary("fault")
     def fault(self, station: Station = "all", spec: str | None = None, *, do: str | None = None,
-              for_: float | str | None = None, count: int | None = None, kind: str | None = None,
+              name: str | None = None, for_: float | str | None = None, count: int | None = None, kind: str | None = None,
               torque: float | None = None, inertia: float | None = None) -> dict[str, Any]:
         """Give the fault as text (``fault(0x21, "silence,for=200ms")``) or as ``do`` and its fields (``fault(0x21,
         do="load", torque=5.0, for_=1.0)``). The reply's ``episodes`` hold each station's episode."""
-        return self._perform("fault", station=station, spec=spec, do=do, for_=for_, count=count, kind=kind,
+        return self._perform("fault", station=station, spec=spec, do=do, name=name, for_=for_, count=count, kind=kind,
                              torque=torque, inertia=inertia)

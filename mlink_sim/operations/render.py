@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from ..plots import BEFORE_ZERO
 from ..units import parse_address
 from .args import station_name
 
@@ -56,7 +57,8 @@ def alarm_text(alarm: Mapping[str, Any] | None) -> str:
 
 
 def event_text(event: Mapping[str, Any]) -> str:
-    """One event of a run (docs/control.md, "Events") as a line: its time, its kind, what happened."""
+    """One event of a run (docs/control.md, "Events") as a line: its time, its kind, what happened; an event before
+    the timeline's 0 s ends with ``(bring-up)``: its negative time counts up to the end of bring-up."""
     kind = str(event.get("kind", ""))
     at = event.get("at_s")
     head = f"{at:8.3f} s  {kind:<6} " if isinstance(at, int | float) else f"{'':10}  {kind:<6} "
@@ -74,4 +76,5 @@ def event_text(event: Mapping[str, Any]) -> str:
         what = f"{'ok' if event.get('ok') else 'FAIL'} {event.get('what', '')}: {event.get('detail', '')}"
     else:
         what = str(event.get("describe", ""))
-    return (head + who + what).rstrip()
+    during = f" ({BEFORE_ZERO})" if isinstance(at, int | float) and at < 0 else ""
+    return (head + who + what).rstrip() + during

@@ -20,7 +20,8 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
-from .args import (COUNT, DIRECTION, DURATION, FAULT, FAULT_ACTION, FAULT_KIND, FLAG, HANDLE, HZ, IMPAIRMENT,
+from .args import (COUNT, DIRECTION, DURATION, FAULT, FAULT_ACTION, FAULT_KIND, FAULT_NAME, FLAG, HANDLE, HZ,
+                   IMPAIRMENT,
                    LINK_DIRECTION, NUMBER, PARAM, PROBABILITY, SINCE, STATION, STATIONS, VALUE, Arg, OpError)
 from .specs import fault_of, impairment_of
 
@@ -69,6 +70,8 @@ class Operation:
 
 _STATION = Arg("station", STATION, "The station.", required=True)
 _TARGET = Arg("station", STATIONS, "The station, or 'all' (the default): every station.", default="all")
+_NAME = Arg("name", FAULT_NAME, "Its name (default: made from what and where, e.g. loss-21H-1): heal NAME ends it, "
+                                "faults lists it.")
 
 
 def _figures(what: str) -> str:
@@ -109,9 +112,10 @@ OPERATIONS: MappingProxyType[str, Operation] = MappingProxyType({op.name: op for
                       "process and its stations' figures"),
     Operation("report", "The report as --report would write it now (docs/report.md).", acts=False,
               http=("GET", "/api/report"), reply="Report", returns="report"),
-    Operation("faults", "The impairments and faults in force and what they injected.",
+    Operation("faults", "The impairments and faults in force, by name, each with what it has injected.",
               endpoints=frozenset({"network", "proxy"}), acts=False, http=("GET", "/api/faults"),
-              returns="faults, injected"),
+              returns="faults (name, kind, given, stations, direction, describe, left_s, injected each), injected "
+                      "(per station, since the start)"),
     Operation("recovery", "Each station's latest fault episode: its end and its recovery time.", (_TARGET,),
               acts=False, http=("GET", "/api/recovery"), returns="episodes"),
     Operation("get-param", "Read a drive parameter by name, in its unit (PRM_RD through the master; a standalone "
@@ -170,22 +174,26 @@ OPERATIONS: MappingProxyType[str, Operation] = MappingProxyType({op.name: op for
               reply="StationFigures", returns=_figures("station")),
     # -- faults -------------------------------------------------------------------------------------------------
     Operation("impair", "Impair the datagrams of a station (or of every station): loss, delay, duplicates, "
-              "reordering, corruption; replaces the impairment there (docs/faults.md).",
+              "reordering, corruption (docs/faults.md). Without a name it replaces the station's unnamed impairment; "
+              "named, it stacks beside the others (the same name again replaces that one).",
               (_TARGET, Arg("spec", IMPAIRMENT, "The impairment as text (loss=10%,for=2s), instead of its fields."),
-               *IMPAIR_FIELDS),
+               _NAME, *IMPAIR_FIELDS),
               endpoints=frozenset({"network", "proxy"}), http=("POST", "/api/stations/{station}/impair"),
-              timeline=True, returns="impairment (its fields), describe", check=impairment_of),
-    Operation("heal", "End the impairments of a station (or of every station).", (_TARGET,),
+              timeline=True, returns="name, impairment (its fields), describe", check=impairment_of),
+    Operation("heal", "End the impairments and faults of a station (or of every station), or only the one of a "
+              "name (heal NAME).",
+              (_TARGET, Arg("name", FAULT_NAME, "Only the impairment or fault of this name (faults lists them).")),
               endpoints=frozenset({"network", "proxy"}), http=("POST", "/api/stations/{station}/heal"),
-              timeline=True, returns="ended (how many)"),
+              timeline=True, returns="ended (how many), names"),
     Operation("fault", "Start a station, master or drive fault: silence, skip-cycles, freeze-wdt, bad-command, "
               "load, lock-rotor, mains-loss (docs/faults.md); a standalone slave takes the drive faults.",
               (_TARGET, Arg("spec", FAULT, "The fault as text (silence,for=200ms), instead of do and its fields."),
-               Arg("do", FAULT_ACTION, "The fault's name, with its fields instead of the text.", cli=False),
-               *FAULT_FIELDS),
+               Arg("do", FAULT_ACTION, "Which fault (silence, load …), with its fields instead of the text.",
+                   cli=False),
+               _NAME, *FAULT_FIELDS),
               endpoints=frozenset({"network", "slave"}), http=("POST", "/api/stations/{station}/fault"),
-              returns="fault (its fields), describe; a standalone slave: handle (for release)", check=fault_of,
-              cites="SI-T3 Tables 19–24, V7 Tables 6–9, SI-ET3 COMM_ALM"),
+              returns="name, fault (its fields), describe, episodes; a standalone slave: handle (for release)",
+              check=fault_of, cites="SI-T3 Tables 19–24, V7 Tables 6–9, SI-ET3 COMM_ALM"),
     Operation("release", "End the drive fault a standalone slave answered with HANDLE.",
               (_STATION, Arg("handle", HANDLE, "The fault's handle.", required=True)),
               endpoints=frozenset({"slave"}), returns="released"),
@@ -246,7 +254,7 @@ def parse_request(op: Operation, request: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def request_of(name: str, **args: Any) -> dict[str, Any]:
+def request_of(name: str, /, **args: Any) -> dict[str, Any]:
     """The control request of operation *name* with *args* given by their Python names (``for_``): ``op`` and the
     fields by their request names, None values left out (their defaults apply)."""
     op = operation(name)

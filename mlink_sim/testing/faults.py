@@ -19,7 +19,8 @@ fault's episode as a :class:`FaultEpisode` (as of when it was applied; :meth:`Fa
 from __future__ import annotations
 
 import abc
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
 from ..faults import Episode, fault_from_fields
@@ -38,6 +39,8 @@ class FaultEpisode:
     recovered_ns: int | None
     recovery_ns: int | None  #: from the fault's end to phase 3 with no alarm (None: not yet, or not ended)
     notes: tuple[str, ...] = ()  #: e.g. "answered A.94 DATA_SETTING_WARNING"
+    name: str = ""  #: the fault's name (``heal(name=…)`` ends it; docs/faults.md, "Names")
+    injected: Mapping[str, int] = field(default_factory=dict)  #: what it did to the datagrams while in force
 
 
 def episode_dict(ep: Episode | None) -> dict[str, Any] | None:

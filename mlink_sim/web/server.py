@@ -2,8 +2,9 @@
 under ``/static/``, and the HTTP API under ``/api/`` described by the OpenAPI 3.1 document ``openapi.yaml`` (served
 as ``/api/openapi.json``). docs/web.md.
 
-The server sees the network only through the run's control endpoint: ``GET /api/status`` and the event stream
-through the one shared poller (:class:`~mlink_sim.web.feed.Feed`), every other route through one control operation
+The page draws in the vocabulary of :mod:`mlink_sim.plots` (served as ``/plots.json``), the HTML report's. The server
+sees the network only through the run's control endpoint: ``GET /api/status`` and the event stream (which begins
+with the last minute of status answers, ``history``) through the one shared poller (:class:`~mlink_sim.web.feed.Feed`), every other route through one control operation
 per request (:class:`~mlink_sim.web.api.Control`). The operations' routes are built from the operations table (each
 operation with an HTTP route: its path's arguments from the path, the others from the query or the JSON body, read
 by the table before anything is sent), as is their OpenAPI document (:mod:`.openapi`).
@@ -32,6 +33,7 @@ from aiohttp import web
 
 from .._log import get_logger
 from ..aio.control.endpoint import ASYNC_LIMIT_S
+from ..plots import vocabulary
 from ..aio.control.token import is_loopback
 from ..operations import OpError, Operation, parse_request, served_by
 from .api import ApiError, Control
@@ -45,6 +47,8 @@ log = get_logger("mlink_sim.web")
 STATIC = Path(__file__).parent / "static"
 #: an event stream's comment line when nothing else was sent for this long (keeps proxies from closing it)
 _KEEPALIVE_S = 15.0
+#: the status poller's period while no page is open (the minute a page opened later begins with)
+BACKGROUND_S = 0.5
 #: how long an operation through the master (PRM_RD / PRM_WR, CONFIG, ALM_CLR) may take to answer: beyond the
 #: control endpoint's own limit for it, which answers ``unavailable`` first
 _MASTER_TIMEOUT_S = ASYNC_LIMIT_S + 1.0
@@ -127,6 +131,11 @@ async def _index(request: web.Request) -> web.StreamResponse:
     return web.FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-cache"})
 
 
+async def _plots(request: web.Request) -> web.StreamResponse:
+    """The plotting vocabulary the page draws with (mlink_sim.plots: the HTML report's too)."""
+    return _json(vocabulary(), headers={"Cache-Control": "no-cache"})
+
+
 async def _openapi(request: web.Request) -> web.StreamResponse:
     return _json(openapi_document())
 
@@ -199,16 +208,19 @@ async def _events(request: web.Request) -> web.StreamResponse:
     return response
 
 
-def build_app(control: Control, token: str | None = None, *, interval: float = 0.1) -> web.Application:
+def build_app(control: Control, token: str | None = None, *, interval: float = 0.1,
+              background: float | None = BACKGROUND_S) -> web.Application:
     """The application: routes of docs/web.md over *control*; with *token*, every ``/api/`` request must carry
-    it. *interval*: the status poller's period (at most 10 Hz: 0.1 s)."""
+    it. *interval*: the status poller's period while someone looks (at most 10 Hz: 0.1 s); *background*: while
+    nobody does (None: not at all), so that a page opened later has the last minute."""
     app = web.Application(middlewares=[_errors, _guard], client_max_size=64 * 1024)
     app[CONTROL] = control
-    app[FEED] = Feed(control.query, interval=interval)
+    app[FEED] = Feed(control.query, interval=interval, background=background)
     if token is not None:
         app[TOKEN] = token
     add = app.router.add_route
     add("GET", "/", _index)
+    add("GET", "/plots.json", _plots)
     add("GET", "/api/openapi.json", _openapi)
     add("GET", "/api/events", _events)
     for op in served_by("network"):
@@ -216,9 +228,13 @@ def build_app(control: Control, token: str | None = None, *, interval: float = 0
             add(op.http[0], op.http[1], _status if op.name == "status" else _route(op))
     app.router.add_static("/static/", STATIC, append_version=False)
 
+    async def on_startup(app: web.Application) -> None:
+        app[FEED].start()
+
     async def on_shutdown(app: web.Application) -> None:
         app[FEED].close()
 
+    app.on_startup.append(on_startup)
     app.on_shutdown.append(on_shutdown)
     return app
 

@@ -19,6 +19,7 @@ from mlink_sim.cli.decode import decode_cmd
 from mlink_sim.wireshark.generate import shipped_path
 
 from tests.capture.timed import write_timed_capture
+from tests.wireshark.conftest import tshark_process
 
 MLINK = [sys.executable, "-m", "mlink_sim"]
 VIRTUAL = [*MLINK, "up", "quickstart", "--clock", "virtual", "--capture", "-"]
@@ -33,7 +34,7 @@ def _summary_count(stderr: str) -> int:
 @pytest.mark.e2e
 def test_tshark_reads_a_virtual_run_from_stdin(tshark: str) -> None:
     up = subprocess.Popen(VIRTUAL, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    shark = subprocess.run([tshark, "-n", "-X", f"lua_script:{shipped_path()}", "-o", "udp.try_heuristic_first:TRUE",
+    shark = tshark_process([tshark, "-n", "-X", f"lua_script:{shipped_path()}", "-o", "udp.try_heuristic_first:TRUE",
                             "-r", "-", "-Y", "mlink", "-T", "fields", "-e", "mlink.station", "-e", "mlink.cmd.name"],
                            stdin=up.stdout, capture_output=True, text=True, timeout=300)
     assert up.stdout is not None and up.stderr is not None

@@ -68,7 +68,7 @@ def test_defaults_percentages_and_the_run_direction_unchanged() -> None:
     ('do = "impair"\nloss = 0.1\nfor = "0s"', "for: expected a duration above 0"),
     ('do = "run"\nhz = 5\ndirection = "to-master"', "direction: expected 'forward' or 'reverse', got 'to-master'"),
     ('do = "stop"\nloss = 0.1', "loss: 'do = \"stop\"' does not take it (it takes no field but station)"),
-    ('do = "heal"\nfor = "1s"', "for: 'do = \"heal\"' does not take it (it takes no field but station)"),
+    ('do = "heal"\nfor = "1s"', "for: 'do = \"heal\"' does not take it (it takes name)"),
     ('do = "impair"\nlos = 0.1', "unknown field"),
 ])
 def test_bad_values_name_the_step_and_the_field(step: str, message: str) -> None:

@@ -54,6 +54,16 @@ def test_proxy_between_a_master_and_a_slave_impaired_while_it_runs(tmp_path: Pat
         out, err = master.communicate(timeout=60)
         faults = json.loads(run_cli("control", control, "faults", "--timeout", "6").stdout)
         assert faults["faults"] == [] and faults["injected"]["0x21"]["drops"] > 0
+        # named, as toxiproxy's toxics: listed by name, healed one by one (docs/faults.md, "Names")
+        ask = lambda *a: json.loads(run_cli("control", control, *a, "--timeout", "6").stdout)  # noqa: E731
+        assert ask("impair", "0x21", "delay=50us", "--name", "slow")["name"] == "slow"
+        assert ask("impair", "all", "loss=1%")["name"] == "loss-all-1"
+        listed = ask("faults")["faults"]
+        assert [(f["name"], f["stations"], f["given"]) for f in listed] == [("slow", ["0x21"], True),
+                                                                            ("loss-all-1", ["all"], False)]
+        assert ask("heal", "slow") == {"ok": True, "ended": 1, "names": ["slow"]}
+        assert [f["name"] for f in ask("faults")["faults"]] == ["loss-all-1"]
+        assert ask("heal") == {"ok": True, "ended": 1, "names": ["loss-all-1"]} and ask("faults")["faults"] == []
         report = json.loads((tmp_path / "r.json").read_text())
         assert report["station"]["0x21"]["missing"] > 0  # the answers the proxy lost
         bad = run_cli("control", control, "impair", "0x21", "loss=2")
@@ -91,7 +101,8 @@ def test_the_network_faults_example_passes_on_the_real_clock(tmp_path: Path) -> 
     (["proxy", "--listen", "127.0.0.1:0", "--to", "127.0.0.1:9", "--to", "127.0.0.1:10"], "one --to per --listen"),
     (["proxy", "--listen", "nowhere", "--to", "127.0.0.1:9"], "expected HOST:PORT"),
     (["control", "127.0.0.1:9", "impair", "0x21"], "impair: nothing to do; give at least one of loss"),
-    (["control", "127.0.0.1:9", "heal", "nowhere"], "station:"),
+    (["control", "127.0.0.1:9", "heal", "300"], "station:"),
+    (["control", "127.0.0.1:9", "impair", "21H", "loss=1%", "--name", "22H"], "name: '22H' reads as a station"),
 ])
 def test_bad_proxy_and_control_input_is_exit_2(args: list[str], message: str) -> None:
     r = run_cli(*args)

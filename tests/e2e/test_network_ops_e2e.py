@@ -124,8 +124,8 @@ def test_status_watch_shows_it_again_until_interrupted(network: Network) -> None
 def test_run_and_stop_steer_the_drive_and_the_figures_follow(network: Network) -> None:
     reply = network.ask("run", station="0x23", direction="reverse", hz=15.0)
     assert reply["ok"] and reply["station"]["address"] == "0x23"
-    st = network.wait("0x23", lambda s: s["output_hz"] and abs(s["output_hz"] - 15.0) < 0.1)
-    assert st["running"] and st["direction"] == "reverse" and st["reference_hz"] == pytest.approx(15.0, abs=0.01)
+    st = network.wait("0x23", lambda s: s["output_hz"] and abs(s["output_hz"] + 15.0) < 0.1)  # reverse: below 0
+    assert st["running"] and st["direction"] == "reverse" and st["reference_hz"] == pytest.approx(-15.0, abs=0.01)
     assert st["output_current_a"] > 0 and st["motor_speed_rpm"] < 0
     assert st["dc_bus_v"] and st["dc_bus_v"] > 200  # the slave's snapshot
     assert network.ask("stop", station="23H")["ok"]

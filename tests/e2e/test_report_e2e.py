@@ -101,7 +101,8 @@ def _check_page(text: str, report: dict, stations: int) -> str:
     body = " ".join(page.text)
     assert page.links == [] and "http://" not in text and "https://" not in text
     stalls = 1 if report.get("host", {}).get("stalls") else 0  # a busy host's stalls have a plot of their own
-    assert page.tags.count("svg") == 1 + 3 * stations + stalls  # the RTT histogram; Hz, current, DC bus per station
+    # the RTT histogram and the round trips over time; Hz, current, DC bus per station
+    assert page.tags.count("svg") == 2 + 3 * stations + stalls
     for c in report["checks"]:
         assert c["what"] in body
     return body
@@ -133,7 +134,7 @@ def test_a_virtual_run_traces_each_station_at_the_interval_and_writes_the_html_r
     assert ("recovered", "0x21") in events
     assert sum(e == "check" for e, _ in events) == 5
     silence = next(a for a in actions if a["event"] == "fault")
-    assert float(silence["t_s"]) == 1.4 and silence["detail"] == "silence for=100ms"
+    assert float(silence["t_s"]) == 1.4 and silence["detail"] == "silence-21H-1: silence for=100ms"
 
     written = json.loads(report.read_text())
     assert written["meta"]["trace"] == str(trace) and written["meta"]["trace_interval_ns"] == 20_000_000
@@ -149,6 +150,27 @@ def test_a_virtual_run_traces_each_station_at_the_interval_and_writes_the_html_r
     assert again.read_text() == text
     r = run_cli("report", str(report), "--html", str(again), "--trace", str(trace))
     assert r.returncode == 0 and again.read_text() == text
+
+
+def test_the_quickstart_trace_reads_a_reverse_run_below_0_hz_and_names_the_dc_bus_regulation(tmp_path: Path) -> None:
+    """The quickstart reverses 21H from +30 Hz to -20 Hz at 3.2 s: the CSV's output and reference are signed (the
+    direction column says the same in words), and the deceleration held by the DC bus (stall prevention, L3-04) is
+    in its regulation column while the bus holds its level."""
+    trace = tmp_path / "t.csv"
+    r = run_cli("up", "quickstart", "--clock", "virtual", "--no-status", "--trace", str(trace))
+    assert r.returncode == 0, r.stdout + r.stderr
+    _, by, _ = _samples(trace)
+    a = by["0x21"]
+    late = [x for x in a if 6.5 <= float(x["t_s"]) <= 7.0]
+    assert all(float(x["output_hz"]) == -20.0 and float(x["reference_hz"]) == -20.0 for x in late)
+    assert all(x["direction"] == "reverse" for x in late)
+    early = [x for x in a if 2.0 <= float(x["t_s"]) <= 3.0]
+    assert all(float(x["output_hz"]) == 30.0 and x["direction"] == "forward" for x in early)
+    held = [float(x["t_s"]) for x in a if "stall-decel" in x["regulation"]]
+    assert held and 3.5 < held[0] < 4.2 and 5.0 < held[-1] < 5.6
+    assert all(float(x["dc_bus_v"]) > 360 for x in a if "stall-decel" in x["regulation"])
+    assert all(float(x["output_hz"]) >= 0 for x in by["0x22"])  # 22H runs forward only
+    assert all(x["rtt_us"] and float(x["rtt_us"]) > 0 for x in a if x["phase"] == "3")
 
 
 def test_report_html_alone_records_a_temporary_trace_for_its_plots(tmp_path: Path) -> None:

@@ -96,16 +96,56 @@ def test_direction_and_station_select_the_path() -> None:
 def test_for_ends_the_impairment_and_heal_ends_it_early() -> None:
     events = []
     layer = ImpairmentLayer(seed=1, listener=lambda *e: events.append(e))
-    layer.impair(Impairment(loss=1.0, for_ns=10 * MS), 0x21, 0)
+    name = layer.impair(Impairment(loss=1.0, for_ns=10 * MS), 0x21, 0)
+    assert name == "loss-21H-1"
     assert layer.active and layer.process(datagram(), TO_ST, 0x21, 9 * MS) == []
     assert layer.process(datagram(), TO_ST, 0x21, 10 * MS) != []
     assert not layer.active
-    assert events == [("start", 0x21, "impair", 0), ("start", 0x21, "impair", 0),
-                      ("end", 0x21, "impair", 10 * MS), ("end", 0x21, "impair", 10 * MS)]
-    layer.impair(Impairment(loss=1.0), None, 0)
-    layer.impair(Impairment(loss=1.0), 0x22, 0)
-    assert layer.heal(0x22, 1) == 2 and layer.active  # the every-station one stays
-    assert layer.heal(None, 1) == 2 and not layer.active
+    assert events == [("start", 0x21, name, 0), ("start", 0x21, name, 0),
+                      ("end", 0x21, name, 10 * MS), ("end", 0x21, name, 10 * MS)]
+    every = layer.impair(Impairment(loss=1.0), None, 0)
+    own = layer.impair(Impairment(loss=1.0), 0x22, 0)
+    assert layer.heal(0x22, 1) == [own] and layer.active  # the every-station one stays
+    assert layer.heal(None, 1) == [every] and not layer.active
+
+
+def test_an_unnamed_impair_replaces_the_unnamed_one_a_named_one_stacks() -> None:
+    """docs/faults.md, "Names": without a name a second impair of a station replaces the first; with one it stacks
+    beside the others, and the same name again replaces that one."""
+    layer = ImpairmentLayer(seed=1)
+    first = layer.impair(Impairment(loss=1.0), 0x21, 0)
+    second = layer.impair(Impairment(delay=MS), 0x21, 0)
+    assert (first, second) == ("loss-21H-1", "delay-21H-1")
+    assert [f["name"] for f in layer.faults()] == [second]  # the loss is gone
+    assert layer.process(datagram(), TO_ST, 0x21, 0) == [(MS, datagram())]
+    layer.impair(Impairment(loss=1.0, direction="to-master"), 0x21, 0, name="lossy")
+    layer.impair(Impairment(duplicate=1.0, direction="to-station"), 0x21, 0, name="twice")
+    assert [f["name"] for f in layer.faults()] == [second, "lossy", "twice"]
+    assert len(layer.process(datagram(), TO_ST, 0x21, 1)) == 2 and layer.process(datagram(), TO_M, 0x21, 1) == []
+    layer.impair(Impairment(loss=1.0), 0x21, 2)  # unnamed: replaces the unnamed delay only
+    assert [f["name"] for f in layer.faults()] == ["lossy", "twice", "loss-21H-2"]
+    layer.impair(Impairment(reorder=0.5), 0x22, 3, name="twice")  # the same name: moved, replaced
+    listed = {f["name"]: f for f in layer.faults(now=3)}
+    assert listed["twice"]["stations"] == [0x22] and listed["twice"]["describe"] == "reorder 50%"
+    assert listed["lossy"]["direction"] == "to-master" and listed["lossy"]["given"] is True
+    assert listed["loss-21H-2"]["given"] is False and listed["loss-21H-2"]["left_ns"] is None
+
+
+def test_each_name_counts_what_it_injected_and_heal_ends_one_by_name() -> None:
+    layer = ImpairmentLayer(seed=1)
+    layer.impair(Impairment(loss=1.0, direction="to-station", for_ns=50 * MS), 0x21, 0, name="drop")
+    layer.impair(Impairment(delay=MS), [0x21, 0x22], 0)
+    run(layer, 5)
+    run(layer, 3, station=0x22)
+    listed = {f["name"]: f for f in layer.faults(now=10 * MS)}
+    assert listed["drop"]["injected"] == {"drops": 5} and listed["drop"]["left_ns"] == 40 * MS
+    assert listed["delay-all-1"]["injected"] == {"delays": 3} and listed["delay-all-1"]["stations"] == [0x21, 0x22]
+    assert layer.injected() == {0x21: {"drops": 5}, 0x22: {"delays": 3}}
+    assert layer.heal(None, 11 * MS, name="drop") == ["drop"]
+    assert [f["name"] for f in layer.faults()] == ["delay-all-1"]
+    assert layer.heal(0x21, 12 * MS, name="delay-all-1") == ["delay-all-1"]  # 21H's share of it
+    assert layer.faults()[0]["stations"] == [0x22]
+    assert "drop" not in layer.names and "delay-all-1" in layer.names
 
 
 def test_a_second_impair_replaces_the_first_other_groups_stay() -> None:
@@ -121,11 +161,12 @@ def test_a_second_impair_replaces_the_first_other_groups_stay() -> None:
     layer.impair(Impairment(loss=1.0), 0x21, 0)
     layer.impair(Impairment(delay=MS), 0x21, 0)
     assert layer.process(datagram(), TO_ST, 0x21, 0)[0][0] == MS
-    layer.add("silence", 0x21, TO_M, [Gate()], 0, until=5 * MS)
+    layer.add("silence", 0x21, TO_M, [Gate()], 0, until=5 * MS, kind="gate")
     assert layer.process(datagram(), TO_M, 0x21, 1) == []
-    assert [f["group"] for f in layer.faults()] == ["impair", "impair", "silence"]
+    assert [f["kind"] for f in layer.faults()] == ["impair", "gate"]
+    assert layer.faults()[1]["injected"] == {"drops": 1}
     layer.heal(0x21, 2, groups=["impair"])
-    assert [f["group"] for f in layer.faults()] == ["silence"]
+    assert [f["name"] for f in layer.faults()] == ["silence"]
 
 
 def test_same_seed_same_fates_per_path_whatever_the_other_paths_do() -> None:

@@ -4,8 +4,12 @@ and every text from the report escaped."""
 
 from __future__ import annotations
 
+import re
+import xml.etree.ElementTree as ET
 from html.parser import HTMLParser
 from pathlib import Path
+
+import pytest
 
 from mlink_sim.metrics import NetworkMetrics
 from mlink_sim.metrics.html import check_moments, render_html, tail_folded, verdict_of
@@ -91,7 +95,7 @@ def test_the_page_is_self_contained_and_shows_verdict_checks_and_plots(tmp_path:
         assert c["what"] in body
     assert "accelerating at C1-01 = 10.0 s" in body
     assert "sample 1.0 s" in body  # the station's figures at the failed check's moment, from the trace
-    assert page.tags.count("svg") == 4  # the RTT histogram; frequency, current and DC bus of the one station
+    assert page.tags.count("svg") == 5  # the RTT histogram and over time; frequency, current and DC bus of 21H
     assert "silence for=200ms: healthy 20.0 ms after its end" in body
 
 
@@ -137,3 +141,68 @@ def test_a_few_outliers_are_one_last_bar_of_the_rtt_plot() -> None:
     assert len(shown) == 6 and shown[-1] == [202, 356, 1] and sum(b[2] for b in shown) == 1000
     assert note == "The last bar holds the 1 round trip(s) from 202ns to 356ns."
     assert tail_folded(bins[:5]) == (bins[:5], "")  # nothing far out: every bin
+
+
+def _svgs(text: str) -> dict[str, ET.Element]:
+    """Each plot of the page by its title, parsed as XML (an inline SVG is well-formed XML)."""
+    out = {}
+    for chunk in re.findall(r"<svg .*?</svg>", text, re.S):
+        svg = ET.fromstring(chunk)
+        out[svg.get("aria-label")] = svg
+    return out
+
+
+def _x_of(svg: ET.Element, t: float, span: tuple[float, float]) -> float:
+    """Where time *t* is on *svg*'s x axis (svg.py: left margin 64, right 16, width 860)."""
+    return 64 + (t - span[0]) / (span[1] - span[0]) * (860 - 64 - 16)
+
+
+def test_a_reverse_run_plots_below_0_hz_and_checks_and_actions_are_numbered_and_listed(tmp_path: Path) -> None:
+    """What a person reads of one station: the output below the 0 Hz line while it runs in reverse; every action
+    and check a numbered circle on each plot, the same numbers listed with what they are (a legend that prints);
+    the drive's DC bus regulation shaded where the trace says it held; a time before 0 s said to be bring-up."""
+    w = TraceWriter(tmp_path / "t.csv")
+    w.action(-0.4, "control", 'impair {"loss":0.1}', "0x21")
+    for k in range(301):
+        t = k / 100
+        row = dict.fromkeys(FIGURE_COLUMNS, "")
+        out = 20.0 - 40.0 * min(1.0, t / 2)  # +20 Hz to -20 Hz
+        row.update(address="0x21", name="21H", phase=3, running=True, direction="forward" if out >= 0 else "reverse",
+                   reference_hz=-20.0, output_hz=round(out, 2), output_current_a=5.0, dc_bus_v=300.0,
+                   regulation="stall-decel" if 0.5 <= t <= 1.2 and k % 7 else "", rtt_us=100.0)
+        w.add((t, "sample", *row.values(), "", ""))
+    w.action(0.2, "step", "0.2s station 21H: do run reverse 20 Hz", "0x21")
+    w.action(2.5, "check", "ok 2.5s station 21H: expect output-hz 20±0.5 Hz: output 20.00 Hz", "0x21")
+    w.action(2.6, "check", "FAIL 2.5s station 21H: expect no-alarm: alarm OV", "0x21")
+    w.close()
+    trace = read_trace(tmp_path / "t.csv")
+    text = render_html(_report([]), trace)
+    plots = _svgs(text)
+    assert {"21H: frequency", "21H: output current", "21H: DC bus",
+            "Round trips over time (each station's latest)"} <= set(plots)
+    hz = plots["21H: frequency"]
+    zero = hz.find(".//line[@class='zero']")
+    assert zero is not None
+    output = [pl for pl in hz.iter("polyline") if pl.findtext("title") == "output Hz"]
+    ys = [float(p.split(",")[1]) for p in output[0].get("points").split()]
+    assert min(ys) < float(zero.get("y1")) < max(ys)  # above the 0 Hz line, then below it
+    for title in ("21H: frequency", "21H: output current", "21H: DC bus"):
+        marks = plots[title].findall(".//g[@class='mark']")
+        # printed in the plot; 1 (during bring-up) lies before the axis, in the list only
+        assert [(m.get("data-n"), m.get("data-kind"), m.findtext("text")) for m in marks] == [
+            ("2", "action", "2"), ("3", "check-ok", "3"), ("4", "check-fail", "4")]
+        bands = plots[title].findall(".//rect[@data-band='stall-decel']")
+        assert len(bands) == 1  # the hold's short gaps bridged (mlink_sim.plots.BRIDGE_S)
+        x0, x1 = float(bands[0].get("x")), float(bands[0].get("x")) + float(bands[0].get("width"))
+        assert x0 == pytest.approx(_x_of(hz, 0.5, (0.0, 3.0)), abs=1) and x1 == pytest.approx(
+            _x_of(hz, 1.2, (0.0, 3.0)), abs=1)
+    page = Page(text)
+    body = " ".join(page.text)
+    assert "-0.4 s (bring-up)  control: impair" in body
+    assert "0.2 s  station 21H: do run reverse 20 Hz" in body
+    assert "2.5 s  held: expect output-hz 20±0.5 Hz (output 20.00 Hz)" in body
+    assert "2.6 s  FAILED: expect no-alarm (alarm OV)" in body
+    assert "DC bus regulation (stall prevention, decel" in body
+    listed = re.findall(r'<li data-n="(\d+)" data-kind="([\w-]+)">', text)
+    assert listed == [("1", "action"), ("2", "action"), ("3", "check-ok"), ("4", "check-fail")]
+    assert "-0.400 s (bring-up)" in body  # the actions table

@@ -106,7 +106,7 @@ def test_what_a_user_reads() -> None:
     assert cleared == "   1.500 s  alarm  22H COMM_ALM cleared" and "None" not in cleared
     raised = event_text({"seq": 4, "at_s": -0.2, "kind": "alarm", "station": "0x21", "code": "E6H",
                          "name": "COMM_ERROR", "source": "alarm"})
-    assert raised.endswith("21H COMM_ERROR (E6H)") and "-0.200 s" in raised
+    assert raised.endswith("21H COMM_ERROR (E6H) (bring-up)") and "-0.200 s" in raised  # before the timeline's 0 s
     step = event_text({"seq": 5, "at_s": 0.2, "kind": "step", "describe": "0.2s all stations: do run forward 30 Hz"})
     assert step.endswith("step   0.2s all stations: do run forward 30 Hz")
     assert not re.search(r"0x[0-9a-f]{2}", event_text({"at_s": 0, "kind": "action", "station": "0x23",

@@ -1,6 +1,7 @@
 """Debian's chromium driven by Selenium, for the page's tests and for the screenshots of docs/web.md.
 
-    python -m tests.web.browser docs/images      # (from the repository's root) writes web-laptop.png, web-phone.png
+    python -m tests.web.browser docs/images      # (from the repository's root) writes web-laptop.png, web-phone.png,
+                                                 # report-station.png and report-rtt.png
 
 The browser runs headless with a fresh profile, offline (``SE_OFFLINE``: Selenium fetches no driver; chromium
 reaches nothing but the page's server)."""
@@ -117,14 +118,15 @@ def screenshots(session: Any, out: Path) -> list[Path]:
 
 
 def _docs_shots(out: Path) -> int:
-    """The quickstart with every drive running, one reversing and one tripped (lock-rotor: oC), shot."""
+    """The quickstart with every drive running, one reversing (its deceleration held by the DC bus), one delayed by a
+    named impairment and one tripped (lock-rotor: oC), shot; then the quickstart's HTML report (report_shots)."""
     from .webnet import Http, stations, up_with_web, wait_for
 
     found = find_browser()
     if isinstance(found, str):
         print(found, file=sys.stderr)
         return 2
-    net, url = up_with_web()
+    net, url = up_with_web(realtime=True)  # the cycle held against the browser beside it
     try:
         http = Http(url)
         wait_for(lambda: all(row["phase"] == 3 for row in stations(http)), 30, "every station in phase 3")
@@ -134,16 +136,46 @@ def _docs_shots(out: Path) -> int:
                 http.post(f"api/stations/{name}/run", {"direction": "forward", "hz": 30.0})
             time.sleep(8)
             http.post("api/stations/21H/run", {"direction": "reverse", "hz": 20.0})
+            http.post("api/stations/22H/impair", {"spec": "delay=300us,jitter=100us", "name": "slow-link"})
             time.sleep(6)
-            http.post("api/stations/23H/fault", {"fault": "lock-rotor"})
+            http.post("api/stations/23H/fault", {"spec": "lock-rotor"})
             time.sleep(3)
             control(session, "22H", "read", name="n019")
             until(session, lambda s: "n019 =" in result(s, "22H"), 20, "the parameter read")
             for path in screenshots(session, out):
                 print(path)
+            for path in report_shots(session, out):
+                print(path)
     finally:
         net.stop()
     return 0
+
+
+def report_shots(session: Any, out: Path) -> list[Path]:
+    """The quickstart's HTML report (``mlink-sim up quickstart --clock virtual --report-html``) at a laptop's width:
+    ``report-station.png`` (station 21H: its plots, marks and legend), ``report-rtt.png`` (the round trips)."""
+    import subprocess
+
+    from selenium.webdriver.common.by import By
+
+    with tempfile.TemporaryDirectory(prefix="mlink-report-") as tmp:
+        html = Path(tmp) / "report.html"
+        subprocess.run([sys.executable, "-m", "mlink_sim", "up", "quickstart", "--clock", "virtual", "--no-status",
+                        "--report-html", str(html)], check=True, capture_output=True, timeout=120)
+        session.set_window_size(*LAPTOP)
+        session.get(html.as_uri())
+        shots = []
+        for name, css in (("report-station", "section.station-plots"), ("report-rtt", "div.pair")):
+            element = session.find_element(By.CSS_SELECTOR, css)
+            tall = session.execute_script("return arguments[0].getBoundingClientRect().height", element)
+            session.set_window_size(LAPTOP[0], min(3000, int(tall) + 200))  # the whole element in view
+            session.execute_script("arguments[0].scrollIntoView()", element)
+            time.sleep(0.3)
+            path = out / f"{name}.png"
+            element.screenshot(str(path))
+            shots.append(path)
+        session.set_window_size(*LAPTOP)
+    return shots
 
 
 if __name__ == "__main__":

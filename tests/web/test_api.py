@@ -92,6 +92,36 @@ def test_faults_impairments_and_heal_are_taken_and_answered_as_documented(http: 
     check_response("/api/stations/{station}/alarm-clear", "post", status, body)
 
 
+def test_named_impairments_are_listed_and_healed_one_by_one_over_http(http: Http) -> None:
+    """docs/faults.md, "Names", through the HTTP API: a named impairment stacks beside an unnamed one; GET
+    /api/faults lists both with what each injected; heal with a name ends that one only."""
+    status, body = http.post("api/stations/21H/impair", {"spec": "delay=100us", "name": "slow"})
+    assert (status, body["name"]) == (200, "slow"), body
+    status, body = http.post("api/stations/21H/impair", {"spec": "duplicate=1%"})
+    assert status == 200 and body["name"].startswith("duplicate-21H-"), body
+    unnamed = body["name"]
+    wait_for(lambda: {f["name"]: f for f in http.get("api/faults")[1]["faults"]}.get("slow", {}).get("injected"), 5)
+    status, body = http.get("api/faults")
+    check_response("/api/faults", "get", status, body)
+    listed = {f["name"]: f for f in body["faults"]}
+    assert set(listed) == {"slow", unnamed} and listed["slow"]["stations"] == ["0x21"]
+    assert listed["slow"]["injected"]["delays"] > 0 and listed["slow"]["given"] and not listed[unnamed]["given"]
+    status, body = http.post("api/stations/all/heal", {"name": "slow"})
+    assert (status, body) == (200, {"ended": 1, "names": ["slow"]})
+    assert [f["name"] for f in http.get("api/faults")[1]["faults"]] == [unnamed]
+    status, body = http.post("api/stations/all/heal", {"name": "slow"})
+    assert (status, body["kind"]) == (400, "bad_request") and "no impairment or fault is called 'slow'" in body["error"]
+    status, body = http.post("api/stations/21H/heal")
+    assert body["names"] == [unnamed]
+    # a drive fault by name, on the slave worker's drive: listed, then released by heal
+    status, body = http.post("api/stations/23H/fault", {"spec": "load,torque=1", "name": "heavy"})
+    assert (status, body["name"]) == (200, "heavy"), body
+    listed = {f["name"]: f for f in http.get("api/faults")[1]["faults"]}
+    assert listed["heavy"]["kind"] == "fault" and listed["heavy"]["injected"] == {"drive_faults": 1}
+    assert http.post("api/stations/23H/heal", {"name": "heavy"})[1]["names"] == ["heavy"]
+    assert http.get("api/faults")[1]["faults"] == []
+
+
 def test_the_report_is_the_report_of_the_run_so_far(http: Http) -> None:
     status, body = http.get("api/report")
     check_response("/api/report", "get", status, body)
@@ -103,7 +133,7 @@ def test_the_event_stream_delivers_status_and_the_networks_events(http: Http) ->
     messages = http.events(lambda ms: {name for name, _ in ms} >= {"status", "event"}
                            and sum(name == "status" for name, _ in ms) >= 3)
     for name, data in messages:
-        component({"status": "Status", "event": "Event", "error": "Error"}[name]).validate(data)
+        component({"status": "Status", "event": "Event", "error": "Error", "history": "History"}[name]).validate(data)
     kinds = {data["kind"] for name, data in messages if name == "event"}
     assert "phase" in kinds  # the bring-up's phase changes come first
     assert [d["stations"][0]["name"] for n, d in messages if n == "status"][0] == "21H"

@@ -7,6 +7,7 @@ import asyncio
 from typing import Any
 
 from mlink_sim.web import Feed
+from mlink_sim.web.feed import HISTORY_FIELDS
 
 
 class HandAnswered:
@@ -64,7 +65,7 @@ async def test_the_next_query_asks_for_the_events_after_the_last_one_seen() -> N
     assert ("end", None) in [stream.get_nowait() for _ in range(stream.qsize())]
 
 
-async def test_a_stream_opened_late_gets_the_kept_events_and_the_latest_status_first() -> None:
+async def test_a_stream_opened_late_gets_the_history_the_kept_events_and_the_latest_status_first() -> None:
     query = HandAnswered()
     feed = Feed(query, interval=3600.0)
     first = asyncio.ensure_future(feed.status())
@@ -73,8 +74,34 @@ async def test_a_stream_opened_late_gets_the_kept_events_and_the_latest_status_f
     await first
     late = feed.subscribe()
     got = [late.get_nowait() for _ in range(late.qsize())]
-    assert [name for name, _ in got] == ["event", "event", "status"]
+    assert [name for name, _ in got] == ["history", "event", "event", "status"]
     assert [data["seq"] for name, data in got if name == "event"] == [1, 2]
+    feed.close()
+
+
+def _answer(t: float, out_hz: float) -> dict[str, Any]:
+    row = {"address": "0x21", "reference_hz": -20.0, "output_hz": out_hz, "output_current_a": 5.0, "dc_bus_v": 300.0,
+           "regulation": [], "rtt_p99_us": 120.0, "missed": 0}
+    return {**status(1), "elapsed_s": t, "stations": [row]}
+
+
+async def test_the_last_minute_of_answers_is_kept_as_columns_and_polled_while_nobody_looks() -> None:
+    """A page opened late starts with full plots: the poller asks in the background (every *background* s) and keeps
+    the answers of the last HISTORY_S seconds; a clock that went back (another run) starts it afresh."""
+    query = HandAnswered()
+    feed = Feed(query, interval=3600.0, background=3600.0)
+    feed.start()
+    await settle()
+    assert len(query.calls) == 1  # nobody looks, yet it asks
+    for k in range(70):
+        feed._take({"ok": True, **_answer(float(k), -float(k % 20))}, float(k))
+    kept = feed.history_message()
+    assert kept["t"] == [float(k) for k in range(9, 70)]  # the last 60 s
+    assert kept["fields"] == list(HISTORY_FIELDS)
+    columns = dict(zip(kept["fields"], kept["stations"]["0x21"], strict=True))
+    assert columns["output_hz"][:3] == [-9.0, -10.0, -11.0] and len(columns["dc_bus_v"]) == 61
+    feed._take({"ok": True, **_answer(0.5, 0.0)}, 71.0)
+    assert feed.history_message()["t"] == [0.5]
     feed.close()
 
 

@@ -66,10 +66,12 @@ class Proc:
         return self.proc.returncode
 
 
-def up_with_web(*extra: str, config: str = "quickstart") -> tuple[Proc, str]:
-    """``mlink-sim up CONFIG --no-timeline --web 127.0.0.1:0`` (until stopped): the process and the page's URL."""
-    proc = Proc("up", config, "--no-timeline", "--duration", "600s", "--no-status", "--no-realtime",
-                "--web", "127.0.0.1:0", *extra)
+def up_with_web(*extra: str, config: str = "quickstart", realtime: bool = False) -> tuple[Proc, str]:
+    """``mlink-sim up CONFIG --no-timeline --web 127.0.0.1:0`` (until stopped): the process and the page's URL.
+    *realtime*: the run's real-time scheduling where permitted (the pictures of docs/web.md, taken beside a
+    browser on a small machine); else none (the tests)."""
+    proc = Proc("up", config, "--no-timeline", "--duration", "600s", "--no-status",
+                "--realtime" if realtime else "--no-realtime", "--web", "127.0.0.1:0", *extra)
     return proc, proc.wait_line(_URL).group(1)
 
 

@@ -3,10 +3,13 @@ a tshark that cannot be had fails the tests instead of skipping them."""
 
 from __future__ import annotations
 
+import atexit
+import functools
 import json
 import os
 import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -36,9 +39,25 @@ def tshark() -> str:
     return found
 
 
+@functools.cache
+def _empty_home() -> str:
+    home = tempfile.mkdtemp(prefix="mlink-tshark-home-")
+    atexit.register(shutil.rmtree, home, True)
+    return home
+
+
+def tshark_process(args: list[str], **kwargs: Any) -> subprocess.CompletedProcess[Any]:
+    """tshark run in an empty home: a dissector installed in the user's ~/.local/lib/wireshark/plugins
+    (``mlink-sim wireshark --install``) would register the protocol a second time beside the shipped one
+    under test, and tshark refuses that."""
+    home = _empty_home()
+    env = {**os.environ, "HOME": home, "XDG_CONFIG_HOME": os.path.join(home, ".config")}
+    return subprocess.run(args, env=env, **kwargs)
+
+
 def run_tshark(tshark: str, capture: Path, *args: str) -> str:
     """tshark on *capture* with the shipped dissector, the heuristic tried first (ephemeral ports)."""
-    proc = subprocess.run([tshark, "-n", "-X", f"lua_script:{shipped_path()}", "-o", "udp.try_heuristic_first:TRUE",
+    proc = tshark_process([tshark, "-n", "-X", f"lua_script:{shipped_path()}", "-o", "udp.try_heuristic_first:TRUE",
                            "-r", str(capture), *args], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert "Lua: Error" not in proc.stderr and "lua_script" not in proc.stderr, proc.stderr

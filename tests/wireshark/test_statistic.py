@@ -3,7 +3,6 @@ on the capture of known timing that ``decode --stats`` is checked against: the s
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -13,7 +12,7 @@ from mlink_sim.capture.stats import capture_stats
 from mlink_sim.wireshark.generate import shipped_path
 
 from tests.capture.timed import write_timed_capture
-from .conftest import run_tshark
+from .conftest import run_tshark, tshark_process
 
 
 @pytest.fixture(scope="module")
@@ -95,6 +94,6 @@ def test_default_units_are_said_in_the_item(tshark: str, tmp_path: Path) -> None
     with CaptureWriter(path, epoch_offset_ns=0) as w:
         w.record(0, encode(Frame(Link.ML3, Kind.COMMAND, 0x23, 1, 2_000_000, ml3.M3Command(ml3.InvCtl(speed_ref=3000)))),
                  ("192.0.2.1", 1), ("192.0.2.35", 47001))
-    proc = subprocess.run([tshark, "-n", "-X", f"lua_script:{shipped_path()}", "-r", str(path), "-V"],
+    proc = tshark_process([tshark, "-n", "-X", f"lua_script:{shipped_path()}", "-r", str(path), "-V"],
                           capture_output=True, text=True, timeout=120)
     assert "Speed reference: 30.00 Hz (0.01 Hz per count, default: o1-03 = 0 / n035 = 0)" in proc.stdout

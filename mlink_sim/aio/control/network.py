@@ -66,7 +66,7 @@ class NetworkOps:
                      for st in session.config.station}
         self.plans = {sp.address: sp for m in session.masters.values() for sp in m.core.plan.stations}
         self.timeline: Any = None  #: the run's timeline (its steps, checks), once it runs
-        self.impairments = ImpairmentOps(session, self._station_or_all)
+        self.impairments = ImpairmentOps(session, self._station_or_all, lambda: session.net.fault_control)
         self.faults = FaultOps(session, self._station_or_all)
         self._refreshed = float("-inf")
         self._refreshing: asyncio.Task[None] | None = None
@@ -351,9 +351,11 @@ class NetworkOps:
         """The fault operations that act, each request logged as an ``action`` event once it was done."""
         def wrap(name: str, fn: Callable[..., Any]) -> Handler:
             def note(station: int | None, reply: Any) -> None:
-                what = reply.get("describe") if isinstance(reply, dict) else None
-                self.log.add("action", station="all" if station is None else station_key(station),
-                             describe=f"{name} {what}" if what else name)
+                got = reply if isinstance(reply, dict) else {}
+                what = f"{name} {got['name']}" if got.get("name") else name
+                what += f": {got['describe']}" if got.get("describe") else ""
+                what += f" {', '.join(got['names'])}" if got.get("names") else ""
+                self.log.add("action", station="all" if station is None else station_key(station), describe=what)
 
             def op(**args: Any) -> Any:
                 reply = fn(**args)

@@ -11,14 +11,16 @@ fault's ``for``).
 from __future__ import annotations
 
 import asyncio
+import json
 import time
 from typing import Any
 
 from ...cards.parameters import keypad_read, keypad_write
 from ...cards.results import Err
+from ...impair import Names
 from ...operations import OpError, fault_of, station_name
 from ...params import ParamError
-from ..present.figures import snapshot_figures, station_key
+from ..present.figures import REGULATION_WINDOW_NS, snapshot_figures, station_key
 from ..slave.faults import apply_drive_fault, release_drive_fault
 from .endpoint import ControlServer, Encoded, Handler
 
@@ -32,6 +34,7 @@ class SlaveOps:
         self.server = server
         self.endpoint: ControlServer | None = None  #: the endpoint serving them (its refused requests are counted)
         self._releases: set[asyncio.TimerHandle] = set()
+        self._names = Names()  #: the drive faults' made names (load-21H-1, …)
 
     def handlers(self) -> dict[str, Handler]:
         return {"status": self.status, "get-param": self.get_param, "set-param": self.set_param,
@@ -51,7 +54,10 @@ class SlaveOps:
     def status(self, since: int = 0) -> dict[str, Any]:
         """The process and every station's figures from its own snapshot (no RTT: only a master measures it)."""
         cpu = self.server.cpu()
-        stations = [snapshot_figures(_jsonable(hs.station.snapshot())) for hs in self.server.stations]
+        regulation = self._regulation()
+        stations = [snapshot_figures({**_jsonable(hs.station.snapshot()),
+                                      "regulation": regulation.get(station_key(hs.station.address), 0)})
+                    for hs in self.server.stations]
         return {"pid": cpu["pid"], "wall_s": cpu["wall_s"], "cpu_pct": cpu["cpu_pct"], "stations": stations,
                 "events": [], "seq": since}
 
@@ -59,9 +65,19 @@ class SlaveOps:
         refused = self.endpoint.token.refused if self.endpoint is not None else 0
 
         async def build() -> Encoded:
-            return Encoded(await self.server.stats_text(since, control_refused=refused))
+            text = await self.server.stats_text(since, control_refused=refused)
+            # the drives' regulation states beside the snapshots (a JSON object's last '}' closes it)
+            return Encoded(f'{text[:-1]},"regulation":{json.dumps(self._regulation(), separators=(",", ":"))}}}')
 
         return build()
+
+    def _regulation(self) -> dict[str, int]:
+        """Each station's drive regulation over the :data:`REGULATION_WINDOW_NS` before now, where not 0
+        (:meth:`mlink_sim.drive.Drive.regulation`: stall prevention, the torque limit)."""
+        since = time.monotonic_ns() - REGULATION_WINDOW_NS
+        codes = {station_key(hs.station.address): hs.station.drive.drive.regulation(since)
+                 for hs in self.server.stations}
+        return {key: code for key, code in codes.items() if code}
 
     def cpu(self) -> dict[str, Any]:
         return {k: v for k, v in self.server.cpu().items() if k != "ok"}
@@ -103,8 +119,9 @@ class SlaveOps:
 
     # -- drive faults -------------------------------------------------------------------------------------------
 
-    def fault(self, station: int | None = None, **fields: Any) -> dict[str, Any]:
-        """A drive fault on *station* (every station: None); with ``for`` released by itself after that long."""
+    def fault(self, station: int | None = None, name: str | None = None, **fields: Any) -> dict[str, Any]:
+        """A drive fault on *station* (every station: None); with ``for`` released by itself after that long. Its
+        name is answered (given, or made as ``load-21H-1``); ``release`` takes its handle."""
         spec = fault_of(fields)
         targets = [self._hosted(station)] if station is not None else list(self.server.stations)
         now = time.monotonic_ns()
@@ -117,7 +134,9 @@ class SlaveOps:
             if spec.for_ns is not None:
                 timer = asyncio.get_running_loop().call_later(spec.for_ns / 1e9, self._release_later, address, handle)
                 self._releases.add(timer)
-        return {"fault": spec.as_fields(), "describe": spec.describe, "handles": handles,
+        if name is None:
+            name = self._names.new(spec.action, "all" if station is None else station_name(station))
+        return {"name": name, "fault": spec.as_fields(), "describe": spec.describe, "handles": handles,
                 **({"handle": next(iter(handles.values()))} if len(handles) == 1 else {})}
 
     def _release_later(self, address: int, handle: int) -> None:

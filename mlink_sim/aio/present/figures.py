@@ -24,7 +24,15 @@ Where each figure comes from (:class:`StationFigures`):
   ERR lit for a communication alarm, R/E red for an alarm or a command error, CON lit while connected, TX / RX / LK1
   lit while datagrams flow (:data:`~mlink_sim.cards.base.LED_WINDOW_NS`, as the card counts them); LK2 unlit (one
   simulated port);
-* the run's RTT histogram (:class:`RttPercentiles`): ``rtt_p50_us``, ``rtt_p99_us``, a few stations refreshed per call.
+* the run's RTT histogram (:class:`RttPercentiles`): ``rtt_p50_us``, ``rtt_p99_us``, a few stations refreshed per call;
+  the latest round trip, ``rtt_us``, from the master's view;
+* the drive's regulation (``regulation``: the states of :data:`mlink_sim.drive.activity.REGULATION` its drive was in,
+  stall prevention and the torque limit), from the slave's snapshot (``"regulation"``: the code of
+  :meth:`mlink_sim.drive.Drive.regulation` over the :data:`REGULATION_WINDOW_NS` before it); null without one.
+
+``output_hz`` and ``reference_hz`` are signed: below 0 Hz in reverse (the output by the response's run direction,
+STATUS REV / INVCMD_STAT REVERSE; the reference by the run command the master sends, the last one while none is
+sent), so that a reverse run plots below the axis; ``direction`` says the same in words.
 
 Touches: nothing; reads the views, the metrics and the snapshots it is given.
 """
@@ -36,6 +44,7 @@ from typing import Any
 
 from ...cards.base import LED_WINDOW_NS
 from ...config import Config
+from ...drive.activity import regulation_names
 from ...drive.monitors import SEL_MON_TABLES, ref_to_hz
 from ...master.machine import CONNECTED as _CONNECTED
 from ...master.types import StationState
@@ -43,12 +52,18 @@ from ...wire import CmdAlm, CommAlm, InvCmdStat, Link, M2Alarm, M2Status
 from ...scenario.values import drive_settings
 
 __all__ = ["FIGURE_FIELDS", "StationFigures", "NetworkFigures", "RttPercentiles", "run_direction", "station_key",
-           "snapshot_figures"]
+           "snapshot_figures", "REGULATION_WINDOW_NS", "REGULATION_OF"]
 
 #: The keys of one station's figures, in order (docs/control.md, "Station figures").
 FIGURE_FIELDS = ("address", "name", "card", "link", "phase", "connected", "alarm", "warnings", "leds", "led_colors",
                  "running", "direction", "reference_hz", "output_hz", "output_current_a", "dc_bus_v",
-                 "motor_speed_rpm", "rtt_p50_us", "rtt_p99_us", "missed", "late")
+                 "motor_speed_rpm", "regulation", "rtt_us", "rtt_p50_us", "rtt_p99_us", "missed", "late")
+#: A slave's snapshot names the regulation states its drive was in during this long before it (the period the
+#: trace asks the slaves of ``mlink-sim up`` for their snapshots at: aio/present/trace.py SNAPSHOT_EVERY_S).
+REGULATION_WINDOW_NS = 500_000_000
+#: A regulation code (:meth:`mlink_sim.drive.Drive.regulation`) -> the names of its states, one tuple per code (made
+#: once: the figures of every sample take one of these).
+REGULATION_OF: tuple[tuple[str, ...], ...] = tuple(regulation_names(code) for code in range(8))
 
 # Plain ints (and machine.CONNECTED, a tuple of members): the figures are read many times a second, and an enum's
 # ``&`` and hash run in Python.
@@ -120,7 +135,7 @@ class StationFigures:
     each SEL_MON code carries on its card), :meth:`of` the figures of one view."""
 
     __slots__ = ("address", "key", "name", "card", "link", "settings", "_poles", "_monitors",
-                 "_ml3", "_colors")
+                 "_ml3", "_colors", "_reverse")
 
     def __init__(self, st: Any) -> None:
         assert st.link is not None  # the config's validation fills it in
@@ -136,6 +151,7 @@ class StationFigures:
         self._ml3 = st.link is Link.ML3  # the SI-ET3's link, and only its
         self._colors = ({"R/E": "green", "CON": "green", "LK1": "green", "LK2": "green"} if self._ml3 else
                         {"RUN": "green", "ERR": "red", "TX": "green", "RX": "green"})
+        self._reverse = False  # the last run command the master sent was reverse: the reference's sign
 
     def _hz(self, raw: int) -> float:
         raw = _signed(raw)
@@ -144,10 +160,13 @@ class StationFigures:
 
     def of(self, view: Any, sel_mon: int = 0x41, now_ns: int | None = None,
            rtt: tuple[float | None, float | None] = (None, None),
-           snapshot: Mapping[str, Any] | None = None) -> dict[str, Any]:
+           snapshot: Mapping[str, Any] | None = None, run: tuple[bool, bool] = (False, False)) -> dict[str, Any]:
         """The figures of *view* (the master's :class:`~mlink_sim.master.StationView`), its monitors read as
         *sel_mon* selects them, TX/RX/LK1 judged at *now_ns* (the master's clock; None: lit while answering),
-        *rtt* from :class:`RttPercentiles`, and the slave's *snapshot* (its stats entry) where there is one."""
+        *rtt* from :class:`RttPercentiles`, the slave's *snapshot* (its stats entry) where there is one, and *run*
+        the run command the master sends (forward, reverse: the reference's sign)."""
+        if run[0] != run[1]:
+            self._reverse = run[1]
         status = view.status
         direction = run_direction(self.link, status)
         alarm, warnings = self._alarms(view)
@@ -165,25 +184,34 @@ class StationFigures:
                     monitors[figure] = round(self._hz(raw) * 60.0 / self._poles, 1)
                 else:
                     monitors[figure] = self._hz(raw)
+        ref = monitors["reference_hz"]
         drive = snapshot.get("drive") if snapshot else None
         if isinstance(drive, Mapping):
             for figure, key in _SNAPSHOT_FIGURE.items():
                 if monitors[figure] is None and isinstance(drive.get(key), (int, float)):
                     monitors[figure] = round(float(drive[key]), 2)
+            ref = monitors["reference_hz"]
             extra = snapshot.get("warnings") if snapshot and view.warning else None  # what the warning is
             if isinstance(extra, list):
                 warnings += [w for w in extra if isinstance(w, str) and w not in warnings]
         leds, colors = self._leds(view, now_ns, alarm is not None, snapshot)
         p50, p99 = rtt
+        out = view.output_hz if answering else None
+        if out is not None and direction == "reverse":
+            out = -out
+        if ref is not None and self._reverse:
+            ref = -abs(ref)
+        reg = snapshot.get("regulation") if snapshot else None
+        rtt_ns = view.rtt_ns
         return {
             "address": self.key, "name": self.name, "card": self.card, "link": self.link.name,
             "phase": view.phase, "connected": view.state in _CONNECTED, "alarm": alarm, "warnings": warnings,
             "leds": leds, "led_colors": colors, "running": direction is not None, "direction": direction,
-            "reference_hz": monitors["reference_hz"],
-            "output_hz": view.output_hz if answering else None,
+            "reference_hz": ref, "output_hz": out,
             "output_current_a": round(view.output_current * 0.1, 1) if answering else None,
             "dc_bus_v": monitors["dc_bus_v"], "motor_speed_rpm": monitors["motor_speed_rpm"],
-            "rtt_p50_us": p50, "rtt_p99_us": p99, "missed": view.missing, "late": view.late,
+            "regulation": REGULATION_OF[reg & 7] if isinstance(reg, int) else None,
+            "rtt_us": round(rtt_ns / 1000, 1) if answering and rtt_ns is not None else None, "rtt_p50_us": p50, "rtt_p99_us": p99, "missed": view.missing, "late": view.late,
         }
 
     def _alarms(self, view: Any) -> tuple[dict[str, Any] | None, list[str]]:
@@ -244,9 +272,10 @@ class NetworkFigures:
         """The figures of station *address* of *net* (a ``NetworkApi``), with its RTT figures as last refreshed
         (:meth:`stations`) and the slave's snapshot in *snapshots* (address -> stats entry) if there."""
         master = net.master(address)
+        control = master.core.control(address)
         return self.by_address[address].of(
-            master.view(address), master.core.control(address).sel_mon, master.now_ns(), self.rtt.get(address),
-            None if snapshots is None else snapshots.get(address))
+            master.view(address), control.sel_mon, master.now_ns(), self.rtt.get(address),
+            None if snapshots is None else snapshots.get(address), (control.forward, control.reverse))
 
     def stations(self, net: Any, metrics: Any = None,
                  snapshots: Mapping[int, Mapping[str, Any]] | None = None) -> list[dict[str, Any]]:
@@ -262,8 +291,9 @@ def _rounded(value: Any, digits: int) -> float | None:
 
 def snapshot_figures(snap: Mapping[str, Any]) -> dict[str, Any]:
     """The figures of a standalone slave's station from its snapshot alone (its stats entry: the card's view, not
-    a master's), keyed as :data:`FIGURE_FIELDS`: the drive's own figures, the LEDs the card lights; no RTT, no
-    missed or late answers (null: only a master counts them). The alarm: ML-II ALARM E0H and above, ML-III COMM_ALM
+    a master's), keyed as :data:`FIGURE_FIELDS`: the drive's own figures (the frequencies signed by the drive's
+    direction, DriveSnapshot.reverse; the regulation from the snapshot's ``"regulation"`` code), the LEDs the card
+    lights; no RTT, no missed or late answers (null: only a master counts them). The alarm: ML-II ALARM E0H and above, ML-III COMM_ALM
     or CMD_ALM 8H and above (SI-T3 Table 23, SI-ET3 "COMM_ALM" / "CMD_ALM"), else the drive's fault."""
     address = int(snap.get("address", 0))
     link = str(snap.get("link", ""))
@@ -284,7 +314,10 @@ def snapshot_figures(snap: Mapping[str, Any]) -> dict[str, Any]:
     if alarm is None and isinstance(drive.get("fault"), str):
         alarm = {"code": None, "name": drive["fault"]}
     running = bool(drive.get("running"))
+    sign = -1.0 if drive.get("reverse") else 1.0
     phase = int(snap.get("phase") or 0)
+    reg = snap.get("regulation")
+    ref, out = _rounded(drive.get("reference_hz"), 2), _rounded(drive.get("output_hz"), 2)
     leds = snap.get("leds")
     colors = snap.get("led_colors")
     return {
@@ -293,8 +326,10 @@ def snapshot_figures(snap: Mapping[str, Any]) -> dict[str, Any]:
         "leds": dict(leds) if isinstance(leds, Mapping) else {},
         "led_colors": dict(colors) if isinstance(colors, Mapping) else {},
         "running": running, "direction": ("reverse" if drive.get("reverse") else "forward") if running else None,
-        "reference_hz": _rounded(drive.get("reference_hz"), 2), "output_hz": _rounded(drive.get("output_hz"), 2),
+        "reference_hz": None if ref is None else sign * ref, "output_hz": None if out is None else sign * out,
         "output_current_a": _rounded(drive.get("output_current_a"), 1), "dc_bus_v": _rounded(drive.get("dc_bus_v"), 1),
-        "motor_speed_rpm": _rounded(drive.get("motor_rpm"), 1), "rtt_p50_us": None, "rtt_p99_us": None,
+        "motor_speed_rpm": _rounded(drive.get("motor_rpm"), 1),
+        "regulation": REGULATION_OF[reg & 7] if isinstance(reg, int) else None, "rtt_us": None, "rtt_p50_us": None,
+        "rtt_p99_us": None,
         "missed": None, "late": None,
     }

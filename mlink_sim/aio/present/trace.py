@@ -34,7 +34,7 @@ from typing import Any
 from ..._log import get_logger
 from ...metrics.trace import TraceWriter
 from ...operations import OPERATIONS, leds_text
-from .figures import NetworkFigures, station_key
+from .figures import REGULATION_OF, NetworkFigures, station_key
 
 __all__ = ["TraceSampler", "DEFAULT_INTERVAL_NS", "SNAPSHOT_EVERY_S", "ACTING_OPS"]
 
@@ -53,8 +53,11 @@ SLICE = 8
 ACTING_OPS = frozenset(op.name for op in OPERATIONS.values() if op.acts)
 
 _HEAD = itemgetter("address", "name", "card", "link", "phase", "connected")
-_TAIL = itemgetter("running", "direction", "reference_hz", "output_hz", "output_current_a", "dc_bus_v",
-                   "motor_speed_rpm", "rtt_p50_us", "rtt_p99_us", "missed", "late")
+_DRIVE = itemgetter("running", "direction", "reference_hz", "output_hz", "output_current_a", "dc_bus_v",
+                    "motor_speed_rpm")
+_TAIL = itemgetter("rtt_us", "rtt_p50_us", "rtt_p99_us", "missed", "late")
+#: The ``regulation`` column of each figure's value (``("stall-decel",)`` -> ``stall-decel``; null: empty), made once.
+_REGULATION_TEXT: dict[tuple[str, ...] | None, str] = {None: "", **{names: "|".join(names) for names in REGULATION_OF}}
 
 
 def _row(t: float, fig: dict[str, Any]) -> tuple[Any, ...]:
@@ -63,7 +66,7 @@ def _row(t: float, fig: dict[str, Any]) -> tuple[Any, ...]:
     leds = fig["leds"]
     return (t, "sample", *_HEAD(fig), "" if alarm is None else alarm["code"] or "",
             "" if alarm is None else alarm["name"], "|".join(fig["warnings"]),
-            leds_text(leds), *_TAIL(fig), "", "")
+            leds_text(leds), *_DRIVE(fig), _REGULATION_TEXT[fig["regulation"]], *_TAIL(fig), "", "")
 
 
 class TraceSampler:
@@ -73,6 +76,7 @@ class TraceSampler:
         self.session = session
         self.writer = writer
         self.interval_s = interval_ns / 1e9
+        self._interval_ns = interval_ns
         self.figures = NetworkFigures(session.config)  # once: each station's constants (too slow to make per sample)
         self._addresses = list(self.figures.by_address)
         self._t0: float | None = None  # the loop time of the timeline's 0 s, once it is known (start)
@@ -80,7 +84,7 @@ class TraceSampler:
         self._tasks: list[asyncio.Task[Any]] = []
         self._settled: set[tuple[int, str]] = set()  # (id(episode), event) already written
         self._snapshots: dict[int, dict[str, Any]] = {}  # the card cores' figures (virtual clock)
-        self._impairments: dict[tuple[int | None, str], str] = {}  # (station, group) -> its description
+        self._impairments: dict[tuple[int | None, str], str] = {}  # (station, name) -> "NAME: what"
         self._last_impairment: tuple[Any, ...] = ()
         #: the card cores are in this process (virtual clock): their snapshots are read at each sample
         workers = session.net.workers
@@ -158,16 +162,17 @@ class TraceSampler:
 
         return {name: wrap(name, op) if name in ACTING_OPS else op for name, op in handlers.items()}
 
-    def _on_impairment(self, event: str, station: int | None, group: str, describe: str) -> None:
-        """An impairment began or ended on *station*'s path: one row, though the layer calls once per direction."""
-        key = (station, group)
+    def _on_impairment(self, event: str, station: int | None, name: str, describe: str) -> None:
+        """An impairment began or ended on *station*'s path: one row (``NAME: what``), though the layer calls once
+        per direction."""
+        key = (station, name)
         if event == "start":
-            self._impairments[key] = describe or group
-        seen = (event, station, group, asyncio.get_running_loop().time())
+            self._impairments[key] = f"{name}: {describe}" if describe else name
+        seen = (event, station, name, asyncio.get_running_loop().time())
         if seen == self._last_impairment:
             return
         self._last_impairment = seen
-        self.action(f"impair-{event}", self._impairments.get(key, group), station)
+        self.action(f"impair-{event}", self._impairments.get(key, name), station)
 
     def _episodes(self, t0: float) -> None:
         """``fault`` / ``fault-end`` / ``recovered`` / ``unrecovered`` rows of the masters' fault episodes, each
@@ -178,11 +183,12 @@ class TraceSampler:
                 continue
             for ep in stage.log.episodes:
                 key = station_key(ep.station)
+                what = f"{ep.name}: {ep.what}" if ep.name else ep.what
                 for event, ns, detail in (
-                        ("fault", ep.start_ns, ep.what), ("fault-end", ep.end_ns, ep.what),
+                        ("fault", ep.start_ns, what), ("fault-end", ep.end_ns, what),
                         ("recovered", ep.recovered_ns,
-                         f"{ep.what}: healthy {(ep.recovery_ns or 0) / 1e6:.1f} ms after its end"),
-                        ("unrecovered", 0 if ep.gave_up else None, f"{ep.what}: not healthy again")):
+                         f"{what}: healthy {(ep.recovery_ns or 0) / 1e6:.1f} ms after its end"),
+                        ("unrecovered", 0 if ep.gave_up else None, f"{what}: not healthy again")):
                     mark = (id(ep), event)
                     if ns is None or mark in self._settled:
                         continue
@@ -236,6 +242,7 @@ class TraceSampler:
         (the drive's reference, DC bus, motor speed and fault, the LEDs, the warnings), without turning the whole
         snapshot into JSON as a worker's ``stats`` does."""
         out = self._snapshots
+        since = fabric.clock.now - self._interval_ns  # the regulation since the last sample
         for address in addresses:
             core = fabric.station(address)
             if core is None:  # a killed station, until it powers up again
@@ -245,7 +252,8 @@ class TraceSampler:
             d = snap.drive
             out[address] = {"drive": {"reference_hz": d.reference_hz, "dc_bus_v": d.dc_bus_v,
                                       "motor_rpm": d.motor_rpm, "fault": d.fault},
-                            "leds": snap.leds, "led_colors": snap.led_colors, "warnings": list(snap.warnings)}
+                            "leds": snap.leds, "led_colors": snap.led_colors, "warnings": list(snap.warnings),
+                            "regulation": core.drive.drive.regulation(since)}
 
     async def _snapshot_loop(self) -> None:
         """The slave workers' snapshots, refreshed every :data:`SNAPSHOT_EVERY_S` (one query at a time)."""

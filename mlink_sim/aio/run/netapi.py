@@ -126,14 +126,15 @@ class NetworkApi:
     #: the session that owns the impairment layer (``impair``/``heal``), set by it
     faults: Any = None
 
-    def impair(self, station: int | None, spec: Any) -> None:
+    def impair(self, station: int | None, spec: Any, name: str | None = None) -> str:
         """Start the network impairment *spec* (an :class:`~mlink_sim.impair.Impairment`) on *station* (None:
-        every station), replacing the one there (docs/faults.md)."""
-        self._faults().impair(station, spec)
+        every station) as *name* (None: a made name, replacing the unnamed one there; docs/faults.md); its name."""
+        return str(self._faults().impair(station, spec, name))
 
-    def heal(self, station: int | None = None) -> int:
-        """End every network impairment of *station* (None: of every station); returns how many ended."""
-        return self._faults().heal(station)
+    def heal(self, station: int | None = None, name: str | None = None) -> list[str]:
+        """End every network impairment of *station* (None: of every station), or the one called *name*; the
+        names that ended."""
+        return list(self._faults().heal(station, name))
 
     def _faults(self) -> Any:
         if self.faults is None:

@@ -117,17 +117,23 @@ class NetworkSession:
         """Now on the session's clock (real: ``time.monotonic_ns``)."""
         return time.monotonic_ns()
 
-    def impair(self, station: int | None, spec: Any) -> None:
+    def impair(self, station: int | None, spec: Any, name: str | None = None) -> str:
         """Start *spec* (an :class:`~mlink_sim.impair.Impairment`) on *station* (None: every station, each on its
-        own, so that a later ``impair`` or ``heal`` of one station replaces or ends it there)."""
-        now = self._now_ns()
-        for address in [st.address for st in self.config.station] if station is None else [station]:
-            self.impairments.impair(spec, address, now)
+        own, so that a later ``impair`` or ``heal`` of one station replaces or ends it there), as *name* (None: a
+        made name, replacing the unnamed impairment there); returns its name."""
+        stations = [st.address for st in self.config.station] if station is None else [station]
+        name = self.impairments.impair(spec, stations, self._now_ns(), name=name)
         self._route_impairments()
+        return name
 
-    def heal(self, station: int | None = None) -> int:
-        """End the network impairments of *station* (None: all); returns how many ended."""
-        return self.impairments.heal(station, self._now_ns(), groups=("impair",))
+    def heal(self, station: int | None = None, name: str | None = None) -> list[str]:
+        """End the network impairments of *station* (None: all), or only the one called *name*; the names that
+        ended."""
+        return self.impairments.heal(station, self._now_ns(), name=name)
+
+    def now_ns(self) -> int:
+        """Now on the session's clock, as the impairment layer reads it."""
+        return self._now_ns()
 
     def _route_impairments(self) -> None:
         """Put the masters' sockets behind the layer while it has a fault (the virtual fabric reads it itself)."""
@@ -140,8 +146,7 @@ class NetworkSession:
         if self.capture is not None:
             self.capture.note(now, f"{group} {'started' if event == 'start' else 'ended'}: {who}")
         if self.fault_hooks:
-            describe = next((f["describe"] for f in self.impairments.faults()
-                             if f["group"] == group and f["station"] == ("all" if station is None else station)),
+            describe = next((f["describe"] for f in self.impairments.faults() if f["name"] == group),
                             "") if event == "start" else ""
             for hook in self.fault_hooks:
                 hook(event, station, group, describe)
@@ -380,9 +385,12 @@ class NetworkSession:
         wall = self.snapshots_at - self._wall0
         for name, reply in stats.items():
             self.metrics.record_cpu(name, reply.get("cpu_s", 0.0), reply.get("wall_s", wall) or wall)
+            regulation = reply.get("regulation")
             for key, snap in reply.get("stations", {}).items():
                 if not isinstance(snap, dict):
                     continue
+                if isinstance(regulation, dict):  # the drive's regulation states, beside the snapshots
+                    snap["regulation"] = regulation.get(key, 0)
                 self.slave_snapshots[int(key, 16)] = snap
                 if isinstance(counters := snap.get("counters"), dict):
                     self.metrics.record_slave_counters(int(key, 16), flatten_counters(counters))

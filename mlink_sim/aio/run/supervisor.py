@@ -180,6 +180,11 @@ class Worker:
             raise PlantError(str(reply.get("error")))
         return int(reply.get("handle", 0))
 
+    async def release_drive_fault(self, station: int, handle: int) -> None:
+        """End the drive fault *handle* of *station* on the worker now (``heal``); one the worker released already
+        (its ``for`` ran out) is no error."""
+        await self.ask("release", station=station, handle=handle)
+
     async def drive_activity(self, station: int) -> Any:
         """What *station*'s drive model is doing (:class:`~mlink_sim.drive.activity.DriveActivity`), asked of the
         worker; None when it does not answer within 0.5 s."""

@@ -28,10 +28,12 @@ from ...jsonable import to_jsonable
 from ...master import MasterCore, NetworkPlan
 from ...faults import FaultStage
 from ...faults.plant import PlantFaults
+from ...operations import OpError
 from ..virtual.fabric import Fabric, FabricPort, VirtualCycle
 from ..slave.faults import apply_drive_fault, release_drive_fault
 from ..timing.heap import settle_heap
 from ..master.runner import Master, MetricsSink, NullMetrics
+from ..present.figures import REGULATION_WINDOW_NS
 from .netapi import NetworkApi, build_plans
 from .session import NetworkSession, flatten_counters
 from ..slave.stations import build_station, spec_for
@@ -114,11 +116,18 @@ class _VirtualWorker:
             asyncio.get_running_loop().call_later(fault.for_ns / 1e9, self._release, station, handle)
         return handle
 
+    async def release_drive_fault(self, station: int, handle: int) -> None:
+        """End the drive fault *handle* of *station* now (``heal``)."""
+        self._release(station, handle)
+
     def _release(self, station: int, handle: int) -> None:
         fabric = self.session.fabric
         core = fabric.station(station)
         if core is not None:
-            release_drive_fault({station: core}, self.session.plants, station, handle, fabric.clock.now)
+            try:
+                release_drive_fault({station: core}, self.session.plants, station, handle, fabric.clock.now)
+            except OpError:  # released already (healed before its for ran out)
+                return
             fabric.rearm(station)
 
     async def drive_activity(self, station: int) -> Any:
@@ -217,11 +226,13 @@ class VirtualSession(NetworkSession):
 
     # ------------------------------------------------------------------ figures
     async def refresh_slave_stats(self) -> None:
-        """The stations' counters and snapshots, read from the card cores in this process."""
+        """The stations' counters and snapshots, read from the card cores in this process, with each drive's
+        regulation over the :data:`~mlink_sim.aio.present.figures.REGULATION_WINDOW_NS` before now."""
         for address, node in self.fabric.nodes.items():
             if node.station is not None:
                 self.metrics.record_slave_counters(address, flatten_counters(node.station.counters.as_dict()))
-                self.slave_snapshots[address] = to_jsonable(node.station.snapshot())
+                snap = self.slave_snapshots[address] = to_jsonable(node.station.snapshot())
+                snap["regulation"] = node.station.drive.drive.regulation(self.clock.now - REGULATION_WINDOW_NS)
 
     def _clock_s(self) -> float:
         return self.clock.now / 1e9

@@ -58,11 +58,16 @@ class ImpairingProxy:
         self._line: DelayLine | None = None
 
     # -- the control endpoint's target (aio/control/endpoint.py) ----------------------------------------------------------
-    def impair(self, station: int | None, spec: Any) -> None:
-        self.impairments.impair(spec, station, _mono())
+    def impair(self, station: int | None, spec: Any, name: str | None = None) -> str:
+        """Start *spec* on *station* (None: every station's path); its name (*name*, or a made one)."""
+        return self.impairments.impair(spec, station, _mono(), name=name)
 
-    def heal(self, station: int | None = None) -> int:
-        return self.impairments.heal(station, _mono(), groups=("impair",))
+    def heal(self, station: int | None = None, name: str | None = None) -> list[str]:
+        """End the impairments of *station* (None: all), or the one called *name*; the names that ended."""
+        return self.impairments.heal(station, _mono(), name=name)
+
+    def now_ns(self) -> int:
+        return _mono()
 
     # -- life cycle ---------------------------------------------------------------------------------------------
     async def start(self) -> None:

@@ -1,14 +1,18 @@
-// mlink-sim's live page (docs/web.md): reads GET api/network once, then the event stream api/events (status at
-// most ten times a second, the network's events as they happen); the controls call the API. No build step, no
-// framework: the plots are uPlot (static/vendor/uplot).
+// mlink-sim's live page (docs/web.md): reads GET plots.json (the plotting vocabulary) and GET api/network once, then
+// the event stream api/events (the last minute of samples first, then status at most ten times a second and the
+// network's events as they happen); the controls call the API. No build step, no framework: the plots are uPlot
+// (static/vendor/uplot).
 "use strict";
 
 const WINDOW_S = 60;            // the stations' plots: the last minute
 const NET_WINDOW_S = 600;       // the network's plot: the last ten minutes
 const PLOT_EVERY_MS = 250;      // plots are redrawn at most four times a second (and only those in view)
 const MAX_EVENTS = 300;
+const MAX_MARKS = 200;          // marks kept per station (those in the window are drawn)
+const MAX_LISTED = 12;          // marks listed under a station's plots (the newest in the window)
 
-const state = { token: null, stations: new Map(), net: null, netPlot: null, lastPlot: 0 };
+// early: the events that came before their station's panel (numbered once it is there)
+const state = { token: null, stations: new Map(), net: null, netPlot: null, lastPlot: 0, vocab: null, early: [] };
 
 // ---- the token: from the address's fragment (#token=…, never sent to a server), kept for this tab only
 (function takeToken() {
@@ -64,33 +68,56 @@ function setLink(text, cls) {
 const fmt = (v, digits = 1) => (v === null || v === undefined ? "–" : Number(v).toFixed(digits));
 function setText(el, text) { if (el.textContent !== text) el.textContent = text; }
 
-// ---- plots
+// ---- plots, in the plotting vocabulary the HTML report shares (GET plots.json: mlink_sim/plots.py)
 const compact = (u, vals) => vals.map((v) => (v === null ? "" : Math.abs(v) >= 10000 ? `${v / 1000}k` : String(v)));
 
-function plotOptions(el, series, axes) {
+// the time axis in seconds at any window: as many decimals as the ticks' step needs (0.05 s apart: 4.05, 4.10 …;
+// 2.5 s apart: 2.5, 5.0 …)
+function decimals(incr) {
+  for (let d = 0; d < 3; d++) {
+    const x = incr * 10 ** d;
+    if (Math.abs(x - Math.round(x)) < 1e-6 * Math.max(1, x)) return d;
+  }
+  return 3;
+}
+
+function timeAxis() {
   return {
-    width: Math.max(200, el.clientWidth || 300), height: 130,
-    cursor: { drag: { x: false, y: false } },
-    legend: { live: false },
-    scales: { x: { time: false } },
-    series: [{ label: "t s" }, ...series],
-    axes: [{ size: 28, values: (u, vals) => vals.map((v) => v.toFixed(0)) },
-      ...axes.map((a) => ({ values: compact, ...a }))],
+    label: state.vocab.time_label, labelSize: 14, labelGap: 0, size: 30,
+    values: (u, splits, axis, space, incr) => {
+      const labels = splits.map((v) => (v === null ? "" : v.toFixed(decimals(incr))));
+      u.root.dataset.xTicks = labels.join(" ");
+      return labels;
+    },
   };
 }
 
-function hzPlot(el) {
-  return new uPlot(plotOptions(el, [
-    { label: "ref Hz", scale: "hz", stroke: "#8c959f", dash: [5, 4], width: 1.5 },
-    { label: "output Hz", scale: "hz", stroke: "#1f6feb", width: 2 },
-  ], [{ scale: "hz", size: 42 }]), [[], [], []], el);
+function plotOptions(el, series, axes, hooks) {
+  return {
+    width: Math.max(200, el.clientWidth || 300), height: 140,
+    cursor: { drag: { x: false, y: false } },
+    legend: { live: false },
+    scales: { x: { time: false } },
+    series: [{ label: state.vocab.time_label }, ...series],
+    axes: [timeAxis(), ...axes.map((a) => ({ values: compact, space: 18, ...a }))],  // a label every 18 px at least
+    hooks: hooks || {},
+  };
 }
 
-function powerPlot(el) {
-  return new uPlot(plotOptions(el, [
-    { label: "current A", scale: "A", stroke: "#d97706", width: 1.5 },
-    { label: "DC bus V", scale: "V", stroke: "#7c3aed", width: 1.5 },
-  ], [{ scale: "A", size: 42 }, { scale: "V", side: 1, size: 46, grid: { show: false } }]), [[], [], []], el);
+const seriesOf = (s, scale) => ({ label: s.label, scale, stroke: s.color, width: s.dash ? 1.5 : 2,
+  ...(s.dash ? { dash: [5, 4] } : {}) });
+
+function hzPlot(el, st) {
+  const p = state.vocab.station_plots[0];
+  return new uPlot(plotOptions(el, p.series.map((s) => seriesOf(s, "hz")), [{ scale: "hz", size: 42 }],
+    overlay(st)), st.hzData, el);
+}
+
+function powerPlot(el, st) {
+  const [current, bus] = state.vocab.station_plots.slice(1);
+  return new uPlot(plotOptions(el, [...current.series.map((s) => seriesOf(s, "A")),
+    ...bus.series.map((s) => seriesOf(s, "V"))],
+  [{ scale: "A", size: 42 }, { scale: "V", side: 1, size: 46, grid: { show: false } }], overlay(st)), st.powerData, el);
 }
 
 function netPlot(el) {
@@ -100,12 +127,86 @@ function netPlot(el) {
   ], [{ scale: "us", size: 46 }, { scale: "n", side: 1, size: 42, grid: { show: false } }]), [[], [], []], el);
 }
 
-function push(cols, t, values, windowS) {
+// a station's columns: every figure the plots and the bands read, trimmed to the window together
+const COLUMNS = ["reference_hz", "output_hz", "output_current_a", "dc_bus_v", "regulation"];
+
+function pushRow(cols, t, values, windowS) {
   cols[0].push(t);
   values.forEach((v, i) => cols[i + 1].push(v === undefined ? null : v));
   let cut = 0;
   while (cut < cols[0].length && cols[0][cut] < t - windowS) cut++;
   if (cut) cols.forEach((c) => c.splice(0, cut));
+}
+
+function pushSample(st, t, row) {
+  pushRow(st.cols, t, COLUMNS.map((k) => row[k]), WINDOW_S);
+  st.dirty = true;
+}
+
+// the drive's regulation as bands: a state off for less than bridge_s between two samples that have it is one band
+function bandsOf(st) {
+  const [ts, reg] = [st.cols[0], st.cols[COLUMNS.length]];
+  const bridge = state.vocab.bridge_s, out = [], open = new Map();
+  for (let i = 0; i < ts.length; i++) {
+    const now = reg[i] || [];
+    for (const [name, span] of open) {
+      if (!now.includes(name) && ts[i] - span.t1 > bridge) { out.push({ name, ...span }); open.delete(name); }
+    }
+    for (const name of now) {
+      const span = open.get(name);
+      if (span) span.t1 = ts[i]; else open.set(name, { t0: ts[i], t1: ts[i] });
+    }
+  }
+  for (const [name, span] of open) out.push({ name, ...span });
+  return out;
+}
+
+function overlay(st) {
+  return { drawAxes: [(u) => drawBands(u, st)], draw: [(u) => drawMarks(u, st)] };
+}
+
+function drawBands(u, st) {
+  const { ctx, bbox } = u, x = u.scales.x;
+  ctx.save();
+  ctx.globalAlpha = 0.45;
+  for (const b of st.bands) {
+    const a = Math.max(b.t0, x.min), z = Math.min(b.t1, x.max);
+    if (z < a) continue;
+    const pa = u.valToPos(a, "x", true), pz = u.valToPos(z, "x", true);
+    ctx.fillStyle = (state.vocab.bands[b.name] || state.vocab.bands.fault).color;
+    ctx.fillRect(pa, bbox.top, Math.max(pz - pa, 1), bbox.height);
+  }
+  ctx.restore();
+}
+
+// each mark: a line, its number in a circle at the top; circles that would overlap move down a row
+function drawMarks(u, st) {
+  if (u === st.hzPlot) st.node.dataset.xTicks = u.root.dataset.xTicks || "";
+  const { ctx, bbox } = u, x = u.scales.x, dpr = devicePixelRatio || 1, r = 7 * dpr;
+  const last = [-1e9, -1e9, -1e9];
+  ctx.save();
+  ctx.font = `bold ${9 * dpr}px system-ui, sans-serif`;
+  ctx.textAlign = "center";
+  ctx.textBaseline = "middle";
+  for (const m of st.marks) {
+    if (m.t < x.min || m.t > x.max) continue;
+    const px = u.valToPos(m.t, "x", true);
+    let row = last.findIndex((p) => px - p >= 2 * r + dpr);
+    if (row < 0) row = last.length - 1;
+    last[row] = px;
+    const py = bbox.top + r + dpr + row * (2 * r + 2 * dpr);
+    const color = state.vocab.marks[m.kind].color;
+    ctx.strokeStyle = color;
+    ctx.globalAlpha = 0.8;
+    ctx.lineWidth = dpr;
+    ctx.beginPath(); ctx.moveTo(px, bbox.top); ctx.lineTo(px, bbox.top + bbox.height); ctx.stroke();
+    ctx.globalAlpha = 1;
+    ctx.fillStyle = color;
+    ctx.beginPath(); ctx.arc(px, py, r, 0, 2 * Math.PI); ctx.fill();
+    ctx.fillStyle = "#fff";
+    ctx.fillText(String(m.n), px, py + 0.5 * dpr);
+  }
+  ctx.restore();
 }
 
 const visible = new IntersectionObserver((entries) => {
@@ -118,9 +219,51 @@ const visible = new IntersectionObserver((entries) => {
 const resized = new ResizeObserver((entries) => {
   for (const e of entries) {
     const plot = e.target._plot;
-    if (plot) plot.setSize({ width: Math.max(200, e.contentRect.width), height: 130 });
+    if (plot) plot.setSize({ width: Math.max(200, e.contentRect.width), height: 140 });
   }
 });
+
+// the marks and bands in the plots' window, listed under them with what each is (as the HTML report does)
+function showLegend(st) {
+  const from = st.cols[0].length ? st.cols[0][0] : -Infinity;
+  const marks = st.marks.filter((m) => m.t >= from).slice(-MAX_LISTED);
+  const key = marks.map((m) => m.n).join() + "|" + [...new Set(st.bands.map((b) => b.name))].join();
+  if (st.legendKey === key) return;
+  st.legendKey = key;
+  st.legend.replaceChildren(...marks.map((m) => {
+    const li = document.createElement("li");
+    li.dataset.n = m.n;
+    li.dataset.kind = m.kind;
+    const n = document.createElement("span");
+    n.className = "n";
+    n.style.background = state.vocab.marks[m.kind].color;
+    n.textContent = m.n;
+    li.append(n, document.createTextNode(`${fmt(m.t, 1)} s ${m.text}`));
+    return li;
+  }));
+  const shaded = [...new Set(st.bands.map((b) => b.name))];
+  st.node.dataset.bands = shaded.join(" ");
+  st.bandLegend.replaceChildren(...shaded.map((name) => {
+    const span = document.createElement("span");
+    const sw = document.createElement("i");
+    sw.className = "sw";
+    sw.style.background = state.vocab.bands[name].color;
+    span.append(sw, document.createTextNode(state.vocab.bands[name].label));
+    return span;
+  }));
+}
+
+function redraw(st) {
+  st.bands = bandsOf(st);
+  st.hzPlot.setData(st.hzData);
+  st.powerPlot.setData(st.powerData);
+  const ts = st.cols[0];
+  st.node.dataset.plotPoints = String(ts.length);
+  st.node.dataset.plotFrom = ts.length ? String(ts[0]) : "";
+  st.node.dataset.plotTo = ts.length ? String(ts[ts.length - 1]) : "";
+  showLegend(st);
+  st.dirty = false;
+}
 
 // ---- station panels
 function addStation(info) {
@@ -132,17 +275,21 @@ function addStation(info) {
     (info.frame_size ? ` · ${info.frame_size}-byte` : "");
   document.getElementById("stations").appendChild(node);
   const hzEl = node.querySelector(".plot-hz"), pwEl = node.querySelector(".plot-power");
+  const cols = [[], ...COLUMNS.map(() => [])];
   const st = {
-    info, node, visible: true, dirty: false,
-    hz: [[], [], []], power: [[], [], []],
-    hzPlot: hzPlot(hzEl), powerPlot: powerPlot(pwEl),
+    info, node, visible: true, dirty: false, cols, marks: [], bands: [], nextMark: 1,
+    hzData: [cols[0], cols[1], cols[2]], powerData: [cols[0], cols[3], cols[4]],
+    legend: node.querySelector(".st-marks"), bandLegend: node.querySelector(".st-bands"),
     fields: Object.fromEntries([...node.querySelectorAll("[data-f]")].map((el) => [el.dataset.f, el])),
   };
+  st.hzPlot = hzPlot(hzEl, st);
+  st.powerPlot = powerPlot(pwEl, st);
   hzEl._plot = st.hzPlot; pwEl._plot = st.powerPlot;
   resized.observe(hzEl); resized.observe(pwEl);
   visible.observe(node);
   wireControls(st);
   state.stations.set(info.address, st);
+  for (const e of state.early) if (e.station === info.address) markEvent(e, st);
   return st;
 }
 
@@ -177,11 +324,7 @@ function showStation(st, s, t) {
   setText(f.motor_speed_rpm, fmt(s.motor_speed_rpm, 0));
   setText(f.rtt, `${fmt(s.rtt_p50_us, 0)} / ${fmt(s.rtt_p99_us, 0)}`);
   setText(f.counts, `${s.missed} / ${s.late}`);
-  if (t !== null) {
-    push(st.hz, t, [s.reference_hz, s.output_hz], WINDOW_S);
-    push(st.power, t, [s.output_current_a, s.dc_bus_v], WINDOW_S);
-    st.dirty = true;
-  }
+  if (t !== null) pushSample(st, t, s);
 }
 
 function showLeds(el, leds, colors) {
@@ -229,14 +372,15 @@ function wireControls(st) {
     },
     fault: () => {
       const spec = form(".ctl-fault").elements.fault.value.trim();
-      act("fault", () => api("POST", `${base}/fault`, { spec: spec }), (r) => "injected: " + r.describe);
+      act("fault", () => api("POST", `${base}/fault`, { spec: spec }), (r) => `injected ${r.name}: ${r.describe}`);
     },
     impair: () => {
       const spec = form(".ctl-fault").elements.impair.value.trim();
       act("impair", () => api("POST", `${base}/impair`, { spec: spec }),
-        (r) => "impaired: " + (r.describe || JSON.stringify(r.impairment)));
+        (r) => `impaired ${r.name}: ` + (r.describe || JSON.stringify(r.impairment)));
     },
-    heal: () => act("heal", () => api("POST", `${base}/heal`, {}), (r) => `healed (${r.ended} ended)`),
+    heal: () => act("heal", () => api("POST", `${base}/heal`, {}),
+      (r) => (r.ended ? `healed: ${r.names.join(", ")}` : "nothing to heal")),
   };
   st.node.querySelectorAll("button[data-act]").forEach((b) => b.addEventListener("click", actions[b.dataset.act]));
   st.node.querySelectorAll("form").forEach((f) => f.addEventListener("submit", (ev) => ev.preventDefault()));
@@ -261,18 +405,63 @@ function showStatus(s) {
     if (row.rtt_p99_us !== null && (worst === null || row.rtt_p99_us > worst)) worst = row.rtt_p99_us;
     missed += row.missed || 0;
   }
-  if (t !== null) push(state.net, t, [worst, missed], NET_WINDOW_S);
+  if (t !== null) pushRow(state.net, t, [worst, missed], NET_WINDOW_S);
   const now = performance.now();
   if (now - state.lastPlot >= PLOT_EVERY_MS) {
     state.lastPlot = now;
-    for (const st of state.stations.values()) {
-      if (st.dirty && st.visible) {
-        st.hzPlot.setData(st.hz);
-        st.powerPlot.setData(st.power);
-        st.dirty = false;
-      }
-    }
+    for (const st of state.stations.values()) if (st.dirty && st.visible) redraw(st);
     state.netPlot.setData(state.net);
+  }
+}
+
+// the last minute of samples the server kept (its first message on a new stream): the plots start full
+function showHistory(h) {
+  const at = Object.fromEntries(h.fields.map((f, i) => [f, i]));
+  const net = new Map();
+  for (const [address, columns] of Object.entries(h.stations)) {
+    const st = state.stations.get(address);
+    if (!st) continue;
+    h.t.forEach((t, i) => {
+      pushSample(st, t, Object.fromEntries(COLUMNS.map((k) => [k, columns[at[k]][i]])));
+      const rtt = columns[at.rtt_p99_us][i], missed = columns[at.missed][i] || 0;
+      const [w, m] = net.get(t) || [null, 0];
+      net.set(t, [rtt !== null && (w === null || rtt > w) ? rtt : w, m + missed]);
+    });
+  }
+  for (const [t, [worst, missed]] of [...net].sort((a, b) => a[0] - b[0])) {
+    pushRow(state.net, t, [worst, missed], NET_WINDOW_S);
+  }
+  for (const st of state.stations.values()) redraw(st);
+  state.netPlot.setData(state.net);
+}
+
+// an event as a numbered mark on its station's plots (every station's, for one on all): actions, checks, alarms
+function markKind(e) {
+  if (e.kind === "action") return "action";
+  if (e.kind === "check") return e.ok ? "check-ok" : "check-fail";
+  if (e.kind === "alarm" && !e.cleared) return "alarm";
+  return null;
+}
+
+// what a mark stands for, without the station its panel names already
+function markText(e) {
+  if (e.kind === "action") return e.describe || "";
+  if (e.kind === "check") return `${e.ok ? "held" : "FAILED"}: ${e.what}${e.detail ? " — " + e.detail : ""}`;
+  return `${e.name}${e.code ? " (" + e.code + ")" : ""}`;
+}
+
+function markEvent(e, only) {
+  const kind = markKind(e);
+  if (kind === null || typeof e.at_s !== "number") return;
+  const targets = only ? [only] : e.station && e.station !== "all" ? [state.stations.get(e.station)]
+    : [...state.stations.values()];
+  if (!only && e.station && e.station !== "all" && !targets[0]) { state.early.push(e); return; }
+  for (const st of targets) {
+    if (!st) continue;
+    st.marks.push({ t: e.at_s, n: st.nextMark++, kind, text: markText(e) });
+    if (st.marks.length > MAX_MARKS) st.marks.shift();
+    st.node.dataset.marks = String(st.nextMark - 1);
+    st.dirty = true;
   }
 }
 
@@ -310,10 +499,18 @@ function describeEvent(e) {
 }
 
 function showEvent(e) {
+  markEvent(e);
   const list = document.getElementById("events");
   const li = document.createElement("li");
   li.dataset.kind = e.kind;
   const t = document.createElement("span"); t.className = "t"; t.textContent = fmt(e.at_s, 2) + " s";
+  if (e.at_s < 0) {  // before the timeline's 0 s: its time counts up to the end of bring-up
+    const why = document.createElement("span");
+    why.className = "before-zero";
+    why.textContent = state.vocab.before_zero;
+    why.title = "before the timeline's 0 s (the end of bring-up): the stations were being brought up";
+    t.append(" ", why);
+  }
   const k = document.createElement("span"); k.className = "k k-" + e.kind; k.textContent = e.kind;
   if (e.kind === "check") k.classList.add(e.ok ? "ok" : "bad");
   li.append(t, k, document.createTextNode(describeEvent(e)));
@@ -356,12 +553,22 @@ function message(block) {
   if (!data) return;
   const body = JSON.parse(data);
   if (name === "status") { setLink("live", "ok"); showStatus(body); }
+  else if (name === "history") showHistory(body);
   else if (name === "event") showEvent(body);
   else if (name === "error") setLink("network not answering", "bad");
 }
 
 async function start() {
   try {
+    if (state.vocab === null) {
+      const r = await fetch("plots.json", { cache: "no-store" });
+      state.vocab = await r.json();
+      state.net = [[], [], []];
+      const netEl = document.getElementById("net-plot");
+      state.netPlot = netPlot(netEl);
+      netEl._plot = state.netPlot;
+      resized.observe(netEl);
+    }
     const net = await api("GET", "api/network");
     document.title = `${net.name} – mlink-sim`;
     setText(document.getElementById("net-name"), net.name);
@@ -375,9 +582,4 @@ async function start() {
   stream();
 }
 
-state.net = [[], [], []];
-const netEl = document.getElementById("net-plot");
-state.netPlot = netPlot(netEl);
-netEl._plot = state.netPlot;
-resized.observe(netEl);
 start();

@@ -55,7 +55,7 @@ def test_an_operation_answering_later_does_not_hold_up_the_others():
 def test_a_reply_its_operation_encoded_itself_is_sent_as_it_is_now_or_later():
     text = '{"ok":true,"stations":[{"address":"0x21"}],"seq":3}'
 
-    def later(station: Any = None) -> Any:
+    def later(station: Any = None, name: Any = None) -> Any:
         async def encoded() -> Encoded:
             await asyncio.sleep(0)
             return Encoded(text)
@@ -72,7 +72,7 @@ def test_a_reply_its_operation_encoded_itself_is_sent_as_it_is_now_or_later():
 def test_a_repeated_request_id_acts_once_and_gets_the_same_answer():
     calls: list[int] = []
 
-    def act(station: Any = None) -> Any:
+    def act(station: Any = None, name: Any = None) -> Any:
         calls.append(1)
 
         async def later() -> dict[str, Any]:
@@ -106,7 +106,7 @@ def test_a_reply_larger_than_a_datagram_comes_in_parts_and_is_put_together():
 def test_requests_are_read_by_the_table_and_errors_carry_their_kind():
     seen: list[Any] = []
 
-    def refuse(station: Any = None) -> dict[str, Any]:
+    def refuse(station: Any = None, name: Any = None) -> dict[str, Any]:
         raise OpError("refused", "station 21H is in phase 1")
 
     def crash() -> Any:
@@ -128,12 +128,12 @@ def test_requests_are_read_by_the_table_and_errors_carry_their_kind():
         assert elsewhere["kind"] == "bad_request" and "answered by a network, not by this proxy" in elsewhere["error"]
         assert await ask("impair", station="21H", loss=0.1, speed=3) == {
             "ok": False, "kind": "bad_request", "error": "impair: unknown field(s) speed (it takes: station, spec, "
-            "loss, burst, delay, jitter, duplicate, reorder, corrupt, direction, for)"}
+            "name, loss, burst, delay, jitter, duplicate, reorder, corrupt, direction, for)"}
         assert (await ask("impair", station="22X"))["kind"] == "bad_request"
         assert await ask("impair", station="21H", loss="5%", **{"for": "2s"}) == {"ok": True}
 
     _serve({"heal": refuse, "faults": crash, "impair": impair}, scenario)
-    assert seen == [{"station": 0x21, "spec": None, "loss": "5%", "burst": None, "delay": None, "jitter": None,
+    assert seen == [{"station": 0x21, "spec": None, "name": None, "loss": "5%", "burst": None, "delay": None, "jitter": None,
                      "duplicate": None, "reorder": None, "corrupt": None, "direction": None, "for_": "2000000000ns"}]
 
 

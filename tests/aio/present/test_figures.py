@@ -56,7 +56,7 @@ def test_the_master_view_gives_phase_run_state_and_output(running):
         assert row["missed"] == 0
     assert a["direction"] == "forward" and a["output_hz"] == pytest.approx(30, abs=0.1)
     assert v7["output_hz"] == pytest.approx(25, abs=0.1)
-    assert et3["direction"] == "reverse" and et3["output_hz"] == pytest.approx(20, abs=0.1)
+    assert et3["direction"] == "reverse" and et3["output_hz"] == pytest.approx(-20, abs=0.1)  # reverse: below 0
     assert a["output_current_a"] > 0
 
 
@@ -66,9 +66,37 @@ def test_the_default_monitors_give_reference_and_motor_speed_on_the_a1000_cards(
     a, et3 = running["plain"]["0x21"], running["plain"]["0x23"]
     assert a["reference_hz"] == pytest.approx(30, abs=0.01)
     assert 800 < a["motor_speed_rpm"] <= 900
-    assert et3["reference_hz"] == pytest.approx(20, abs=0.01)  # a magnitude: the run command sets the direction
+    assert et3["reference_hz"] == pytest.approx(-20, abs=0.01)  # U1-01, signed by the reverse run command
     assert -600 <= et3["motor_speed_rpm"] < -500  # U1-05 is signed
     assert a["dc_bus_v"] is None and et3["dc_bus_v"] is None  # not selected, and no snapshot
+
+
+def test_the_latest_round_trip_and_the_regulation_from_the_slaves_snapshot(running):
+    """``rtt_us``: the master's latest round trip; ``regulation``: the names of the snapshot's code
+    (drive.activity.REGULATION), null without a snapshot."""
+    a = running["plain"]["0x21"]
+    assert a["rtt_us"] is not None and 0 < a["rtt_us"] < 10_000 and a["regulation"] is None
+    view = running["views"][0x21]
+    figures = running["figures"].by_address[0x21]
+    assert figures.of(view, snapshot={"regulation": 0})["regulation"] == ()
+    assert figures.of(view, snapshot={"regulation": 2})["regulation"] == ("stall-decel",)
+    assert figures.of(view, snapshot={"regulation": 5})["regulation"] == ("stall-accel", "torque-limit")
+
+
+def test_a_reverse_run_reads_below_0_hz_and_the_reference_keeps_its_sign_once_stopped():
+    """The output by the response's run direction (SI-T3 STATUS REV), the reference by the master's run command:
+    a reverse run plots below the axis; stopped, the reference keeps the last run command's sign."""
+    with VirtualNetwork(QUICKSTART, seed=1) as net:
+        figures = NetworkFigures(load_config(QUICKSTART))
+        net.run(0x21, hz=20, direction="reverse")
+        net.advance(3.0)
+        row = figures.station(0x21, net.session.net)
+        assert row["direction"] == "reverse" and row["output_hz"] == pytest.approx(-20, abs=0.1)
+        assert row["reference_hz"] == pytest.approx(-20, abs=0.01) and row["motor_speed_rpm"] < 0
+        net.stop(0x21)
+        net.advance(3.0)
+        row = figures.station(0x21, net.session.net)
+        assert row["direction"] is None and row["output_hz"] == 0 and row["reference_hz"] == pytest.approx(-20)
 
 
 def test_the_si_t_v7_has_no_motor_speed_monitor_the_slave_snapshot_fills_it_in(running):

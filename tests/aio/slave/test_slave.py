@@ -293,7 +293,7 @@ async def test_a_stats_reply_is_built_between_bursts_and_says_what_stats_says() 
         assert len(got) == 2
         assert decode(got[0], kind=Kind.RESPONSE).station == 0x21  # the command first
         reply = json.loads(got[1])
-        expected = {"ok": True, **server.stats(), "control_refused": 0}
+        expected = {"ok": True, **server.stats(), "control_refused": 0, "regulation": {}}  # no drive regulating
         assert sorted(reply) == sorted(expected)
         assert reply["stations"] == json.loads(json.dumps(expected["stations"]))
         assert sorted(reply["stations"]) == [f"{a:#04x}" for a in addresses]

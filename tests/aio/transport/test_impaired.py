@@ -118,7 +118,7 @@ async def test_the_proxy_forwards_both_ways_per_link_and_impairs_per_station() -
         totals = proxy.totals()
         assert totals["to_station"] == 2 and totals["to_master"] == 2
         assert proxy.impairments.injected() == {0x22: {"drops": 1}}
-        assert proxy.heal() == 1 and not proxy.impairments.active
+        assert proxy.heal() == ["loss-22H-1"] and not proxy.impairments.active
     finally:
         proxy.close()
         master.close()
