@@ -374,6 +374,9 @@ class SlaveServer:
         if (how, len(sources)) != self._refusing:
             self._refusing = (how, len(sources))
             log.info("allow_master_in_kernel", sockets=how, sources=len(sources))
+            if None in how:
+                log.warning("allow_master_kernel_refused", sockets=how,
+                            error="the kernel refuses no source at these sockets: the slave's own check only")
 
     def _watch_allow(self) -> None:
         """Once a second at most, while the list names a host: a datagram the kernel refused may come from a name
