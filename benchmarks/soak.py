@@ -12,7 +12,7 @@ Run from the repository's root:
     python -m benchmarks.soak --runs 20 --hog             # with a CPU hog pinned to the last CPU
     python -m benchmarks.soak configs/quickstart.toml --json soak.json -- --host-stalls strict
     python -m benchmarks.soak --runs 10 --stop 400ms@1s   # a stall beyond the bound in every run
-    python -m benchmarks.soak --long 1h --json long.json  # one hour of configs/ml3-62-max.toml, sampled each minute
+    python -m benchmarks.soak --long 60min --json long.json  # one hour of configs/ml3-62-max.toml, sampled each minute
 
 ``--stop D@T`` stops each run's whole process group (``up`` and its slave workers) with SIGSTOP for D, T into the
 timeline (after bring-up: the run's ``network_up`` log line), then SIGCONT: a host stall of a chosen length, e.g.
@@ -165,9 +165,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", help="write the rows and the summary here")
     ap.add_argument("--stop", type=parse_stop, metavar="D@T",
                     help="stop each run (up and its workers) for D, T after it started, e.g. 400ms@1s")
-    ap.add_argument("--long", metavar="DURATION", help="one run of DURATION (e.g. 1h) sampled every --sample instead "
+    ap.add_argument("--long", metavar="DURATION", help="one run of DURATION (e.g. 60min) sampled every --sample instead "
                     "of many short ones (benchmarks.longrun); the config defaults to configs/ml3-62-max.toml")
-    ap.add_argument("--sample", default="1m", metavar="DURATION", help="with --long: how often to sample the run")
+    ap.add_argument("--sample", default="60s", metavar="DURATION", help="with --long: how often to sample the run")
     ap.epilog = "Arguments after '--' go to mlink-sim up, e.g. -- --no-realtime."
     argv = list(sys.argv[1:] if argv is None else argv)
     cut = argv.index("--") if "--" in argv else len(argv)

@@ -53,3 +53,11 @@ def test_a_short_long_run_samples_every_process_and_checks_the_report(tmp_path) 
     runs = [s["run"] for s in doc["samples"] if s["run"]]
     assert runs and runs[-1]["sent"] > 0 and doc["samples"][-1]["trace_bytes"] > 0
     assert "peak" in r.stdout
+
+
+def test_the_default_sample_and_the_documented_duration_parse(monkeypatch) -> None:
+    seen = {}
+    monkeypatch.setattr(longrun, "main", lambda config, duration, sample, extra, json_path: seen.update(
+        config=config, duration=duration, sample=sample) or 0)
+    assert soak.main(["--long", "60min"]) == 0
+    assert seen == {"config": "configs/ml3-62-max.toml", "duration": 3600.0, "sample": 60.0}
