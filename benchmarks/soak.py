@@ -12,6 +12,7 @@ Run from the repository's root:
     python -m benchmarks.soak --runs 20 --hog             # with a CPU hog pinned to the last CPU
     python -m benchmarks.soak configs/quickstart.toml --json soak.json -- --host-stalls strict
     python -m benchmarks.soak --runs 10 --stop 400ms@1s   # a stall beyond the bound in every run
+    python -m benchmarks.soak --long 60min --json long.json  # one hour of configs/ml3-62-max.toml, sampled each minute
 
 ``--stop D@T`` stops each run's whole process group (``up`` and its slave workers) with SIGSTOP for D, T into the
 timeline (after bring-up: the run's ``network_up`` log line), then SIGCONT: a host stall of a chosen length, e.g.
@@ -38,6 +39,7 @@ from typing import Any
 
 from mlink_sim.config import parse_duration_ns
 
+from benchmarks import longrun
 from benchmarks.common import ROOT, write_atomically
 
 __all__ = ["baseline", "main", "one_run", "parse_stop", "summarise"]
@@ -154,7 +156,7 @@ def summarise(rows: list[dict[str, Any]], base: dict[str, Any]) -> dict[str, Any
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.soak", description=__doc__.split("\n\n")[0])
-    ap.add_argument("config", nargs="?", default="configs/quickstart.toml")
+    ap.add_argument("config", nargs="?", help="default: configs/quickstart.toml, with --long configs/ml3-62-max.toml")
     ap.add_argument("--runs", type=int, default=100)
     ap.add_argument("--hog", action="store_true", help="a busy loop pinned to the last CPU for the whole soak")
     ap.add_argument("--baseline", type=float, default=10.0, metavar="S", help="seconds of bare-loop baseline")
@@ -163,6 +165,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", help="write the rows and the summary here")
     ap.add_argument("--stop", type=parse_stop, metavar="D@T",
                     help="stop each run (up and its workers) for D, T after it started, e.g. 400ms@1s")
+    ap.add_argument("--long", metavar="DURATION", help="one run of DURATION (e.g. 60min) sampled every --sample instead "
+                    "of many short ones (benchmarks.longrun); the config defaults to configs/ml3-62-max.toml")
+    ap.add_argument("--sample", default="60s", metavar="DURATION", help="with --long: how often to sample the run")
     ap.epilog = "Arguments after '--' go to mlink-sim up, e.g. -- --no-realtime."
     argv = list(sys.argv[1:] if argv is None else argv)
     cut = argv.index("--") if "--" in argv else len(argv)
@@ -170,6 +175,14 @@ def main(argv: list[str] | None = None) -> int:
     args.extra = argv[cut + 1:]
     if args.runs < 1 or args.timeout <= 0:
         ap.error("--runs must be at least 1 and --timeout positive")
+    if args.long is not None:
+        try:
+            duration, sample = parse_duration_ns(args.long) / 1e9, parse_duration_ns(args.sample) / 1e9
+        except ValueError as exc:
+            ap.error(f"--long/--sample: {exc}")
+        if duration <= 0 or sample <= 0:
+            ap.error("--long and --sample must be positive")
+        return longrun.main(args.config or "configs/ml3-62-max.toml", duration, sample, args.extra, args.json)
     hog = None
     if args.hog:
         limit = args.baseline + args.runs * args.timeout + 60
@@ -183,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
               f"longest {base.get('max_ms', 0)} ms", flush=True)
         with tempfile.TemporaryDirectory(prefix="mlink-soak-") as tmp:
             for i in range(args.runs):
-                row = one_run(args.config, args.extra, Path(tmp), i, args.timeout, args.stop)
+                row = one_run(args.config or "configs/quickstart.toml", args.extra, Path(tmp), i, args.timeout, args.stop)
                 rows.append(row)
                 print(json.dumps(row), flush=True)
     finally:

@@ -122,15 +122,20 @@ async def _serve(server: SlaveServer, ready_json: bool, log_json: bool, rt: bool
     return 128 + caught[0]
 
 
-def _allow_list(rules: tuple[str, ...]) -> AllowList | None:
-    """``--allow-master``: the sources that may change a station; without it, any (:func:`_serve` says so)."""
+def _allow_list(rules: tuple[str, ...], status: tuple[str, ...]) -> AllowList | None:
+    """``--allow-master``: the sources that may change a station, ``--allow-status`` those whose status queries are
+    answered besides; without ``--allow-master``, any source (:func:`_serve` says so)."""
     if not rules:
+        if status:
+            raise click.UsageError("--allow-status needs --allow-master: without it every source is answered")
         return None
-    try:
-        allow = AllowList(rules)
-    except ValueError as exc:
-        raise InputError(f"--allow-master {exc}") from None
-    log.info("allow_master", rules=allow.rules)
+    for option, values in (("--allow-master", rules), ("--allow-status", status)):
+        try:
+            AllowList(values)
+        except ValueError as exc:
+            raise InputError(f"{option} {exc}") from None
+    allow = AllowList(rules, status)
+    log.info("allow_master", rules=allow.rules, status=allow.status_rules)
     return allow
 
 
@@ -168,8 +173,11 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
               help="The control endpoint: status, get-param, set-param, fault, release, stats, cpu ('mlink-sim "
                    "status', 'mlink-sim param', 'mlink-sim control'; docs/control.md); 'off' to disable.")
 @click.option("--allow-master", "allow_master", multiple=True, metavar="ADDR",
-              help="Take commands that change a station (CONNECT included) only from this source: HOST, HOST:PORT "
-                   "or a CIDR network; repeatable. Others get read-only NOP answers (docs/cards.md). Default: any.")
+              help="Take datagrams only from this source: HOST (any port), HOST:PORT or a CIDR network; repeatable. "
+                   "The kernel drops every other source's (docs/cards.md). Default: any source, CONNECT included.")
+@click.option("--allow-status", "allow_status", multiple=True, metavar="ADDR",
+              help="With --allow-master: also answer this source's status queries (a NOP, read-only: a health "
+                   "check, mlink-sim probe); it changes nothing. HOST, HOST:PORT or a CIDR network; repeatable.")
 @control_token_options
 @click.option("--log-json", is_flag=True, help="Log JSON lines on stderr.")
 @click.option("--log-level", default="info", type=click.Choice(["debug", "info", "warning", "error"]))
@@ -199,7 +207,7 @@ def _parse_endpoints(values: tuple[str, ...]) -> dict[int, tuple[str, int]]:
                    "but the highest (the master of `mlink-sim up` takes it) where the CPU wake-up latency is held.")
 @capture_options
 def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_path, only, endpoints, state_dir,
-              control, allow_master, control_token, control_token_file, log_json, log_level, ready_json, host_stalls, stall_bound, shared_port, arrival_poll, rt,
+              control, allow_master, allow_status, control_token, control_token_file, log_json, log_level, ready_json, host_stalls, stall_bound, shared_port, arrival_poll, rt,
               cpus_text, capture_path, capture_max) -> None:
     """Serve one station over UDP until SIGINT/SIGTERM (or several stations of a --config)."""
     configure_logging(json=log_json, level=log_level)
@@ -221,7 +229,7 @@ def slave_cmd(card, station_text, listen, frame_size, link_name, params, config_
     except ValueError as exc:
         raise InputError(f"--control {exc}") from None
     token = endpoint_token(control_addr, control_token, control_token_file)
-    allow = _allow_list(allow_master)
+    allow = _allow_list(allow_master, allow_status)
     try:
         cpus = realtime.parse_cpus(cpus_text) if cpus_text is not None else None
     except ValueError as exc:

@@ -7,10 +7,10 @@ order) so the output is reproducible and can be validated against the Compose Sp
 The layout (docs/testbeds.md):
 
 * ``station-21`` … – ``mlink-sim slave --config /config/network.toml --only 0x21 --endpoint 0x21=0.0.0.0:PORT
-  --allow-master master``, every station on the same UDP port in its own container, taking commands that change it
-  only from the master's container (its name resolves once that container exists); a healthcheck that sends the station a NOP
-  (``mlink-health 127.0.0.1:PORT --station 0x21 --link ml2 --frame-size 32``, the image's stdlib-only probe,
-  :mod:`mlink_sim.testbed.health`).
+  --allow-master master --allow-status 127.0.0.1``, every station on the same UDP port in its own container, taking
+  datagrams only from the master's container (its name resolves once that container exists) and status queries from
+  its own loopback: a healthcheck that sends the station a NOP (``mlink-health 127.0.0.1:PORT --station 0x21 --link
+  ml2 --frame-size 32``, the image's stdlib-only probe, :mod:`mlink_sim.testbed.health`).
 * ``master`` – ``mlink-sim master /config/network.toml --endpoint 0x21=station-21:PORT … --report
   /reports/report.json --no-status``, started only once every station is healthy (``depends_on`` with
   ``condition: service_healthy``), never restarted.
@@ -167,7 +167,7 @@ def compose_document(
             "init": True,
             "command": ["slave", "--config", config_path_in_container, "--only", _addr(st.address),
                         "--endpoint", f"{_addr(st.address)}=0.0.0.0:{station_port}", "--allow-master", "master",
-                        "--log-json", *config.network.slave_flags()],
+                        "--allow-status", "127.0.0.1", "--log-json", *config.network.slave_flags()],
             "volumes": [dict(config_volume)],
             "networks": [NETWORK_NAME],
             "healthcheck": _healthcheck(st, station_port, timing),

@@ -7,7 +7,8 @@ Every process uses the host's network (UDP in real time needs no overlay, and sw
 UDP datagrams of one source to one task): each station listens on ``0.0.0.0:PORT`` of its node, the ports
 counted from a base in config order, so that two workers on one node never collide. The master reaches a
 station on its own node at 127.0.0.1 and one on another node at that node's address in ``[deploy.nodes]``; a
-station allows commands from 127.0.0.1 or from the master node's address the same way.
+station allows commands from 127.0.0.1 or from the master node's address the same way, and a station away from the
+master's node answers the status queries of its node's own health probe (``--allow-status 127.0.0.1``).
 """
 
 from __future__ import annotations
@@ -43,7 +44,10 @@ class WorkerPlacement:
         argv = ["slave", "--config", config_path, "--only", ",".join(_addr(st.address) for st in self.stations)]
         for st, port in zip(self.stations, self.ports, strict=True):
             argv += ["--endpoint", f"{_addr(st.address)}=0.0.0.0:{port}"]
-        argv += ["--allow-master", self.allow_master, "--log-json", *config.network.slave_flags(), "--realtime"]
+        argv += ["--allow-master", self.allow_master]
+        if self.allow_master != LOOPBACK:  # the health probe runs on the worker's node (probe_argv)
+            argv += ["--allow-status", LOOPBACK]
+        argv += ["--log-json", *config.network.slave_flags(), "--realtime"]
         return argv + (["--cpus", self.cpus] if self.cpus else [])
 
     def probe_argv(self, *, remote: bool = False) -> list[str]:

@@ -60,7 +60,7 @@ for = "100ms"
 at = "1.5s"
 station = 0x21
 expect = "recovered"
-within = "50ms"
+within = "500ms"  # the wall clock's: generous, so that a host stall of tens of ms within the bound passes (docs/ci.md)
 
 [[timeline]]
 at = "2s"

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from .conftest import MLINK, run_cli
-from .udp_master import ACCEL, ACCEL_DEFAULT, UdpMaster, params_saved, snapshot, wait_for, write_config
+from .udp_master import ACCEL, ACCEL_DEFAULT, UdpMaster, control, params_saved, snapshot, wait_for, write_config
 
 pytestmark = pytest.mark.e2e
 
@@ -34,51 +34,99 @@ def _flood(port: int, stranger: UdpMaster, sockets: int = 4) -> None:
             s.close()
 
 
-@pytest.mark.parametrize("card", CARDS)
-def test_a_flood_and_a_stranger_s_connect_after_the_loss_never_bind_a_station_that_knows_its_master(
-        card: str, slave, tmp_path: Path) -> None:
-    """``--allow-master 127.0.0.1:PORT``: a flood from other sockets, then the master's silence releases the station
-    (bUS); the stranger's CONNECT, PRM_WR (acceleration 77.7 s) and CONFIG to EEPROM are counted in foreign_source
-    and unanswered, nothing reaches the state dir, its NOP is answered read-only, and the master gets the station
-    back with CONNECT and reads the old value."""
+def _stranger_after_the_loss(master: UdpMaster, stranger: UdpMaster, ctl: int, card: str) -> None:
+    """The master falls silent until the station is released (bUS), then the stranger sends CONNECT, PRM_WR
+    (acceleration 77.7 s) and CONFIG to EEPROM: none is answered."""
+    assert wait_for(lambda: snapshot(ctl)["connected_source"] is None, timeout=10.0), \
+        "the station never lost its master"
+    stranger.cycle += 100
+    connect = stranger.m.Connect(0x30, 0x80, 1, 0x20) if card == "si-et3" else stranger.m.Connect(0x21, 0x80, 1)
+    assert stranger.send(connect, timeout=0.5) is None
+    body = stranger.m.PrmWr(ACCEL[card], 2, (777).to_bytes(2, "little").ljust(8, b"\0"))
+    assert stranger.send(body, timeout=0.5) is None
+    assert stranger.send(stranger.m.Config(1), timeout=0.5) is None
+
+
+def _master_gets_its_station_back(master: UdpMaster, ctl: int, card: str, state: Path) -> None:
+    """The master CONNECTs again, clears the alarm, reads the old acceleration and runs; nothing was saved."""
+    master.cycle += 1000
+    assert master.connect() is not None
+    assert snapshot(ctl)["connected_source"] == master.source
+    assert master.send(master.m.AlmClr(0)) is not None
+    assert master.prm_rd(ACCEL[card]) == ACCEL_DEFAULT
+    for _ in range(10):
+        answer = master.run()
+        assert answer is not None and not master.refused(answer)
+    assert params_saved(state) == {}
+
+
+@pytest.mark.parametrize(("card", "rules"), [("si-t3", 1), ("si-t-v7", 2), ("si-et3", 1)])
+def test_the_kernel_drops_a_flood_and_a_stranger_s_connect_so_the_station_never_sees_them(
+        card: str, rules: int, slave, tmp_path: Path) -> None:
+    """``--allow-master 127.0.0.1:PORT`` (the socket connected to the master) or with a second rule (a socket
+    filter): a flood from other sockets and, once the master's silence released the station, the stranger's
+    CONNECT, PRM_WR, CONFIG to EEPROM and NOP are dropped by the kernel: unanswered, not counted in foreign_source
+    or status_queries (the slave never read them), the state dir empty; a socket filter counts them in the
+    slave's socket_drops. The master gets the station back with CONNECT and reads the old value."""
     state = tmp_path / "state"
     master = UdpMaster(0, card)
     stranger = UdpMaster(0, card)
     try:
+        extra = ["--allow-master", "192.0.2.1"] if rules == 2 else []
         proc = slave("--config", str(write_config(tmp_path / "net.toml", card)), "--state-dir", str(state),
-                     "--allow-master", f"127.0.0.1:{master.source[1]}")
+                     "--allow-master", f"127.0.0.1:{master.source[1]}", *extra)
         port, ctl = proc.port, proc.ready["control"]
         master.addr = stranger.addr = ("127.0.0.1", port)
         assert master.connect() is not None and master.run() is not None
         assert snapshot(ctl)["connected_source"] == master.source
         _flood(port, stranger)
-        assert wait_for(lambda: snapshot(ctl)["connected_source"] is None, timeout=10.0), \
-            "the station never lost its master"
-        stranger.cycle += 100
-        connect = stranger.m.Connect(0x30, 0x80, 1, 0x20) if card == "si-et3" else stranger.m.Connect(0x21, 0x80, 1)
-        assert stranger.send(connect, timeout=0.5) is None
-        reg = ACCEL[card]
-        body = stranger.m.PrmWr(reg, 2, (777).to_bytes(2, "little").ljust(8, b"\0"))
-        assert stranger.send(body, timeout=0.5) is None
-        assert stranger.send(stranger.m.Config(1), timeout=0.5) is None
-        assert stranger.send(stranger.m.Nop(), timeout=2.0) is not None  # a status query: read-only, as ever
-        snap = snapshot(ctl)
-        assert snap["connected_source"] is None and params_saved(state) == {}
-        assert snap["counters"]["foreign_source"] >= 3
-        assert run_cli("probe", f"127.0.0.1:{port}", "--station", "0x21", "--timeout", "3").returncode == 0
-
-        master.cycle += 1000
-        assert master.connect() is not None
-        assert snapshot(ctl)["connected_source"] == master.source
-        assert master.send(master.m.AlmClr(0)) is not None
-        assert master.prm_rd(reg) == ACCEL_DEFAULT
-        for _ in range(10):
-            answer = master.run()
-            assert answer is not None and not master.refused(answer)
+        _stranger_after_the_loss(master, stranger, ctl, card)
+        assert stranger.send(stranger.m.Nop(), timeout=0.5) is None
+        stats = control(ctl)
+        counters = stats["stations"]["0x21"]["counters"]
+        assert counters["foreign_source"] == 0 and counters["status_queries"] == 0, counters
         assert params_saved(state) == {}
+        if rules == 2:
+            assert stats["socket_drops"] >= FLOOD + 4
+        assert run_cli("probe", f"127.0.0.1:{port}", "--station", "0x21", "--timeout", "1").returncode == 1
+        _master_gets_its_station_back(master, ctl, card, state)
     finally:
         master.close()
         stranger.close()
+
+
+@pytest.mark.parametrize("card", CARDS)
+def test_a_status_source_is_answered_read_only_and_its_other_commands_are_counted_and_ignored(
+        card: str, slave, tmp_path: Path) -> None:
+    """``--allow-status 127.0.0.1`` beside ``--allow-master 127.0.0.1:PORT``: the kernel lets the stranger on
+    loopback through and the slave's own check keeps the station: after the flood and the loss its CONNECT, PRM_WR
+    and CONFIG to EEPROM are counted in foreign_source and unanswered, nothing reaches the state dir, its NOP and
+    ``mlink-sim probe`` are answered read-only; the master gets the station back."""
+    state = tmp_path / "state"
+    master = UdpMaster(0, card)
+    stranger = UdpMaster(0, card)
+    try:
+        proc = slave("--config", str(write_config(tmp_path / "net.toml", card)), "--state-dir", str(state),
+                     "--allow-master", f"127.0.0.1:{master.source[1]}", "--allow-status", "127.0.0.1")
+        port, ctl = proc.port, proc.ready["control"]
+        master.addr = stranger.addr = ("127.0.0.1", port)
+        assert master.connect() is not None and master.run() is not None
+        _flood(port, stranger)
+        _stranger_after_the_loss(master, stranger, ctl, card)
+        assert stranger.send(stranger.m.Nop(), timeout=2.0) is not None  # a status query: read-only
+        snap = snapshot(ctl)
+        assert snap["connected_source"] is None and params_saved(state) == {}
+        assert snap["counters"]["foreign_source"] >= 3 and snap["counters"]["status_queries"] >= 1
+        assert run_cli("probe", f"127.0.0.1:{port}", "--station", "0x21", "--timeout", "3").returncode == 0
+        _master_gets_its_station_back(master, ctl, card, state)
+    finally:
+        master.close()
+        stranger.close()
+
+
+def test_allow_status_without_allow_master_is_a_usage_error() -> None:
+    r = run_cli("slave", "--card", "si-t3", "--station", "0x21", "--allow-status", "127.0.0.1", timeout=30)
+    assert r.returncode == 2 and "--allow-status needs --allow-master" in r.stderr, r.stderr
 
 
 def test_a_host_name_in_the_allow_list_lets_its_master_connect(slave, tmp_path: Path) -> None:

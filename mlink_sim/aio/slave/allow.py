@@ -3,8 +3,15 @@ change a station").
 
 The protocol has no authentication: a station released by a connection loss takes the next CONNECT, whoever sends
 it. The transport knows where each datagram comes from, so a slave told its master's address keeps everyone else
-out: a datagram from a source the list does not name goes to the card's ``receive_untrusted`` (a status query is
-answered read-only, anything else counted in ``foreign_source``); the protocol decisions stay the card's.
+out, in two lines:
+
+* **the kernel** (:meth:`AllowList.sources`, :mod:`mlink_sim.aio.transport.sockfilter`): each station socket takes
+  datagrams only from the listed sources (connected to the master, or a socket filter); every other datagram is
+  dropped before the slave reads it, so a flood from elsewhere costs the slave nothing;
+* **the slave** (:meth:`AllowList.screen`): a datagram from a source ``--allow-master`` does not name that reached
+  the slave all the same (one of ``--allow-status``, or where the kernel has no filter) goes to the card's
+  ``receive_untrusted`` (a status query is answered read-only, anything else counted in ``foreign_source``); the
+  protocol decisions stay the card's.
 
 A rule is ``HOST`` (any port), ``HOST:PORT`` (``[V6]:PORT``) or a network in CIDR notation (``10.0.0.0/24``). A
 host name is resolved when the list is (:meth:`AllowList.resolve`, at the server's start and again, at most once a
@@ -22,6 +29,8 @@ import ipaddress
 import socket
 from collections.abc import Iterable
 from typing import Any
+
+from ..transport.sockfilter import Source
 
 __all__ = ["AllowList", "parse_rule"]
 
@@ -85,38 +94,32 @@ def _add(hosts: dict[IPAddress, set[int] | None], ip: IPAddress, port: int | Non
         ports.add(port)
 
 
-class AllowList:
-    """The sources that may change the stations of one slave process (see the module docstring)."""
+class _Rules:
+    """One list of rules: its literal addresses and networks, and its host names with what they resolved to."""
 
     def __init__(self, rules: Iterable[str]) -> None:
         self.rules: list[str] = list(rules)
-        self._networks: list[IPNetwork] = []
-        self._names: list[tuple[str, int | None]] = []  #: host names, resolved by resolve()
-        self._hosts: dict[IPAddress, set[int] | None] = {}  #: address -> ports (None: any)
+        self.networks: list[IPNetwork] = []
+        self.names: list[tuple[str, int | None]] = []  #: host names, resolved by resolve()
+        hosts: dict[IPAddress, set[int] | None] = {}  #: address -> ports (None: any)
         for text in self.rules:
             rule = parse_rule(text)
             if isinstance(rule, tuple):
                 ip = _ip(rule[0])
                 if ip is None:
-                    self._names.append(rule)
+                    self.names.append(rule)
                 else:
-                    _add(self._hosts, ip, rule[1])
+                    _add(hosts, ip, rule[1])
             else:
-                self._networks.append(rule)
-        self._static = {ip: None if ports is None else set(ports) for ip, ports in self._hosts.items()}
-        self._known: dict[Any, bool] = {}  #: source address (as the socket gives it) -> allowed
-        self.unresolved: list[str] = [name for name, _ in self._names]  #: names the last resolve() did not find
-        self.stale = bool(self._names)  #: a resolve() is due (a name unresolved, or a source no rule names)
+                self.networks.append(rule)
+        self._static = hosts
+        self.hosts: dict[IPAddress, set[int] | None] = _copy(hosts)
+        self.unresolved: list[str] = [name for name, _ in self.names]
 
     def resolve(self) -> None:
-        """Resolve the host names of the rules (blocking: the server calls it in a worker thread); a name that does
-        not resolve allows nothing until a later call finds it."""
-        if not self._names:
-            self.stale = False
-            return
-        hosts = {ip: None if ports is None else set(ports) for ip, ports in self._static.items()}
-        unresolved = []
-        for name, port in self._names:
+        """Resolve the host names (blocking); a name that does not resolve allows nothing until a later call."""
+        hosts, unresolved = _copy(self._static), []
+        for name, port in self.names:
             try:
                 infos = socket.getaddrinfo(name, None, type=socket.SOCK_DGRAM)
             except OSError:
@@ -126,10 +129,60 @@ class AllowList:
                 ip = _ip(str(info[4][0]))
                 if ip is not None:
                     _add(hosts, ip, port)
-        self._hosts = hosts  # whole objects swapped: the loop's thread reads them meanwhile
-        self.unresolved = unresolved
+        self.hosts, self.unresolved = hosts, unresolved  # whole objects swapped: the loop's thread reads them
+
+    def sources(self) -> list[Source]:
+        """The rules as the kernel's filter takes them (:class:`~mlink_sim.aio.transport.sockfilter.Source`)."""
+        out = []
+        for ip, ports in self.hosts.items():
+            net = ipaddress.ip_network(ip)
+            out += [Source(net)] if ports is None else [Source(net, port) for port in sorted(ports)]
+        return out + [Source(net) for net in self.networks]
+
+
+def _copy(hosts: dict[IPAddress, set[int] | None]) -> dict[IPAddress, set[int] | None]:
+    return {ip: None if ports is None else set(ports) for ip, ports in hosts.items()}
+
+
+class AllowList:
+    """The sources that may change the stations of one slave process, and those whose status queries are answered
+    besides (see the module docstring)."""
+
+    def __init__(self, rules: Iterable[str], status: Iterable[str] = ()) -> None:
+        """*rules*: ``--allow-master``; *status*: ``--allow-status``, sources the kernel lets through whose datagrams
+        the cards take as untrusted (a status query answered read-only, anything else counted in
+        ``foreign_source``)."""
+        self._change = _Rules(rules)
+        self._status = _Rules(status)
+        self.rules: list[str] = self._change.rules
+        self.status_rules: list[str] = self._status.rules
+        self._known: dict[Any, bool] = {}  #: source address (as the socket gives it) -> allowed
+        self.unresolved: list[str] = self._change.unresolved + self._status.unresolved  #: names not found last time
+        self.stale = self.named  #: a resolve() is due (a name unresolved, or a source no rule names)
+
+    @property
+    def named(self) -> bool:
+        """Whether a rule names a host (resolved, and again while it does not resolve or a source no rule names shows
+        up); without one the lists never change."""
+        return bool(self._change.names or self._status.names)
+
+    def resolve(self) -> None:
+        """Resolve the host names of the rules (blocking: the server calls it in a worker thread); a name that does
+        not resolve allows nothing until a later call finds it."""
+        if not self.named:
+            self.stale = False
+            return
+        self._change.resolve()
+        self._status.resolve()
+        self.unresolved = self._change.unresolved + self._status.unresolved
         self._known = {}
         self.stale = False
+
+    def sources(self) -> list[Source]:
+        """Every source the kernel is to let through to the stations' sockets (:mod:`~mlink_sim.aio.transport.
+        sockfilter`): those that may change a station and those whose status queries are answered."""
+        out = self._change.sources()
+        return out + [s for s in self._status.sources() if s not in out]
 
     def allows(self, addr: Any) -> bool:
         """Whether the source *addr* (a socket address: ``(host, port, …)``) may change a station."""
@@ -139,7 +192,7 @@ class AllowList:
         ok = self._decide(addr)
         if len(self._known) < _MAX_KNOWN:
             self._known[addr] = ok
-        if not ok and self._names:
+        if not ok and self.named:
             self.stale = True  # perhaps a name's address changed: resolve again (the server, rate-limited)
         return ok
 
@@ -151,11 +204,12 @@ class AllowList:
             return False
         if ip is None:
             return False
-        if ip in self._hosts:
-            ports = self._hosts[ip]
+        hosts = self._change.hosts
+        if ip in hosts:
+            ports = hosts[ip]
             if ports is None or port in ports:
                 return True
-        return any(ip in net for net in self._networks)
+        return any(ip in net for net in self._change.networks)
 
     def screen(self, batch: list[tuple[bytes, Any]]) -> tuple[list[tuple[bytes, Any]], list[tuple[bytes, Any]]]:
         """*batch* split into the datagrams of allowed sources and the others, each in arrival order."""
@@ -178,5 +232,3 @@ class AllowList:
             (allowed if ok else others).append(item)
         return allowed, others
 
-    def describe(self) -> str:
-        return ", ".join(self.rules)

@@ -121,10 +121,12 @@ class SlaveServer:
         due (:class:`~mlink_sim.aio.timing.arrival.ArrivalPoll`). The sockets of a worker hosting several stations each
         on its own port are not: their polls would hold each other up.
 
-        *allow*: the sources that may change a station (:mod:`mlink_sim.aio.slave.allow`; None: any). Each read is
-        screened once (:meth:`AllowList.screen <mlink_sim.aio.slave.allow.AllowList.screen>`, one look-up per
-        datagram); the others' datagrams go to the cards' ``receive_untrusted``. Host names are resolved in a worker
-        thread at the start and again, once a second at most, while one is unresolved or an unknown source shows.
+        *allow*: the sources that may change a station (:mod:`mlink_sim.aio.slave.allow`; None: any). The kernel
+        drops every other source's datagrams at each station socket (:meth:`_refuse_others`); each read is screened
+        once more (:meth:`AllowList.screen <mlink_sim.aio.slave.allow.AllowList.screen>`, one look-up per datagram)
+        and the datagrams of a source that may not change a station go to the cards' ``receive_untrusted``. Host
+        names are resolved in a worker thread at the start and again, once a second at most, while one is
+        unresolved or an unknown source shows (a rise in the sockets' drops, :meth:`_watch_allow`).
 
         *batched*: the batched calls (``sendmmsg``/``recvmmsg``, UDP segmentation offload) where the kernel has them;
         False keeps the per-datagram calls on every socket (the tests compare both paths that way)."""
@@ -143,6 +145,9 @@ class SlaveServer:
         self._resolving: asyncio.Future[None] | None = None
         self._resolved_at = 0.0
         self._unresolved: list[str] = []  #: the names last logged as unresolved
+        self._refusing: tuple[list[str | None], int] = ([], 0)  #: how each socket refuses others, as last logged
+        self._drops_checked = 0.0
+        self._drops_seen = 0
         self._tick_due = 0
         self.state_dir = Path(state_dir) if state_dir else None
         self._tick: asyncio.TimerHandle | None = None
@@ -198,6 +203,7 @@ class SlaveServer:
             raise
         self._note_cards()
         self._writer = loop.create_task(self._write_loop())
+        self._refuse_others()
         self._resolve_allow()
         self._tick_due = time.monotonic_ns() + _POLL_INTERVAL_NS
         self._tick = loop.call_later(_POLL_INTERVAL_S, self._on_tick)
@@ -358,11 +364,60 @@ class SlaveServer:
             self._collect_eeprom(hs)
         if self._capture is not None:
             self._note_phases(now)
-        if self.allow is not None and self.allow.stale:
-            self._resolve_allow()
+        if self.allow is not None:
+            self._watch_allow()
         if not self._closing:
             self._tick_due = time.monotonic_ns() + _POLL_INTERVAL_NS
             self._tick = asyncio.get_running_loop().call_later(_POLL_INTERVAL_S, self._on_tick)
+
+    def _endpoints(self) -> list[BatchEndpoint]:
+        """Each socket of this process once (the stations of a shared port have one)."""
+        return list({id(ep): ep for hs in self.stations if (ep := hs.endpoint) is not None}.values())
+
+    def _refuse_others(self) -> None:
+        """Have the kernel drop, at every station socket, the datagrams of every source the allow list does not name
+        (:meth:`AllowList.sources <mlink_sim.aio.slave.allow.AllowList.sources>`): connected to the one master where
+        the list is one literal ``HOST:PORT``, else a socket filter, replaced whenever the names resolve anew. Where
+        the kernel cannot, the allow list's own check in :meth:`_receiver` keeps the stations (and a warning says so)."""
+        allow = self.allow
+        if allow is None:
+            return
+        sources, how = allow.sources(), []
+        for endpoint in self._endpoints():
+            try:
+                how.append(endpoint.refuse_others(sources, connect=not allow.named))
+            except (OSError, ValueError) as exc:
+                log.warning("allow_master_kernel_refused", port=endpoint.local_address[1], error=str(exc))
+                how.append(None)
+        if (how, len(sources)) != self._refusing:
+            self._refusing = (how, len(sources))
+            log.info("allow_master_in_kernel", sockets=how, sources=len(sources))
+            if None in how:
+                log.warning("allow_master_kernel_refused", sockets=how,
+                            error="the kernel refuses no source at these sockets: the slave's own check only")
+
+    def _watch_allow(self) -> None:
+        """Once a second at most, while the list names a host: a datagram the kernel refused may come from a name
+        whose address changed (the slave never sees it), so a rise in the sockets' drops makes the list stale; a
+        stale list is resolved again (:meth:`_resolve_allow`)."""
+        allow = self.allow
+        assert allow is not None
+        if allow.named and not allow.stale and time.monotonic() - self._drops_checked >= 1.0:
+            self._drops_checked = time.monotonic()
+            drops = self.socket_drops()
+            if drops is not None and drops > self._drops_seen:
+                allow.stale = True
+            self._drops_seen = drops or 0
+        if allow.stale:
+            self._resolve_allow()
+
+    def socket_drops(self) -> int | None:
+        """The datagrams the kernel dropped at this process's station sockets: refused by their filter, or the
+        receive buffer full (:meth:`BatchEndpoint.socket_drops <mlink_sim.aio.transport.udp.BatchEndpoint.
+        socket_drops>`); None where the kernel does not say. A connected socket's refusals are not among them: they
+        find no socket (docs/cards.md, "The allow list")."""
+        counts = [ep.socket_drops() for ep in self._endpoints()]
+        return None if not counts or None in counts else sum(c for c in counts if c is not None)
 
     def _resolve_allow(self) -> None:
         """Resolve the allow list's host names in a worker thread (one at a time, once a second at most)."""
@@ -384,6 +439,7 @@ class SlaveServer:
                 else:
                     log.info("allow_master_resolved", rules=allow.rules)
             self._unresolved = list(allow.unresolved)
+            self._refuse_others()  # the kernel's filter follows the names
 
         fut.add_done_callback(done)
 
@@ -459,7 +515,7 @@ class SlaveServer:
         return {**self._stats_head(since), "stations": dict(map(self._station_stats, self.stations))}
 
     def _stats_head(self, since: int) -> dict[str, Any]:
-        return {**self.cpu(), "unaddressed": self.unaddressed,
+        return {**self.cpu(), "unaddressed": self.unaddressed, "socket_drops": self.socket_drops(),
                 "stalls": self.stalls.events("self", last=_STALLS_REPORTED, since=since),
                 "stall_totals": self.stalls.totals("self", since)}
 

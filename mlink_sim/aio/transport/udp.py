@@ -8,11 +8,11 @@ from __future__ import annotations
 import asyncio
 import socket
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from ..._log import get_logger
-from . import mmsg
+from . import mmsg, sockfilter
 from .ports import BurstPort, DatagramPort, PeerPort, bursts
 from ..timing.arrival import ArrivalPoll
 
@@ -153,8 +153,11 @@ class BatchEndpoint:
     ``sendto`` never raises: a full send buffer or an ICMP error reported on the socket is counted in
     :attr:`errors`, like :class:`DatagramEndpoint`."""
 
-    def __init__(self, sock: PeerPort, on_batch: Callable[[list[tuple[bytes, Any]]], None], burst: int) -> None:
+    def __init__(self, sock: PeerPort, on_batch: Callable[[list[tuple[bytes, Any]]], None], burst: int,
+                 raw: socket.socket | None = None) -> None:
+        """*raw*: the ``socket.socket`` under *sock* (the kernel's settings: :meth:`refuse_others`); None: *sock*."""
         self._sock: PeerPort | None = sock  #: a socket.socket, a BurstSocket (recvmmsg) or a capture's tap
+        self._raw = raw if raw is not None else sock if isinstance(sock, socket.socket) else None
         self._bursts: BurstPort | None = bursts(sock)  #: its batched calls, where it has them
         self._on_batch = on_batch
         self._burst = burst
@@ -234,6 +237,19 @@ class BatchEndpoint:
         False where the socket cannot."""
         return self._sock is not None and self._bursts is not None and self._bursts.enable_gro()
 
+    def refuse_others(self, sources: Sequence[sockfilter.Source], *, connect: bool = True) -> str | None:
+        """Have the kernel drop every datagram from a source none of *sources* names
+        (:func:`~mlink_sim.aio.transport.sockfilter.refuse_others`): ``"connect"``, ``"filter"``, or None where it
+        cannot (no such socket, no such kernel); OSError or ValueError when the kernel refuses the filter."""
+        if self._raw is None or not sockfilter.supported():
+            return None
+        return sockfilter.refuse_others(self._raw, sources, connect=connect)
+
+    def socket_drops(self) -> int | None:
+        """The datagrams the kernel dropped at this socket (:func:`~mlink_sim.aio.transport.sockfilter.socket_drops`:
+        refused by its filter, or the receive buffer full), None where it does not say."""
+        return None if self._raw is None or self._sock is None else sockfilter.socket_drops(self._raw)
+
     @property
     def local_address(self) -> tuple[str, int]:
         assert self._sock is not None
@@ -244,7 +260,7 @@ class BatchEndpoint:
         poll, self.poll = self.poll, None
         if poll is not None:
             poll.close()
-        sock, self._sock, self._bursts = self._sock, None, None
+        sock, self._sock, self._bursts, self._raw = self._sock, None, None, None
         if sock is not None:
             close_watched(self._loop, sock)
 
@@ -264,7 +280,7 @@ async def open_batch_endpoint(on_batch: Callable[[list[tuple[bytes, Any]]], None
     elif batched and mmsg.supported():
         sock = mmsg.BurstSocket(plain)
     try:
-        return BatchEndpoint(sock, on_batch, burst)
+        return BatchEndpoint(sock, on_batch, burst, raw=plain)
     except BaseException:
         sock.close()
         raise

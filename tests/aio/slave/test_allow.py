@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import ipaddress
+
 import pytest
 
 from mlink_sim.aio.slave.allow import AllowList, parse_rule
+from mlink_sim.aio.transport.sockfilter import Source
 from mlink_sim.aio.control.token import ControlToken, is_loopback
 
 
@@ -25,6 +28,24 @@ def test_screen_splits_a_read_and_keeps_the_batch_when_every_source_is_allowed()
     assert kept is batch and others == []
     mixed = [(b"a", ("127.0.0.1", 4000)), (b"x", ("127.0.0.1", 4001)), (b"b", ("127.0.0.1", 4000))]
     assert allow.screen(mixed) == ([mixed[0], mixed[2]], [mixed[1]])
+
+
+def test_the_kernel_is_given_every_source_of_both_lists() -> None:
+    """``AllowList.sources``: the rules that may change a station and the status sources, as the kernel's filter
+    takes them (a host as a /32 with each of its ports, or any); a status source changes nothing."""
+    allow = AllowList(["192.0.2.2:5000", "192.0.2.2:5001", "10.1.0.0/16"], status=["127.0.0.1", "192.0.2.2:5000"])
+    assert allow.sources() == [Source(ipaddress.ip_network("192.0.2.2/32"), 5000),
+                               Source(ipaddress.ip_network("192.0.2.2/32"), 5001),
+                               Source(ipaddress.ip_network("10.1.0.0/16")), Source(ipaddress.ip_network("127.0.0.1/32"))]
+    assert not allow.allows(("127.0.0.1", 4000)) and not allow.named
+
+
+def test_a_status_source_s_host_name_is_resolved_too() -> None:
+    allow = AllowList(["192.0.2.1"], status=["localhost"])
+    assert allow.named and allow.stale
+    allow.resolve()
+    assert Source(ipaddress.ip_network("127.0.0.1/32")) in allow.sources()
+    assert not allow.allows(("127.0.0.1", 4000)) and allow.unresolved == []
 
 
 def test_a_host_name_allows_its_addresses_once_resolved() -> None:

@@ -361,3 +361,43 @@ async def test_a_stats_reply_is_paced_only_for_so_long(monkeypatch) -> None:
         client.close()
         endpoint.close()
         await server.close()
+
+
+async def _until(predicate, timeout: float = 5.0) -> bool:
+    """Poll *predicate* every 20 ms for up to *timeout* seconds of the wall clock (a generous bound: the outcome
+    is what the test checks, not how soon)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        await asyncio.sleep(0.02)
+    return False
+
+
+async def test_a_host_name_s_filter_follows_it_and_a_source_the_kernel_refused_makes_it_resolve_again() -> None:
+    """``--allow-master localhost:PORT``: the kernel's filter takes the master once the name resolved and drops a
+    stranger's datagram (the card never counts it); that drop makes the list resolve the name again (a container's
+    address may have changed), once a second at most."""
+    from mlink_sim.aio.slave.allow import AllowList
+
+    master, stranger = _client(), _client()
+    allow = AllowList([f"localhost:{master.getsockname()[1]}"])
+    resolved = []
+    resolve = allow.resolve
+    allow.resolve = lambda: (resolve(), resolved.append(time.monotonic()))[0]
+    card = create_card("si-t3", settings=settings_for("si-t3", 0x21, 17, []), now=0)
+    server = SlaveServer([HostedStation(card, "127.0.0.1", 0)], allow=allow)
+    await server.start()
+    addr = ("127.0.0.1", server.stations[0].port)
+    try:
+        assert await _until(lambda: len(resolved) == 1 and not allow.stale)
+        master.sendto(_nop(1), addr)
+        assert await _answers(master) == [1]
+        stranger.sendto(_nop(2), addr)
+        assert await _answers(stranger) == []
+        assert await _until(lambda: len(resolved) == 2)
+        assert card.counters.as_dict()["foreign_source"] == 0 and (server.socket_drops() or 0) >= 1
+    finally:
+        master.close()
+        stranger.close()
+        await server.close()
