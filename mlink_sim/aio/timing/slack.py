@@ -51,7 +51,7 @@ class Slack:
         self.until_ns = 0  #: the slack lasts until then (monotonic ns); past it, it is closed
         self.opened = 0  #: slacks opened
         self.waited_out = 0  #: steps that ran because no slack opened in time (max_wait_s)
-        self._waiters: list[asyncio.Future[None]] = []
+        self._waiters: list[asyncio.Future[bool]] = []
 
     def open(self, until_ns: int) -> None:
         """The cycle's answers are in: work may run until *until_ns* (the clock's next wake-up, less a margin)."""
@@ -62,7 +62,7 @@ class Slack:
             self._waiters = []
             for fut in waiters:
                 if not fut.done():
-                    fut.set_result(None)
+                    fut.set_result(True)
 
     def left_ns(self) -> int:
         """How much of the slack is left now (0: none, or it is closed)."""
@@ -86,13 +86,25 @@ class Slack:
             if remaining <= 0:
                 self.waited_out += 1
                 return
-            fut: asyncio.Future[None] = loop.create_future()
+            # A future and a timer, not ``asyncio.wait_for``: on Python 3.11 wait_for returns the result instead of
+            # raising when the task is cancelled in the turn its future is done, and a slack opens every cycle, so
+            # a sampler told to stop would go on sampling.
+            fut: asyncio.Future[bool] = loop.create_future()
             self._waiters.append(fut)
+            timer = loop.call_later(remaining, _expire, fut)
             try:
-                await asyncio.wait_for(fut, remaining)
-            except TimeoutError:
+                opened = await fut
+            finally:
+                timer.cancel()
+            if not opened:
                 self.waited_out += 1
                 return
+
+
+def _expire(fut: asyncio.Future[bool]) -> None:
+    """No slack opened in time: the waiter runs all the same."""
+    if not fut.done():
+        fut.set_result(False)
 
 
 class Step:

@@ -32,6 +32,25 @@ async def test_a_step_waits_for_the_slack_to_open() -> None:
     assert slack.waited_out == 0 and slack.opened == 1
 
 
+async def test_a_waiter_cancelled_in_the_turn_its_slack_opens_is_cancelled() -> None:
+    """A sampler stopped at the end of a run, in the turn a cycle's slack opened for it, stops: the cancellation is
+    not lost to the slack's opening (the trace's close waits for its task)."""
+    slack = Slack(max_wait_s=10.0)
+
+    async def sampler() -> None:
+        while True:
+            await slack.wait(20 * _S)  # never fits: waits for the next opening each time
+
+    task = asyncio.ensure_future(sampler())
+    for _ in range(3):
+        await asyncio.sleep(0.01)
+        slack.open(time.monotonic_ns() + _S)
+    task.cancel()
+    slack.open(time.monotonic_ns() + _S)  # the same turn
+    done, _ = await asyncio.wait({task}, timeout=5.0)
+    assert task in done and task.cancelled()
+
+
 async def test_a_slack_too_short_for_the_step_is_not_taken() -> None:
     slack = Slack(max_wait_s=10.0)
     slack.open(time.monotonic_ns() + 10 * _S)
