@@ -20,7 +20,7 @@ Tables: SI-ET3 11/12, SI-T3 5/6, SI-T/V7 1/2 and §7.2). The WDT byte follows th
 
 For each kind of command: how many were sent, the share **late** (answered more than one transmission cycle after
 the cycle's start, when the command was sent, or not at all), RTT p50 and p99 (from the cycle's start to the read).
-The target (docs/performance.md, "When each command is answered"): each command's late share within 2 points of
+The target (docs/timing.md, "When each command is answered"): each command's late share within 2 points of
 NOP's, and its p99 within 1.2 × NOP's.
 
     python -m benchmarks.reply                                   # every case, real time on and off (~8 min)
