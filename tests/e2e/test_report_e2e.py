@@ -192,22 +192,27 @@ def test_a_real_clock_run_traces_control_requests_and_its_report_opens_offline(t
     up = subprocess.Popen([*MLINK, "up", str(cfg), "--no-status", "--duration", "6s", "--trace", str(trace),
                            "--report-html", str(html), "--report", str(report), "--control", "127.0.0.1:0"],
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    assert up.stderr is not None
-    control = None
-    for _ in range(50):
-        line = up.stderr.readline()
-        if line.startswith("control: "):
-            control = line.split()[1]
-            break
-    assert control, "no control endpoint announced"
-    time.sleep(1.0)
-    r = run_cli("control", control, "impair", "0x23", "delay=100us,for=300ms", "--timeout", "6")
-    assert r.returncode == 0, r.stdout + r.stderr
-    r = run_cli("param", "set", control, "0x21", "C1-02=1.5")  # answered later, through the master
-    assert r.returncode == 0, r.stdout + r.stderr
-    r = run_cli("param", "get", control, "0x21", "C1-02")  # reads only: no row
-    assert r.returncode == 0, r.stdout + r.stderr
-    out, err = up.communicate(timeout=90)
+    try:
+        assert up.stderr is not None
+        control = None
+        for _ in range(50):
+            line = up.stderr.readline()
+            if line.startswith("control: "):
+                control = line.split()[1]
+                break
+        assert control, "no control endpoint announced"
+        time.sleep(1.0)
+        r = run_cli("control", control, "impair", "0x23", "delay=100us,for=300ms", "--timeout", "6")
+        assert r.returncode == 0, r.stdout + r.stderr
+        r = run_cli("param", "set", control, "0x21", "C1-02=1.5")  # answered later, through the master
+        assert r.returncode == 0, r.stdout + r.stderr
+        r = run_cli("param", "get", control, "0x21", "C1-02")  # reads only: no row
+        assert r.returncode == 0, r.stdout + r.stderr
+        out, err = up.communicate(timeout=90)
+    finally:  # a failed step leaves no network running beside the rest of the suite
+        if up.poll() is None:
+            up.kill()
+            up.communicate()
     assert_held(subprocess.CompletedProcess(up.args, up.returncode, out, err))
     header, by, actions = _samples(trace)
     assert tuple(header) == TRACE_COLUMNS and set(by) == {"0x21", "0x23"}
