@@ -10,7 +10,7 @@ from types import SimpleNamespace
 from typing import Any
 
 from mlink_sim.aio.master.runner import Master, NullMetrics
-from mlink_sim.aio.timing.slack import MOST_NEED_NS, Slack, Step
+from mlink_sim.aio.timing.slack import MOST_NEED_NS, AnswersIn, Slack, Step
 
 _S = 1_000_000_000
 
@@ -84,40 +84,42 @@ def test_a_step_needs_the_longest_recent_one_decaying_and_bounded() -> None:
     assert step.need_ns == MOST_NEED_NS
 
 
-def _master() -> Master:
+def _told() -> tuple[AnswersIn, list[int]]:
+    """A master's AnswersIn and the list its hook appends to, once a cycle."""
     core: Any = SimpleNamespace(plan=SimpleNamespace(link=SimpleNamespace(name="ML3")), on_rtt=None)
-    return Master(core, {}, NullMetrics(), asyncio.new_event_loop())
+    loop = asyncio.new_event_loop()
+    master = Master(core, {}, NullMetrics(), loop)
+    loop.close()  # the master is only asked when its answers are in: its loop never runs
+    told: list[int] = []
+    master.answers_in.hook = lambda: told.append(1)
+    return master.answers_in, told
 
 
 def test_a_master_says_once_a_cycle_that_its_answers_are_in() -> None:
-    master = _master()
-    told: list[int] = []
-    master.answers_in.hook = lambda: told.append(1)
-    master.answers_in.expect(3)
-    master.answers_in.answered(2)
+    answers_in, told = _told()
+    answers_in.expect(3)
+    answers_in.answered(2)
     assert told == []
-    master.answers_in.answered(1)
-    master.answers_in.answered(1)  # a late answer of another cycle: told once only
+    answers_in.answered(1)
+    answers_in.answered(1)  # a late answer of another cycle: told once only
     assert told == [1]
 
 
 def test_a_station_that_stopped_answering_is_not_waited_for() -> None:
     """Cycle 1: two of three answer; from cycle 2 on the silent one is not awaited; once it answers again the master
     waits for it again."""
-    master = _master()
-    told: list[int] = []
-    master.answers_in.hook = lambda: told.append(1)
-    master.answers_in.expect(3)
-    master.answers_in.answered(2)
+    answers_in, told = _told()
+    answers_in.expect(3)
+    answers_in.answered(2)
     assert told == []
-    master.answers_in.expect(3)
-    master.answers_in.answered(2)
+    answers_in.expect(3)
+    answers_in.answered(2)
     assert told == [1]
-    master.answers_in.expect(3)
-    master.answers_in.answered(3)  # it is back: told after two, then one more came
+    answers_in.expect(3)
+    answers_in.answered(3)  # it is back: told after two, then one more came
     assert told == [1, 1]
-    master.answers_in.expect(3)
-    master.answers_in.answered(2)
+    answers_in.expect(3)
+    answers_in.answered(2)
     assert told == [1, 1]
-    master.answers_in.answered(1)
+    answers_in.answered(1)
     assert told == [1, 1, 1]
